@@ -1,0 +1,88 @@
+//! ARAP core benchmarks: precompute, 1 iteration and 10 iterations (warm-started) on the
+//! peer-comparison meshes. Run with `cargo bench --bench arap`.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use bevy_wii_deform::deform::*;
+use criterion::{Criterion, criterion_group, criterion_main};
+use glam::{DQuat, DVec3};
+
+fn problem(mesh: &TriMesh) -> (Arc<Topology>, Constraints) {
+    let topology = Arc::new(Topology::new(&mesh.positions, &mesh.triangles).unwrap());
+    let (fixed, handle) = synth::slab_regions(topology.positions(), 1, 0.1, 0.1);
+    let pivot = handle
+        .iter()
+        .map(|&i| topology.positions()[i as usize])
+        .sum::<DVec3>()
+        / handle.len() as f64;
+    let shift = 0.15 * topology.bounding_diagonal();
+    let c = Constraints::with_handle(
+        fixed,
+        handle,
+        RigidTransform::new(
+            DQuat::from_rotation_z(0.6),
+            DVec3::new(shift, 0.0, 0.0),
+            pivot,
+        ),
+    );
+    (topology, c)
+}
+
+fn meshes() -> Vec<(String, TriMesh)> {
+    let mut out = Vec::new();
+    let dir = Path::new("../shared/meshes");
+    if let Ok(arm) = TriMesh::read(dir.join("armadillo.off")) {
+        out.push(("armadillo_26k".into(), arm.clone()));
+        out.push(("armadillo_x4_104k".into(), synth::subdivide_midpoint(&arm)));
+    } else {
+        eprintln!("../shared/meshes/armadillo.off absent: benchmarking synthetic meshes only");
+    }
+    out.push(("bar_20k".into(), synth::bar(100, 200, 0.1, 1.0)));
+    out.push(("bar_100k".into(), synth::bar(170, 588, 0.1, 1.0)));
+    out
+}
+
+fn bench(c: &mut Criterion) {
+    let never = || false;
+    for (name, mesh) in meshes() {
+        let (topology, constraints) = problem(&mesh);
+        let mut g = c.benchmark_group(&name);
+        g.sample_size(10);
+        g.bench_function("precompute", |b| {
+            b.iter(|| {
+                let t = Arc::new(Topology::new(&mesh.positions, &mesh.triangles).unwrap());
+                ArapSolver::precompute(t, &constraints, SolverSettings::default()).unwrap()
+            })
+        });
+        let solver =
+            ArapSolver::precompute(topology.clone(), &constraints, SolverSettings::default())
+                .unwrap();
+        let warm = solver
+            .solve(
+                &constraints,
+                &SolveOptions { max_iterations: 3, tolerance: 0.0 },
+                InitialGuess::Laplacian,
+                &never,
+            )
+            .unwrap();
+        for iters in [1u32, 10] {
+            g.bench_function(format!("iterations_{iters}"), |b| {
+                b.iter(|| {
+                    solver
+                        .solve(
+                            &constraints,
+                            &SolveOptions { max_iterations: iters, tolerance: 0.0 },
+                            InitialGuess::Warm(&warm),
+                            &never,
+                        )
+                        .unwrap()
+                })
+            });
+        }
+        g.finish();
+    }
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

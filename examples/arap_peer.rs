@@ -1,0 +1,129 @@
+//! Peer-benchmark CLI: runs the same ARAP problem as libigl/CGAL/Open3D harnesses.
+//!
+//! ```text
+//! cargo run --release --example arap_peer -- MESH.off CONSTRAINTS.txt ITERS REPEATS OUT.bin [--init laplacian|rest]
+//! ```
+//! CONSTRAINTS.txt: `n_fixed n_handle`, then `index x y z` per constrained vertex (fixed first,
+//! at rest; then handle vertices at their targets). Each repeat times precompute (topology,
+//! weights, assembly, both factorizations) and exactly ITERS iterations (no early stop).
+//! OUT.bin: n×3 little-endian f64 positions of the last repeat, input vertex order. The last
+//! stdout line is `{"precompute_s": [..], "solve_s": [..]}`; energies go to stderr.
+
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::time::Instant;
+
+use bevy_wii_deform::deform::*;
+use glam::DVec3;
+
+fn parse_constraints(text: &str) -> Result<(Vec<u32>, Vec<(u32, DVec3)>), String> {
+    let mut lines = text.lines().filter(|l| !l.trim().is_empty());
+    let head = lines.next().ok_or("empty constraints file")?;
+    let counts: Vec<usize> = head
+        .split_whitespace()
+        .map(|t| t.parse().map_err(|_| format!("bad count {t:?}")))
+        .collect::<Result<_, _>>()?;
+    let [nf, nh] = counts[..] else {
+        return Err("line 1 must be `n_fixed n_handle`".into());
+    };
+    let mut fixed = Vec::with_capacity(nf);
+    let mut handle = Vec::with_capacity(nh);
+    for k in 0..nf + nh {
+        let line = lines.next().ok_or(format!("missing constraint line {}", k + 2))?;
+        let f: Vec<&str> = line.split_whitespace().collect();
+        if f.len() != 4 {
+            return Err(format!("line {}: expected `index x y z`", k + 2));
+        }
+        let i: u32 = f[0].parse().map_err(|_| format!("bad index {:?}", f[0]))?;
+        let mut p = [0.0; 3];
+        for c in 0..3 {
+            p[c] = f[c + 1]
+                .parse()
+                .map_err(|_| format!("bad coordinate {:?}", f[c + 1]))?;
+        }
+        if k < nf {
+            fixed.push(i);
+        } else {
+            handle.push((i, DVec3::from_array(p)));
+        }
+    }
+    Ok((fixed, handle))
+}
+
+fn run() -> Result<(), String> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    if args.len() < 5 {
+        return Err("usage: arap_peer MESH.off CONSTRAINTS.txt ITERS REPEATS OUT.bin [--init laplacian|rest]".into());
+    }
+    let mesh = TriMesh::read(&args[0]).map_err(|e| e.to_string())?;
+    let text = std::fs::read_to_string(&args[1]).map_err(|e| format!("{}: {e}", args[1]))?;
+    let (fixed, targets) = parse_constraints(&text)?;
+    let iters: u32 = args[2].parse().map_err(|_| "ITERS must be an integer")?;
+    let repeats: usize = args[3].parse().map_err(|_| "REPEATS must be an integer")?;
+    let init = match args.iter().position(|a| a == "--init").map(|i| args.get(i + 1)) {
+        None => "laplacian",
+        Some(Some(v)) if v == "laplacian" || v == "rest" => v.as_str(),
+        Some(v) => return Err(format!("--init must be laplacian or rest, got {v:?}")),
+    };
+    let constraints = Constraints {
+        fixed,
+        handles: vec![],
+        targets,
+    };
+    let options = SolveOptions {
+        max_iterations: iters,
+        tolerance: 0.0,
+    };
+    let (mut pre, mut sol_s) = (Vec::new(), Vec::new());
+    let mut last = None;
+    for _ in 0..repeats.max(1) {
+        let t0 = Instant::now();
+        let topology = Arc::new(
+            Topology::new(&mesh.positions, &mesh.triangles).map_err(|e| e.to_string())?,
+        );
+        let solver = ArapSolver::precompute(topology.clone(), &constraints, SolverSettings::default())
+            .map_err(|e| e.to_string())?;
+        pre.push(t0.elapsed().as_secs_f64());
+        let t1 = Instant::now();
+        let guess = if init == "rest" {
+            InitialGuess::Rest
+        } else {
+            InitialGuess::Laplacian
+        };
+        let sol = solver
+            .solve(&constraints, &options, guess, &|| false)
+            .map_err(|e| e.to_string())?;
+        sol_s.push(t1.elapsed().as_secs_f64());
+        eprintln!(
+            "energies: {:?} (exact final {:.6}); precompute stats {:?}",
+            sol.stats.energies,
+            arap_energy(&topology, &sol.positions),
+            solver.precompute_stats()
+        );
+        last = Some((topology, sol));
+    }
+    let (topology, sol) = last.expect("at least one repeat");
+    let render = topology.to_render(&sol.positions);
+    let mut bytes = Vec::with_capacity(render.len() * 24);
+    for p in &render {
+        for c in p.to_array() {
+            bytes.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    std::fs::write(&args[4], bytes).map_err(|e| format!("{}: {e}", args[4]))?;
+    println!(
+        "{}",
+        serde_json::json!({ "precompute_s": pre, "solve_s": sol_s })
+    );
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    match run() {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("arap_peer: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,18 @@
+//! Writes the sandbox's built-in models to `assets/models/*.obj` (generated, not modelled).
+//!
+//! ```text
+//! cargo run --release --example make_assets
+//! ```
+
+#[path = "common/models.rs"]
+mod models;
+
+fn main() {
+    std::fs::create_dir_all("assets/models").expect("create assets/models");
+    for name in models::MODELS {
+        let mesh = models::generate(name).expect("built-in model");
+        let path = format!("assets/models/{name}.obj");
+        std::fs::write(&path, mesh.to_obj()).expect("write model");
+        println!("{path}: {} vertices, {} triangles", mesh.positions.len(), mesh.triangles.len());
+    }
+}

@@ -1,0 +1,128 @@
+//! Plugin benchmark: a headless app in which a handle is dragged every frame; measures the
+//! main-thread time spent in the plugin's systems and completed solves per second.
+//!
+//! ```text
+//! cargo run --release --example plugin_bench -- [--mesh PATH | --bar VERTICES] [--seconds 5] [--iterations 1] --json
+//! ```
+//! Default mesh: ../shared/meshes/armadillo.off (26k vertices), else a 26k-vertex bar.
+//! Last stdout line: `{"vertices": N, "frames": F, "main_ms_median": x, "main_ms_p99": y, "solves_per_s": z}`.
+
+use std::time::{Duration, Instant};
+
+use bevy::prelude::*;
+use bevy_wii_deform::deform::{TriMesh, synth};
+use bevy_wii_deform::prelude::*;
+
+#[derive(Resource, Default)]
+struct Timing {
+    start: Option<Instant>,
+    frames_ms: Vec<f64>,
+    measuring: bool,
+}
+
+#[derive(Component)]
+struct Dragged;
+
+fn start_timer(mut t: ResMut<Timing>) {
+    t.start = Some(Instant::now());
+}
+
+fn stop_timer(mut t: ResMut<Timing>) {
+    if let Some(s) = t.start.take() {
+        if t.measuring {
+            t.frames_ms.push(s.elapsed().as_secs_f64() * 1e3);
+        }
+    }
+}
+
+fn drag(time: Res<Time>, timing: Res<Timing>, mut q: Query<&mut Transform, With<Dragged>>) {
+    if !timing.measuring {
+        return;
+    }
+    let t = time.elapsed_secs();
+    for mut tr in &mut q {
+        tr.rotation = Quat::from_rotation_z(0.6 * (t * 0.7).sin()) * Quat::from_rotation_x(0.3 * (t * 0.5).sin());
+    }
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let arg = |name: &str| args.iter().position(|a| a == name).and_then(|i| args.get(i + 1)).cloned();
+    let seconds: f64 = arg("--seconds").and_then(|v| v.parse().ok()).unwrap_or(5.0);
+    let iterations: u32 = arg("--iterations").and_then(|v| v.parse().ok()).unwrap_or(1);
+    let tri = if let Some(path) = arg("--mesh") {
+        TriMesh::read(&path).unwrap_or_else(|e| panic!("{path}: {e}"))
+    } else if let Some(n) = arg("--bar").and_then(|v| v.parse().ok()) {
+        synth::bar_with_vertices(n)
+    } else {
+        TriMesh::read("../shared/meshes/armadillo.off").unwrap_or_else(|_| {
+            eprintln!("../shared/meshes/armadillo.off absent: using a 26k-vertex bar");
+            synth::bar_with_vertices(26_002)
+        })
+    };
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        bevy::asset::AssetPlugin::default(),
+        bevy::mesh::MeshPlugin,
+        bevy::transform::TransformPlugin,
+        DeformPlugin::default(),
+    ))
+    .init_resource::<Timing>()
+    .add_systems(Update, drag.before(DeformSystems::Request).before(start_timer))
+    .add_systems(Update, start_timer.before(DeformSystems::Prepare))
+    .add_systems(Update, stop_timer.after(DeformSystems::Writeback));
+    app.finish();
+    app.cleanup();
+    let mesh = mesh_from_triangles(&tri.positions, &tri.triangles);
+    let (fixed, handle) = synth::slab_regions(&tri.positions, 1, 0.1, 0.1);
+    let bundle_src = mesh.clone();
+    let h = app.world_mut().resource_mut::<Assets<Mesh>>().add(mesh);
+    let e = app
+        .world_mut()
+        .spawn((
+            Mesh3d(h),
+            Deformable { max_iterations: Some(iterations), tolerance: Some(0.0), ..default() },
+            FixedRegion(fixed),
+        ))
+        .id();
+    let (handle, transform) = DeformHandle::bundle(&bundle_src, e, handle);
+    app.world_mut().spawn((handle, transform, Dragged));
+    // Wait for topology + factorization (the first solve).
+    let setup = Instant::now();
+    while app.world().get::<DeformStatus>(e).map(|s| s.solves).unwrap_or(0) == 0 {
+        app.update();
+        std::thread::sleep(Duration::from_millis(1));
+        if setup.elapsed() > Duration::from_secs(120) {
+            panic!("setup did not finish");
+        }
+    }
+    eprintln!("setup (topology + factorization + first solve): {:.0} ms", setup.elapsed().as_secs_f64() * 1e3);
+    let solves0 = app.world().get::<DeformStatus>(e).unwrap().solves;
+    app.world_mut().resource_mut::<Timing>().measuring = true;
+    let start = Instant::now();
+    let frame = Duration::from_secs_f64(1.0 / 60.0);
+    while start.elapsed().as_secs_f64() < seconds {
+        let f0 = Instant::now();
+        app.update();
+        if let Some(rest) = frame.checked_sub(f0.elapsed()) {
+            std::thread::sleep(rest);
+        }
+    }
+    let elapsed = start.elapsed().as_secs_f64();
+    let status = app.world().get::<DeformStatus>(e).unwrap().clone();
+    let mut ms = app.world().resource::<Timing>().frames_ms.clone();
+    ms.sort_by(f64::total_cmp);
+    let pct = |p: f64| ms[((ms.len() - 1) as f64 * p).round() as usize];
+    eprintln!("last solve: {} iterations, energy {:.5}, {:.2} ms", status.iterations, status.energy, status.solve_ms);
+    println!(
+        "{}",
+        serde_json::json!({
+            "vertices": status.vertices,
+            "frames": ms.len(),
+            "main_ms_median": pct(0.5),
+            "main_ms_p99": pct(0.99),
+            "solves_per_s": (status.solves - solves0) as f64 / elapsed,
+        })
+    );
+}

@@ -1,0 +1,121 @@
+//! Terminal monitor for Wii Remotes: lists remotes, shows live orientation, buttons, battery
+//! and calibration state. `--emulate` runs the same against the software emulator.
+//!
+//! ```text
+//! cargo run --release --example wiimote_monitor [-- --emulate] [--seconds 30] [--filter paper|ours|raw]
+//! ```
+//! On Linux, when no usable remote is found it explains why (hidraw permissions → the udev
+//! rule to add; the hid-wiimote kernel driver bound → how to unbind or blacklist it).
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use bevy_wii_deform::wiimote::protocol::Buttons;
+use bevy_wii_deform::wiimote::*;
+
+fn button_names(b: Buttons) -> String {
+    let names = [
+        (Buttons::A, "A"),
+        (Buttons::B, "B"),
+        (Buttons::ONE, "1"),
+        (Buttons::TWO, "2"),
+        (Buttons::PLUS, "+"),
+        (Buttons::MINUS, "-"),
+        (Buttons::HOME, "Home"),
+        (Buttons::UP, "Up"),
+        (Buttons::DOWN, "Down"),
+        (Buttons::LEFT, "Left"),
+        (Buttons::RIGHT, "Right"),
+    ];
+    let v: Vec<&str> = names.iter().filter(|(m, _)| b.pressed(*m)).map(|(_, n)| *n).collect();
+    if v.is_empty() { "-".into() } else { v.join(" ") }
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let emulate = args.iter().any(|a| a == "--emulate");
+    let seconds: f64 = args
+        .iter()
+        .position(|a| a == "--seconds")
+        .and_then(|i| args.get(i + 1))
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(30.0);
+    let filter = match args.iter().position(|a| a == "--filter").and_then(|i| args.get(i + 1)).map(String::as_str) {
+        Some("paper") => FilterKind::Paper,
+        Some("raw") => FilterKind::Raw,
+        _ => FilterKind::Fusion,
+    };
+    let source = if emulate {
+        let controls = EmulatorControls::default();
+        controls.set_motion(Arc::new(DemoMotion));
+        println!("Using the software emulator (Wii Remote Plus, scripted motion).");
+        RemoteSource::Emulated(vec![(EmulatorConfig::default(), controls)])
+    } else {
+        #[cfg(feature = "hidapi")]
+        {
+            match discover() {
+                Ok(list) if !list.is_empty() => {
+                    for d in &list {
+                        println!("found {} (PID {:04X}) {:?} at {}", d.product.as_deref().unwrap_or("?"), d.product_id, d.serial, d.path);
+                    }
+                }
+                Ok(_) => {
+                    println!("No Wii Remote visible through hidapi. Pair it with the red SYNC button.");
+                    for d in diagnose_linux() {
+                        println!("- {d}");
+                    }
+                }
+                Err(e) => println!("hidapi failed: {e}"),
+            }
+            RemoteSource::Hid
+        }
+        #[cfg(not(feature = "hidapi"))]
+        {
+            println!("built without the `hidapi` feature; use --emulate");
+            return;
+        }
+    };
+    let manager = WiimoteManager::start(ManagerConfig {
+        source,
+        session: SessionConfig { filter, ..Default::default() },
+        channel_capacity: 1024,
+    });
+    let start = Instant::now();
+    let mut last_print = Instant::now();
+    let mut latest: Option<(RemoteId, OrientationSample)> = None;
+    let mut buttons = Buttons(0);
+    let mut battery = 0u8;
+    while start.elapsed().as_secs_f64() < seconds {
+        while let Ok(e) = manager.events().recv_timeout(Duration::from_millis(20)) {
+            match e {
+                ManagerEvent::Connected { id, info } => println!(
+                    "remote {id} connected: {:?}, MotionPlus {:?} (calibration CRC {}), accel cal valid {}, battery {}",
+                    info.kind, info.motion_plus, if info.motion_plus_crc_ok { "ok" } else { "failed: fallback constants" }, info.accel_calibration_valid, info.battery
+                ),
+                ManagerEvent::Disconnected { id, reason } => println!("remote {id} disconnected: {reason}"),
+                ManagerEvent::Problem(p) => println!("problem: {p}"),
+                ManagerEvent::Buttons { buttons: b, .. } => buttons = b,
+                ManagerEvent::Battery { level, .. } => battery = level,
+                ManagerEvent::Orientation { id, sample } => latest = Some((id, sample)),
+                ManagerEvent::MotionPlus { id, state } => println!("remote {id}: MotionPlus {state:?}"),
+                ManagerEvent::Extension { id, state } => println!("remote {id}: extension {state:?}"),
+                ManagerEvent::Nunchuk { .. } => {}
+            }
+            if last_print.elapsed() > Duration::from_millis(250) {
+                break;
+            }
+        }
+        if last_print.elapsed() > Duration::from_millis(250) {
+            last_print = Instant::now();
+            if let Some((id, s)) = latest {
+                let (z, x, y) = s.orientation.to_euler(glam::EulerRot::ZXY);
+                println!(
+                    "[{id}] yaw {:7.1}° pitch {:6.1}° roll {:6.1}° | |ω| {:6.1}°/s | still {} | calibration {:?} conf {:.2} | buttons {} | battery {}",
+                    z.to_degrees(), x.to_degrees(), y.to_degrees(),
+                    s.angular_velocity.length().to_degrees(), s.still, s.calibration.phase, s.calibration.confidence,
+                    button_names(buttons), battery
+                );
+            }
+        }
+    }
+}

@@ -1,0 +1,170 @@
+//! Best-fit rotations of 3×3 covariance matrices.
+//!
+//! Both functions find the rotation `R ∈ SO(3)` maximising `tr(Rᵀ A)` — for an ARAP cell with
+//! `A = Σ_j w_ij e'_ij e_ijᵀ` that is the rotation taking rest edges `e` closest to deformed
+//! edges `e'`. Reflections are never returned.
+
+use glam::{DMat3, DQuat, DVec3};
+
+/// Fast warm-started rotation fit (Müller et al. 2016, "A robust method to extract the
+/// rotational part of deformations"): starting from `q`, repeatedly rotate by
+/// `ω = Σ_c r_c × a_c / |Σ_c r_c · a_c|` until the step is below `tol` radians or
+/// `max_iterations` are done. Monotone in `tr(Rᵀ A)`; with a good start (last frame's
+/// rotation) it needs one or two steps.
+pub fn fit_rotation_warm(a: &DMat3, mut q: DQuat, max_iterations: u32, tol: f64) -> DQuat {
+    for _ in 0..max_iterations {
+        let r = DMat3::from_quat(q);
+        let num = r.x_axis.cross(a.x_axis) + r.y_axis.cross(a.y_axis) + r.z_axis.cross(a.z_axis);
+        let den = (r.x_axis.dot(a.x_axis) + r.y_axis.dot(a.y_axis) + r.z_axis.dot(a.z_axis)).abs()
+            + 1e-300;
+        let w = num / den;
+        let angle = w.length();
+        if !(angle > tol) {
+            break;
+        }
+        q = (DQuat::from_axis_angle(w / angle, angle) * q).normalize();
+    }
+    q
+}
+
+/// Exact best-fit rotation (Horn 1987): the unit quaternion is the eigenvector of the largest
+/// eigenvalue of a symmetric 4×4 matrix built from `A`, found with cyclic Jacobi sweeps.
+/// Slower than [`fit_rotation_warm`]; used for reporting energies.
+pub fn best_rotation_exact(a: &DMat3) -> DQuat {
+    // Horn's S = Σ rest·deformedᵀ = Aᵀ; S[x][y] = A[y][x] (A column-major: A.col(c).row(r)).
+    let s = |x: usize, y: usize| a.col(x)[y];
+    let (sxx, sxy, sxz) = (s(0, 0), s(0, 1), s(0, 2));
+    let (syx, syy, syz) = (s(1, 0), s(1, 1), s(1, 2));
+    let (szx, szy, szz) = (s(2, 0), s(2, 1), s(2, 2));
+    let mut n = [
+        [sxx + syy + szz, syz - szy, szx - sxz, sxy - syx],
+        [syz - szy, sxx - syy - szz, sxy + syx, szx + sxz],
+        [szx - sxz, sxy + syx, -sxx + syy - szz, syz + szy],
+        [sxy - syx, szx + sxz, syz + szy, -sxx - syy + szz],
+    ];
+    let mut v = [[0.0f64; 4]; 4];
+    for (i, row) in v.iter_mut().enumerate() {
+        row[i] = 1.0;
+    }
+    let scale: f64 = n.iter().flatten().map(|x| x * x).sum::<f64>().sqrt();
+    if !(scale > 0.0) || !scale.is_finite() {
+        return DQuat::IDENTITY;
+    }
+    for _sweep in 0..50 {
+        let off: f64 = (0..4)
+            .flat_map(|i| (0..4).filter(move |&j| j != i).map(move |j| (i, j)))
+            .map(|(i, j)| n[i][j] * n[i][j])
+            .sum();
+        if off.sqrt() <= 1e-15 * scale {
+            break;
+        }
+        for p in 0..3 {
+            for q in p + 1..4 {
+                if n[p][q].abs() <= 1e-300 {
+                    continue;
+                }
+                let theta = (n[q][q] - n[p][p]) / (2.0 * n[p][q]);
+                let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
+                let t = if theta == 0.0 { 1.0 } else { t };
+                let c = 1.0 / (t * t + 1.0).sqrt();
+                let sn = t * c;
+                for k in 0..4 {
+                    let (nkp, nkq) = (n[k][p], n[k][q]);
+                    n[k][p] = c * nkp - sn * nkq;
+                    n[k][q] = sn * nkp + c * nkq;
+                }
+                for k in 0..4 {
+                    let (npk, nqk) = (n[p][k], n[q][k]);
+                    n[p][k] = c * npk - sn * nqk;
+                    n[q][k] = sn * npk + c * nqk;
+                }
+                for row in v.iter_mut() {
+                    let (vp, vq) = (row[p], row[q]);
+                    row[p] = c * vp - sn * vq;
+                    row[q] = sn * vp + c * vq;
+                }
+            }
+        }
+    }
+    let best = (0..4)
+        .max_by(|&i, &j| n[i][i].total_cmp(&n[j][j]))
+        .unwrap_or(0);
+    let q = DQuat::from_xyzw(v[1][best], v[2][best], v[3][best], v[0][best]);
+    if q.length_squared() > 0.0 {
+        q.normalize()
+    } else {
+        DQuat::IDENTITY
+    }
+}
+
+/// Covariance `Σ w e' eᵀ` helper: adds `w · deformed · restᵀ` to `acc`.
+#[inline]
+pub fn add_outer(acc: &mut DMat3, w: f64, deformed: DVec3, rest: DVec3) {
+    let d = deformed * w;
+    acc.x_axis += d * rest.x;
+    acc.y_axis += d * rest.y;
+    acc.z_axis += d * rest.z;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn lcg(seed: &mut u64) -> f64 {
+        *seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((*seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+    }
+
+    fn random_case(seed: &mut u64) -> (DQuat, DMat3) {
+        let axis = DVec3::new(lcg(seed), lcg(seed), lcg(seed)).normalize();
+        let r = DQuat::from_axis_angle(axis, lcg(seed) * 3.1);
+        let mut a = DMat3::ZERO;
+        for _ in 0..6 {
+            let e = DVec3::new(lcg(seed), lcg(seed), lcg(seed));
+            add_outer(&mut a, 0.5 + lcg(seed).abs(), r * e, e);
+        }
+        (r, a)
+    }
+
+    fn same(a: DQuat, b: DQuat) -> bool {
+        a.dot(b).abs() > 1.0 - 1e-10
+    }
+
+    #[test]
+    fn exact_recovers_random_rotations() {
+        let mut seed = 7;
+        for _ in 0..200 {
+            let (r, a) = random_case(&mut seed);
+            assert!(same(best_rotation_exact(&a), r), "exact fit missed {r:?}");
+        }
+    }
+
+    #[test]
+    fn warm_fit_recovers_rotations_from_identity() {
+        let mut seed = 11;
+        for _ in 0..200 {
+            let (r, a) = random_case(&mut seed);
+            let q = fit_rotation_warm(&a, DQuat::IDENTITY, 100, 1e-14);
+            assert!(same(q, r), "warm fit {q:?} vs {r:?}");
+        }
+    }
+
+    #[test]
+    fn never_returns_a_reflection() {
+        // A pure reflection covariance: the best rotation has determinant +1.
+        let a = DMat3::from_diagonal(DVec3::new(1.0, 1.0, -1.0));
+        let q = best_rotation_exact(&a);
+        assert!((DMat3::from_quat(q).determinant() - 1.0).abs() < 1e-12);
+        let q = fit_rotation_warm(&a, DQuat::IDENTITY, 50, 1e-14);
+        assert!((DMat3::from_quat(q).determinant() - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn degenerate_covariance_is_identity_and_finite() {
+        assert_eq!(best_rotation_exact(&DMat3::ZERO), DQuat::IDENTITY);
+        let q = fit_rotation_warm(&DMat3::ZERO, DQuat::IDENTITY, 10, 1e-12);
+        assert!(q.is_finite());
+    }
+}

@@ -1,0 +1,700 @@
+//! The ARAP solver: precompute (weights, elimination, two Cholesky factorizations) and
+//! warm-startable local/global iterations.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::sparse::linalg::SupernodalThreshold;
+use faer::sparse::linalg::cholesky::{
+    CholeskySymbolicParams, LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
+    factorize_symbolic_cholesky,
+};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::{Conj, Mat, Par, Side};
+use glam::{DMat3, DQuat, DVec3};
+use rayon::prelude::*;
+
+use super::constraints::{ConstraintError, Constraints, Role};
+use super::rotation::{add_outer, fit_rotation_warm};
+use super::topology::{MeshError, Topology, WeightMode};
+
+/// Which Cholesky variant to use.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Factorization {
+    /// Let faer decide from the flop ratio (default).
+    #[default]
+    Auto,
+    /// Column-by-column factor: smallest factor, fastest triangular solves on surface meshes.
+    Simplicial,
+    /// Dense supernodes: faster factorization on large meshes.
+    Supernodal,
+}
+
+/// Settings fixed for the lifetime of a factorization.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SolverSettings {
+    /// Edge weights of the ARAP energy.
+    pub weights: WeightMode,
+    /// Optional region of interest (one flag per welded vertex). Vertices outside it are not
+    /// unknowns: they stay at their rest position, which keeps the system small on big meshes.
+    pub region_of_interest: Option<Vec<bool>>,
+    /// Cholesky variant.
+    pub factorization: Factorization,
+}
+
+/// Per-solve options.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SolveOptions {
+    /// Maximum local/global iterations.
+    pub max_iterations: u32,
+    /// Stop when the relative energy decrease of one iteration falls below this (0 = never).
+    pub tolerance: f64,
+}
+
+impl Default for SolveOptions {
+    fn default() -> Self {
+        Self {
+            max_iterations: 10,
+            tolerance: 1e-3,
+        }
+    }
+}
+
+/// Where the iterations start.
+#[derive(Debug, Clone, Copy)]
+pub enum InitialGuess<'a> {
+    /// The paper's detail-preserving uniform Laplacian solve (use when an edit starts).
+    Laplacian,
+    /// The rest pose with identity rotations.
+    Rest,
+    /// The previous solution (warm start: use for every frame of a drag).
+    Warm(&'a Solution),
+}
+
+/// Why a precompute or solve failed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SolveError {
+    /// Invalid mesh.
+    #[error(transparent)]
+    Mesh(#[from] MeshError),
+    /// Invalid constraints.
+    #[error(transparent)]
+    Constraint(#[from] ConstraintError),
+    /// The system is not positive definite (raw cotangent weights on an obtuse mesh).
+    #[error("the system matrix is not positive definite (try clamped cotangent weights)")]
+    NotPositiveDefinite,
+    /// The solve was given constraints whose vertex sets differ from the factorized ones.
+    #[error("constraint vertex sets changed since precompute; precompute again")]
+    ConstraintSetChanged,
+    /// A warm-start solution does not belong to this mesh.
+    #[error("warm-start solution has {got} vertices, the mesh has {expected}")]
+    WarmStartMismatch {
+        /// Vertices in the given solution.
+        got: usize,
+        /// Vertices in the mesh.
+        expected: usize,
+    },
+    /// The cancel callback asked to stop.
+    #[error("solve cancelled")]
+    Cancelled,
+    /// The result contained NaN or infinity (nothing is returned).
+    #[error("the solve produced non-finite positions")]
+    NonFinite,
+    /// Allocation or factorization bookkeeping failed.
+    #[error("sparse factorization failed: {0}")]
+    Factorization(String),
+}
+
+/// Statistics of one precompute.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PrecomputeStats {
+    /// Number of unknown vertices.
+    pub free_vertices: usize,
+    /// Vertices kept at rest because their connected component has no constraint.
+    pub unconstrained_component_vertices: usize,
+    /// Whether faer chose (or was told to use) the supernodal variant.
+    pub supernodal: bool,
+    /// Non-zeros of the Cholesky factor.
+    pub factor_nonzeros: usize,
+    /// Seconds assembling the matrices.
+    pub assembly_s: f64,
+    /// Seconds in ordering + symbolic factorization.
+    pub symbolic_s: f64,
+    /// Seconds in the two numeric factorizations.
+    pub numeric_s: f64,
+}
+
+/// Statistics of one solve.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SolveStats {
+    /// Local/global iterations done.
+    pub iterations: u32,
+    /// Normalised energy of the initial guess (not available for warm starts).
+    pub initial_energy: Option<f64>,
+    /// Normalised energy after each iteration (solver weights).
+    pub energies: Vec<f64>,
+    /// Seconds computing the initial guess.
+    pub init_s: f64,
+    /// Seconds in local steps (rotation fits).
+    pub local_s: f64,
+    /// Seconds assembling right-hand sides.
+    pub rhs_s: f64,
+    /// Seconds in triangular solves.
+    pub global_s: f64,
+    /// Total seconds.
+    pub total_s: f64,
+    /// The cancel callback stopped the iterations early (the result is the last completed
+    /// iteration).
+    pub cancelled: bool,
+}
+
+impl SolveStats {
+    /// Final energy (after the last iteration, or of the initial guess).
+    pub fn final_energy(&self) -> f64 {
+        self.energies
+            .last()
+            .copied()
+            .or(self.initial_energy)
+            .unwrap_or(0.0)
+    }
+}
+
+/// Result of a solve, in welded vertex order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Solution {
+    /// Deformed positions.
+    pub positions: Vec<DVec3>,
+    /// Best-fit rotation of each vertex' cell (rotate normals and tangents with these).
+    pub rotations: Vec<DQuat>,
+    /// Statistics.
+    pub stats: SolveStats,
+}
+
+impl Solution {
+    /// The rest pose as a solution (identity rotations).
+    pub fn rest(topology: &Topology) -> Self {
+        Self {
+            positions: topology.positions().to_vec(),
+            rotations: vec![DQuat::IDENTITY; topology.vertex_count()],
+            stats: SolveStats::default(),
+        }
+    }
+}
+
+const NOT_FREE: u32 = u32::MAX;
+const CHUNK: usize = 512;
+
+/// A factorized ARAP problem for one mesh and one set of constrained vertices.
+///
+/// `precompute` does everything that depends only on the mesh and the constraint *sets*;
+/// [`ArapSolver::solve`] then accepts any handle transforms/targets for those sets and only
+/// back-substitutes. Constrained vertices are eliminated, so the system is SPD.
+///
+/// Connected components (of positive-weight edges) containing no constrained vertex would make
+/// the system singular; they keep their rest pose, as do isolated vertices.
+pub struct ArapSolver {
+    topology: Arc<Topology>,
+    settings: SolverSettings,
+    constraints: Constraints,
+    roles: Vec<Role>,
+    weights: Vec<f64>,
+    weighted_rest_sum: Vec<DVec3>,
+    cell_rest_sq: Vec<f64>,
+    rest_norm: f64,
+    free: Vec<u32>,
+    free_index: Vec<u32>,
+    active: Vec<bool>,
+    symbolic: Option<SymbolicCholesky<u32>>,
+    cot_factor: Vec<f64>,
+    uniform_factor: Vec<f64>,
+    stats: PrecomputeStats,
+}
+
+impl std::fmt::Debug for ArapSolver {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ArapSolver")
+            .field("vertices", &self.topology.vertex_count())
+            .field("stats", &self.stats)
+            .finish_non_exhaustive()
+    }
+}
+
+impl ArapSolver {
+    /// Weights, elimination of the constrained vertices and both Cholesky factorizations
+    /// (uniform Laplacian for the initial guess, cotangent Laplacian for the iterations).
+    pub fn precompute(
+        topology: Arc<Topology>,
+        constraints: &Constraints,
+        settings: SolverSettings,
+    ) -> Result<Self, SolveError> {
+        let t0 = Instant::now();
+        let n = topology.vertex_count();
+        let mut roles = constraints.roles(n)?;
+        constraints.check_values()?;
+        if let Some(roi) = &settings.region_of_interest {
+            if roi.len() != n {
+                return Err(ConstraintError::RegionLength {
+                    got: roi.len(),
+                    expected: n,
+                }
+                .into());
+            }
+            for (r, inside) in roles.iter_mut().zip(roi) {
+                if !inside && *r == Role::Free {
+                    *r = Role::Fixed;
+                }
+            }
+        }
+        let weights = topology.weights(settings.weights);
+        let offsets = topology.offsets();
+        let nbrs = topology.neighbor_list();
+        let p = topology.positions();
+
+        // Pin free components with no (non-zero weight) path to a constrained vertex.
+        let mut pinned = 0usize;
+        let mut seen = vec![false; n];
+        let mut stack = Vec::new();
+        let mut comp = Vec::new();
+        for s in 0..n {
+            if seen[s] || roles[s] != Role::Free {
+                continue;
+            }
+            comp.clear();
+            let mut anchored = false;
+            seen[s] = true;
+            stack.push(s as u32);
+            while let Some(i) = stack.pop() {
+                comp.push(i);
+                let i = i as usize;
+                for e in offsets[i] as usize..offsets[i + 1] as usize {
+                    if weights[e] == 0.0 {
+                        continue;
+                    }
+                    let j = nbrs[e] as usize;
+                    if roles[j] != Role::Free {
+                        anchored = true;
+                    } else if !seen[j] {
+                        seen[j] = true;
+                        stack.push(j as u32);
+                    }
+                }
+            }
+            if !anchored {
+                pinned += comp.len();
+                for &v in &comp {
+                    roles[v as usize] = Role::Fixed;
+                }
+            }
+        }
+
+        let mut free_index = vec![NOT_FREE; n];
+        let free: Vec<u32> = (0..n as u32)
+            .filter(|&i| roles[i as usize] == Role::Free)
+            .collect();
+        for (f, &i) in free.iter().enumerate() {
+            free_index[i as usize] = f as u32;
+        }
+        let mut active = vec![false; n];
+        for &i in &free {
+            active[i as usize] = true;
+            for e in offsets[i as usize]..offsets[i as usize + 1] {
+                active[nbrs[e as usize] as usize] = true;
+            }
+        }
+        let mut weighted_rest_sum = vec![DVec3::ZERO; n];
+        let mut cell_rest_sq = vec![0.0; n];
+        for i in 0..n {
+            for e in offsets[i] as usize..offsets[i + 1] as usize {
+                let d = p[i] - p[nbrs[e] as usize];
+                weighted_rest_sum[i] += weights[e] * d;
+                cell_rest_sq[i] += weights[e] * d.length_squared();
+            }
+        }
+        let rest_norm: f64 = cell_rest_sq.iter().sum();
+
+        // Lower-triangular CSC of the free×free block (same pattern for both systems).
+        let nf = free.len();
+        let mut col_ptr = Vec::with_capacity(nf + 1);
+        let mut row_idx = Vec::new();
+        let mut cot_vals = Vec::new();
+        let mut uni_vals = Vec::new();
+        col_ptr.push(0u32);
+        for (f, &i) in free.iter().enumerate() {
+            let i = i as usize;
+            let range = offsets[i] as usize..offsets[i + 1] as usize;
+            row_idx.push(f as u32);
+            cot_vals.push(weights[range.clone()].iter().sum::<f64>());
+            uni_vals.push(range.len() as f64);
+            for e in range {
+                let fj = free_index[nbrs[e] as usize];
+                if fj != NOT_FREE && fj as usize > f {
+                    row_idx.push(fj);
+                    cot_vals.push(-weights[e]);
+                    uni_vals.push(-1.0);
+                }
+            }
+            col_ptr.push(row_idx.len() as u32);
+        }
+        let assembly_s = t0.elapsed().as_secs_f64();
+
+        let mut stats = PrecomputeStats {
+            free_vertices: nf,
+            unconstrained_component_vertices: pinned,
+            assembly_s,
+            ..Default::default()
+        };
+        let (symbolic, cot_factor, uniform_factor) = if nf == 0 {
+            (None, Vec::new(), Vec::new())
+        } else {
+            let t1 = Instant::now();
+            let pattern = SymbolicSparseColMatRef::new_checked(nf, nf, &col_ptr, None, &row_idx);
+            let threshold = match settings.factorization {
+                Factorization::Auto => SupernodalThreshold::AUTO,
+                Factorization::Simplicial => SupernodalThreshold::FORCE_SIMPLICIAL,
+                Factorization::Supernodal => SupernodalThreshold::FORCE_SUPERNODAL,
+            };
+            let symbolic = factorize_symbolic_cholesky(
+                pattern,
+                Side::Lower,
+                SymmetricOrdering::Amd,
+                CholeskySymbolicParams {
+                    supernodal_flop_ratio_threshold: threshold,
+                    ..Default::default()
+                },
+            )
+            .map_err(|e| SolveError::Factorization(format!("{e:?}")))?;
+            stats.symbolic_s = t1.elapsed().as_secs_f64();
+            stats.supernodal = matches!(symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_));
+            stats.factor_nonzeros = symbolic.len_val();
+            let t2 = Instant::now();
+            let (cot, uni) = rayon::join(
+                || numeric(&symbolic, pattern, &cot_vals),
+                || numeric(&symbolic, pattern, &uni_vals),
+            );
+            stats.numeric_s = t2.elapsed().as_secs_f64();
+            (Some(symbolic), cot?, uni?)
+        };
+
+        Ok(Self {
+            topology,
+            settings,
+            constraints: constraints.clone(),
+            roles,
+            weights,
+            weighted_rest_sum,
+            cell_rest_sq,
+            rest_norm,
+            free,
+            free_index,
+            active,
+            symbolic,
+            cot_factor,
+            uniform_factor,
+            stats,
+        })
+    }
+
+    /// The mesh this solver was built for.
+    pub fn topology(&self) -> &Arc<Topology> {
+        &self.topology
+    }
+
+    /// Settings used at precompute.
+    pub fn settings(&self) -> &SolverSettings {
+        &self.settings
+    }
+
+    /// Precompute statistics.
+    pub fn precompute_stats(&self) -> &PrecomputeStats {
+        &self.stats
+    }
+
+    /// True when `constraints` has the vertex sets this solver was factorized for.
+    pub fn accepts(&self, constraints: &Constraints) -> bool {
+        self.constraints.same_sets(constraints)
+    }
+
+    /// Solves for the given constraint values. `should_cancel` is polled before every
+    /// iteration; when it returns true the solve stops: with [`SolveError::Cancelled`] if no
+    /// iteration was done yet, otherwise with the last completed iteration and
+    /// [`SolveStats::cancelled`] set.
+    pub fn solve(
+        &self,
+        constraints: &Constraints,
+        options: &SolveOptions,
+        initial: InitialGuess<'_>,
+        should_cancel: &dyn Fn() -> bool,
+    ) -> Result<Solution, SolveError> {
+        let t0 = Instant::now();
+        if !self.accepts(constraints) {
+            return Err(SolveError::ConstraintSetChanged);
+        }
+        constraints.check_values()?;
+        let topo = &*self.topology;
+        let n = topo.vertex_count();
+        let rest = topo.positions();
+        let mut stats = SolveStats::default();
+
+        // Known positions; free ones start at rest (overwritten by the initial guess).
+        let mut x: Vec<DVec3> = match initial {
+            InitialGuess::Warm(prev) => {
+                if prev.positions.len() != n || prev.rotations.len() != n {
+                    return Err(SolveError::WarmStartMismatch {
+                        got: prev.positions.len(),
+                        expected: n,
+                    });
+                }
+                prev.positions.clone()
+            }
+            _ => rest.to_vec(),
+        };
+        for i in 0..n {
+            let role = self.roles[i];
+            if role != Role::Free {
+                x[i] = constraints.position_of(role, rest[i]);
+            }
+        }
+        let mut quats = match initial {
+            InitialGuess::Warm(prev) => prev.rotations.clone(),
+            _ => vec![DQuat::IDENTITY; n],
+        };
+        let mut mats: Vec<DMat3> = quats.par_iter().map(|q| DMat3::from_quat(*q)).collect();
+        let mut rhs = Mat::<f64>::zeros(self.free.len(), 3);
+        let mut mem = self.symbolic.as_ref().map(|s| {
+            MemBuffer::new(s.solve_in_place_scratch::<f64>(3, Par::Seq))
+        });
+
+        // Inactive cells (no free vertex in the one-ring) never change during the solve.
+        let tl = Instant::now();
+        let constant_energy = self.local_step(&x, &mut quats, &mut mats, false);
+        stats.local_s += tl.elapsed().as_secs_f64();
+
+        let ti = Instant::now();
+        let mut prev_energy = None;
+        match initial {
+            InitialGuess::Laplacian if !self.free.is_empty() => {
+                self.uniform_rhs(&x, &mut rhs);
+                self.back_substitute(&self.uniform_factor, &mut rhs, mem.as_mut(), &mut x);
+            }
+            _ => {}
+        }
+        stats.init_s = ti.elapsed().as_secs_f64();
+        if !matches!(initial, InitialGuess::Warm(_) | InitialGuess::Rest) {
+            let tl = Instant::now();
+            let e = (constant_energy + self.local_step(&x, &mut quats, &mut mats, true))
+                / self.rest_norm.max(f64::MIN_POSITIVE);
+            stats.local_s += tl.elapsed().as_secs_f64();
+            stats.initial_energy = Some(e);
+            prev_energy = Some(e);
+        }
+
+        if !self.free.is_empty() {
+            for _ in 0..options.max_iterations {
+                if should_cancel() {
+                    if stats.iterations == 0 {
+                        return Err(SolveError::Cancelled);
+                    }
+                    stats.cancelled = true;
+                    break;
+                }
+                let tr = Instant::now();
+                self.arap_rhs(&x, &mats, &mut rhs);
+                let tg = Instant::now();
+                self.back_substitute(&self.cot_factor, &mut rhs, mem.as_mut(), &mut x);
+                let tl = Instant::now();
+                let e = (constant_energy + self.local_step(&x, &mut quats, &mut mats, true))
+                    / self.rest_norm.max(f64::MIN_POSITIVE);
+                stats.rhs_s += (tg - tr).as_secs_f64();
+                stats.global_s += (tl - tg).as_secs_f64();
+                stats.local_s += tl.elapsed().as_secs_f64();
+                stats.iterations += 1;
+                stats.energies.push(e);
+                if let Some(pe) = prev_energy {
+                    let decrease = (pe - e) / f64::max(pe, 1e-300);
+                    if options.tolerance > 0.0 && decrease < options.tolerance {
+                        break;
+                    }
+                }
+                prev_energy = Some(e);
+            }
+        }
+        if matches!(initial, InitialGuess::Rest | InitialGuess::Warm(_))
+            && stats.iterations == 0
+        {
+            // Rotations of free cells were never fitted for these positions.
+            let e = constant_energy + self.local_step(&x, &mut quats, &mut mats, true);
+            stats.initial_energy = Some(e / self.rest_norm.max(f64::MIN_POSITIVE));
+        }
+        if !x.iter().all(|p| p.is_finite()) || !quats.iter().all(|q| q.is_finite()) {
+            return Err(SolveError::NonFinite);
+        }
+        stats.total_s = t0.elapsed().as_secs_f64();
+        Ok(Solution {
+            positions: x,
+            rotations: quats,
+            stats,
+        })
+    }
+
+    /// Fits rotations for active (`true`) or inactive (`false`) cells; returns their summed
+    /// un-normalised energy.
+    fn local_step(
+        &self,
+        x: &[DVec3],
+        quats: &mut [DQuat],
+        mats: &mut [DMat3],
+        active: bool,
+    ) -> f64 {
+        let topo = &*self.topology;
+        let rest = topo.positions();
+        let offsets = topo.offsets();
+        let nbrs = topo.neighbor_list();
+        quats
+            .par_chunks_mut(CHUNK)
+            .zip(mats.par_chunks_mut(CHUNK))
+            .enumerate()
+            .map(|(c, (qs, ms))| {
+                let mut energy = 0.0;
+                for k in 0..qs.len() {
+                    let i = c * CHUNK + k;
+                    if self.active[i] != active {
+                        continue;
+                    }
+                    let mut a = DMat3::ZERO;
+                    let mut sq = 0.0;
+                    for e in offsets[i] as usize..offsets[i + 1] as usize {
+                        let w = self.weights[e];
+                        if w == 0.0 {
+                            continue;
+                        }
+                        let j = nbrs[e] as usize;
+                        let d = x[i] - x[j];
+                        add_outer(&mut a, w, d, rest[i] - rest[j]);
+                        sq += w * d.length_squared();
+                    }
+                    let q = fit_rotation_warm(&a, qs[k], 40, 1e-12);
+                    let r = DMat3::from_quat(q);
+                    let tr = r.x_axis.dot(a.x_axis) + r.y_axis.dot(a.y_axis) + r.z_axis.dot(a.z_axis);
+                    energy += sq + self.cell_rest_sq[i] - 2.0 * tr;
+                    qs[k] = q;
+                    ms[k] = r;
+                }
+                energy
+            })
+            .sum::<f64>()
+            .max(0.0)
+    }
+
+    /// `b_i = Σ_j (w_ij/2)(R_i + R_j)(p_i − p_j) + Σ_{j known} w_ij x_j`.
+    fn arap_rhs(&self, x: &[DVec3], mats: &[DMat3], rhs: &mut Mat<f64>) {
+        let topo = &*self.topology;
+        let rest = topo.positions();
+        let offsets = topo.offsets();
+        let nbrs = topo.neighbor_list();
+        let b: Vec<DVec3> = self
+            .free
+            .par_iter()
+            .with_min_len(CHUNK)
+            .map(|&i| {
+                let i = i as usize;
+                let mut b = 0.5 * (mats[i] * self.weighted_rest_sum[i]);
+                for e in offsets[i] as usize..offsets[i + 1] as usize {
+                    let w = self.weights[e];
+                    let j = nbrs[e] as usize;
+                    b += (0.5 * w) * (mats[j] * (rest[i] - rest[j]));
+                    if self.free_index[j] == NOT_FREE {
+                        b += w * x[j];
+                    }
+                }
+                b
+            })
+            .collect();
+        write_columns(&b, rhs);
+    }
+
+    /// Uniform Laplacian right-hand side `deg_i p_i − Σ_j p_j + Σ_{j known} x_j`.
+    fn uniform_rhs(&self, x: &[DVec3], rhs: &mut Mat<f64>) {
+        let topo = &*self.topology;
+        let rest = topo.positions();
+        let offsets = topo.offsets();
+        let nbrs = topo.neighbor_list();
+        let b: Vec<DVec3> = self
+            .free
+            .par_iter()
+            .with_min_len(CHUNK)
+            .map(|&i| {
+                let i = i as usize;
+                let range = offsets[i] as usize..offsets[i + 1] as usize;
+                let mut b = range.len() as f64 * rest[i];
+                for e in range {
+                    let j = nbrs[e] as usize;
+                    b -= rest[j];
+                    if self.free_index[j] == NOT_FREE {
+                        b += x[j];
+                    }
+                }
+                b
+            })
+            .collect();
+        write_columns(&b, rhs);
+    }
+
+    fn back_substitute(
+        &self,
+        factor: &[f64],
+        rhs: &mut Mat<f64>,
+        mem: Option<&mut MemBuffer>,
+        x: &mut [DVec3],
+    ) {
+        let (Some(symbolic), Some(mem)) = (self.symbolic.as_ref(), mem) else {
+            return;
+        };
+        LltRef::new(symbolic, factor).solve_in_place_with_conj(
+            Conj::No,
+            rhs.as_mut(),
+            Par::Seq,
+            MemStack::new(mem),
+        );
+        let (c0, c1, c2) = (rhs.col_as_slice(0), rhs.col_as_slice(1), rhs.col_as_slice(2));
+        for (f, &i) in self.free.iter().enumerate() {
+            x[i as usize] = DVec3::new(c0[f], c1[f], c2[f]);
+        }
+    }
+}
+
+fn write_columns(b: &[DVec3], rhs: &mut Mat<f64>) {
+    for c in 0..3 {
+        let col = rhs.col_as_slice_mut(c);
+        for (dst, v) in col.iter_mut().zip(b) {
+            *dst = v[c];
+        }
+    }
+}
+
+fn numeric(
+    symbolic: &SymbolicCholesky<u32>,
+    pattern: SymbolicSparseColMatRef<'_, u32>,
+    values: &[f64],
+) -> Result<Vec<f64>, SolveError> {
+    let mut factor = vec![0.0f64; symbolic.len_val()];
+    let mut mem = MemBuffer::try_new(
+        symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
+    )
+    .map_err(|_| SolveError::Factorization("out of memory".into()))?;
+    symbolic
+        .factorize_numeric_llt(
+            &mut factor,
+            SparseColMatRef::new(pattern, values),
+            Side::Lower,
+            Default::default(),
+            Par::Seq,
+            MemStack::new(&mut mem),
+            Default::default(),
+        )
+        .map_err(|_| SolveError::NotPositiveDefinite)?;
+    if factor.iter().any(|v| !v.is_finite()) {
+        return Err(SolveError::NotPositiveDefinite);
+    }
+    Ok(factor)
+}

@@ -1,0 +1,341 @@
+//! Synthetic meshes generated in code (for tests, benchmarks and the sandbox's assets).
+
+use glam::DVec3;
+
+use super::io::TriMesh;
+
+/// A closed cylinder ("bar") along +Y from `y = 0` to `y = length`, with `radial` vertices per
+/// ring, `rings` rings and one centre vertex per cap: `radial · rings + 2` vertices.
+pub fn bar(radial: u32, rings: u32, radius: f64, length: f64) -> TriMesh {
+    let radial = radial.max(3);
+    let rings = rings.max(2);
+    let mut positions = Vec::with_capacity((radial * rings + 2) as usize);
+    for r in 0..rings {
+        let y = length * r as f64 / (rings - 1) as f64;
+        for k in 0..radial {
+            let a = std::f64::consts::TAU * k as f64 / radial as f64;
+            positions.push(DVec3::new(radius * a.cos(), y, radius * a.sin()));
+        }
+    }
+    let bottom = positions.len() as u32;
+    positions.push(DVec3::ZERO);
+    let top = positions.len() as u32;
+    positions.push(DVec3::new(0.0, length, 0.0));
+    let id = |r: u32, k: u32| r * radial + k % radial;
+    let mut triangles = Vec::new();
+    for r in 0..rings - 1 {
+        for k in 0..radial {
+            let (a, b, c, d) = (id(r, k), id(r, k + 1), id(r + 1, k + 1), id(r + 1, k));
+            triangles.push([a, c, b]);
+            triangles.push([a, d, c]);
+        }
+    }
+    for k in 0..radial {
+        triangles.push([bottom, id(0, k), id(0, k + 1)]);
+        triangles.push([top, id(rings - 1, k + 1), id(rings - 1, k)]);
+    }
+    TriMesh {
+        positions,
+        triangles,
+    }
+}
+
+/// A bar with about `target_vertices` vertices and a 1:10 radius:length ratio.
+pub fn bar_with_vertices(target_vertices: u32) -> TriMesh {
+    let radial = ((target_vertices as f64 / 2.0).sqrt()).round().max(3.0) as u32;
+    let rings = (target_vertices.saturating_sub(2) / radial).max(2);
+    bar(radial, rings, 0.1, 1.0)
+}
+
+/// An icosphere of radius `radius` subdivided `subdivisions` times (12, 42, 162, 642, … vertices).
+pub fn icosphere(subdivisions: u32, radius: f64) -> TriMesh {
+    let t = (1.0 + 5f64.sqrt()) / 2.0;
+    let mut positions: Vec<DVec3> = [
+        (-1.0, t, 0.0),
+        (1.0, t, 0.0),
+        (-1.0, -t, 0.0),
+        (1.0, -t, 0.0),
+        (0.0, -1.0, t),
+        (0.0, 1.0, t),
+        (0.0, -1.0, -t),
+        (0.0, 1.0, -t),
+        (t, 0.0, -1.0),
+        (t, 0.0, 1.0),
+        (-t, 0.0, -1.0),
+        (-t, 0.0, 1.0),
+    ]
+    .iter()
+    .map(|&(x, y, z)| DVec3::new(x, y, z).normalize())
+    .collect();
+    let mut triangles: Vec<[u32; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..subdivisions {
+        let mut mid = std::collections::HashMap::new();
+        let mut next = Vec::with_capacity(triangles.len() * 4);
+        let mut midpoint = |a: u32, b: u32, positions: &mut Vec<DVec3>| -> u32 {
+            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                positions.push(((positions[a as usize] + positions[b as usize]) * 0.5).normalize());
+                positions.len() as u32 - 1
+            })
+        };
+        for [a, b, c] in triangles {
+            let ab = midpoint(a, b, &mut positions);
+            let bc = midpoint(b, c, &mut positions);
+            let ca = midpoint(c, a, &mut positions);
+            next.extend_from_slice(&[[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        triangles = next;
+    }
+    for p in &mut positions {
+        *p *= radius;
+    }
+    TriMesh {
+        positions,
+        triangles,
+    }
+}
+
+/// Splits every triangle into its own three vertices (like a flat-shaded render mesh).
+pub fn split_per_face(mesh: &TriMesh) -> TriMesh {
+    let mut positions = Vec::with_capacity(mesh.triangles.len() * 3);
+    let mut triangles = Vec::with_capacity(mesh.triangles.len());
+    for t in &mesh.triangles {
+        let base = positions.len() as u32;
+        positions.extend(t.iter().map(|&i| mesh.positions[i as usize]));
+        triangles.push([base, base + 1, base + 2]);
+    }
+    TriMesh {
+        positions,
+        triangles,
+    }
+}
+
+/// Loop-style midpoint subdivision (each triangle → 4, no smoothing): ~4× the vertices.
+pub fn subdivide_midpoint(mesh: &TriMesh) -> TriMesh {
+    let mut positions = mesh.positions.clone();
+    let mut mid = std::collections::HashMap::new();
+    let mut triangles = Vec::with_capacity(mesh.triangles.len() * 4);
+    let mut midpoint = |a: u32, b: u32, positions: &mut Vec<DVec3>| -> u32 {
+        *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
+            positions.push((positions[a as usize] + positions[b as usize]) * 0.5);
+            positions.len() as u32 - 1
+        })
+    };
+    for &[a, b, c] in &mesh.triangles {
+        let ab = midpoint(a, b, &mut positions);
+        let bc = midpoint(b, c, &mut positions);
+        let ca = midpoint(c, a, &mut positions);
+        triangles.extend_from_slice(&[[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+    }
+    TriMesh {
+        positions,
+        triangles,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bar_counts() {
+        let m = bar(100, 200, 0.1, 1.0);
+        assert_eq!(m.positions.len(), 20_002);
+        assert_eq!(m.triangles.len(), 2 * 100 * 199 + 200);
+    }
+
+    #[test]
+    fn implicit_sphere_is_closed_and_outward() {
+        let m = implicit_surface(&|p: DVec3| p.length() - 1.0, DVec3::splat(-1.3), DVec3::splat(1.3), 20);
+        let t = crate::deform::Topology::new(&m.positions, &m.triangles).unwrap();
+        // Closed: every edge has exactly two triangles (Euler characteristic 2).
+        let edges = t.neighbor_list().len() / 2;
+        let chi = t.vertex_count() as i64 - edges as i64 + t.triangles().len() as i64;
+        assert_eq!(chi, 2);
+        // Outward: positive signed volume ≈ 4/3 π.
+        let vol: f64 = t
+            .triangles()
+            .iter()
+            .map(|tr| {
+                let [a, b, c] = tr.map(|i| t.positions()[i as usize]);
+                a.dot(b.cross(c)) / 6.0
+            })
+            .sum();
+        assert!((vol - 4.18879).abs() < 0.15, "{vol}");
+    }
+
+    #[test]
+    fn icosphere_counts() {
+        assert_eq!(icosphere(2, 1.0).positions.len(), 162);
+        assert_eq!(subdivide_midpoint(&icosphere(1, 1.0)).positions.len(), 162);
+    }
+}
+
+/// Splits vertices into a fixed "bottom" slab and a handle "top" slab along `axis`:
+/// vertices whose coordinate is within the lowest `fixed_fraction` of the bounding box are
+/// fixed, those within the highest `handle_fraction` are the handle. Used by benchmarks and
+/// the sandbox to build reproducible problems on any mesh.
+pub fn slab_regions(
+    positions: &[DVec3],
+    axis: usize,
+    fixed_fraction: f64,
+    handle_fraction: f64,
+) -> (Vec<u32>, Vec<u32>) {
+    let axis = axis.min(2);
+    let (mut lo, mut hi) = (f64::MAX, f64::MIN);
+    for p in positions {
+        lo = lo.min(p[axis]);
+        hi = hi.max(p[axis]);
+    }
+    let span = (hi - lo).max(f64::MIN_POSITIVE);
+    let mut fixed = Vec::new();
+    let mut handle = Vec::new();
+    for (i, p) in positions.iter().enumerate() {
+        let t = (p[axis] - lo) / span;
+        if t <= fixed_fraction {
+            fixed.push(i as u32);
+        } else if t >= 1.0 - handle_fraction {
+            handle.push(i as u32);
+        }
+    }
+    (fixed, handle)
+}
+
+/// Extracts the zero level set of `f` (negative inside) inside the box `[lo, hi]` sampled on a
+/// grid of `cells` cells along its longest side, by marching tetrahedra. The result is a
+/// closed, welded, consistently oriented (outward) triangle mesh; used to generate the
+/// sandbox models.
+pub fn implicit_surface(f: &dyn Fn(DVec3) -> f64, lo: DVec3, hi: DVec3, cells: u32) -> TriMesh {
+    let size = hi - lo;
+    let h = size.max_element() / cells.max(2) as f64;
+    let n = [
+        (size.x / h).ceil() as usize + 1,
+        (size.y / h).ceil() as usize + 1,
+        (size.z / h).ceil() as usize + 1,
+    ];
+    let id = |i: usize, j: usize, k: usize| (k * n[1] + j) * n[0] + i;
+    let point = |i: usize, j: usize, k: usize| lo + DVec3::new(i as f64, j as f64, k as f64) * h;
+    let mut values = vec![0.0; n[0] * n[1] * n[2]];
+    for k in 0..n[2] {
+        for j in 0..n[1] {
+            for i in 0..n[0] {
+                values[id(i, j, k)] = f(point(i, j, k));
+            }
+        }
+    }
+    let pos_of = |g: usize| {
+        let i = g % n[0];
+        let j = (g / n[0]) % n[1];
+        let k = g / (n[0] * n[1]);
+        point(i, j, k)
+    };
+    let mut edge_vertex = std::collections::HashMap::new();
+    let mut positions = Vec::new();
+    let mut triangles = Vec::new();
+    let mut vertex_on = |a: usize, b: usize, positions: &mut Vec<DVec3>| -> u32 {
+        let key = (a.min(b), a.max(b));
+        *edge_vertex.entry(key).or_insert_with(|| {
+            let (va, vb) = (values[a], values[b]);
+            let t = if (va - vb).abs() > 1e-300 { va / (va - vb) } else { 0.5 };
+            positions.push(pos_of(a).lerp(pos_of(b), t.clamp(0.0, 1.0)));
+            (positions.len() - 1) as u32
+        })
+    };
+    // Cube corners (x, y, z bits) and the 6 tetrahedra around the 0–7 diagonal.
+    const TETS: [[usize; 4]; 6] = [
+        [0, 1, 3, 7],
+        [0, 3, 2, 7],
+        [0, 2, 6, 7],
+        [0, 6, 4, 7],
+        [0, 4, 5, 7],
+        [0, 5, 1, 7],
+    ];
+    for k in 0..n[2] - 1 {
+        for j in 0..n[1] - 1 {
+            for i in 0..n[0] - 1 {
+                let corner = |c: usize| id(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1));
+                for tet in TETS {
+                    let g = tet.map(corner);
+                    let inside: Vec<usize> = (0..4).filter(|&v| values[g[v]] < 0.0).collect();
+                    let outside: Vec<usize> = (0..4).filter(|&v| values[g[v]] >= 0.0).collect();
+                    match inside.len() {
+                        1 | 3 => {
+                            let (apex, others) = if inside.len() == 1 {
+                                (inside[0], outside)
+                            } else {
+                                (outside[0], inside)
+                            };
+                            let t = others.iter().map(|&o| vertex_on(g[apex], g[o], &mut positions));
+                            let t: Vec<u32> = t.collect();
+                            triangles.push([t[0], t[1], t[2]]);
+                        }
+                        2 => {
+                            let (a, b) = (inside[0], inside[1]);
+                            let (c, d) = (outside[0], outside[1]);
+                            let ac = vertex_on(g[a], g[c], &mut positions);
+                            let ad = vertex_on(g[a], g[d], &mut positions);
+                            let bc = vertex_on(g[b], g[c], &mut positions);
+                            let bd = vertex_on(g[b], g[d], &mut positions);
+                            triangles.push([ac, ad, bd]);
+                            triangles.push([ac, bd, bc]);
+                        }
+                        _ => {}
+                    }
+                }
+            }
+        }
+    }
+    // Orient every triangle outward (along the gradient of f).
+    let eps = h * 0.1;
+    for t in &mut triangles {
+        let [a, b, c] = t.map(|i| positions[i as usize]);
+        let centre = (a + b + c) / 3.0;
+        let grad = DVec3::new(
+            f(centre + DVec3::X * eps) - f(centre - DVec3::X * eps),
+            f(centre + DVec3::Y * eps) - f(centre - DVec3::Y * eps),
+            f(centre + DVec3::Z * eps) - f(centre - DVec3::Z * eps),
+        );
+        if (b - a).cross(c - a).dot(grad) < 0.0 {
+            t.swap(1, 2);
+        }
+    }
+    // Drop slivers whose corners collapsed onto one grid point.
+    triangles.retain(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]);
+    TriMesh {
+        positions,
+        triangles,
+    }
+}
+
+/// Signed distance to a capsule from `a` to `b` with radius `r`.
+pub fn capsule(p: DVec3, a: DVec3, b: DVec3, r: f64) -> f64 {
+    let ab = b - a;
+    let t = ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0);
+    (p - (a + ab * t)).length() - r
+}
+
+/// Polynomial smooth minimum (blend radius `k`), for smooth unions of distance fields.
+pub fn smooth_min(a: f64, b: f64, k: f64) -> f64 {
+    let h = (0.5 + 0.5 * (b - a) / k).clamp(0.0, 1.0);
+    b + (a - b) * h - k * h * (1.0 - h)
+}

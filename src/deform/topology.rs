@@ -1,0 +1,365 @@
+//! Welded mesh topology and cotangent edge weights.
+
+use std::collections::HashMap;
+
+use glam::{DVec3, Vec3};
+
+/// Errors raised while building a [`Topology`] from render-mesh data.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MeshError {
+    /// The mesh has no vertices.
+    #[error("the mesh has no vertices")]
+    NoVertices,
+    /// The index buffer length is not a multiple of three.
+    #[error("index count {0} is not a multiple of 3 (triangle lists only)")]
+    IndexCountNotTriangles(usize),
+    /// A triangle refers to a vertex that does not exist.
+    #[error("triangle index {index} is out of range for {vertex_count} vertices")]
+    IndexOutOfRange {
+        /// The offending index.
+        index: u32,
+        /// Number of vertices in the mesh.
+        vertex_count: usize,
+    },
+    /// A vertex position is NaN or infinite.
+    #[error("vertex {vertex} has a non-finite position")]
+    NonFinitePosition {
+        /// Index of the offending (render) vertex.
+        vertex: usize,
+    },
+    /// More vertices than a `u32` index can address.
+    #[error("the mesh has {0} vertices, more than u32 indices can address")]
+    TooManyVertices(usize),
+}
+
+/// How edge weights are derived from the rest mesh.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum WeightMode {
+    /// `max(0, ½(cot α + cot β))`: negative weights clamped to zero (default; keeps the
+    /// iteration monotone on real meshes).
+    #[default]
+    ClampedCotangent,
+    /// `½(cot α + cot β)` as is. Can make the system indefinite on obtuse meshes.
+    RawCotangent,
+    /// Every edge weighs 1.
+    Uniform,
+}
+
+/// Welded triangle-mesh connectivity with per-edge cotangent weights, in CSR form.
+///
+/// Render meshes (glTF, OBJ) duplicate vertices at UV and normal seams. Solving on those split
+/// vertices tears the surface, so [`Topology`] welds vertices whose positions are bit-identical
+/// and keeps the map from render vertex to welded vertex. All vertex indices used by the solver
+/// are *welded* indices.
+#[derive(Debug, Clone)]
+pub struct Topology {
+    positions: Vec<DVec3>,
+    triangles: Vec<[u32; 3]>,
+    render_to_welded: Vec<u32>,
+    offsets: Vec<u32>,
+    neighbors: Vec<u32>,
+    cotangent: Vec<f64>,
+}
+
+/// Below this ratio of `|u × v|` to `|u|·|v|` a corner angle counts as degenerate (0 or 180°)
+/// and contributes no cotangent weight.
+const DEGENERATE_SINE: f64 = 1e-12;
+
+impl Topology {
+    /// Builds the topology of a triangle list given in render order (`f32` positions, flat
+    /// `u32` index buffer, as in a Bevy `Mesh`). Vertices at identical positions are welded.
+    pub fn from_render_mesh(positions: &[Vec3], indices: &[u32]) -> Result<Self, MeshError> {
+        if indices.len() % 3 != 0 {
+            return Err(MeshError::IndexCountNotTriangles(indices.len()));
+        }
+        let positions: Vec<DVec3> = positions.iter().map(|p| p.as_dvec3()).collect();
+        let triangles: Vec<[u32; 3]> = indices
+            .chunks_exact(3)
+            .map(|t| [t[0], t[1], t[2]])
+            .collect();
+        Self::new(&positions, &triangles)
+    }
+
+    /// Builds the topology from `f64` positions and triangles. Vertices at bit-identical
+    /// positions are welded; triangles that become degenerate (repeated corner) are dropped.
+    pub fn new(positions: &[DVec3], triangles: &[[u32; 3]]) -> Result<Self, MeshError> {
+        if positions.is_empty() {
+            return Err(MeshError::NoVertices);
+        }
+        if positions.len() > u32::MAX as usize / 2 {
+            return Err(MeshError::TooManyVertices(positions.len()));
+        }
+        if let Some(vertex) = positions.iter().position(|p| !p.is_finite()) {
+            return Err(MeshError::NonFinitePosition { vertex });
+        }
+        for t in triangles {
+            for &i in t {
+                if i as usize >= positions.len() {
+                    return Err(MeshError::IndexOutOfRange {
+                        index: i,
+                        vertex_count: positions.len(),
+                    });
+                }
+            }
+        }
+        // Weld by exact bit pattern (with -0.0 folded into 0.0).
+        let key = |p: DVec3| {
+            let f = |x: f64| if x == 0.0 { 0u64 } else { x.to_bits() };
+            [f(p.x), f(p.y), f(p.z)]
+        };
+        let mut map: HashMap<[u64; 3], u32> = HashMap::with_capacity(positions.len());
+        let mut welded = Vec::with_capacity(positions.len());
+        let render_to_welded: Vec<u32> = positions
+            .iter()
+            .map(|&p| {
+                *map.entry(key(p)).or_insert_with(|| {
+                    welded.push(p);
+                    (welded.len() - 1) as u32
+                })
+            })
+            .collect();
+        let tris: Vec<[u32; 3]> = triangles
+            .iter()
+            .map(|t| t.map(|i| render_to_welded[i as usize]))
+            .filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
+            .collect();
+        let n = welded.len();
+
+        // CSR adjacency: count, fill, sort, dedup.
+        let mut counts = vec![0u32; n + 1];
+        for t in &tris {
+            for k in 0..3 {
+                counts[t[k] as usize] += 2;
+            }
+        }
+        let mut starts = vec![0usize; n + 1];
+        for i in 0..n {
+            starts[i + 1] = starts[i] + counts[i] as usize;
+        }
+        let mut raw = vec![0u32; starts[n]];
+        let mut fill = starts.clone();
+        for t in &tris {
+            for k in 0..3 {
+                let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+                raw[fill[a as usize]] = b;
+                raw[fill[a as usize] + 1] = c;
+                fill[a as usize] += 2;
+            }
+        }
+        let mut offsets = Vec::with_capacity(n + 1);
+        let mut neighbors = Vec::with_capacity(raw.len() / 2);
+        offsets.push(0u32);
+        for i in 0..n {
+            let row = &mut raw[starts[i]..starts[i + 1]];
+            row.sort_unstable();
+            let mut last = u32::MAX;
+            for &j in row.iter() {
+                if j != last {
+                    neighbors.push(j);
+                    last = j;
+                }
+            }
+            offsets.push(neighbors.len() as u32);
+        }
+        let mut topo = Topology {
+            positions: welded,
+            triangles: tris,
+            render_to_welded,
+            offsets,
+            neighbors,
+            cotangent: Vec::new(),
+        };
+        topo.cotangent = topo.compute_cotangents();
+        Ok(topo)
+    }
+
+    fn edge_slot(&self, i: u32, j: u32) -> usize {
+        let (s, e) = (self.offsets[i as usize] as usize, self.offsets[i as usize + 1] as usize);
+        s + self.neighbors[s..e]
+            .binary_search(&j)
+            .expect("edge of a triangle is in the adjacency")
+    }
+
+    fn compute_cotangents(&self) -> Vec<f64> {
+        let mut w = vec![0.0f64; self.neighbors.len()];
+        for t in &self.triangles {
+            for k in 0..3 {
+                let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+                // Corner at c, opposite edge (a, b).
+                let u = self.positions[a as usize] - self.positions[c as usize];
+                let v = self.positions[b as usize] - self.positions[c as usize];
+                let sine = u.cross(v).length();
+                let scale = u.length() * v.length();
+                if !(sine > DEGENERATE_SINE * scale) {
+                    continue;
+                }
+                let half_cot = 0.5 * u.dot(v) / sine;
+                let ab = self.edge_slot(a, b);
+                let ba = self.edge_slot(b, a);
+                w[ab] += half_cot;
+                w[ba] += half_cot;
+            }
+        }
+        w
+    }
+
+    /// Number of welded vertices.
+    pub fn vertex_count(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// Welded rest positions.
+    pub fn positions(&self) -> &[DVec3] {
+        &self.positions
+    }
+
+    /// Welded, non-degenerate triangles.
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        &self.triangles
+    }
+
+    /// For each render vertex, the welded vertex it maps to.
+    pub fn render_to_welded(&self) -> &[u32] {
+        &self.render_to_welded
+    }
+
+    /// Sorted welded neighbours of vertex `i`.
+    pub fn neighbors(&self, i: usize) -> &[u32] {
+        &self.neighbors[self.offsets[i] as usize..self.offsets[i + 1] as usize]
+    }
+
+    /// CSR row offsets into [`Topology::neighbor_list`] (length `vertex_count + 1`).
+    pub fn offsets(&self) -> &[u32] {
+        &self.offsets
+    }
+
+    /// All neighbour lists, concatenated (CSR column indices).
+    pub fn neighbor_list(&self) -> &[u32] {
+        &self.neighbors
+    }
+
+    /// Raw cotangent weight `½(cot α + cot β)` per CSR entry (may be negative).
+    pub fn raw_cotangents(&self) -> &[f64] {
+        &self.cotangent
+    }
+
+    /// Edge weights per CSR entry for the chosen mode.
+    pub fn weights(&self, mode: WeightMode) -> Vec<f64> {
+        match mode {
+            WeightMode::ClampedCotangent => self.cotangent.iter().map(|w| w.max(0.0)).collect(),
+            WeightMode::RawCotangent => self.cotangent.clone(),
+            WeightMode::Uniform => vec![1.0; self.cotangent.len()],
+        }
+    }
+
+    /// Fraction of edges whose raw cotangent weight is negative.
+    pub fn negative_weight_fraction(&self) -> f64 {
+        if self.cotangent.is_empty() {
+            return 0.0;
+        }
+        self.cotangent.iter().filter(|w| **w < 0.0).count() as f64 / self.cotangent.len() as f64
+    }
+
+    /// Scatters per-welded-vertex values back to render order.
+    pub fn to_render<T: Copy>(&self, welded: &[T]) -> Vec<T> {
+        self.render_to_welded
+            .iter()
+            .map(|&w| welded[w as usize])
+            .collect()
+    }
+
+    /// Length of the rest bounding-box diagonal.
+    pub fn bounding_diagonal(&self) -> f64 {
+        let (mut lo, mut hi) = (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN));
+        for p in &self.positions {
+            lo = lo.min(*p);
+            hi = hi.max(*p);
+        }
+        (hi - lo).length()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn quad() -> (Vec<DVec3>, Vec<[u32; 3]>) {
+        (
+            vec![
+                DVec3::new(0.0, 0.0, 0.0),
+                DVec3::new(1.0, 0.0, 0.0),
+                DVec3::new(1.0, 1.0, 0.0),
+                DVec3::new(0.0, 1.0, 0.0),
+            ],
+            vec![[0, 1, 2], [0, 2, 3]],
+        )
+    }
+
+    #[test]
+    fn square_cotangents_match_right_angles() {
+        let (p, t) = quad();
+        let topo = Topology::new(&p, &t).unwrap();
+        // Diagonal 0-2: opposite corners are both 90°, cot = 0.
+        let s = topo.edge_slot(0, 2);
+        assert!(topo.raw_cotangents()[s].abs() < 1e-12);
+        // Edge 0-1: one triangle, opposite angle 45°, weight ½·cot 45° = 0.5.
+        let s = topo.edge_slot(0, 1);
+        assert!((topo.raw_cotangents()[s] - 0.5).abs() < 1e-12);
+        assert_eq!(topo.neighbors(0), &[1, 2, 3]);
+    }
+
+    #[test]
+    fn welds_split_vertices_and_keeps_map() {
+        let (mut p, _) = quad();
+        p.push(p[0]);
+        p.push(p[2]);
+        let t = vec![[0, 1, 2], [4, 5, 3]];
+        let topo = Topology::new(&p, &t).unwrap();
+        assert_eq!(topo.vertex_count(), 4);
+        assert_eq!(topo.render_to_welded(), &[0, 1, 2, 3, 0, 2]);
+        assert_eq!(topo.neighbors(0), &[1, 2, 3]);
+    }
+
+    #[test]
+    fn zero_area_triangles_give_finite_weights() {
+        let p = vec![
+            DVec3::ZERO,
+            DVec3::X,
+            DVec3::new(2.0, 0.0, 0.0),
+            DVec3::new(1.0, 1.0, 0.0),
+        ];
+        let topo = Topology::new(&p, &[[0, 1, 2], [0, 2, 3]]).unwrap();
+        assert!(topo.raw_cotangents().iter().all(|w| w.is_finite()));
+    }
+
+    #[test]
+    fn rejects_bad_input() {
+        let (p, _) = quad();
+        assert_eq!(
+            Topology::new(&p, &[[0, 1, 9]]).unwrap_err(),
+            MeshError::IndexOutOfRange {
+                index: 9,
+                vertex_count: 4
+            }
+        );
+        let mut bad = p.clone();
+        bad[2].y = f64::NAN;
+        assert_eq!(
+            Topology::new(&bad, &[[0, 1, 2]]).unwrap_err(),
+            MeshError::NonFinitePosition { vertex: 2 }
+        );
+        assert_eq!(Topology::new(&[], &[]).unwrap_err(), MeshError::NoVertices);
+        assert_eq!(
+            Topology::from_render_mesh(&[Vec3::ZERO; 3], &[0, 1]).unwrap_err(),
+            MeshError::IndexCountNotTriangles(2)
+        );
+    }
+
+    #[test]
+    fn isolated_vertices_have_no_neighbors() {
+        let (mut p, t) = quad();
+        p.push(DVec3::splat(5.0));
+        let topo = Topology::new(&p, &t).unwrap();
+        assert!(topo.neighbors(4).is_empty());
+    }
+}

@@ -1,0 +1,656 @@
+//! `DeformPlugin`: ARAP on changed handles in Bevy's `AsyncComputeTaskPool`, with mesh-asset
+//! write-back of positions, normals and tangents.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use bevy::asset::RenderAssetUsages;
+use bevy::mesh::{Indices, VertexAttributeValues};
+use bevy::prelude::*;
+use bevy::tasks::futures::check_ready;
+use bevy::tasks::{AsyncComputeTaskPool, Task};
+use glam::DVec3;
+
+use crate::deform::{
+    ArapSolver, Constraints, Handle as CoreHandle, InitialGuess, RigidTransform, SolveError,
+    SolveOptions, Solution, SolverSettings, Topology, WeightMode,
+};
+
+/// Ordered phases of the deformation systems, all in `Update` (chained in this order).
+#[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum DeformSystems {
+    /// New [`Deformable`] meshes: copy the mesh asset per instance and start building the
+    /// topology in the background.
+    Prepare,
+    /// Collect handle transforms and fixed regions; start a solve task when something changed
+    /// and none is running (latest wins: a running stale solve is cancelled at its next
+    /// iteration). Put systems that move handles *before* this set.
+    Request,
+    /// Poll finished tasks; send [`DeformSolved`] / [`DeformFailed`].
+    Poll,
+    /// Write solved positions, normals and tangents into the mesh assets (before
+    /// `PostUpdate`, so bounds and extraction see them this frame).
+    Writeback,
+}
+
+/// Project-wide deformation defaults, mirrored from [`DeformPlugin`]; change at run time.
+#[derive(Resource, Debug, Clone, Reflect)]
+#[reflect(Resource)]
+pub struct DeformConfig {
+    /// Iterations per solve when a [`Deformable`] does not override them.
+    pub max_iterations: u32,
+    /// Relative energy decrease below which a solve stops early.
+    pub tolerance: f32,
+}
+
+/// Adds ARAP deformation of [`Deformable`] meshes driven by [`DeformHandle`] entities.
+#[derive(Debug, Clone)]
+pub struct DeformPlugin {
+    /// Default iterations per solve (warm-started solves need few).
+    pub max_iterations: u32,
+    /// Default tolerance.
+    pub tolerance: f32,
+}
+
+impl Default for DeformPlugin {
+    fn default() -> Self {
+        Self {
+            max_iterations: 4,
+            tolerance: 1e-3,
+        }
+    }
+}
+
+impl Plugin for DeformPlugin {
+    fn build(&self, app: &mut App) {
+        app.insert_resource(DeformConfig {
+            max_iterations: self.max_iterations,
+            tolerance: self.tolerance,
+        })
+        .register_type::<Deformable>()
+        .register_type::<FixedRegion>()
+        .register_type::<DeformHandle>()
+        .register_type::<DeformStatus>()
+        .register_type::<DeformConfig>()
+        .add_message::<DeformSolved>()
+        .add_message::<DeformFailed>()
+        .configure_sets(
+            Update,
+            (
+                DeformSystems::Prepare,
+                DeformSystems::Request,
+                DeformSystems::Poll,
+                DeformSystems::Writeback,
+            )
+                .chain(),
+        )
+        .add_systems(
+            Update,
+            (
+                prepare_deformables.in_set(DeformSystems::Prepare),
+                request_solves.in_set(DeformSystems::Request),
+                poll_tasks.in_set(DeformSystems::Poll),
+                write_back.in_set(DeformSystems::Writeback),
+            ),
+        );
+    }
+}
+
+/// Marks a `Mesh3d` entity as deformable. Handles refer to it by entity.
+///
+/// Vertex indices everywhere in the plugin are *render* vertex indices of the mesh (as in its
+/// index buffer); seams are welded internally so split vertices move together.
+#[derive(Component, Debug, Clone, Reflect)]
+#[reflect(Component, Default)]
+#[require(DeformStatus)]
+pub struct Deformable {
+    /// Iterations per solve (`None` = [`DeformConfig::max_iterations`]).
+    pub max_iterations: Option<u32>,
+    /// Tolerance (`None` = [`DeformConfig::tolerance`]).
+    pub tolerance: Option<f32>,
+    /// Use raw (possibly negative) cotangent weights instead of clamped ones.
+    pub raw_cotangent_weights: bool,
+    /// Optional region of interest (render vertex indices); others stay at rest.
+    pub region_of_interest: Option<Vec<u32>>,
+}
+
+impl Default for Deformable {
+    fn default() -> Self {
+        Self {
+            max_iterations: None,
+            tolerance: None,
+            raw_cotangent_weights: false,
+            region_of_interest: None,
+        }
+    }
+}
+
+/// Vertices of a [`Deformable`] held at their rest position (render indices).
+#[derive(Component, Debug, Clone, Default, Reflect, PartialEq)]
+#[reflect(Component, Default)]
+pub struct FixedRegion(pub Vec<u32>);
+
+/// A handle: a set of vertices of `target` moved rigidly by this entity's `Transform`.
+///
+/// The `Transform` is read in the target mesh's local space. At rest it is
+/// `Transform::from_translation(pivot)` (the rest centroid of the vertices): then
+/// `translation − pivot` is the handle's translation and `rotation` turns it about the pivot.
+/// Spawn it with [`DeformHandle::bundle`] to get that right, or leave `pivot` as `None` and
+/// an identity `Transform`: the plugin fills both in when the mesh is ready.
+#[derive(Component, Debug, Clone, Reflect, PartialEq)]
+#[reflect(Component)]
+pub struct DeformHandle {
+    /// The [`Deformable`] mesh entity.
+    pub target: Entity,
+    /// Render vertex indices of the handle.
+    pub vertices: Vec<u32>,
+    /// Rest centroid in mesh space (filled in by the plugin when `None`).
+    pub pivot: Option<Vec3>,
+}
+
+impl DeformHandle {
+    /// A handle with its rest transform computed from `mesh` (positions in mesh space).
+    pub fn bundle(mesh: &Mesh, target: Entity, vertices: Vec<u32>) -> (Self, Transform) {
+        let pivot = mesh_positions(mesh)
+            .map(|p| centroid(&p, &vertices))
+            .unwrap_or(Vec3::ZERO);
+        (
+            Self {
+                target,
+                vertices,
+                pivot: Some(pivot),
+            },
+            Transform::from_translation(pivot),
+        )
+    }
+
+    /// The rigid transform this handle applies, given its `Transform`.
+    pub fn rigid_transform(&self, transform: &Transform) -> RigidTransform {
+        let pivot = self.pivot.unwrap_or(Vec3::ZERO).as_dvec3();
+        RigidTransform::new(
+            transform.rotation.as_dquat().normalize(),
+            transform.translation.as_dvec3() - pivot,
+            pivot,
+        )
+    }
+}
+
+/// Where a deformable stands; readable by UIs.
+#[derive(Component, Debug, Clone, Default, Reflect)]
+#[reflect(Component, Default)]
+pub struct DeformStatus {
+    /// What the background worker is doing.
+    pub phase: DeformPhase,
+    /// Welded vertex count (0 until prepared).
+    pub vertices: usize,
+    /// Iterations of the last solve.
+    pub iterations: u32,
+    /// Normalised ARAP energy after the last solve.
+    pub energy: f64,
+    /// Milliseconds of the last solve (including precompute when the sets changed).
+    pub solve_ms: f64,
+    /// Completed solves so far.
+    pub solves: u64,
+    /// Last error, if the last attempt failed.
+    pub error: Option<String>,
+}
+
+/// Background phase of a deformable.
+#[derive(Debug, Clone, Copy, Default, Reflect, PartialEq, Eq)]
+pub enum DeformPhase {
+    /// Waiting for the mesh asset.
+    #[default]
+    WaitingForMesh,
+    /// Welding and building the topology.
+    BuildingTopology,
+    /// Ready; no solve running.
+    Idle,
+    /// Factorizing (constraint sets changed).
+    Factorizing,
+    /// Iterating.
+    Solving,
+}
+
+/// A solve finished and was written to the mesh.
+#[derive(Message, Debug, Clone, PartialEq)]
+pub struct DeformSolved {
+    /// The deformable entity.
+    pub entity: Entity,
+    /// Iterations done.
+    pub iterations: u32,
+    /// Normalised energy.
+    pub energy: f64,
+    /// Solve time in ms (worker thread).
+    pub solve_ms: f64,
+}
+
+/// A solve failed; the mesh was left as it was.
+#[derive(Message, Debug, Clone, PartialEq)]
+pub struct DeformFailed {
+    /// The deformable entity.
+    pub entity: Entity,
+    /// What went wrong.
+    pub error: String,
+}
+
+/// Rest data of a prepared mesh.
+struct Rest {
+    topology: Arc<Topology>,
+    normals: Option<Vec<Vec3>>,
+    tangents: Option<Vec<Vec4>>,
+}
+
+struct SolveOutput {
+    result: Result<(Arc<ArapSolver>, Arc<Solution>, RenderPose), SolveError>,
+    ms: f64,
+}
+
+/// Render-ordered attributes ready to copy into the mesh.
+struct RenderPose {
+    positions: Vec<[f32; 3]>,
+    normals: Option<Vec<[f32; 3]>>,
+    tangents: Option<Vec<[f32; 4]>>,
+}
+
+/// Internal per-deformable state (not reflected).
+#[derive(Component)]
+pub struct DeformState {
+    rest: Option<Arc<Rest>>,
+    building: Option<Task<Result<Rest, String>>>,
+    solver: Option<Arc<ArapSolver>>,
+    last: Option<Arc<Solution>>,
+    task: Option<Task<SolveOutput>>,
+    requested: Arc<AtomicU64>,
+    pending: Option<Constraints>,
+    ready: Option<RenderPose>,
+    attempted: bool,
+}
+
+fn mesh_positions(mesh: &Mesh) -> Option<Vec<Vec3>> {
+    match mesh.try_attribute(Mesh::ATTRIBUTE_POSITION).ok()? {
+        VertexAttributeValues::Float32x3(v) => Some(v.iter().map(|p| Vec3::from_array(*p)).collect()),
+        _ => None,
+    }
+}
+
+fn centroid(positions: &[Vec3], vertices: &[u32]) -> Vec3 {
+    let mut sum = Vec3::ZERO;
+    let mut n = 0;
+    for &v in vertices {
+        if let Some(p) = positions.get(v as usize) {
+            sum += *p;
+            n += 1;
+        }
+    }
+    if n == 0 { Vec3::ZERO } else { sum / n as f32 }
+}
+
+fn prepare_deformables(
+    mut commands: Commands,
+    mut meshes: ResMut<Assets<Mesh>>,
+    mut new: Query<(Entity, &mut Mesh3d, &mut DeformStatus), (With<Deformable>, Without<DeformState>)>,
+    mut building: Query<(&mut DeformState, &mut DeformStatus)>,
+) {
+    for (entity, mut mesh3d, mut status) in &mut new {
+        let Some(mesh) = meshes.get(&mesh3d.0) else {
+            continue; // not loaded yet
+        };
+        // Copy per instance: glTF entities may share one mesh asset.
+        let mut copy = mesh.clone();
+        let positions = mesh_positions(&copy);
+        let indices: Option<Vec<u32>> = copy
+            .try_indices()
+            .ok()
+            .map(|i| i.iter().map(|x| x as u32).collect());
+        let normals = match copy.try_attribute(Mesh::ATTRIBUTE_NORMAL) {
+            Ok(VertexAttributeValues::Float32x3(v)) => Some(v.iter().map(|p| Vec3::from_array(*p)).collect()),
+            _ => None,
+        };
+        let tangents = match copy.try_attribute(Mesh::ATTRIBUTE_TANGENT) {
+            Ok(VertexAttributeValues::Float32x4(v)) => Some(v.iter().map(|p| Vec4::from_array(*p)).collect()),
+            _ => None,
+        };
+        copy.asset_usage = RenderAssetUsages::default();
+        mesh3d.0 = meshes.add(copy);
+        let task = AsyncComputeTaskPool::get().spawn(async move {
+            let positions = positions.ok_or("mesh has no Float32x3 positions")?;
+            let indices = match indices {
+                Some(i) => i,
+                None => (0..positions.len() as u32).collect(),
+            };
+            let topology = Topology::from_render_mesh(&positions, &indices).map_err(|e| e.to_string())?;
+            Ok(Rest {
+                topology: Arc::new(topology),
+                normals,
+                tangents,
+            })
+        });
+        status.phase = DeformPhase::BuildingTopology;
+        commands.entity(entity).insert(DeformState {
+            rest: None,
+            building: Some(task),
+            solver: None,
+            last: None,
+            task: None,
+            requested: Arc::new(AtomicU64::new(0)),
+            pending: None,
+            ready: None,
+            attempted: false,
+        });
+    }
+    for (mut state, mut status) in &mut building {
+        let state = state.bypass_change_detection();
+        let Some(task) = state.building.as_mut() else { continue };
+        if let Some(result) = check_ready(task) {
+            state.building = None;
+            match result {
+                Ok(rest) => {
+                    status.vertices = rest.topology.vertex_count();
+                    status.phase = DeformPhase::Idle;
+                    state.rest = Some(Arc::new(rest));
+                }
+                Err(e) => {
+                    status.error = Some(e);
+                }
+            }
+        }
+    }
+}
+
+/// Builds core constraints (welded indices) for one deformable.
+fn build_constraints(
+    topology: &Topology,
+    fixed: Option<&FixedRegion>,
+    handles: &[(&DeformHandle, &Transform)],
+) -> Constraints {
+    let map = topology.render_to_welded();
+    let weld = |v: &[u32]| -> Vec<u32> {
+        let mut out: Vec<u32> = v
+            .iter()
+            .filter_map(|&i| map.get(i as usize).copied())
+            .collect();
+        out.sort_unstable();
+        out.dedup();
+        out
+    };
+    Constraints {
+        fixed: fixed.map(|f| weld(&f.0)).unwrap_or_default(),
+        handles: handles
+            .iter()
+            .map(|(h, t)| CoreHandle {
+                vertices: weld(&h.vertices),
+                transform: h.rigid_transform(t),
+            })
+            .collect(),
+        targets: Vec::new(),
+    }
+}
+
+#[allow(clippy::type_complexity)]
+fn request_solves(
+    config: Res<DeformConfig>,
+    mut deformables: Query<(
+        Entity,
+        &Deformable,
+        Option<Ref<FixedRegion>>,
+        &mut DeformState,
+        &mut DeformStatus,
+    )>,
+    mut handles: Query<(Entity, &mut DeformHandle, Ref<Transform>)>,
+    removed: RemovedComponents<DeformHandle>,
+    changed_deformable: Query<(), Changed<Deformable>>,
+) {
+    // Fill in missing pivots (rest centroid) once the topology exists.
+    for (_, mut h, _) in &mut handles {
+        if h.pivot.is_some() {
+            continue;
+        }
+        let Ok((_, _, _, state, _)) = deformables.get(h.target) else { continue };
+        let Some(rest) = &state.rest else { continue };
+        let topo = &rest.topology;
+        let map = topo.render_to_welded();
+        let pts: Vec<Vec3> = h
+            .vertices
+            .iter()
+            .filter_map(|&v| map.get(v as usize))
+            .map(|&w| topo.positions()[w as usize].as_vec3())
+            .collect();
+        let c = if pts.is_empty() { Vec3::ZERO } else { pts.iter().sum::<Vec3>() / pts.len() as f32 };
+        h.pivot = Some(c);
+    }
+    let any_removed = !removed.is_empty();
+    for (entity, deformable, fixed, mut state, mut status) in &mut deformables {
+        let Some(rest) = state.rest.clone() else { continue };
+        let mine: Vec<(Entity, &DeformHandle, Ref<Transform>)> = handles
+            .iter()
+            .filter(|(_, h, _)| h.target == entity)
+            .collect();
+        let changed = mine.iter().any(|(_, h, t)| t.is_changed() || h.pivot.is_none())
+            || fixed.as_ref().is_some_and(|f| f.is_changed())
+            || changed_deformable.contains(entity)
+            || any_removed
+            || !state.attempted && !mine.is_empty();
+        if !changed && state.pending.is_none() {
+            continue;
+        }
+        if mine.iter().any(|(_, h, _)| h.pivot.is_none()) {
+            continue; // next frame, once the pivots exist
+        }
+        let mut sorted: Vec<(Entity, &DeformHandle, &Transform)> =
+            mine.iter().map(|(e, h, t)| (*e, *h, t.as_ref())).collect();
+        sorted.sort_by_key(|(e, _, _)| *e);
+        let pairs: Vec<(&DeformHandle, &Transform)> = sorted.iter().map(|(_, h, t)| (*h, *t)).collect();
+        let constraints = build_constraints(&rest.topology, fixed.as_deref(), &pairs);
+        let state = state.bypass_change_detection();
+        state.attempted = true;
+        state.pending = Some(constraints);
+        state.requested.fetch_add(1, Ordering::Relaxed);
+        if state.task.is_some() {
+            continue; // the running task is cancelled at its next iteration; respawn on landing
+        }
+        spawn_solve(state, &rest, deformable, &config, &mut status);
+    }
+}
+
+fn spawn_solve(
+    state: &mut DeformState,
+    rest: &Arc<Rest>,
+    deformable: &Deformable,
+    config: &DeformConfig,
+    status: &mut DeformStatus,
+) {
+    let Some(constraints) = state.pending.take() else { return };
+    let generation = state.requested.load(Ordering::Relaxed);
+    let requested = state.requested.clone();
+    let rest = rest.clone();
+    let reuse = state
+        .solver
+        .clone()
+        .filter(|s| s.accepts(&constraints));
+    status.phase = if reuse.is_some() { DeformPhase::Solving } else { DeformPhase::Factorizing };
+    let warm = if reuse.is_some() { state.last.clone() } else { None };
+    let options = SolveOptions {
+        max_iterations: deformable.max_iterations.unwrap_or(config.max_iterations).max(1),
+        tolerance: deformable.tolerance.unwrap_or(config.tolerance).max(0.0) as f64,
+    };
+    let settings = SolverSettings {
+        weights: if deformable.raw_cotangent_weights {
+            WeightMode::RawCotangent
+        } else {
+            WeightMode::ClampedCotangent
+        },
+        region_of_interest: deformable.region_of_interest.as_ref().map(|roi| {
+            let mut mask = vec![false; rest.topology.vertex_count()];
+            for &v in roi {
+                if let Some(&w) = rest.topology.render_to_welded().get(v as usize) {
+                    mask[w as usize] = true;
+                }
+            }
+            mask
+        }),
+        ..Default::default()
+    };
+    state.task = Some(AsyncComputeTaskPool::get().spawn(async move {
+        let t0 = std::time::Instant::now();
+        let result = (|| {
+            let solver = match reuse {
+                Some(s) => s,
+                None => Arc::new(ArapSolver::precompute(rest.topology.clone(), &constraints, settings)?),
+            };
+            let init = match &warm {
+                Some(w) => InitialGuess::Warm(w),
+                None => InitialGuess::Laplacian,
+            };
+            let calls = std::cell::Cell::new(0u32);
+            let cancel = || {
+                calls.set(calls.get() + 1);
+                calls.get() > 1 && requested.load(Ordering::Relaxed) != generation
+            };
+            let solution = solver.solve(&constraints, &options, init, &cancel)?;
+            let pose = render_pose(&rest, &solution);
+            Ok((solver, Arc::new(solution), pose))
+        })();
+        SolveOutput {
+            result,
+            ms: t0.elapsed().as_secs_f64() * 1e3,
+        }
+    }));
+}
+
+/// Positions, rotated rest normals and tangents in render order (f32), validated finite.
+fn render_pose(rest: &Rest, solution: &Solution) -> RenderPose {
+    let map = rest.topology.render_to_welded();
+    let positions: Vec<[f32; 3]> = map
+        .iter()
+        .map(|&w| solution.positions[w as usize].as_vec3().to_array())
+        .collect();
+    let rot = |w: u32| -> Quat { solution.rotations[w as usize].as_quat() };
+    let normals = rest.normals.as_ref().map(|n| {
+        n.iter()
+            .zip(map)
+            .map(|(n, &w)| (rot(w) * *n).normalize_or_zero().to_array())
+            .collect()
+    });
+    let tangents = rest.tangents.as_ref().map(|t| {
+        t.iter()
+            .zip(map)
+            .map(|(t, &w)| {
+                let v = (rot(w) * t.truncate()).normalize_or_zero();
+                [v.x, v.y, v.z, t.w]
+            })
+            .collect()
+    });
+    RenderPose {
+        positions,
+        normals,
+        tangents,
+    }
+}
+
+fn finite(pose: &RenderPose) -> bool {
+    pose.positions.iter().flatten().all(|x| x.is_finite())
+        && pose.normals.iter().flatten().flatten().all(|x| x.is_finite())
+        && pose.tangents.iter().flatten().flatten().all(|x| x.is_finite())
+}
+
+fn poll_tasks(
+    config: Res<DeformConfig>,
+    mut deformables: Query<(Entity, &Deformable, &mut DeformState, &mut DeformStatus)>,
+    mut solved: MessageWriter<DeformSolved>,
+    mut failed: MessageWriter<DeformFailed>,
+) {
+    for (entity, deformable, mut state, mut status) in &mut deformables {
+        let state = state.bypass_change_detection();
+        let Some(task) = state.task.as_mut() else { continue };
+        let Some(out) = check_ready(task) else { continue };
+        state.task = None;
+        match out.result {
+            Ok((solver, solution, pose)) if finite(&pose) => {
+                status.iterations = solution.stats.iterations;
+                status.energy = solution.stats.final_energy();
+                status.solve_ms = out.ms;
+                status.solves += 1;
+                status.error = None;
+                status.phase = DeformPhase::Idle;
+                solved.write(DeformSolved {
+                    entity,
+                    iterations: solution.stats.iterations,
+                    energy: status.energy,
+                    solve_ms: out.ms,
+                });
+                state.solver = Some(solver);
+                state.last = Some(solution);
+                state.ready = Some(pose);
+            }
+            Ok(_) => {
+                status.phase = DeformPhase::Idle;
+                status.error = Some("solve produced non-finite values".into());
+                failed.write(DeformFailed {
+                    entity,
+                    error: "solve produced non-finite values; mesh left unchanged".into(),
+                });
+            }
+            Err(e) => {
+                status.phase = DeformPhase::Idle;
+                status.error = Some(e.to_string());
+                // A set change that fails must not keep the old solver for the new sets.
+                failed.write(DeformFailed {
+                    entity,
+                    error: e.to_string(),
+                });
+            }
+        }
+        // A newer request arrived while solving: start it now with the freshest constraints.
+        if state.pending.is_some() {
+            if let Some(rest) = state.rest.clone() {
+                spawn_solve(state, &rest, deformable, &config, &mut status);
+            }
+        }
+    }
+}
+
+fn write_back(mut meshes: ResMut<Assets<Mesh>>, mut q: Query<(&Mesh3d, &mut DeformState)>) {
+    for (mesh3d, mut state) in &mut q {
+        let state = state.bypass_change_detection();
+        let Some(pose) = state.ready.take() else { continue };
+        let Some(mut mesh) = meshes.get_mut(&mesh3d.0) else { continue };
+        if let Ok(VertexAttributeValues::Float32x3(dst)) = mesh.try_attribute_mut(Mesh::ATTRIBUTE_POSITION) {
+            if dst.len() == pose.positions.len() {
+                dst.copy_from_slice(&pose.positions);
+            }
+        }
+        if let Some(n) = pose.normals {
+            if let Ok(VertexAttributeValues::Float32x3(dst)) = mesh.try_attribute_mut(Mesh::ATTRIBUTE_NORMAL) {
+                if dst.len() == n.len() {
+                    dst.copy_from_slice(&n);
+                }
+            }
+        }
+        if let Some(t) = pose.tangents {
+            if let Ok(VertexAttributeValues::Float32x4(dst)) = mesh.try_attribute_mut(Mesh::ATTRIBUTE_TANGENT) {
+                if dst.len() == t.len() {
+                    dst.copy_from_slice(&t);
+                }
+            }
+        }
+    }
+}
+
+/// Builds a triangle-list mesh (positions, normals, indices) from core data, keeping the
+/// CPU copy so it can be deformed.
+pub fn mesh_from_triangles(positions: &[DVec3], triangles: &[[u32; 3]]) -> Mesh {
+    let pos: Vec<[f32; 3]> = positions.iter().map(|p| p.as_vec3().to_array()).collect();
+    let mut normals = vec![Vec3::ZERO; positions.len()];
+    for t in triangles {
+        let [a, b, c] = t.map(|i| positions[i as usize].as_vec3());
+        let n = (b - a).cross(c - a);
+        for &i in t {
+            normals[i as usize] += n;
+        }
+    }
+    let normals: Vec<[f32; 3]> = normals.iter().map(|n| n.normalize_or(Vec3::Y).to_array()).collect();
+    Mesh::new(bevy::mesh::PrimitiveTopology::TriangleList, RenderAssetUsages::default())
+        .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, pos)
+        .with_inserted_attribute(Mesh::ATTRIBUTE_NORMAL, normals)
+        .with_inserted_indices(Indices::U32(triangles.iter().flatten().copied().collect()))
+}

@@ -1,0 +1,62 @@
+//! The ECS layer: components, messages, systems and plugins. Thin glue over
+//! [`crate::deform`] and [`crate::wiimote`].
+//!
+//! | plugin | what it adds | system sets |
+//! |---|---|---|
+//! | [`DeformPlugin`] | ARAP on [`Deformable`] meshes moved by [`DeformHandle`]s, solved in the `AsyncComputeTaskPool`, written back to the mesh asset | [`DeformSystems`] (`Update`: Prepare → Request → Poll → Writeback) |
+//! | [`WiimotePlugin`] | one entity per remote with a [`Wiimote`] component, messages, [`WiimoteHandleControl`] | [`WiimoteSystems`] (`PreUpdate`: Receive; `Update`: Control, before `DeformSystems::Request`) |
+//!
+//! [`WiiDeformPlugins`] adds both.
+
+mod control;
+mod deform;
+mod wiimote;
+
+use bevy::app::PluginGroupBuilder;
+use bevy::prelude::*;
+
+pub use control::WiimoteHandleControl;
+pub use deform::{
+    DeformConfig, DeformFailed, DeformHandle, DeformPhase, DeformPlugin, DeformSolved,
+    DeformState, DeformStatus, DeformSystems, Deformable, FixedRegion, mesh_from_triangles,
+};
+pub use wiimote::{
+    ConnectionState, Wiimote, WiimoteButtonChanged, WiimoteCalibration, WiimoteConnected,
+    WiimoteDisconnected, WiimoteEmulators, WiimoteFilter, WiimoteLink, WiimoteOrientationChanged,
+    WiimotePlugin, WiimoteSettings, WiimoteSource, WiimoteSystems, remote_to_bevy,
+    remote_vec_to_bevy,
+};
+
+/// Adds [`WiimoteHandleControl`] (requires [`WiimotePlugin`]).
+#[derive(Debug, Clone, Default)]
+pub struct WiimoteControlPlugin;
+
+impl Plugin for WiimoteControlPlugin {
+    fn build(&self, app: &mut App) {
+        app.register_type::<WiimoteHandleControl>();
+        app.add_systems(
+            Update,
+            control::drive_handles
+                .in_set(WiimoteSystems::Control)
+                .before(DeformSystems::Request),
+        );
+    }
+}
+
+/// Both plugins: [`DeformPlugin`], [`WiimotePlugin`] and [`WiimoteControlPlugin`].
+#[derive(Debug, Clone, Default)]
+pub struct WiiDeformPlugins {
+    /// Deformation settings.
+    pub deform: DeformPlugin,
+    /// Wiimote settings.
+    pub wiimote: WiimotePlugin,
+}
+
+impl PluginGroup for WiiDeformPlugins {
+    fn build(self) -> PluginGroupBuilder {
+        PluginGroupBuilder::start::<Self>()
+            .add(self.deform)
+            .add(self.wiimote)
+            .add(WiimoteControlPlugin)
+    }
+}

@@ -1,0 +1,323 @@
+//! The drift benchmark of `PROTOCOL.md` §14: a scripted 10-minute session (still, wiggles,
+//! slow yaw, fast swings, held tilted poses) through the emulator and the session code, scored
+//! against the ground truth for every filter.
+
+use std::time::Instant;
+
+use glam::{DQuat, DVec3};
+
+use super::emulator::{EmulatedRemote, EmulatorConfig, Variant};
+use super::filter::{FilterKind, ImuSample};
+use super::motion::{Motion, from_yaw_elevation_roll};
+use super::rng::Rng;
+use super::session::{Session, SessionConfig, SessionEvent};
+use super::transport::Transport;
+
+const START_STILL: f64 = 5.0;
+const WIGGLE: f64 = 60.0;
+const SLOW: f64 = 20.0;
+const SWING: f64 = 10.0;
+const HOLD: f64 = 5.0;
+const CYCLE: f64 = WIGGLE + SLOW + SWING + HOLD;
+const END_STILL: f64 = 60.0;
+const SWING_AMPLITUDE: f64 = 100.0; // degrees
+const SWING_PEAK_RATE: f64 = 800.0; // deg/s
+const ARM: f64 = 0.15; // m: ~3 g centripetal at 800 deg/s
+
+fn smoothstep(x: f64) -> f64 {
+    let x = x.clamp(0.0, 1.0);
+    x * x * (3.0 - 2.0 * x)
+}
+
+/// The §14 scripted motion.
+#[derive(Debug, Clone)]
+pub struct DriftScenario {
+    cycles: u32,
+    wiggles: Vec<[(f64, f64, f64); 6]>,
+}
+
+impl DriftScenario {
+    /// A scenario of about `duration_s` seconds (whole cycles), wiggle frequencies from `seed`.
+    pub fn new(seed: u64, duration_s: f64) -> Self {
+        let cycles = (((duration_s - START_STILL - END_STILL) / CYCLE).round().max(1.0)) as u32;
+        let mut rng = Rng::new(seed ^ 0xD21F7);
+        let wiggles = (0..cycles)
+            .map(|_| {
+                std::array::from_fn(|k| {
+                    let slow = k % 2 == 0;
+                    let f = if slow { rng.range(0.2, 0.6) } else { rng.range(0.8, 2.0) };
+                    let amp = if slow { 28.0 } else { (45.0 / (std::f64::consts::TAU * f)).min(10.0) };
+                    (f, amp, rng.range(0.0, std::f64::consts::TAU))
+                })
+            })
+            .collect();
+        Self { cycles, wiggles }
+    }
+
+    /// Total length in seconds.
+    pub fn duration(&self) -> f64 {
+        START_STILL + self.cycles as f64 * CYCLE + END_STILL
+    }
+
+    /// (yaw, elevation, roll in degrees, swing angle in degrees).
+    fn angles(&self, t: f64) -> (f64, f64, f64, f64) {
+        if t < START_STILL {
+            return (0.0, 0.0, 0.0, 0.0);
+        }
+        let k = ((t - START_STILL) / CYCLE).floor();
+        let mut yaw = 0.0;
+        // Slow turns alternate direction: +40°, −40°, …
+        for c in 0..(k as u32).min(self.cycles) {
+            yaw += if c % 2 == 0 { 40.0 } else { -40.0 };
+        }
+        if k as u32 >= self.cycles {
+            // Final still phase: return smoothly from the last held pose, then hold.
+            let tc = t - START_STILL - self.cycles as f64 * CYCLE;
+            let back = 1.0 - smoothstep(tc / 2.0);
+            return (yaw, 30.0 * back, 45.0 * back, 0.0);
+        }
+        let c = k as usize;
+        let tc = t - START_STILL - k * CYCLE;
+        let dir = if c % 2 == 0 { 1.0 } else { -1.0 };
+        if tc < WIGGLE {
+            // Return from the previous held pose during the first 2 s, wiggles enveloped.
+            let back = if c > 0 { 1.0 - smoothstep(tc / 2.0) } else { 0.0 };
+            let env = smoothstep(tc / 3.0) * smoothstep((WIGGLE - tc) / 3.0);
+            let w = &self.wiggles[c];
+            let s = |i: usize| {
+                let (f1, a1, p1) = w[2 * i];
+                let (f2, a2, p2) = w[2 * i + 1];
+                env * (a1 * (std::f64::consts::TAU * f1 * tc + p1).sin()
+                    + a2 * (std::f64::consts::TAU * f2 * tc + p2).sin())
+            };
+            (yaw + s(0), 30.0 * back + s(1), 45.0 * back + s(2), 0.0)
+        } else if tc < WIGGLE + SLOW {
+            (yaw + dir * 2.0 * (tc - WIGGLE), 0.0, 0.0, 0.0)
+        } else if tc < WIGGLE + SLOW + SWING {
+            let ts = tc - WIGGLE - SLOW;
+            let period = SWING_AMPLITUDE * std::f64::consts::PI / SWING_PEAK_RATE;
+            let mut swing = 0.0;
+            for start in [2.0, 6.0] {
+                let tau = ts - start;
+                if (0.0..period).contains(&tau) {
+                    swing = SWING_AMPLITUDE * 0.5 * (1.0 - (std::f64::consts::TAU * tau / period).cos());
+                }
+            }
+            (yaw + dir * 40.0, 0.0, 0.0, swing)
+        } else {
+            let th = smoothstep((tc - WIGGLE - SLOW - SWING) / 1.0);
+            (yaw + dir * 40.0, 30.0 * th, 45.0 * th, 0.0)
+        }
+    }
+}
+
+impl Motion for DriftScenario {
+    fn orientation(&self, t: f64) -> DQuat {
+        let (y, e, r, s) = self.angles(t);
+        from_yaw_elevation_roll(y.to_radians(), e.to_radians(), r.to_radians())
+            * DQuat::from_rotation_x(-s.to_radians())
+    }
+    fn position(&self, t: f64) -> DVec3 {
+        let (y, e, r, s) = self.angles(t);
+        if s == 0.0 {
+            return DVec3::ZERO;
+        }
+        let base = from_yaw_elevation_roll(y.to_radians(), e.to_radians(), r.to_radians());
+        // The remote swings on an arm pivoting behind it (toward the player, +Y).
+        base * (DQuat::from_rotation_x(-s.to_radians()) * DVec3::new(0.0, -ARM, 0.0)
+            + DVec3::new(0.0, ARM, 0.0))
+    }
+}
+
+/// Scores of one filter on one or more sessions.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct FilterScore {
+    /// RMS angle between true and estimated gravity in the body frame, degrees.
+    pub tilt_rms_deg: f64,
+    /// Max tilt error during the held still poses, degrees.
+    pub tilt_max_still_deg: f64,
+    /// Least-squares slope of the heading error, degrees per minute (absolute).
+    pub yaw_drift_deg_per_min: f64,
+    /// RMS geodesic attitude error, degrees.
+    pub attitude_rms_deg: f64,
+    /// 95th percentile of the error of 2-second relative rotations, degrees.
+    pub relative_rotation_p95_deg: f64,
+    /// Filter update cost, µs per sample.
+    pub us_per_sample: f64,
+}
+
+impl FilterScore {
+    /// The scores as a JSON object (keeps serde out of the library's dependencies).
+    pub fn to_json(&self) -> String {
+        format!(
+            "{{\"tilt_rms_deg\": {:.4}, \"tilt_max_still_deg\": {:.4}, \"yaw_drift_deg_per_min\": {:.4}, \"attitude_rms_deg\": {:.4}, \"relative_rotation_p95_deg\": {:.4}, \"us_per_sample\": {:.4}}}",
+            self.tilt_rms_deg,
+            self.tilt_max_still_deg,
+            self.yaw_drift_deg_per_min,
+            self.attitude_rms_deg,
+            self.relative_rotation_p95_deg,
+            self.us_per_sample
+        )
+    }
+}
+
+/// A recorded session: calibrated samples with the truth at their sampling instants.
+#[derive(Debug, Clone, Default)]
+pub struct Recording {
+    /// Samples as the session produced them.
+    pub samples: Vec<ImuSample>,
+    /// True orientation at each sample's sensor time.
+    pub truth: Vec<DQuat>,
+    /// Sensor time of each sample, s.
+    pub times: Vec<f64>,
+    /// Whether the scenario holds still at that time (for the still-tilt metric).
+    pub still: Vec<bool>,
+}
+
+/// Runs the scenario through the emulator (Remote Plus, default sensor model, seed) and the
+/// session, and records what a filter would see.
+pub fn record_session(seed: u64, duration_s: f64) -> Recording {
+    let scenario = std::sync::Arc::new(DriftScenario::new(seed, duration_s));
+    let emu = EmulatedRemote::new(EmulatorConfig {
+        variant: Variant::Plus,
+        seed,
+        ..Default::default()
+    });
+    emu.controls().set_motion(scenario.clone());
+    let mut session = Session::new(emu, SessionConfig::default());
+    let mut rec = Recording::default();
+    if session.connect().is_err() {
+        return rec;
+    }
+    let end_us = (scenario.duration() * 1e6) as u64;
+    while session.transport().now_us() < end_us {
+        if session.poll(20).is_err() {
+            break;
+        }
+        let events: Vec<SessionEvent> = session.drain_events().collect();
+        for e in events {
+            if let SessionEvent::Imu(s) = e {
+                let t_us = session
+                    .transport()
+                    .sample_time_of(s.timestamp_us)
+                    .unwrap_or(s.timestamp_us);
+                let t = t_us as f64 * 1e-6;
+                rec.samples.push(s);
+                rec.truth.push(scenario.orientation(t));
+                rec.times.push(t);
+                let (_, _, _, swing) = scenario.angles(t);
+                let moving = (scenario.orientation(t + 0.3).angle_between(scenario.orientation(t - 0.3))) > 1e-9
+                    || swing != 0.0;
+                rec.still.push(!moving);
+            }
+        }
+    }
+    rec
+}
+
+fn heading(q: DQuat) -> f64 {
+    let p = q * DVec3::NEG_Y;
+    p.x.atan2(-p.y).to_degrees()
+}
+
+fn wrap(d: f64) -> f64 {
+    (d + 180.0).rem_euclid(360.0) - 180.0
+}
+
+fn percentile(mut v: Vec<f64>, p: f64) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(f64::total_cmp);
+    v[((v.len() - 1) as f64 * p).round() as usize]
+}
+
+/// Scores one filter on a recording (metrics from t ≥ 5 s, after the start-up still phase).
+pub fn score(kind: FilterKind, rec: &Recording) -> FilterScore {
+    let mut f = kind.build();
+    let mut est = Vec::with_capacity(rec.samples.len());
+    let t0 = Instant::now();
+    for s in &rec.samples {
+        f.update(s);
+        est.push(f.orientation());
+    }
+    let us = t0.elapsed().as_secs_f64() * 1e6 / rec.samples.len().max(1) as f64;
+    let first = rec.times.iter().position(|t| *t >= START_STILL).unwrap_or(0);
+    let (mut tilt2, mut att2, mut n) = (0.0f64, 0.0f64, 0.0f64);
+    let mut tilt_still: f64 = 0.0;
+    let (mut sx, mut sy, mut sxx, mut sxy) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+    let mut yaw_err_unwrapped = 0.0;
+    let mut last_err: Option<f64> = None;
+    for i in first..rec.samples.len() {
+        let (qt, qe) = (rec.truth[i], est[i]);
+        let tilt = (qt.inverse() * DVec3::Z)
+            .angle_between(qe.inverse() * DVec3::Z)
+            .to_degrees();
+        let att = qt.angle_between(qe).to_degrees();
+        tilt2 += tilt * tilt;
+        att2 += att * att;
+        n += 1.0;
+        if rec.still[i] {
+            tilt_still = tilt_still.max(tilt);
+        }
+        // Heading error (unwrapped), only where the heading is well defined.
+        let pt = qt * DVec3::NEG_Y;
+        if pt.z.abs() < 0.9 {
+            let e = wrap(heading(qe) - heading(qt));
+            yaw_err_unwrapped = match last_err {
+                Some(prev) => yaw_err_unwrapped + wrap(e - prev),
+                None => e,
+            };
+            last_err = Some(e);
+            let x = rec.times[i] / 60.0;
+            sx += x;
+            sy += yaw_err_unwrapped;
+            sxx += x * x;
+            sxy += x * yaw_err_unwrapped;
+        }
+    }
+    let m = n.max(1.0);
+    let slope = (m * sxy - sx * sy) / (m * sxx - sx * sx).max(1e-12);
+    // 2-second relative rotations every 0.5 s.
+    let mut rel = Vec::new();
+    let mut i = first;
+    while i < rec.samples.len() {
+        let target = rec.times[i] + 2.0;
+        if let Some(j) = rec.times[i..].iter().position(|t| *t >= target).map(|k| k + i) {
+            let dt = rec.truth[i].inverse() * rec.truth[j];
+            let de = est[i].inverse() * est[j];
+            rel.push(dt.angle_between(de).to_degrees());
+        } else {
+            break;
+        }
+        let next = rec.times[i] + 0.5;
+        i = rec.times[i..]
+            .iter()
+            .position(|t| *t >= next)
+            .map(|k| k + i)
+            .unwrap_or(rec.samples.len());
+    }
+    FilterScore {
+        tilt_rms_deg: (tilt2 / m).sqrt(),
+        tilt_max_still_deg: tilt_still,
+        yaw_drift_deg_per_min: slope.abs(),
+        attitude_rms_deg: (att2 / m).sqrt(),
+        relative_rotation_p95_deg: percentile(rel, 0.95),
+        us_per_sample: us,
+    }
+}
+
+/// Mean of scores over several sessions.
+pub fn mean(scores: &[FilterScore]) -> FilterScore {
+    let n = scores.len().max(1) as f64;
+    let mut m = FilterScore::default();
+    for s in scores {
+        m.tilt_rms_deg += s.tilt_rms_deg / n;
+        m.tilt_max_still_deg += s.tilt_max_still_deg / n;
+        m.yaw_drift_deg_per_min += s.yaw_drift_deg_per_min / n;
+        m.attitude_rms_deg += s.attitude_rms_deg / n;
+        m.relative_rotation_p95_deg += s.relative_rotation_p95_deg / n;
+        m.us_per_sample += s.us_per_sample / n;
+    }
+    m
+}

@@ -1,0 +1,539 @@
+//! Orientation filters: gyro integration with drift control, one trait, three methods.
+//!
+//! * [`RawIntegration`] — integrates the calibrated rates, no bias removal (reference only).
+//! * [`PaperFilter`] — exactly the paper's method (`PROTOCOL.md` §12.2): bias from the first
+//!   300 samples at rest, a 0.5 deg/s dead zone, integration by local increments, and tilt
+//!   snapped to the accelerometer's gravity when still (yaw kept).
+//! * [`FusionFilter`] — ours: continuous stillness-gated bias estimation, a Mahony
+//!   complementary correction whose gain follows how purely the accelerometer reads gravity,
+//!   no dead zone.
+//!
+//! Orientation is world←body with world Z up and the body axes of §5.3.
+
+use std::collections::VecDeque;
+
+use glam::{DQuat, DVec3};
+
+/// Radians per degree.
+const RAD: f64 = std::f64::consts::PI / 180.0;
+
+/// One sensor sample handed to a filter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImuSample {
+    /// Host timestamp, µs.
+    pub timestamp_us: u64,
+    /// Time since the previous sample, s (0 after a dropout: do not integrate).
+    pub dt: f64,
+    /// Calibrated body rates in deg/s (x pitch, y roll, z yaw), bias *not* removed; `None`
+    /// for reports without a MotionPlus frame.
+    pub gyro_dps: Option<DVec3>,
+    /// Fast (high-range) flag per axis x, y, z.
+    pub gyro_fast: [bool; 3],
+    /// Specific force in g (body frame).
+    pub accel_g: DVec3,
+}
+
+/// Where bias calibration stands.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum CalibrationPhase {
+    /// Collecting samples at rest; `progress` in 0..1.
+    Collecting {
+        /// Fraction done.
+        progress: f64,
+    },
+    /// A bias estimate is in use.
+    Calibrated,
+}
+
+/// Calibration state, visible to users.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Calibration {
+    /// Phase.
+    pub phase: CalibrationPhase,
+    /// 0..1: how much the current bias estimate is trusted.
+    pub confidence: f64,
+    /// Current gyro bias estimate, deg/s.
+    pub bias_dps: DVec3,
+}
+
+/// An orientation estimator fed with [`ImuSample`]s.
+pub trait OrientationFilter: Send {
+    /// Short name (`raw`, `paper`, `ours`).
+    fn name(&self) -> &'static str;
+    /// Consumes one sample.
+    fn update(&mut self, sample: &ImuSample);
+    /// Estimated orientation (world←body), relative to the last recentre.
+    fn orientation(&self) -> DQuat;
+    /// Bias-corrected body angular velocity, rad/s.
+    fn angular_velocity(&self) -> DVec3;
+    /// Bias calibration state.
+    fn calibration(&self) -> Calibration;
+    /// Whether the remote is currently judged still.
+    fn is_still(&self) -> bool;
+    /// Makes the current orientation the identity.
+    fn recenter(&mut self);
+    /// Restarts bias calibration (hold the remote still afterwards).
+    fn calibrate_now(&mut self);
+}
+
+/// Filter choice, for settings and UIs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
+pub enum FilterKind {
+    /// [`RawIntegration`].
+    Raw,
+    /// [`PaperFilter`].
+    Paper,
+    /// [`FusionFilter`] (default).
+    #[default]
+    Fusion,
+}
+
+impl FilterKind {
+    /// Builds the filter with default parameters.
+    pub fn build(self) -> Box<dyn OrientationFilter> {
+        match self {
+            FilterKind::Raw => Box::new(RawIntegration::default()),
+            FilterKind::Paper => Box::new(PaperFilter::default()),
+            FilterKind::Fusion => Box::new(FusionFilter::default()),
+        }
+    }
+
+    /// All filters, in report order.
+    pub const ALL: [FilterKind; 3] = [FilterKind::Raw, FilterKind::Paper, FilterKind::Fusion];
+
+    /// The name the filter reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            FilterKind::Raw => "raw",
+            FilterKind::Paper => "paper",
+            FilterKind::Fusion => "ours",
+        }
+    }
+}
+
+fn integrate(q: DQuat, w_rad: DVec3, dt: f64) -> DQuat {
+    (q * DQuat::from_scaled_axis(w_rad * dt)).normalize()
+}
+
+/// Tilt (elevation + roll) from measured gravity, heading kept from `q`. Returns `q`
+/// unchanged where the heading is undefined (pointing straight up/down) or `f` is zero.
+pub fn snap_tilt(q: DQuat, f: DVec3) -> DQuat {
+    let Some(g) = f.try_normalize() else {
+        return q;
+    };
+    // Orientation model R = Rz(ψ)·Rx(a)·Ry(b): body "up" is (−cos a sin b, sin a, cos a cos b).
+    let a = g.y.clamp(-1.0, 1.0).asin(); // = −elevation of the pointing axis −Y
+    let b = (-g.x).atan2(g.z); // roll about the pointing axis
+    let p = q * DVec3::NEG_Y;
+    let horizontal = (p.x * p.x + p.y * p.y).sqrt();
+    if horizontal < 1e-6 {
+        return q;
+    }
+    let psi = p.x.atan2(-p.y);
+    DQuat::from_rotation_z(psi) * DQuat::from_rotation_x(a) * DQuat::from_rotation_y(b)
+}
+
+/// Integrates the calibrated rates without removing bias.
+#[derive(Debug, Clone, Default)]
+pub struct RawIntegration {
+    q: DQuat,
+    reference: DQuat,
+    w: DVec3,
+}
+
+impl OrientationFilter for RawIntegration {
+    fn name(&self) -> &'static str {
+        "raw"
+    }
+    fn update(&mut self, s: &ImuSample) {
+        if let Some(g) = s.gyro_dps {
+            self.w = g * RAD;
+            self.q = integrate(self.q, self.w, s.dt);
+        }
+    }
+    fn orientation(&self) -> DQuat {
+        self.reference.inverse() * self.q
+    }
+    fn angular_velocity(&self) -> DVec3 {
+        self.w
+    }
+    fn calibration(&self) -> Calibration {
+        Calibration {
+            phase: CalibrationPhase::Calibrated,
+            confidence: 0.0,
+            bias_dps: DVec3::ZERO,
+        }
+    }
+    fn is_still(&self) -> bool {
+        false
+    }
+    fn recenter(&mut self) {
+        self.reference = self.q;
+    }
+    fn calibrate_now(&mut self) {}
+}
+
+/// The paper's filter (see module docs). Parameters follow `PROTOCOL.md` §12.2.
+#[derive(Debug, Clone)]
+pub struct PaperFilter {
+    /// Samples averaged for the bias (300).
+    pub bias_samples: u32,
+    /// Dead zone per axis, deg/s (0.5).
+    pub dead_zone_dps: f64,
+    /// Stillness: `| |f| − 1 |` below this (0.05 g) …
+    pub still_accel_g: f64,
+    /// … and `|ω'|` below this (1 deg/s) …
+    pub still_rate_dps: f64,
+    /// … for at least this long (0.5 s).
+    pub still_time_s: f64,
+    q: DQuat,
+    reference: DQuat,
+    w: DVec3,
+    sum: DVec3,
+    n: u32,
+    bias: Option<DVec3>,
+    still_for: f64,
+}
+
+impl Default for PaperFilter {
+    fn default() -> Self {
+        Self {
+            bias_samples: 300,
+            dead_zone_dps: 0.5,
+            still_accel_g: 0.05,
+            still_rate_dps: 1.0,
+            still_time_s: 0.5,
+            q: DQuat::IDENTITY,
+            reference: DQuat::IDENTITY,
+            w: DVec3::ZERO,
+            sum: DVec3::ZERO,
+            n: 0,
+            bias: None,
+            still_for: 0.0,
+        }
+    }
+}
+
+impl OrientationFilter for PaperFilter {
+    fn name(&self) -> &'static str {
+        "paper"
+    }
+    fn update(&mut self, s: &ImuSample) {
+        let Some(g) = s.gyro_dps else { return };
+        let Some(bias) = self.bias else {
+            // Bias batch: restart on motion or a fast-mode sample.
+            let mean = if self.n > 0 { self.sum / self.n as f64 } else { g };
+            if s.gyro_fast.iter().any(|f| *f) || (g - mean).abs().max_element() > 3.0 {
+                self.sum = DVec3::ZERO;
+                self.n = 0;
+                return;
+            }
+            self.sum += g;
+            self.n += 1;
+            if self.n >= self.bias_samples {
+                self.bias = Some(self.sum / self.n as f64);
+                self.q = snap_tilt(DQuat::IDENTITY, s.accel_g);
+            }
+            return;
+        };
+        let d = g - bias;
+        let dz = |x: f64| if x.abs() < self.dead_zone_dps { 0.0 } else { x };
+        let w = DVec3::new(dz(d.x), dz(d.y), dz(d.z));
+        self.w = w * RAD;
+        self.q = integrate(self.q, self.w, s.dt);
+        let still = (s.accel_g.length() - 1.0).abs() < self.still_accel_g
+            && w.length() < self.still_rate_dps;
+        self.still_for = if still { self.still_for + s.dt } else { 0.0 };
+        if self.still_for >= self.still_time_s {
+            self.q = snap_tilt(self.q, s.accel_g);
+        }
+    }
+    fn orientation(&self) -> DQuat {
+        self.reference.inverse() * self.q
+    }
+    fn angular_velocity(&self) -> DVec3 {
+        self.w
+    }
+    fn calibration(&self) -> Calibration {
+        match self.bias {
+            Some(b) => Calibration {
+                phase: CalibrationPhase::Calibrated,
+                confidence: 1.0,
+                bias_dps: b,
+            },
+            None => Calibration {
+                phase: CalibrationPhase::Collecting {
+                    progress: self.n as f64 / self.bias_samples as f64,
+                },
+                confidence: 0.0,
+                bias_dps: DVec3::ZERO,
+            },
+        }
+    }
+    fn is_still(&self) -> bool {
+        self.still_for >= self.still_time_s
+    }
+    fn recenter(&mut self) {
+        self.reference = self.q;
+    }
+    fn calibrate_now(&mut self) {
+        self.bias = None;
+        self.sum = DVec3::ZERO;
+        self.n = 0;
+    }
+}
+
+/// Our filter: stillness-gated continuous bias estimation + Mahony gravity correction.
+#[derive(Debug, Clone)]
+pub struct FusionFilter {
+    /// Stillness window length, samples.
+    pub window: usize,
+    /// Max per-axis gyro spread in the window to count as still, deg/s.
+    pub still_gyro_spread_dps: f64,
+    /// Max per-axis accel spread in the window to count as still, g.
+    pub still_accel_spread_g: f64,
+    /// Once calibrated, a still window whose mean rate differs from the bias by more than
+    /// this is treated as slow motion, not stillness (deg/s) …
+    pub bias_gate_dps: f64,
+    /// … plus this much per second since the bias was last updated (the bias drifts with
+    /// temperature, so the gate widens until the next still period), deg/s².
+    pub bias_gate_growth: f64,
+    /// Bias tracking time constant while still, s.
+    pub bias_time_constant_s: f64,
+    /// Gravity correction gain while moving, 1/s.
+    pub kp_moving: f64,
+    /// Gravity correction gain while still, 1/s.
+    pub kp_still: f64,
+    /// Integral gain on the tilt-observable bias, 1/s² (0 by default: with a real
+    /// accelerometer's cross-axis error it pumps that error into the bias, yaw included).
+    pub ki: f64,
+    q: DQuat,
+    reference: DQuat,
+    w: DVec3,
+    bias: DVec3,
+    calibrated: bool,
+    confidence: f64,
+    still: bool,
+    still_for: f64,
+    gyro_hist: VecDeque<DVec3>,
+    accel_hist: VecDeque<DVec3>,
+    tilt_initialised: bool,
+    since_bias_update: f64,
+}
+
+impl Default for FusionFilter {
+    fn default() -> Self {
+        Self {
+            window: 50,
+            still_gyro_spread_dps: 1.5,
+            still_accel_spread_g: 0.06,
+            bias_gate_dps: 0.3,
+            bias_gate_growth: 0.005,
+            bias_time_constant_s: 2.0,
+            kp_moving: 1.0,
+            kp_still: 5.0,
+            ki: 0.0,
+            q: DQuat::IDENTITY,
+            reference: DQuat::IDENTITY,
+            w: DVec3::ZERO,
+            bias: DVec3::ZERO,
+            calibrated: false,
+            confidence: 0.0,
+            still: false,
+            still_for: 0.0,
+            gyro_hist: VecDeque::new(),
+            accel_hist: VecDeque::new(),
+            tilt_initialised: false,
+            since_bias_update: 0.0,
+        }
+    }
+}
+
+fn spread(h: &VecDeque<DVec3>) -> (DVec3, DVec3) {
+    let mut lo = DVec3::splat(f64::MAX);
+    let mut hi = DVec3::splat(f64::MIN);
+    let mut sum = DVec3::ZERO;
+    for v in h {
+        lo = lo.min(*v);
+        hi = hi.max(*v);
+        sum += *v;
+    }
+    (hi - lo, sum / h.len().max(1) as f64)
+}
+
+impl FusionFilter {
+    fn update_stillness(&mut self, g: DVec3, s: &ImuSample) {
+        self.gyro_hist.push_back(g);
+        self.accel_hist.push_back(s.accel_g);
+        while self.gyro_hist.len() > self.window {
+            self.gyro_hist.pop_front();
+            self.accel_hist.pop_front();
+        }
+        let full = self.gyro_hist.len() >= self.window;
+        let (gs, gmean) = spread(&self.gyro_hist);
+        let (as_, amean) = spread(&self.accel_hist);
+        let quiet = full
+            && gs.max_element() < self.still_gyro_spread_dps
+            && as_.max_element() < self.still_accel_spread_g
+            && (amean.length() - 1.0).abs() < 0.1
+            && !s.gyro_fast.iter().any(|f| *f);
+        self.since_bias_update += s.dt;
+        let gate = self.bias_gate_dps + self.bias_gate_growth * self.since_bias_update;
+        let gated = !self.calibrated || (gmean - self.bias).abs().max_element() < gate;
+        self.still = quiet && gated;
+        self.still_for = if self.still { self.still_for + s.dt } else { 0.0 };
+        if self.still && self.still_for >= 0.5 {
+            self.since_bias_update = 0.0;
+            if !self.calibrated {
+                self.bias = gmean;
+                self.calibrated = true;
+                self.confidence = 0.5;
+            } else {
+                let a = 1.0 - (-s.dt / self.bias_time_constant_s).exp();
+                self.bias += (gmean - self.bias) * a;
+                self.confidence = (self.confidence + s.dt).min(1.0);
+            }
+        } else if !self.still {
+            // Confidence decays slowly while moving (temperature drift, random walk).
+            self.confidence = (self.confidence - s.dt / 300.0).max(0.0);
+        }
+    }
+}
+
+impl OrientationFilter for FusionFilter {
+    fn name(&self) -> &'static str {
+        "ours"
+    }
+    fn update(&mut self, s: &ImuSample) {
+        if !self.tilt_initialised && s.accel_g.length() > 0.5 {
+            self.q = snap_tilt(self.q, s.accel_g);
+            self.tilt_initialised = true;
+        }
+        let mut w = DVec3::ZERO;
+        if let Some(g) = s.gyro_dps {
+            self.update_stillness(g, s);
+            w = (g - self.bias) * RAD;
+        }
+        // Gravity correction, weighted by how purely the accelerometer reads 1 g.
+        let norm = s.accel_g.length();
+        let purity = (1.0 - (norm - 1.0).abs() / 0.15).clamp(0.0, 1.0).powi(2);
+        if purity > 0.0 && s.dt > 0.0 {
+            let measured_up = s.accel_g / norm;
+            let estimated_up = self.q.inverse() * DVec3::Z;
+            let e = measured_up.cross(estimated_up);
+            let kp = if self.still { self.kp_still } else { self.kp_moving };
+            w += e * (kp * purity);
+            if s.gyro_dps.is_some() && self.calibrated {
+                let step = e * (self.ki * purity * s.dt);
+                self.bias -= step / RAD;
+            }
+        }
+        self.w = w;
+        self.q = integrate(self.q, w, s.dt);
+    }
+    fn orientation(&self) -> DQuat {
+        self.reference.inverse() * self.q
+    }
+    fn angular_velocity(&self) -> DVec3 {
+        self.w
+    }
+    fn calibration(&self) -> Calibration {
+        Calibration {
+            phase: if self.calibrated {
+                CalibrationPhase::Calibrated
+            } else {
+                CalibrationPhase::Collecting {
+                    progress: (self.still_for / 0.5).min(1.0),
+                }
+            },
+            confidence: self.confidence,
+            bias_dps: self.bias,
+        }
+    }
+    fn is_still(&self) -> bool {
+        self.still
+    }
+    fn recenter(&mut self) {
+        self.reference = self.q;
+    }
+    fn calibrate_now(&mut self) {
+        self.calibrated = false;
+        self.confidence = 0.0;
+        self.still_for = 0.0;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample(t: u64, gyro: DVec3, accel: DVec3) -> ImuSample {
+        ImuSample {
+            timestamp_us: t,
+            dt: 0.01,
+            gyro_dps: Some(gyro),
+            gyro_fast: [false; 3],
+            accel_g: accel,
+        }
+    }
+
+    #[test]
+    fn snap_tilt_matches_gravity_and_keeps_heading() {
+        let truth = crate::wiimote::motion::from_yaw_elevation_roll(0.8, 0.4, -0.3);
+        let f = truth.inverse() * DVec3::Z;
+        let wrong = DQuat::from_rotation_z(0.8) * DQuat::from_rotation_x(-0.2);
+        let q = snap_tilt(wrong, f);
+        assert!(q.angle_between(truth) < 1e-9, "{}", q.angle_between(truth));
+    }
+
+    #[test]
+    fn paper_dead_zone_swallows_slow_motion_ours_does_not() {
+        let bias = DVec3::new(0.3, -0.2, 0.4);
+        let mut paper = PaperFilter::default();
+        let mut ours = FusionFilter::default();
+        let mut t = 0;
+        for _ in 0..400 {
+            t += 10_000;
+            let s = sample(t, bias, DVec3::Z);
+            paper.update(&s);
+            ours.update(&s);
+        }
+        assert_eq!(paper.calibration().phase, CalibrationPhase::Calibrated);
+        assert_eq!(ours.calibration().phase, CalibrationPhase::Calibrated);
+        // 0.4 deg/s yaw for 20 s = 8°.
+        for _ in 0..2000 {
+            t += 10_000;
+            let s = sample(t, bias + DVec3::new(0.0, 0.0, 0.4), DVec3::Z);
+            paper.update(&s);
+            ours.update(&s);
+        }
+        let yaw = |q: DQuat| q.to_euler(glam::EulerRot::ZXY).0.to_degrees();
+        assert!(yaw(paper.orientation()).abs() < 0.5, "paper {}", yaw(paper.orientation()));
+        assert!((yaw(ours.orientation()) - 8.0).abs() < 1.0, "ours {}", yaw(ours.orientation()));
+    }
+
+    #[test]
+    fn recenter_makes_identity() {
+        for kind in FilterKind::ALL {
+            let mut f = kind.build();
+            for k in 0..400 {
+                f.update(&sample(k * 10_000, DVec3::new(0.0, 0.0, 20.0), DVec3::Z));
+            }
+            f.recenter();
+            assert!(f.orientation().angle_between(DQuat::IDENTITY) < 1e-9, "{}", f.name());
+        }
+    }
+
+    #[test]
+    fn paper_bias_batch_restarts_on_motion() {
+        let mut p = PaperFilter::default();
+        for k in 0..299 {
+            p.update(&sample(k, DVec3::ZERO, DVec3::Z));
+        }
+        p.update(&sample(300, DVec3::new(10.0, 0.0, 0.0), DVec3::Z));
+        assert!(matches!(
+            p.calibration().phase,
+            CalibrationPhase::Collecting { .. }
+        ));
+    }
+}

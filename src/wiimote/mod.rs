@@ -1,0 +1,53 @@
+//! The Wii Remote + MotionPlus device layer (no Bevy): protocol, transports (hidapi and a
+//! byte-exact emulator), the connection state machine, orientation filters, the drift
+//! benchmark and a multi-remote manager. Specification: `PROTOCOL.md` (see the repository).
+//!
+//! ```
+//! use bevy_wii_deform::wiimote::*;
+//!
+//! // An emulated Wii Remote Plus turning about its yaw axis at 30 deg/s.
+//! let remote = EmulatedRemote::new(EmulatorConfig::default());
+//! remote.controls().set_motion(std::sync::Arc::new(ConstantRate {
+//!     start: glam::DQuat::IDENTITY,
+//!     axis: glam::DVec3::Z,
+//!     rate: 30f64.to_radians(),
+//! }));
+//! let mut session = Session::new(remote, SessionConfig::default());
+//! let info = session.connect().unwrap();
+//! assert_eq!(info.motion_plus, MotionPlusState::Active);
+//! for _ in 0..100 {
+//!     session.poll(20).unwrap();
+//! }
+//! assert!(session.drain_events().any(|e| matches!(e, SessionEvent::Orientation(_))));
+//! ```
+
+pub mod drift;
+mod emulator;
+mod filter;
+mod manager;
+mod motion;
+pub mod protocol;
+mod rng;
+mod session;
+mod transport;
+
+pub use emulator::{EmulatedRemote, EmulatorConfig, EmulatorControls, SensorModel, Variant};
+pub use filter::{
+    Calibration, CalibrationPhase, FilterKind, FusionFilter, ImuSample, OrientationFilter,
+    PaperFilter, RawIntegration, snap_tilt,
+};
+pub use manager::{
+    ManagerConfig, ManagerEvent, RemoteCommand, RemoteId, RemoteSource, WiimoteManager,
+};
+pub use motion::{
+    ConstantRate, DemoMotion, FnMotion, GRAVITY, Motion, Still, body_rate,
+    from_yaw_elevation_roll, specific_force_g,
+};
+pub use rng::Rng;
+pub use session::{
+    ExtensionState, MotionPlusState, OrientationSample, RemoteInfo, RemoteKind, Session,
+    SessionConfig, SessionError, SessionEvent,
+};
+pub use transport::{Transport, TransportError};
+#[cfg(feature = "hidapi")]
+pub use transport::{DeviceInfo, Diagnosis, HidTransport, diagnose_linux, discover};

@@ -1,0 +1,517 @@
+//! Integration tests of the deformation core against independent references.
+
+use std::sync::Arc;
+
+use bevy_wii_deform::deform::*;
+use glam::{DMat3, DQuat, DVec3};
+
+fn topo(mesh: &TriMesh) -> Arc<Topology> {
+    Arc::new(Topology::new(&mesh.positions, &mesh.triangles).unwrap())
+}
+
+fn bend_problem(topology: &Topology, angle: f64) -> Constraints {
+    let (fixed, handle) = synth::slab_regions(topology.positions(), 1, 0.1, 0.1);
+    let pivot = handle
+        .iter()
+        .map(|&i| topology.positions()[i as usize])
+        .sum::<DVec3>()
+        / handle.len() as f64;
+    Constraints::with_handle(
+        fixed,
+        handle,
+        RigidTransform::new(
+            DQuat::from_rotation_z(angle),
+            DVec3::new(0.3, -0.1, 0.05),
+            pivot,
+        ),
+    )
+}
+
+const NEVER: &dyn Fn() -> bool = &|| false;
+
+#[test]
+fn one_rigid_transform_everywhere_reproduces_it() {
+    let mesh = synth::icosphere(3, 1.0);
+    let t = topo(&mesh);
+    let motion = RigidTransform::new(
+        DQuat::from_axis_angle(DVec3::new(1.0, 2.0, 3.0).normalize(), 1.1),
+        DVec3::new(0.5, -2.0, 1.0),
+        DVec3::new(0.1, 0.2, 0.3),
+    );
+    // Two handles and a target, all from the same rigid motion; nothing fixed at rest.
+    let n = t.vertex_count() as u32;
+    let constraints = Constraints {
+        fixed: vec![],
+        handles: vec![
+            Handle {
+                vertices: (0..10).collect(),
+                transform: motion,
+            },
+            Handle {
+                vertices: (n - 10..n).collect(),
+                transform: motion,
+            },
+        ],
+        targets: vec![(300, motion.apply(t.positions()[300]))],
+    };
+    let solver = ArapSolver::precompute(t.clone(), &constraints, SolverSettings::default()).unwrap();
+    let options = SolveOptions {
+        max_iterations: 200,
+        tolerance: 0.0,
+    };
+    let sol = solver
+        .solve(&constraints, &options, InitialGuess::Laplacian, NEVER)
+        .unwrap();
+    let err = sol
+        .positions
+        .iter()
+        .zip(t.positions())
+        .map(|(p, r)| (*p - motion.apply(*r)).length())
+        .fold(0.0, f64::max);
+    assert!(err < 1e-6, "max deviation from the rigid motion {err}");
+    assert!(arap_energy(&t, &sol.positions) < 1e-12);
+    // Cell rotations equal the motion's rotation.
+    let q = sol.rotations[42];
+    assert!(q.dot(motion.rotation).abs() > 1.0 - 1e-9);
+}
+
+#[test]
+fn energy_never_increases_across_iterations() {
+    for mesh in [synth::bar(24, 60, 0.1, 1.0), synth::icosphere(3, 1.0)] {
+        let t = topo(&mesh);
+        let c = bend_problem(&t, 1.2);
+        let solver = ArapSolver::precompute(t.clone(), &c, SolverSettings::default()).unwrap();
+        for init in [InitialGuess::Laplacian, InitialGuess::Rest] {
+            let sol = solver
+                .solve(
+                    &c,
+                    &SolveOptions {
+                        max_iterations: 30,
+                        tolerance: 0.0,
+                    },
+                    init,
+                    NEVER,
+                )
+                .unwrap();
+            let mut prev = sol.stats.initial_energy.unwrap_or(f64::INFINITY);
+            for &e in &sol.stats.energies {
+                assert!(e <= prev * (1.0 + 1e-9) + 1e-15, "energy rose {prev} -> {e}");
+                prev = e;
+            }
+            // The solver's bookkeeping agrees with the public exact energy.
+            let exact = arap_energy(&t, &sol.positions);
+            assert!((exact - sol.stats.final_energy()).abs() <= 1e-9 * exact.max(1e-12));
+        }
+    }
+}
+
+/// Dense reference: full Laplacian with constrained rows eliminated, Gaussian elimination,
+/// exact rotations. Independent of faer and of the warm rotation fit.
+fn dense_reference(t: &Topology, c: &Constraints, iterations: usize) -> Vec<DVec3> {
+    let n = t.vertex_count();
+    let rest = t.positions();
+    let w = t.weights(WeightMode::ClampedCotangent);
+    let mut known = vec![None; n];
+    for &v in &c.fixed {
+        known[v as usize] = Some(rest[v as usize]);
+    }
+    for h in &c.handles {
+        for &v in &h.vertices {
+            known[v as usize] = Some(h.transform.apply(rest[v as usize]));
+        }
+    }
+    let free: Vec<usize> = (0..n).filter(|&i| known[i].is_none()).collect();
+    let fidx: Vec<Option<usize>> = {
+        let mut m = vec![None; n];
+        for (f, &i) in free.iter().enumerate() {
+            m[i] = Some(f);
+        }
+        m
+    };
+    let nf = free.len();
+    let mut a = vec![vec![0.0f64; nf]; nf];
+    for (f, &i) in free.iter().enumerate() {
+        for (e, &j) in t.neighbors(i).iter().enumerate() {
+            let we = w[t.offsets()[i] as usize + e];
+            a[f][f] += we;
+            if let Some(g) = fidx[j as usize] {
+                a[f][g] -= we;
+            }
+        }
+    }
+    let mut x: Vec<DVec3> = (0..n).map(|i| known[i].unwrap_or(rest[i])).collect();
+    let mut rots = vec![DMat3::IDENTITY; n];
+    for it in 0..=iterations {
+        if it > 0 {
+            for i in 0..n {
+                let mut cov = DMat3::ZERO;
+                for (e, &j) in t.neighbors(i).iter().enumerate() {
+                    let we = w[t.offsets()[i] as usize + e];
+                    let d = x[i] - x[j as usize];
+                    let r = rest[i] - rest[j as usize];
+                    cov += DMat3::from_cols(d * r.x, d * r.y, d * r.z) * we;
+                }
+                rots[i] = DMat3::from_quat(best_rotation_exact(&cov));
+            }
+        }
+        if it == iterations {
+            break;
+        }
+        let mut m = a.clone();
+        let mut b: Vec<DVec3> = free
+            .iter()
+            .map(|&i| {
+                let mut b = DVec3::ZERO;
+                for (e, &j) in t.neighbors(i).iter().enumerate() {
+                    let we = w[t.offsets()[i] as usize + e];
+                    let j = j as usize;
+                    b += 0.5 * we * ((rots[i] + rots[j]) * (rest[i] - rest[j]));
+                    if fidx[j].is_none() {
+                        b += we * x[j];
+                    }
+                }
+                b
+            })
+            .collect();
+        // Gaussian elimination with partial pivoting.
+        for k in 0..nf {
+            let p = (k..nf)
+                .max_by(|&r, &s| m[r][k].abs().total_cmp(&m[s][k].abs()))
+                .unwrap();
+            m.swap(k, p);
+            b.swap(k, p);
+            for r in k + 1..nf {
+                let f = m[r][k] / m[k][k];
+                if f != 0.0 {
+                    for col in k..nf {
+                        m[r][col] -= f * m[k][col];
+                    }
+                    b[r] = b[r] - f * b[k];
+                }
+            }
+        }
+        for k in (0..nf).rev() {
+            let mut s = b[k];
+            for col in k + 1..nf {
+                s -= m[k][col] * b[col];
+            }
+            b[k] = s / m[k][k];
+        }
+        for (f, &i) in free.iter().enumerate() {
+            x[i] = b[f];
+        }
+    }
+    x
+}
+
+#[test]
+fn matches_dense_reference_solve() {
+    let mesh = synth::bar(10, 12, 0.1, 1.0);
+    let t = topo(&mesh);
+    let c = bend_problem(&t, 0.9);
+    let iterations = 6;
+    let reference = dense_reference(&t, &c, iterations);
+    let solver = ArapSolver::precompute(t.clone(), &c, SolverSettings::default()).unwrap();
+    let sol = solver
+        .solve(
+            &c,
+            &SolveOptions {
+                max_iterations: iterations as u32,
+                tolerance: 0.0,
+            },
+            InitialGuess::Rest,
+            NEVER,
+        )
+        .unwrap();
+    assert_eq!(sol.stats.iterations, iterations as u32);
+    let scale = t.bounding_diagonal();
+    let err = sol
+        .positions
+        .iter()
+        .zip(&reference)
+        .map(|(a, b)| (*a - *b).length())
+        .fold(0.0, f64::max);
+    assert!(err <= 1e-8 * scale, "max deviation {err} vs dense reference");
+}
+
+#[test]
+fn split_cube_deforms_without_gaps() {
+    // A cube with 4 vertices per face (24 render vertices, split at every edge).
+    let faces: [(DVec3, DVec3, DVec3); 6] = [
+        (DVec3::X, DVec3::Y, DVec3::Z),
+        (-DVec3::X, DVec3::Z, DVec3::Y),
+        (DVec3::Y, DVec3::Z, DVec3::X),
+        (-DVec3::Y, DVec3::X, DVec3::Z),
+        (DVec3::Z, DVec3::X, DVec3::Y),
+        (-DVec3::Z, DVec3::Y, DVec3::X),
+    ];
+    let mut positions = Vec::new();
+    let mut indices = Vec::new();
+    for (n, u, v) in faces {
+        let base = positions.len() as u32;
+        for (a, b) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+            positions.push((n + u * a + v * b).as_vec3());
+        }
+        indices.extend_from_slice(&[base, base + 1, base + 2, base, base + 2, base + 3]);
+    }
+    let t = Arc::new(Topology::from_render_mesh(&positions, &indices).unwrap());
+    assert_eq!(t.vertex_count(), 8);
+    let bottom: Vec<u32> = (0..8).filter(|&i| t.positions()[i as usize].y < 0.0).collect();
+    let top: Vec<u32> = (0..8).filter(|&i| t.positions()[i as usize].y > 0.0).collect();
+    let c = Constraints {
+        fixed: bottom[..2].to_vec(),
+        handles: vec![Handle {
+            vertices: top[..2].to_vec(),
+            transform: RigidTransform::new(DQuat::IDENTITY, DVec3::new(0.5, 0.5, 0.0), DVec3::ZERO),
+        }],
+        targets: vec![],
+    };
+    let solver = ArapSolver::precompute(t.clone(), &c, SolverSettings::default()).unwrap();
+    let sol = solver
+        .solve(&c, &SolveOptions::default(), InitialGuess::Laplacian, NEVER)
+        .unwrap();
+    let render = t.to_render(&sol.positions);
+    let mut moved = false;
+    for a in 0..positions.len() {
+        for b in 0..positions.len() {
+            if positions[a] == positions[b] {
+                assert_eq!(render[a], render[b], "gap between render vertices {a} and {b}");
+            }
+        }
+        moved |= (render[a] - positions[a].as_dvec3()).length() > 1e-3;
+    }
+    assert!(moved);
+}
+
+#[test]
+fn disconnected_and_isolated_parts_keep_rest_pose() {
+    let mut a = synth::icosphere(2, 1.0);
+    let b = synth::icosphere(1, 0.5);
+    let off = a.positions.len() as u32;
+    a.positions
+        .extend(b.positions.iter().map(|p| *p + DVec3::new(5.0, 0.0, 0.0)));
+    a.triangles
+        .extend(b.triangles.iter().map(|t| t.map(|i| i + off)));
+    a.positions.push(DVec3::splat(9.0)); // isolated vertex
+    let t = topo(&a);
+    let c = Constraints::with_handle(
+        vec![0, 1],
+        vec![50, 51],
+        RigidTransform::new(DQuat::IDENTITY, DVec3::Y, DVec3::ZERO),
+    );
+    let solver = ArapSolver::precompute(t.clone(), &c, SolverSettings::default()).unwrap();
+    assert_eq!(
+        solver.precompute_stats().unconstrained_component_vertices,
+        b.positions.len() + 1
+    );
+    let sol = solver
+        .solve(&c, &SolveOptions::default(), InitialGuess::Laplacian, NEVER)
+        .unwrap();
+    for i in off as usize..t.vertex_count() {
+        assert_eq!(sol.positions[i], t.positions()[i]);
+    }
+    assert!(sol.positions[100].distance(t.positions()[100]) > 1e-3);
+}
+
+#[test]
+fn empty_constraints_return_the_rest_pose() {
+    let t = topo(&synth::icosphere(1, 1.0));
+    let c = Constraints::default();
+    let solver = ArapSolver::precompute(t.clone(), &c, SolverSettings::default()).unwrap();
+    let sol = solver
+        .solve(&c, &SolveOptions::default(), InitialGuess::Laplacian, NEVER)
+        .unwrap();
+    assert_eq!(sol.positions, t.positions());
+}
+
+#[test]
+fn bad_constraints_are_typed_errors() {
+    let t = topo(&synth::icosphere(1, 1.0));
+    let overlap = Constraints::with_handle(vec![1, 2], vec![2, 3], RigidTransform::IDENTITY);
+    assert!(matches!(
+        ArapSolver::precompute(t.clone(), &overlap, SolverSettings::default()),
+        Err(SolveError::Constraint(ConstraintError::Overlap { vertex: 2 }))
+    ));
+    let out = Constraints::with_handle(vec![1], vec![9999], RigidTransform::IDENTITY);
+    assert!(matches!(
+        ArapSolver::precompute(t.clone(), &out, SolverSettings::default()),
+        Err(SolveError::Constraint(ConstraintError::OutOfRange { .. }))
+    ));
+    let good = Constraints::with_handle(vec![1], vec![30], RigidTransform::IDENTITY);
+    let solver = ArapSolver::precompute(t.clone(), &good, SolverSettings::default()).unwrap();
+    let mut nan = good.clone();
+    nan.handles[0].transform.translation.y = f64::NAN;
+    assert!(matches!(
+        solver.solve(&nan, &SolveOptions::default(), InitialGuess::Laplacian, NEVER),
+        Err(SolveError::Constraint(ConstraintError::NonFinite))
+    ));
+    let other = Constraints::with_handle(vec![1], vec![31], RigidTransform::IDENTITY);
+    assert_eq!(
+        solver
+            .solve(&other, &SolveOptions::default(), InitialGuess::Laplacian, NEVER)
+            .unwrap_err(),
+        SolveError::ConstraintSetChanged
+    );
+    assert_eq!(
+        solver
+            .solve(&good, &SolveOptions::default(), InitialGuess::Laplacian, &|| true)
+            .unwrap_err(),
+        SolveError::Cancelled
+    );
+    let wrong = Solution::rest(&Topology::new(&[DVec3::ZERO], &[]).unwrap());
+    assert!(matches!(
+        solver.solve(&good, &SolveOptions::default(), InitialGuess::Warm(&wrong), NEVER),
+        Err(SolveError::WarmStartMismatch { .. })
+    ));
+}
+
+#[test]
+fn degenerate_triangles_never_produce_nan() {
+    let mut mesh = synth::bar(12, 10, 0.1, 1.0);
+    // Collapse a ring: many zero-area triangles.
+    for k in 0..12 {
+        mesh.positions[5 * 12 + k] = mesh.positions[5 * 12];
+    }
+    let t = topo(&mesh);
+    let c = bend_problem(&t, 0.5);
+    let solver = ArapSolver::precompute(t.clone(), &c, SolverSettings::default()).unwrap();
+    let sol = solver
+        .solve(&c, &SolveOptions::default(), InitialGuess::Laplacian, NEVER)
+        .unwrap();
+    assert!(sol.positions.iter().all(|p| p.is_finite()));
+    assert!(sol.rotations.iter().all(|q| q.is_finite()));
+}
+
+#[test]
+fn warm_start_reuses_factorization_and_converges_closer() {
+    let t = topo(&synth::bar(16, 40, 0.1, 1.0));
+    let mut c = bend_problem(&t, 0.0);
+    let solver = ArapSolver::precompute(t.clone(), &c, SolverSettings::default()).unwrap();
+    let opts = SolveOptions {
+        max_iterations: 3,
+        tolerance: 0.0,
+    };
+    let mut warm = solver
+        .solve(&c, &opts, InitialGuess::Laplacian, NEVER)
+        .unwrap();
+    for k in 1..=30 {
+        c.handles[0].transform.rotation = DQuat::from_rotation_z(0.04 * k as f64);
+        warm = solver
+            .solve(&c, &opts, InitialGuess::Warm(&warm), NEVER)
+            .unwrap();
+    }
+    let cold = solver
+        .solve(&c, &opts, InitialGuess::Laplacian, NEVER)
+        .unwrap();
+    let converged = solver
+        .solve(
+            &c,
+            &SolveOptions {
+                max_iterations: 500,
+                tolerance: 1e-10,
+            },
+            InitialGuess::Laplacian,
+            NEVER,
+        )
+        .unwrap();
+    let (ew, ec, e0) = (
+        arap_energy(&t, &warm.positions),
+        arap_energy(&t, &cold.positions),
+        arap_energy(&t, &converged.positions),
+    );
+    assert!(ew < ec, "warm {ew} should beat cold {ec} (converged {e0})");
+}
+
+#[test]
+fn region_of_interest_keeps_outside_at_rest() {
+    let t = topo(&synth::bar(16, 40, 0.1, 1.0));
+    let c = bend_problem(&t, 0.4);
+    let roi: Vec<bool> = t.positions().iter().map(|p| p.y > 0.5).collect();
+    let settings = SolverSettings {
+        region_of_interest: Some(roi.clone()),
+        ..Default::default()
+    };
+    let solver = ArapSolver::precompute(t.clone(), &c, settings).unwrap();
+    assert!(solver.precompute_stats().free_vertices < t.vertex_count() / 2);
+    let sol = solver
+        .solve(&c, &SolveOptions::default(), InitialGuess::Laplacian, NEVER)
+        .unwrap();
+    for i in 0..t.vertex_count() {
+        if !roi[i] {
+            assert_eq!(sol.positions[i], t.positions()[i]);
+        }
+    }
+    let bad = SolverSettings {
+        region_of_interest: Some(vec![true; 3]),
+        ..Default::default()
+    };
+    assert!(matches!(
+        ArapSolver::precompute(t.clone(), &c, bad),
+        Err(SolveError::Constraint(ConstraintError::RegionLength { .. }))
+    ));
+}
+
+#[test]
+fn factorization_variants_agree() {
+    let t = topo(&synth::bar(20, 50, 0.1, 1.0));
+    let c = bend_problem(&t, 0.7);
+    let opts = SolveOptions {
+        max_iterations: 4,
+        tolerance: 0.0,
+    };
+    let run = |f| {
+        let s = SolverSettings {
+            factorization: f,
+            ..Default::default()
+        };
+        ArapSolver::precompute(t.clone(), &c, s)
+            .unwrap()
+            .solve(&c, &opts, InitialGuess::Laplacian, NEVER)
+            .unwrap()
+            .positions
+    };
+    let a = run(Factorization::Simplicial);
+    let b = run(Factorization::Supernodal);
+    let d = a
+        .iter()
+        .zip(&b)
+        .map(|(x, y)| (*x - *y).length())
+        .fold(0.0, f64::max);
+    assert!(d < 1e-9, "{d}");
+}
+
+#[test]
+fn raw_weights_are_an_option_and_clamped_are_default() {
+    let t = topo(&synth::icosphere(2, 1.0));
+    assert_eq!(SolverSettings::default().weights, WeightMode::ClampedCotangent);
+    let c = Constraints::with_handle(vec![0], vec![5], RigidTransform::IDENTITY);
+    for weights in [WeightMode::RawCotangent, WeightMode::Uniform] {
+        let s = SolverSettings {
+            weights,
+            ..Default::default()
+        };
+        // Either a solution or a typed error; never a panic or NaN.
+        if let Ok(solver) = ArapSolver::precompute(t.clone(), &c, s) {
+            let sol = solver
+                .solve(&c, &SolveOptions::default(), InitialGuess::Laplacian, NEVER)
+                .unwrap();
+            assert!(sol.positions.iter().all(|p| p.is_finite()));
+        }
+    }
+}
+
+#[test]
+fn shared_meshes_load_when_present() {
+    let dir = std::path::Path::new("../shared/meshes");
+    if !dir.exists() {
+        eprintln!("skipping: ../shared/meshes is absent");
+        return;
+    }
+    for name in ["armadillo.off", "camel.off", "dino.off", "cactus.off"] {
+        let m = TriMesh::read(dir.join(name)).unwrap();
+        let t = Topology::new(&m.positions, &m.triangles).unwrap();
+        assert!(t.vertex_count() > 500, "{name}");
+        let neg = t.negative_weight_fraction();
+        assert!((0.0..0.5).contains(&neg), "{name}: {neg}");
+    }
+}
