@@ -49,7 +49,7 @@ fn cactus() -> TriMesh {
         let pot = synth::capsule(p, v(0.0, -0.05, 0.0), v(0.0, 0.05, 0.0), 0.22);
         union(&[trunk, left, right, pot], 0.06)
     };
-    synth::implicit_surface(&f, v(-0.6, -0.35, -0.35), v(0.5, 1.8, 0.35), 110)
+    synth::implicit_surface(&f, v(-0.6, -0.35, -0.35), v(0.5, 1.8, 0.35), 100)
 }
 
 fn mannequin() -> TriMesh {
@@ -72,5 +72,5 @@ fn mannequin() -> TriMesh {
         }
         union(&parts, 0.035)
     };
-    synth::implicit_surface(&f, v(-0.75, -0.05, -0.22), v(0.75, 1.82, 0.25), 130)
+    synth::implicit_surface(&f, v(-0.75, -0.05, -0.22), v(0.75, 1.82, 0.25), 100)
 }

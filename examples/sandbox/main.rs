@@ -33,11 +33,13 @@ use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
 use bevy_wii_deform::deform::TriMesh;
 use bevy_wii_deform::prelude::*;
 use bevy_wii_deform::wiimote::protocol::Buttons;
-use bevy_wii_deform::wiimote::{DemoMotion, Still};
+use bevy_wii_deform::wiimote::{DemoMotion, FnMotion, RemoteCommand, Still};
 use glam::DVec3;
 
 const RESULTS_CSV: &str = "challenge_results.csv";
-const CLOSE_ENOUGH: f64 = 0.02;
+/// Done when the mean vertex distance to the target is below this fraction of the mean
+/// distance between the rest pose and the target (i.e. 85% of the way there).
+const CLOSE_ENOUGH: f64 = 0.15;
 const BACKGROUND: Color = Color::srgb(0.12, 0.13, 0.16);
 const SUCCESS: Color = Color::srgb(0.10, 0.35, 0.16);
 
@@ -83,8 +85,12 @@ struct Challenge {
     key: String,
     task: tasks::Task,
     target: Vec<DVec3>,
+    /// Mean distance rest → target.
+    start_error: f64,
     watch: Stopwatch,
     done: Option<f64>,
+    /// 0 at rest, 1 on target.
+    progress: f64,
 }
 
 #[derive(Resource)]
@@ -234,6 +240,7 @@ fn main() -> AppExit {
         .insert_resource(sandbox)
         .insert_resource(unattended)
         .init_resource::<UndoQueue>()
+        .init_resource::<BrushHit>()
         .init_resource::<HistoryRequest>()
         .insert_resource(OrbitCamera {
             yaw: 0.3,
@@ -248,7 +255,8 @@ fn main() -> AppExit {
                 load_pending,
                 file_drop,
                 orbit_camera,
-                paint.run_if(not_over_ui),
+                brush_ray.run_if(not_over_ui),
+                paint,
                 pose_with_mouse.run_if(not_over_ui),
                 keyboard_shortcuts,
                 demo_script,
@@ -389,7 +397,16 @@ fn load_pending(
     }
     let mut bevy_mesh = mesh_from_triangles(&mesh.positions, &mesh.triangles);
     let n = mesh.positions.len();
-    bevy_mesh.insert_attribute(Mesh::ATTRIBUTE_COLOR, selection_colors(&vec![FREE; n]));
+    let mut selection = vec![FREE; n];
+    if let Some((_, task)) = &task {
+        for v in task.fixed.resolve(&mesh.positions) {
+            selection[v as usize] = FIXED;
+        }
+        for v in task.handle.resolve(&mesh.positions) {
+            selection[v as usize] = HANDLE;
+        }
+    }
+    bevy_mesh.insert_attribute(Mesh::ATTRIBUTE_COLOR, selection_colors(&selection));
     let handle = meshes.add(bevy_mesh);
     let material = materials.add(StandardMaterial {
         base_color: Color::WHITE,
@@ -416,7 +433,7 @@ fn load_pending(
     orbit.distance = (sb.diagonal as f32) * 1.6;
     sb.model_name = name.clone();
     sb.mesh_entity = Some(entity);
-    sb.selection = vec![FREE; n];
+    sb.selection = selection;
     sb.undo.clear();
     sb.redo.clear();
     sb.challenge = None;
@@ -424,14 +441,6 @@ fn load_pending(
     sb.message = format!("loaded {name}: {n} vertices, {} triangles", mesh.triangles.len());
     sb.mesh = mesh;
     if let Some((key, task)) = task {
-        let fixed = task.fixed.resolve(&sb.mesh.positions);
-        let handle = task.handle.resolve(&sb.mesh.positions);
-        for &v in &fixed {
-            sb.selection[v as usize] = FIXED;
-        }
-        for &v in &handle {
-            sb.selection[v as usize] = HANDLE;
-        }
         match task.target_pose(&sb.mesh) {
             Ok(target) => {
                 let cloud = point_cloud(&target, sb.diagonal);
@@ -443,18 +452,27 @@ fn load_pending(
                 });
                 sb.cloud_entity = Some(commands.spawn((Mesh3d(cloud_mesh), MeshMaterial3d(yellow), Pickable::IGNORE)).id());
                 sb.message = format!("challenge: {} — match the yellow points", task.name);
+                let start_error = target
+                    .iter()
+                    .zip(&sb.mesh.positions)
+                    .map(|(t, r)| t.distance(*r))
+                    .sum::<f64>()
+                    / target.len().max(1) as f64;
                 sb.challenge = Some(Challenge {
                     key,
                     task,
                     target,
+                    start_error,
                     watch: Stopwatch::new(),
                     done: None,
+                    progress: 0.0,
                 });
                 sb.mode = Mode::Pose;
             }
             Err(e) => sb.message = e,
         }
     }
+    info!("{}", sb.message);
     sync_regions(&mut commands, &mut sb, &mut meshes);
 }
 
@@ -503,10 +521,7 @@ fn sync_regions(commands: &mut Commands, sb: &mut Sandbox, meshes: &mut Assets<M
             Name::new("handle"),
         ));
         if sb.input == InputMethod::Wiimote {
-            e.insert(WiimoteHandleControl {
-                space: Some(mesh_entity),
-                ..default()
-            });
+            e.insert(WiimoteHandleControl::default().with_space(mesh_entity));
         }
         sb.handle_entity = Some(e.id());
     }
@@ -574,14 +589,37 @@ fn snapshot(sb: &Sandbox, transforms: &Query<&mut Transform, Without<Camera3d>>)
     }
 }
 
-#[allow(clippy::too_many_arguments)]
-fn paint(
-    mut commands: Commands,
-    mut sb: ResMut<Sandbox>,
+/// Where the brush hits the mesh this frame (from a ray cast; applied by `apply_brush`).
+#[derive(Resource, Default)]
+struct BrushHit(Option<Vec3>);
+
+fn brush_ray(
+    sb: Res<Sandbox>,
     mut ray_cast: MeshRayCast,
     buttons: Res<ButtonInput<MouseButton>>,
     window: Query<&Window, With<PrimaryWindow>>,
     camera: Query<(&Camera, &GlobalTransform)>,
+    mut hit_out: ResMut<BrushHit>,
+) {
+    hit_out.0 = None;
+    if sb.mode != Mode::Paint || sb.challenge.is_some() || !buttons.pressed(MouseButton::Left) {
+        return;
+    }
+    let Some(mesh_entity) = sb.mesh_entity else { return };
+    let Some((ray, _)) = cursor_ray(&window, &camera) else { return };
+    let only_mesh = |e: Entity| e == mesh_entity;
+    let settings = MeshRayCastSettings::default()
+        .with_visibility(RayCastVisibility::Any)
+        .with_filter(&only_mesh);
+    hit_out.0 = ray_cast.cast_ray(ray, &settings).first().map(|(_, hit)| hit.point);
+}
+
+#[allow(clippy::too_many_arguments)]
+fn paint(
+    mut commands: Commands,
+    mut sb: ResMut<Sandbox>,
+    buttons: Res<ButtonInput<MouseButton>>,
+    hit: Res<BrushHit>,
     mut meshes: ResMut<Assets<Mesh>>,
     mesh_q: Query<&Mesh3d>,
     transforms: Query<&mut Transform, Without<Camera3d>>,
@@ -595,14 +633,7 @@ fn paint(
         sync_regions(&mut commands, &mut sb, &mut meshes);
         return;
     }
-    if !buttons.pressed(MouseButton::Left) {
-        return;
-    }
-    let Some((ray, _)) = cursor_ray(&window, &camera) else { return };
-    let settings = MeshRayCastSettings::default()
-        .with_visibility(RayCastVisibility::Any)
-        .with_filter(&|e| e == mesh_entity);
-    let Some((_, hit)) = ray_cast.cast_ray(ray, &settings).first().cloned() else { return };
+    let Some(point) = hit.0 else { return };
     if !sb.stroke {
         let snap = snapshot(&sb, &transforms);
         sb.undo.push(snap);
@@ -615,7 +646,7 @@ fn paint(
         Tool::Erase => FREE,
     };
     let r2 = (sb.radius as f64).powi(2);
-    let centre = hit.point.as_dvec3();
+    let centre = point.as_dvec3();
     let Ok(mesh3d) = mesh_q.get(mesh_entity) else { return };
     let current: Vec<DVec3> = match meshes.get(&mesh3d.0).and_then(|m| m.attribute(Mesh::ATTRIBUTE_POSITION).cloned()) {
         Some(VertexAttributeValues::Float32x3(v)) => v.iter().map(|p| Vec3::from_array(*p).as_dvec3()).collect(),
@@ -745,7 +776,8 @@ fn keyboard_shortcuts(
     }
 }
 
-/// `--demo`: an emulated remote grabs (B) and plays a scripted motion.
+/// `--demo`: once the emulated remote is calibrated it grabs (B), rolls 120° about its
+/// pointing axis over 3 s and moves the handle up with the D-pad — the mannequin waves.
 fn demo_script(
     unattended: Res<Unattended>,
     time: Res<Time>,
@@ -761,14 +793,24 @@ fn demo_script(
         .iter()
         .any(|w| matches!(w.calibration, WiimoteCalibration::Calibrated(_)));
     if !calibrated {
-        emu.set_motion(std::sync::Arc::new(Still(glam::DQuat::IDENTITY)));
         return;
     }
-    let t0 = *started.get_or_insert(time.elapsed_secs());
-    if time.elapsed_secs() - t0 > 0.5 {
-        emu.set_buttons(Buttons(Buttons::B));
-        emu.set_motion(std::sync::Arc::new(DemoMotion));
+    let now = time.elapsed_secs();
+    let t0 = *started.get_or_insert_with(|| {
+        // The emulator's clock started with the app; script the roll in its time.
+        let start = now as f64 + 0.5;
+        emu.set_motion(std::sync::Arc::new(FnMotion(move |t: f64| {
+            let angle = ((t - start) / 3.0).clamp(0.0, 1.0) * -120f64.to_radians();
+            (glam::DQuat::from_rotation_y(angle), DVec3::ZERO)
+        })));
+        now
+    });
+    let t = now - t0;
+    let mut b = if t > 0.3 { Buttons::B } else { 0 };
+    if (0.5..2.0).contains(&t) {
+        b |= Buttons::UP;
     }
+    emu.set_buttons(Buttons(b));
 }
 
 fn challenge_progress(
@@ -803,7 +845,8 @@ fn challenge_progress(
         .map(|(c, t)| Vec3::from_array(*c).as_dvec3().distance(*t))
         .sum::<f64>()
         / current.len() as f64;
-    if mean / diagonal < CLOSE_ENOUGH {
+    ch.progress = 1.0 - mean / ch.start_error.max(1e-12);
+    if mean < CLOSE_ENOUGH * ch.start_error + 1e-4 * diagonal {
         let secs = ch.watch.elapsed_secs_f64();
         ch.done = Some(secs);
         clear.0 = SUCCESS;
@@ -977,12 +1020,16 @@ fn ui_panel(
                 regions_changed = true;
             }
             if sb.input == InputMethod::Wiimote {
+                let mut filter = wii_settings.filter;
                 ui.horizontal(|ui| {
                     ui.label("Filter:");
-                    ui.selectable_value(&mut wii_settings.filter, WiimoteFilter::Fusion, "ours");
-                    ui.selectable_value(&mut wii_settings.filter, WiimoteFilter::Paper, "paper");
-                    ui.selectable_value(&mut wii_settings.filter, WiimoteFilter::Raw, "raw");
+                    ui.selectable_value(&mut filter, WiimoteFilter::Fusion, "ours");
+                    ui.selectable_value(&mut filter, WiimoteFilter::Paper, "paper");
+                    ui.selectable_value(&mut filter, WiimoteFilter::Raw, "raw");
                 });
+                if filter != wii_settings.filter {
+                    wii_settings.filter = filter;
+                }
                 if remotes.is_empty() {
                     ui.label("No remote yet (pair with SYNC; see wiimote_monitor for diagnostics).");
                 }
@@ -1037,7 +1084,13 @@ fn ui_panel(
             if let Some(ch) = &sb.challenge {
                 match ch.done {
                     Some(s) => ui.label(format!("{} done in {s:.1} s", ch.task.name)),
-                    None => ui.label(format!("{}: {:.1} s", ch.task.name, ch.watch.elapsed_secs())),
+                    None => ui.label(format!(
+                        "{}: {:.1} s · {:.0}% there (done at {:.0}%)",
+                        ch.task.name,
+                        ch.watch.elapsed_secs(),
+                        ch.progress.max(0.0) * 100.0,
+                        (1.0 - CLOSE_ENOUGH) * 100.0
+                    )),
                 };
             }
             if sb.challenge.is_some() && ui.button("Leave challenge").clicked() {

@@ -16,6 +16,8 @@ pub enum Region {
     Slab { axis: usize, from: f64, to: f64 },
     /// Vertices within `radius` of `center` (model units).
     Sphere { center: (f64, f64, f64), radius: f64 },
+    /// Vertices inside an axis-aligned box (model units).
+    Box { min: (f64, f64, f64), max: (f64, f64, f64) },
     /// Explicit render vertex indices.
     Indices(Vec<u32>),
 }
@@ -29,6 +31,15 @@ impl Region {
                 let c = DVec3::new(center.0, center.1, center.2);
                 (0..positions.len() as u32)
                     .filter(|&i| positions[i as usize].distance(c) <= *radius)
+                    .collect()
+            }
+            Region::Box { min, max } => {
+                let (lo, hi) = (DVec3::new(min.0, min.1, min.2), DVec3::new(max.0, max.1, max.2));
+                (0..positions.len() as u32)
+                    .filter(|&i| {
+                        let p = positions[i as usize];
+                        p.cmpge(lo).all() && p.cmple(hi).all()
+                    })
                     .collect()
             }
             Region::Slab { axis, from, to } => {

@@ -57,6 +57,30 @@ impl Default for WiimoteHandleControl {
 }
 
 impl WiimoteHandleControl {
+    /// Controlled by `remote` (its entity).
+    pub fn with_remote(mut self, remote: Entity) -> Self {
+        self.remote = Some(remote);
+        self
+    }
+
+    /// Motion relative to `camera`.
+    pub fn with_camera(mut self, camera: Entity) -> Self {
+        self.camera = Some(camera);
+        self
+    }
+
+    /// The handle's `Transform` lives in the space of `space` (e.g. the deformed mesh).
+    pub fn with_space(mut self, space: Entity) -> Self {
+        self.space = Some(space);
+        self
+    }
+
+    /// Translation speed in world units per second.
+    pub fn with_speed(mut self, speed: f32) -> Self {
+        self.speed = speed;
+        self
+    }
+
     /// Whether B is currently grabbing.
     pub fn is_grabbing(&self) -> bool {
         self.grab.is_some()

@@ -277,8 +277,15 @@ impl Plugin for WiimotePlugin {
     }
 }
 
-fn apply_settings(settings: Res<WiimoteSettings>, link: Res<WiimoteLink>) {
-    if settings.is_changed() && !settings.is_added() {
+fn apply_settings(
+    settings: Res<WiimoteSettings>,
+    link: Res<WiimoteLink>,
+    mut applied: Local<Option<WiimoteFilter>>,
+) {
+    // Only a real change switches filters (a new filter starts uncalibrated).
+    let current = *applied.get_or_insert(settings.filter);
+    if settings.filter != current {
+        *applied = Some(settings.filter);
         link.manager
             .broadcast(RemoteCommand::SetFilter(settings.filter.into()));
     }
