@@ -61,7 +61,10 @@ fn bench(c: &mut Criterion) {
         let warm = solver
             .solve(
                 &constraints,
-                &SolveOptions { max_iterations: 3, tolerance: 0.0 },
+                &SolveOptions {
+                    max_iterations: 3,
+                    tolerance: 0.0,
+                },
                 InitialGuess::Laplacian,
                 &never,
             )
@@ -72,7 +75,10 @@ fn bench(c: &mut Criterion) {
                     solver
                         .solve(
                             &constraints,
-                            &SolveOptions { max_iterations: iters, tolerance: 0.0 },
+                            &SolveOptions {
+                                max_iterations: iters,
+                                tolerance: 0.0,
+                            },
                             InitialGuess::Warm(&warm),
                             &never,
                         )

@@ -29,7 +29,9 @@ fn parse_constraints(text: &str) -> Result<(Vec<u32>, Vec<(u32, DVec3)>), String
     let mut fixed = Vec::with_capacity(nf);
     let mut handle = Vec::with_capacity(nh);
     for k in 0..nf + nh {
-        let line = lines.next().ok_or(format!("missing constraint line {}", k + 2))?;
+        let line = lines
+            .next()
+            .ok_or(format!("missing constraint line {}", k + 2))?;
         let f: Vec<&str> = line.split_whitespace().collect();
         if f.len() != 4 {
             return Err(format!("line {}: expected `index x y z`", k + 2));
@@ -60,7 +62,11 @@ fn run() -> Result<(), String> {
     let (fixed, targets) = parse_constraints(&text)?;
     let iters: u32 = args[2].parse().map_err(|_| "ITERS must be an integer")?;
     let repeats: usize = args[3].parse().map_err(|_| "REPEATS must be an integer")?;
-    let init = match args.iter().position(|a| a == "--init").map(|i| args.get(i + 1)) {
+    let init = match args
+        .iter()
+        .position(|a| a == "--init")
+        .map(|i| args.get(i + 1))
+    {
         None => "laplacian",
         Some(Some(v)) if v == "laplacian" || v == "rest" => v.as_str(),
         Some(v) => return Err(format!("--init must be laplacian or rest, got {v:?}")),
@@ -78,11 +84,11 @@ fn run() -> Result<(), String> {
     let mut last = None;
     for _ in 0..repeats.max(1) {
         let t0 = Instant::now();
-        let topology = Arc::new(
-            Topology::new(&mesh.positions, &mesh.triangles).map_err(|e| e.to_string())?,
-        );
-        let solver = ArapSolver::precompute(topology.clone(), &constraints, SolverSettings::default())
-            .map_err(|e| e.to_string())?;
+        let topology =
+            Arc::new(Topology::new(&mesh.positions, &mesh.triangles).map_err(|e| e.to_string())?);
+        let solver =
+            ArapSolver::precompute(topology.clone(), &constraints, SolverSettings::default())
+                .map_err(|e| e.to_string())?;
         pre.push(t0.elapsed().as_secs_f64());
         let t1 = Instant::now();
         let guess = if init == "rest" {

@@ -13,6 +13,10 @@ fn main() {
         let mesh = models::generate(name).expect("built-in model");
         let path = format!("assets/models/{name}.obj");
         std::fs::write(&path, mesh.to_obj()).expect("write model");
-        println!("{path}: {} vertices, {} triangles", mesh.positions.len(), mesh.triangles.len());
+        println!(
+            "{path}: {} vertices, {} triangles",
+            mesh.positions.len(),
+            mesh.triangles.len()
+        );
     }
 }

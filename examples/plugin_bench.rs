@@ -41,15 +41,23 @@ fn drag(time: Res<Time>, timing: Res<Timing>, mut q: Query<&mut Transform, With<
     }
     let t = time.elapsed_secs();
     for mut tr in &mut q {
-        tr.rotation = Quat::from_rotation_z(0.6 * (t * 0.7).sin()) * Quat::from_rotation_x(0.3 * (t * 0.5).sin());
+        tr.rotation = Quat::from_rotation_z(0.6 * (t * 0.7).sin())
+            * Quat::from_rotation_x(0.3 * (t * 0.5).sin());
     }
 }
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
-    let arg = |name: &str| args.iter().position(|a| a == name).and_then(|i| args.get(i + 1)).cloned();
+    let arg = |name: &str| {
+        args.iter()
+            .position(|a| a == name)
+            .and_then(|i| args.get(i + 1))
+            .cloned()
+    };
     let seconds: f64 = arg("--seconds").and_then(|v| v.parse().ok()).unwrap_or(5.0);
-    let iterations: u32 = arg("--iterations").and_then(|v| v.parse().ok()).unwrap_or(1);
+    let iterations: u32 = arg("--iterations")
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(1);
     let tri = if let Some(path) = arg("--mesh") {
         TriMesh::read(&path).unwrap_or_else(|e| panic!("{path}: {e}"))
     } else if let Some(n) = arg("--bar").and_then(|v| v.parse().ok()) {
@@ -69,7 +77,10 @@ fn main() {
         DeformPlugin::default(),
     ))
     .init_resource::<Timing>()
-    .add_systems(Update, drag.before(DeformSystems::Request).before(start_timer))
+    .add_systems(
+        Update,
+        drag.before(DeformSystems::Request).before(start_timer),
+    )
     .add_systems(Update, start_timer.before(DeformSystems::Prepare))
     .add_systems(Update, stop_timer.after(DeformSystems::Writeback));
     app.finish();
@@ -82,7 +93,11 @@ fn main() {
         .world_mut()
         .spawn((
             Mesh3d(h),
-            Deformable { max_iterations: Some(iterations), tolerance: Some(0.0), ..default() },
+            Deformable {
+                max_iterations: Some(iterations),
+                tolerance: Some(0.0),
+                ..default()
+            },
             FixedRegion(fixed),
         ))
         .id();
@@ -90,14 +105,23 @@ fn main() {
     app.world_mut().spawn((handle, transform, Dragged));
     // Wait for topology + factorization (the first solve).
     let setup = Instant::now();
-    while app.world().get::<DeformStatus>(e).map(|s| s.solves).unwrap_or(0) == 0 {
+    while app
+        .world()
+        .get::<DeformStatus>(e)
+        .map(|s| s.solves)
+        .unwrap_or(0)
+        == 0
+    {
         app.update();
         std::thread::sleep(Duration::from_millis(1));
         if setup.elapsed() > Duration::from_secs(120) {
             panic!("setup did not finish");
         }
     }
-    eprintln!("setup (topology + factorization + first solve): {:.0} ms", setup.elapsed().as_secs_f64() * 1e3);
+    eprintln!(
+        "setup (topology + factorization + first solve): {:.0} ms",
+        setup.elapsed().as_secs_f64() * 1e3
+    );
     let solves0 = app.world().get::<DeformStatus>(e).unwrap().solves;
     app.world_mut().resource_mut::<Timing>().measuring = true;
     let start = Instant::now();
@@ -114,7 +138,10 @@ fn main() {
     let mut ms = app.world().resource::<Timing>().frames_ms.clone();
     ms.sort_by(f64::total_cmp);
     let pct = |p: f64| ms[((ms.len() - 1) as f64 * p).round() as usize];
-    eprintln!("last solve: {} iterations, energy {:.5}, {:.2} ms", status.iterations, status.energy, status.solve_ms);
+    eprintln!(
+        "last solve: {} iterations, energy {:.5}, {:.2} ms",
+        status.iterations, status.energy, status.solve_ms
+    );
     println!(
         "{}",
         serde_json::json!({

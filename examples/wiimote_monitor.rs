@@ -27,8 +27,16 @@ fn button_names(b: Buttons) -> String {
         (Buttons::LEFT, "Left"),
         (Buttons::RIGHT, "Right"),
     ];
-    let v: Vec<&str> = names.iter().filter(|(m, _)| b.pressed(*m)).map(|(_, n)| *n).collect();
-    if v.is_empty() { "-".into() } else { v.join(" ") }
+    let v: Vec<&str> = names
+        .iter()
+        .filter(|(m, _)| b.pressed(*m))
+        .map(|(_, n)| *n)
+        .collect();
+    if v.is_empty() {
+        "-".into()
+    } else {
+        v.join(" ")
+    }
 }
 
 fn main() {
@@ -40,7 +48,12 @@ fn main() {
         .and_then(|i| args.get(i + 1))
         .and_then(|v| v.parse().ok())
         .unwrap_or(30.0);
-    let filter = match args.iter().position(|a| a == "--filter").and_then(|i| args.get(i + 1)).map(String::as_str) {
+    let filter = match args
+        .iter()
+        .position(|a| a == "--filter")
+        .and_then(|i| args.get(i + 1))
+        .map(String::as_str)
+    {
         Some("paper") => FilterKind::Paper,
         Some("raw") => FilterKind::Raw,
         _ => FilterKind::Fusion,
@@ -56,11 +69,19 @@ fn main() {
             match discover() {
                 Ok(list) if !list.is_empty() => {
                     for d in &list {
-                        println!("found {} (PID {:04X}) {:?} at {}", d.product.as_deref().unwrap_or("?"), d.product_id, d.serial, d.path);
+                        println!(
+                            "found {} (PID {:04X}) {:?} at {}",
+                            d.product.as_deref().unwrap_or("?"),
+                            d.product_id,
+                            d.serial,
+                            d.path
+                        );
                     }
                 }
                 Ok(_) => {
-                    println!("No Wii Remote visible through hidapi. Pair it with the red SYNC button.");
+                    println!(
+                        "No Wii Remote visible through hidapi. Pair it with the red SYNC button."
+                    );
                     for d in diagnose_linux() {
                         println!("- {d}");
                     }
@@ -77,7 +98,10 @@ fn main() {
     };
     let manager = WiimoteManager::start(ManagerConfig {
         source,
-        session: SessionConfig { filter, ..Default::default() },
+        session: SessionConfig {
+            filter,
+            ..Default::default()
+        },
         channel_capacity: 1024,
     });
     let start = Instant::now();
@@ -90,15 +114,29 @@ fn main() {
             match e {
                 ManagerEvent::Connected { id, info } => println!(
                     "remote {id} connected: {:?}, MotionPlus {:?} (calibration CRC {}), accel cal valid {}, battery {}",
-                    info.kind, info.motion_plus, if info.motion_plus_crc_ok { "ok" } else { "failed: fallback constants" }, info.accel_calibration_valid, info.battery
+                    info.kind,
+                    info.motion_plus,
+                    if info.motion_plus_crc_ok {
+                        "ok"
+                    } else {
+                        "failed: fallback constants"
+                    },
+                    info.accel_calibration_valid,
+                    info.battery
                 ),
-                ManagerEvent::Disconnected { id, reason } => println!("remote {id} disconnected: {reason}"),
+                ManagerEvent::Disconnected { id, reason } => {
+                    println!("remote {id} disconnected: {reason}")
+                }
                 ManagerEvent::Problem(p) => println!("problem: {p}"),
                 ManagerEvent::Buttons { buttons: b, .. } => buttons = b,
                 ManagerEvent::Battery { level, .. } => battery = level,
                 ManagerEvent::Orientation { id, sample } => latest = Some((id, sample)),
-                ManagerEvent::MotionPlus { id, state } => println!("remote {id}: MotionPlus {state:?}"),
-                ManagerEvent::Extension { id, state } => println!("remote {id}: extension {state:?}"),
+                ManagerEvent::MotionPlus { id, state } => {
+                    println!("remote {id}: MotionPlus {state:?}")
+                }
+                ManagerEvent::Extension { id, state } => {
+                    println!("remote {id}: extension {state:?}")
+                }
                 ManagerEvent::Nunchuk { .. } => {}
             }
             if last_print.elapsed() > Duration::from_millis(250) {
@@ -111,9 +149,15 @@ fn main() {
                 let (z, x, y) = s.orientation.to_euler(glam::EulerRot::ZXY);
                 println!(
                     "[{id}] yaw {:7.1}° pitch {:6.1}° roll {:6.1}° | |ω| {:6.1}°/s | still {} | calibration {:?} conf {:.2} | buttons {} | battery {}",
-                    z.to_degrees(), x.to_degrees(), y.to_degrees(),
-                    s.angular_velocity.length().to_degrees(), s.still, s.calibration.phase, s.calibration.confidence,
-                    button_names(buttons), battery
+                    z.to_degrees(),
+                    x.to_degrees(),
+                    y.to_degrees(),
+                    s.angular_velocity.length().to_degrees(),
+                    s.still,
+                    s.calibration.phase,
+                    s.calibration.confidence,
+                    button_names(buttons),
+                    battery
                 );
             }
         }

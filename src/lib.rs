@@ -2,8 +2,8 @@
 #![warn(missing_docs)]
 
 pub mod deform;
-pub mod wiimote;
 pub mod ecs;
+pub mod wiimote;
 
 /// Everything most apps need.
 pub mod prelude {

@@ -54,7 +54,8 @@ fn one_rigid_transform_everywhere_reproduces_it() {
         ],
         targets: vec![(300, motion.apply(t.positions()[300]))],
     };
-    let solver = ArapSolver::precompute(t.clone(), &constraints, SolverSettings::default()).unwrap();
+    let solver =
+        ArapSolver::precompute(t.clone(), &constraints, SolverSettings::default()).unwrap();
     let options = SolveOptions {
         max_iterations: 200,
         tolerance: 0.0,
@@ -95,7 +96,10 @@ fn energy_never_increases_across_iterations() {
                 .unwrap();
             let mut prev = sol.stats.initial_energy.unwrap_or(f64::INFINITY);
             for &e in &sol.stats.energies {
-                assert!(e <= prev * (1.0 + 1e-9) + 1e-15, "energy rose {prev} -> {e}");
+                assert!(
+                    e <= prev * (1.0 + 1e-9) + 1e-15,
+                    "energy rose {prev} -> {e}"
+                );
                 prev = e;
             }
             // The solver's bookkeeping agrees with the public exact energy.
@@ -231,7 +235,10 @@ fn matches_dense_reference_solve() {
         .zip(&reference)
         .map(|(a, b)| (*a - *b).length())
         .fold(0.0, f64::max);
-    assert!(err <= 1e-8 * scale, "max deviation {err} vs dense reference");
+    assert!(
+        err <= 1e-8 * scale,
+        "max deviation {err} vs dense reference"
+    );
 }
 
 #[test]
@@ -256,8 +263,12 @@ fn split_cube_deforms_without_gaps() {
     }
     let t = Arc::new(Topology::from_render_mesh(&positions, &indices).unwrap());
     assert_eq!(t.vertex_count(), 8);
-    let bottom: Vec<u32> = (0..8).filter(|&i| t.positions()[i as usize].y < 0.0).collect();
-    let top: Vec<u32> = (0..8).filter(|&i| t.positions()[i as usize].y > 0.0).collect();
+    let bottom: Vec<u32> = (0..8)
+        .filter(|&i| t.positions()[i as usize].y < 0.0)
+        .collect();
+    let top: Vec<u32> = (0..8)
+        .filter(|&i| t.positions()[i as usize].y > 0.0)
+        .collect();
     let c = Constraints {
         fixed: bottom[..2].to_vec(),
         handles: vec![Handle {
@@ -275,7 +286,10 @@ fn split_cube_deforms_without_gaps() {
     for a in 0..positions.len() {
         for b in 0..positions.len() {
             if positions[a] == positions[b] {
-                assert_eq!(render[a], render[b], "gap between render vertices {a} and {b}");
+                assert_eq!(
+                    render[a], render[b],
+                    "gap between render vertices {a} and {b}"
+                );
             }
         }
         moved |= (render[a] - positions[a].as_dvec3()).length() > 1e-3;
@@ -330,7 +344,9 @@ fn bad_constraints_are_typed_errors() {
     let overlap = Constraints::with_handle(vec![1, 2], vec![2, 3], RigidTransform::IDENTITY);
     assert!(matches!(
         ArapSolver::precompute(t.clone(), &overlap, SolverSettings::default()),
-        Err(SolveError::Constraint(ConstraintError::Overlap { vertex: 2 }))
+        Err(SolveError::Constraint(ConstraintError::Overlap {
+            vertex: 2
+        }))
     ));
     let out = Constraints::with_handle(vec![1], vec![9999], RigidTransform::IDENTITY);
     assert!(matches!(
@@ -342,25 +358,45 @@ fn bad_constraints_are_typed_errors() {
     let mut nan = good.clone();
     nan.handles[0].transform.translation.y = f64::NAN;
     assert!(matches!(
-        solver.solve(&nan, &SolveOptions::default(), InitialGuess::Laplacian, NEVER),
+        solver.solve(
+            &nan,
+            &SolveOptions::default(),
+            InitialGuess::Laplacian,
+            NEVER
+        ),
         Err(SolveError::Constraint(ConstraintError::NonFinite))
     ));
     let other = Constraints::with_handle(vec![1], vec![31], RigidTransform::IDENTITY);
     assert_eq!(
         solver
-            .solve(&other, &SolveOptions::default(), InitialGuess::Laplacian, NEVER)
+            .solve(
+                &other,
+                &SolveOptions::default(),
+                InitialGuess::Laplacian,
+                NEVER
+            )
             .unwrap_err(),
         SolveError::ConstraintSetChanged
     );
     assert_eq!(
         solver
-            .solve(&good, &SolveOptions::default(), InitialGuess::Laplacian, &|| true)
+            .solve(
+                &good,
+                &SolveOptions::default(),
+                InitialGuess::Laplacian,
+                &|| true
+            )
             .unwrap_err(),
         SolveError::Cancelled
     );
     let wrong = Solution::rest(&Topology::new(&[DVec3::ZERO], &[]).unwrap());
     assert!(matches!(
-        solver.solve(&good, &SolveOptions::default(), InitialGuess::Warm(&wrong), NEVER),
+        solver.solve(
+            &good,
+            &SolveOptions::default(),
+            InitialGuess::Warm(&wrong),
+            NEVER
+        ),
         Err(SolveError::WarmStartMismatch { .. })
     ));
 }
@@ -483,7 +519,10 @@ fn factorization_variants_agree() {
 #[test]
 fn raw_weights_are_an_option_and_clamped_are_default() {
     let t = topo(&synth::icosphere(2, 1.0));
-    assert_eq!(SolverSettings::default().weights, WeightMode::ClampedCotangent);
+    assert_eq!(
+        SolverSettings::default().weights,
+        WeightMode::ClampedCotangent
+    );
     let c = Constraints::with_handle(vec![0], vec![5], RigidTransform::IDENTITY);
     for weights in [WeightMode::RawCotangent, WeightMode::Uniform] {
         let s = SolverSettings {

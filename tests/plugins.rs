@@ -34,7 +34,12 @@ fn regions(tri: &deform::TriMesh) -> (Vec<u32>, Vec<u32>) {
 fn positions(app: &App, e: Entity) -> Vec<Vec3> {
     let h = app.world().get::<Mesh3d>(e).unwrap().0.clone();
     let meshes = app.world().resource::<Assets<Mesh>>();
-    match meshes.get(&h).unwrap().attribute(Mesh::ATTRIBUTE_POSITION).unwrap() {
+    match meshes
+        .get(&h)
+        .unwrap()
+        .attribute(Mesh::ATTRIBUTE_POSITION)
+        .unwrap()
+    {
         VertexAttributeValues::Float32x3(v) => v.iter().map(|p| Vec3::from_array(*p)).collect(),
         _ => panic!(),
     }
@@ -46,8 +51,16 @@ fn run_until_messages(app: &mut App, n: usize) -> (Vec<DeformSolved>, Vec<Deform
     let deadline = Instant::now() + Duration::from_secs(30);
     while ok.len() + bad.len() < n && Instant::now() < deadline {
         app.update();
-        ok.extend(app.world_mut().resource_mut::<Messages<DeformSolved>>().drain());
-        bad.extend(app.world_mut().resource_mut::<Messages<DeformFailed>>().drain());
+        ok.extend(
+            app.world_mut()
+                .resource_mut::<Messages<DeformSolved>>()
+                .drain(),
+        );
+        bad.extend(
+            app.world_mut()
+                .resource_mut::<Messages<DeformFailed>>()
+                .drain(),
+        );
         std::thread::sleep(Duration::from_millis(1));
     }
     (ok, bad)
@@ -60,7 +73,15 @@ fn spawn_bar(app: &mut App) -> (Entity, Entity, deform::TriMesh) {
     let h = app.world_mut().resource_mut::<Assets<Mesh>>().add(mesh);
     let e = app
         .world_mut()
-        .spawn((Mesh3d(h), Deformable { max_iterations: Some(5), tolerance: Some(0.0), ..default() }, FixedRegion(fixed)))
+        .spawn((
+            Mesh3d(h),
+            Deformable {
+                max_iterations: Some(5),
+                tolerance: Some(0.0),
+                ..default()
+            },
+            FixedRegion(fixed),
+        ))
         .id();
     let bundle = DeformHandle::bundle(&mesh_for_bundle, e, handle);
     let handle_entity = app.world_mut().spawn(bundle).id();
@@ -91,20 +112,39 @@ fn moved_handle_matches_the_core_solver() {
     let (fixed, hv) = regions(&tri);
     let pivot = hv.iter().map(|&i| tri.positions[i as usize]).sum::<DVec3>() / hv.len() as f64;
     let pivot32 = pivot.as_vec3();
-    let mut c = Constraints::with_handle(fixed, hv, RigidTransform::new(DQuat::IDENTITY, DVec3::ZERO, pivot32.as_dvec3()));
+    let mut c = Constraints::with_handle(
+        fixed,
+        hv,
+        RigidTransform::new(DQuat::IDENTITY, DVec3::ZERO, pivot32.as_dvec3()),
+    );
     let solver = ArapSolver::precompute(topology.clone(), &c, SolverSettings::default()).unwrap();
-    let opts = SolveOptions { max_iterations: 5, tolerance: 0.0 };
-    let first = solver.solve(&c, &opts, InitialGuess::Laplacian, &|| false).unwrap();
+    let opts = SolveOptions {
+        max_iterations: 5,
+        tolerance: 0.0,
+    };
+    let first = solver
+        .solve(&c, &opts, InitialGuess::Laplacian, &|| false)
+        .unwrap();
     c.handles[0].transform = RigidTransform::new(
         rotation.as_dquat(),
         (pivot32 + Vec3::new(0.2, 0.0, 0.0)).as_dvec3() - pivot32.as_dvec3(),
         pivot32.as_dvec3(),
     );
-    let second = solver.solve(&c, &opts, InitialGuess::Warm(&first), &|| false).unwrap();
+    let second = solver
+        .solve(&c, &opts, InitialGuess::Warm(&first), &|| false)
+        .unwrap();
     let want = topology.to_render(&second.positions);
-    let err = got.iter().zip(&want).map(|(a, b)| (a.as_dvec3() - *b).length()).fold(0.0, f64::max);
+    let err = got
+        .iter()
+        .zip(&want)
+        .map(|(a, b)| (a.as_dvec3() - *b).length())
+        .fold(0.0, f64::max);
     assert!(err < 1e-4, "plugin vs core: {err}");
-    assert!(got.iter().zip(&tri.positions).any(|(a, b)| (a.as_dvec3() - *b).length() > 0.05));
+    assert!(
+        got.iter()
+            .zip(&tri.positions)
+            .any(|(a, b)| (a.as_dvec3() - *b).length() > 0.05)
+    );
 }
 
 #[test]
@@ -114,7 +154,10 @@ fn a_burst_of_moves_ends_on_the_latest() {
     let (e, handle, _) = spawn_bar(&mut app);
     run_until_messages(&mut app, 1);
     for k in 1..=20 {
-        app.world_mut().get_mut::<Transform>(handle).unwrap().rotation = Quat::from_rotation_z(0.03 * k as f32);
+        app.world_mut()
+            .get_mut::<Transform>(handle)
+            .unwrap()
+            .rotation = Quat::from_rotation_z(0.03 * k as f32);
         app.update();
     }
     // Let everything land.
@@ -127,8 +170,18 @@ fn a_burst_of_moves_ends_on_the_latest() {
     // The final mesh corresponds to the final rotation: the handle centroid turned by 0.6 rad.
     let tip = positions(&app, e);
     let state_rot = Quat::from_rotation_z(0.6);
-    let pivot = app.world().get::<DeformHandle>(handle).unwrap().pivot.unwrap();
-    let verts = app.world().get::<DeformHandle>(handle).unwrap().vertices.clone();
+    let pivot = app
+        .world()
+        .get::<DeformHandle>(handle)
+        .unwrap()
+        .pivot
+        .unwrap();
+    let verts = app
+        .world()
+        .get::<DeformHandle>(handle)
+        .unwrap()
+        .vertices
+        .clone();
     let (_, tri) = bar_mesh();
     for &v in &verts {
         let rest = tri.positions[v as usize].as_vec3();
@@ -146,18 +199,34 @@ fn invalid_constraints_fail_and_leave_the_mesh() {
     let before = positions(&app, e);
     // Overlap: make the fixed region contain a handle vertex.
     let hv = app.world().get::<DeformHandle>(handle).unwrap().vertices[0];
-    app.world_mut().get_mut::<FixedRegion>(e).unwrap().0.push(hv);
-    app.world_mut().get_mut::<Transform>(handle).unwrap().translation.x += 0.3;
+    app.world_mut()
+        .get_mut::<FixedRegion>(e)
+        .unwrap()
+        .0
+        .push(hv);
+    app.world_mut()
+        .get_mut::<Transform>(handle)
+        .unwrap()
+        .translation
+        .x += 0.3;
     let (ok, bad) = run_until_messages(&mut app, 1);
     assert!(ok.is_empty());
     assert_eq!(bad.len(), 1, "{bad:?}");
-    assert!(bad[0].error.contains("constrained twice"), "{}", bad[0].error);
+    assert!(
+        bad[0].error.contains("constrained twice"),
+        "{}",
+        bad[0].error
+    );
     assert_eq!(positions(&app, e), before);
     assert!(app.world().get::<DeformStatus>(e).unwrap().error.is_some());
     let _ = tri;
     // NaN transform: failed, mesh unchanged, nothing non-finite written.
     app.world_mut().get_mut::<FixedRegion>(e).unwrap().0.pop();
-    app.world_mut().get_mut::<Transform>(handle).unwrap().translation.x = f32::NAN;
+    app.world_mut()
+        .get_mut::<Transform>(handle)
+        .unwrap()
+        .translation
+        .x = f32::NAN;
     let (ok, bad) = run_until_messages(&mut app, 1);
     assert!(ok.is_empty() && bad.len() == 1);
     assert!(positions(&app, e).iter().all(|p| p.is_finite()));
@@ -170,8 +239,16 @@ fn several_meshes_at_once() {
     let (a, ha, _) = spawn_bar(&mut app);
     let (b, hb, _) = spawn_bar(&mut app);
     run_until_messages(&mut app, 2);
-    app.world_mut().get_mut::<Transform>(ha).unwrap().translation.x += 0.2;
-    app.world_mut().get_mut::<Transform>(hb).unwrap().translation.z += 0.2;
+    app.world_mut()
+        .get_mut::<Transform>(ha)
+        .unwrap()
+        .translation
+        .x += 0.2;
+    app.world_mut()
+        .get_mut::<Transform>(hb)
+        .unwrap()
+        .translation
+        .z += 0.2;
     let (ok, _) = run_until_messages(&mut app, 2);
     let entities: Vec<Entity> = ok.iter().map(|m| m.entity).collect();
     assert!(entities.contains(&a) && entities.contains(&b));
@@ -180,9 +257,15 @@ fn several_meshes_at_once() {
 
 fn wiimote_app() -> (App, Entity, Entity) {
     let mut app = app();
-    app.add_plugins((DeformPlugin::default(), WiimotePlugin::emulated(), WiimoteControlPlugin));
+    app.add_plugins((
+        DeformPlugin::default(),
+        WiimotePlugin::emulated(),
+        WiimoteControlPlugin,
+    ));
     let (e, handle, _) = spawn_bar(&mut app);
-    app.world_mut().entity_mut(handle).insert(WiimoteHandleControl::default());
+    app.world_mut()
+        .entity_mut(handle)
+        .insert(WiimoteHandleControl::default());
     (app, e, handle)
 }
 
@@ -212,26 +295,48 @@ fn an_emulated_remote_turns_a_handle_and_a_disconnect_keeps_the_pose() {
     controls.set_buttons(Buttons(Buttons::B));
     update_for(&mut app, 0.3);
     let start_t = std::time::Instant::now();
-    controls.set_motion(Arc::new(ConstantRate { start: DQuat::IDENTITY, axis: DVec3::Z, rate: 45f64.to_radians() }));
+    controls.set_motion(Arc::new(ConstantRate {
+        start: DQuat::IDENTITY,
+        axis: DVec3::Z,
+        rate: 45f64.to_radians(),
+    }));
     update_for(&mut app, 1.0);
-    controls.set_motion(Arc::new(Still(DQuat::from_rotation_z((45.0 * start_t.elapsed().as_secs_f64()).to_radians()))));
+    controls.set_motion(Arc::new(Still(DQuat::from_rotation_z(
+        (45.0 * start_t.elapsed().as_secs_f64()).to_radians(),
+    ))));
     update_for(&mut app, 0.3);
     let rot = app.world().get::<Transform>(handle).unwrap().rotation;
     let (axis, angle) = rot.to_axis_angle();
     assert!(angle > 0.4, "handle turned only {angle} rad");
     assert!(axis.y.abs() > 0.9, "turned about {axis}");
-    // Disconnect mid-drag: the pose stays, nothing panics, the state shows it.
-    let before = app.world().get::<Transform>(handle).unwrap().rotation;
+    // Disconnect mid-drag (B still held): the state shows it, the last pose is kept.
     controls.set_connected(false);
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while app.world().get::<Wiimote>(remote).unwrap().connection != ConnectionState::Disconnected {
+        assert!(Instant::now() < deadline, "disconnect not noticed");
+        app.update();
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let before = app.world().get::<Transform>(handle).unwrap().rotation;
     update_for(&mut app, 0.5);
-    let w = app.world().get::<Wiimote>(remote).unwrap();
-    assert_eq!(w.connection, ConnectionState::Disconnected);
-    assert_eq!(app.world().get::<Transform>(handle).unwrap().rotation, before);
+    assert_eq!(
+        app.world().get::<Transform>(handle).unwrap().rotation,
+        before
+    );
+    assert!(
+        !app.world()
+            .get::<WiimoteHandleControl>(handle)
+            .unwrap()
+            .is_grabbing()
+    );
     for p in positions(&app, e) {
         assert!(p.is_finite());
     }
     // It comes back on the same entity.
     controls.set_connected(true);
     update_for(&mut app, 3.0);
-    assert_eq!(app.world().get::<Wiimote>(remote).unwrap().connection, ConnectionState::Connected);
+    assert_eq!(
+        app.world().get::<Wiimote>(remote).unwrap().connection,
+        ConnectionState::Connected
+    );
 }

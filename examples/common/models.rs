@@ -62,13 +62,43 @@ fn mannequin() -> TriMesh {
             synth::capsule(p, v(-0.09, 0.92, 0.0), v(0.09, 0.92, 0.0), 0.13),
         ];
         for s in [-1.0, 1.0] {
-            parts.push(synth::capsule(p, v(0.0, 1.4, 0.0), v(s * 0.2, 1.4, 0.0), 0.07));
-            parts.push(synth::capsule(p, v(s * 0.22, 1.4, 0.0), v(s * 0.42, 1.14, 0.0), 0.055));
-            parts.push(synth::capsule(p, v(s * 0.42, 1.14, 0.0), v(s * 0.56, 0.9, 0.05), 0.045));
+            parts.push(synth::capsule(
+                p,
+                v(0.0, 1.4, 0.0),
+                v(s * 0.2, 1.4, 0.0),
+                0.07,
+            ));
+            parts.push(synth::capsule(
+                p,
+                v(s * 0.22, 1.4, 0.0),
+                v(s * 0.42, 1.14, 0.0),
+                0.055,
+            ));
+            parts.push(synth::capsule(
+                p,
+                v(s * 0.42, 1.14, 0.0),
+                v(s * 0.56, 0.9, 0.05),
+                0.045,
+            ));
             parts.push((p - v(s * 0.58, 0.86, 0.06)).length() - 0.055);
-            parts.push(synth::capsule(p, v(s * 0.1, 0.85, 0.0), v(s * 0.12, 0.48, 0.0), 0.075));
-            parts.push(synth::capsule(p, v(s * 0.12, 0.48, 0.0), v(s * 0.13, 0.1, 0.0), 0.06));
-            parts.push(synth::capsule(p, v(s * 0.13, 0.05, 0.0), v(s * 0.13, 0.05, 0.13), 0.05));
+            parts.push(synth::capsule(
+                p,
+                v(s * 0.1, 0.85, 0.0),
+                v(s * 0.12, 0.48, 0.0),
+                0.075,
+            ));
+            parts.push(synth::capsule(
+                p,
+                v(s * 0.12, 0.48, 0.0),
+                v(s * 0.13, 0.1, 0.0),
+                0.06,
+            ));
+            parts.push(synth::capsule(
+                p,
+                v(s * 0.13, 0.05, 0.0),
+                v(s * 0.13, 0.05, 0.13),
+                0.05,
+            ));
         }
         union(&parts, 0.035)
     };

@@ -143,7 +143,10 @@ struct Unattended {
 struct RenderTargetImage(Handle<Image>);
 
 fn arg_value(args: &[String], name: &str) -> Option<String> {
-    args.iter().position(|a| a == name).and_then(|i| args.get(i + 1)).cloned()
+    args.iter()
+        .position(|a| a == name)
+        .and_then(|i| args.get(i + 1))
+        .cloned()
 }
 
 fn main() -> AppExit {
@@ -154,12 +157,19 @@ fn main() -> AppExit {
     let model = args
         .iter()
         .skip(1)
-        .find(|a| !a.starts_with("--") && !args.iter().any(|b| b.starts_with("--") && arg_value(&args, b).as_ref() == Some(*a)))
+        .find(|a| {
+            !a.starts_with("--")
+                && !args
+                    .iter()
+                    .any(|b| b.starts_with("--") && arg_value(&args, b).as_ref() == Some(*a))
+        })
         .cloned()
         .unwrap_or_else(|| "mannequin".into());
     let unattended = Unattended {
         screenshot: arg_value(&args, "--screenshot"),
-        frames: arg_value(&args, "--frames").and_then(|v| v.parse().ok()).unwrap_or(30),
+        frames: arg_value(&args, "--frames")
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(30),
         frame: 0,
         demo,
         windowless,
@@ -184,7 +194,9 @@ fn main() -> AppExit {
                 .set(render)
                 .disable::<WinitPlugin>(),
         )
-        .add_plugins(bevy::app::ScheduleRunnerPlugin::run_loop(Duration::from_millis(5)));
+        .add_plugins(bevy::app::ScheduleRunnerPlugin::run_loop(
+            Duration::from_millis(5),
+        ));
     } else {
         app.add_plugins(
             DefaultPlugins
@@ -217,7 +229,11 @@ fn main() -> AppExit {
         tool: Tool::Fixed,
         radius: 0.08,
         mode: Mode::Paint,
-        input: if demo { InputMethod::Wiimote } else { InputMethod::Mouse },
+        input: if demo {
+            InputMethod::Wiimote
+        } else {
+            InputMethod::Mouse
+        },
         undo: Vec::new(),
         redo: Vec::new(),
         stroke: false,
@@ -264,7 +280,10 @@ fn main() -> AppExit {
                 .chain()
                 .before(DeformSystems::Request),
         )
-        .add_systems(Update, (challenge_progress, unattended_frames).after(DeformSystems::Writeback))
+        .add_systems(
+            Update,
+            (challenge_progress, unattended_frames).after(DeformSystems::Writeback),
+        )
         .run()
 }
 
@@ -281,7 +300,12 @@ fn setup_scene(
 ) {
     let mut camera = commands.spawn((Camera3d::default(), Transform::from_xyz(0.0, 1.0, 3.0)));
     if unattended.windowless {
-        let target = images.add(Image::new_target_texture(800, 600, TextureFormat::Rgba8UnormSrgb, None));
+        let target = images.add(Image::new_target_texture(
+            800,
+            600,
+            TextureFormat::Rgba8UnormSrgb,
+            None,
+        ));
         camera.insert(RenderTarget::Image(target.clone().into()));
         commands.insert_resource(RenderTargetImage(target));
     }
@@ -315,9 +339,12 @@ fn load_model(name: &str) -> Result<TriMesh, String> {
         for mesh in doc.meshes() {
             for prim in mesh.primitives() {
                 let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
-                let Some(pos) = reader.read_positions() else { continue };
+                let Some(pos) = reader.read_positions() else {
+                    continue;
+                };
                 let base = out.positions.len() as u32;
-                out.positions.extend(pos.map(|p| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)));
+                out.positions
+                    .extend(pos.map(|p| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)));
                 let n = out.positions.len() as u32 - base;
                 let idx: Vec<u32> = match reader.read_indices() {
                     Some(i) => i.into_u32().collect(),
@@ -374,7 +401,11 @@ fn load_pending(
     mut clear: ResMut<ClearColor>,
 ) {
     let task = sb.pending_task.take().and_then(|t| {
-        let found = sb.tasks.iter().find(|(k, task)| *k == t || task.name == t).cloned();
+        let found = sb
+            .tasks
+            .iter()
+            .find(|(k, task)| *k == t || task.name == t)
+            .cloned();
         if found.is_none() {
             sb.message = format!("unknown task {t:?}");
         }
@@ -383,7 +414,9 @@ fn load_pending(
     if let Some((_, task)) = &task {
         sb.pending_load = Some(task.model.clone());
     }
-    let Some(name) = sb.pending_load.take() else { return };
+    let Some(name) = sb.pending_load.take() else {
+        return;
+    };
     let mesh = match load_model(&name) {
         Ok(m) if models::generate(&name).is_some() => m,
         Ok(m) => normalise(m),
@@ -392,7 +425,14 @@ fn load_pending(
             return;
         }
     };
-    for e in [sb.mesh_entity.take(), sb.handle_entity.take(), sb.cloud_entity.take()].into_iter().flatten() {
+    for e in [
+        sb.mesh_entity.take(),
+        sb.handle_entity.take(),
+        sb.cloud_entity.take(),
+    ]
+    .into_iter()
+    .flatten()
+    {
         commands.entity(e).despawn();
     }
     let mut bevy_mesh = mesh_from_triangles(&mesh.positions, &mesh.triangles);
@@ -438,7 +478,10 @@ fn load_pending(
     sb.redo.clear();
     sb.challenge = None;
     clear.0 = BACKGROUND;
-    sb.message = format!("loaded {name}: {n} vertices, {} triangles", mesh.triangles.len());
+    sb.message = format!(
+        "loaded {name}: {n} vertices, {} triangles",
+        mesh.triangles.len()
+    );
     sb.mesh = mesh;
     if let Some((key, task)) = task {
         match task.target_pose(&sb.mesh) {
@@ -450,7 +493,11 @@ fn load_pending(
                     unlit: true,
                     ..default()
                 });
-                sb.cloud_entity = Some(commands.spawn((Mesh3d(cloud_mesh), MeshMaterial3d(yellow), Pickable::IGNORE)).id());
+                sb.cloud_entity = Some(
+                    commands
+                        .spawn((Mesh3d(cloud_mesh), MeshMaterial3d(yellow), Pickable::IGNORE))
+                        .id(),
+                );
                 sb.message = format!("challenge: {} — match the yellow points", task.name);
                 let start_error = target
                     .iter()
@@ -488,28 +535,50 @@ fn point_cloud(points: &[DVec3], diagonal: f64) -> Mesh {
         for d in [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z] {
             pos.push((c + d * r).to_array());
         }
-        for [a, b, c] in [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]] {
+        for [a, b, c] in [
+            [0, 2, 4],
+            [2, 1, 4],
+            [1, 3, 4],
+            [3, 0, 4],
+            [2, 0, 5],
+            [1, 2, 5],
+            [3, 1, 5],
+            [0, 3, 5],
+        ] {
             idx.extend_from_slice(&[base + a, base + b, base + c]);
         }
     }
     let normals: Vec<[f32; 3]> = vec![[0.0, 1.0, 0.0]; pos.len()];
-    Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default())
-        .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, pos)
-        .with_inserted_attribute(Mesh::ATTRIBUTE_NORMAL, normals)
-        .with_inserted_indices(Indices::U32(idx))
+    Mesh::new(
+        PrimitiveTopology::TriangleList,
+        RenderAssetUsages::default(),
+    )
+    .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, pos)
+    .with_inserted_attribute(Mesh::ATTRIBUTE_NORMAL, normals)
+    .with_inserted_indices(Indices::U32(idx))
 }
 
 /// Pushes the painted selection into FixedRegion / DeformHandle and the vertex colours.
 fn sync_regions(commands: &mut Commands, sb: &mut Sandbox, meshes: &mut Assets<Mesh>) {
-    let Some(mesh_entity) = sb.mesh_entity else { return };
-    let fixed: Vec<u32> = (0..sb.selection.len() as u32).filter(|&i| sb.selection[i as usize] == FIXED).collect();
-    let handle: Vec<u32> = (0..sb.selection.len() as u32).filter(|&i| sb.selection[i as usize] == HANDLE).collect();
+    let Some(mesh_entity) = sb.mesh_entity else {
+        return;
+    };
+    let fixed: Vec<u32> = (0..sb.selection.len() as u32)
+        .filter(|&i| sb.selection[i as usize] == FIXED)
+        .collect();
+    let handle: Vec<u32> = (0..sb.selection.len() as u32)
+        .filter(|&i| sb.selection[i as usize] == HANDLE)
+        .collect();
     commands.entity(mesh_entity).insert(FixedRegion(fixed));
     if let Some(h) = sb.handle_entity.take() {
         commands.entity(h).despawn();
     }
     if !handle.is_empty() {
-        let pivot = handle.iter().map(|&i| sb.mesh.positions[i as usize]).sum::<DVec3>() / handle.len() as f64;
+        let pivot = handle
+            .iter()
+            .map(|&i| sb.mesh.positions[i as usize])
+            .sum::<DVec3>()
+            / handle.len() as f64;
         let pivot = pivot.as_vec3();
         let mut e = commands.spawn((
             DeformHandle {
@@ -585,7 +654,10 @@ fn cursor_ray(
 fn snapshot(sb: &Sandbox, transforms: &Query<&mut Transform, Without<Camera3d>>) -> Snapshot {
     Snapshot {
         selection: sb.selection.clone(),
-        handle: sb.handle_entity.and_then(|h| transforms.get(h).ok().copied()).unwrap_or_default(),
+        handle: sb
+            .handle_entity
+            .and_then(|h| transforms.get(h).ok().copied())
+            .unwrap_or_default(),
     }
 }
 
@@ -605,13 +677,20 @@ fn brush_ray(
     if sb.mode != Mode::Paint || sb.challenge.is_some() || !buttons.pressed(MouseButton::Left) {
         return;
     }
-    let Some(mesh_entity) = sb.mesh_entity else { return };
-    let Some((ray, _)) = cursor_ray(&window, &camera) else { return };
+    let Some(mesh_entity) = sb.mesh_entity else {
+        return;
+    };
+    let Some((ray, _)) = cursor_ray(&window, &camera) else {
+        return;
+    };
     let only_mesh = |e: Entity| e == mesh_entity;
     let settings = MeshRayCastSettings::default()
         .with_visibility(RayCastVisibility::Any)
         .with_filter(&only_mesh);
-    hit_out.0 = ray_cast.cast_ray(ray, &settings).first().map(|(_, hit)| hit.point);
+    hit_out.0 = ray_cast
+        .cast_ray(ray, &settings)
+        .first()
+        .map(|(_, hit)| hit.point);
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -627,7 +706,9 @@ fn paint(
     if sb.mode != Mode::Paint || sb.challenge.is_some() {
         return;
     }
-    let Some(mesh_entity) = sb.mesh_entity else { return };
+    let Some(mesh_entity) = sb.mesh_entity else {
+        return;
+    };
     if buttons.just_released(MouseButton::Left) && sb.stroke {
         sb.stroke = false;
         sync_regions(&mut commands, &mut sb, &mut meshes);
@@ -647,9 +728,16 @@ fn paint(
     };
     let r2 = (sb.radius as f64).powi(2);
     let centre = point.as_dvec3();
-    let Ok(mesh3d) = mesh_q.get(mesh_entity) else { return };
-    let current: Vec<DVec3> = match meshes.get(&mesh3d.0).and_then(|m| m.attribute(Mesh::ATTRIBUTE_POSITION).cloned()) {
-        Some(VertexAttributeValues::Float32x3(v)) => v.iter().map(|p| Vec3::from_array(*p).as_dvec3()).collect(),
+    let Ok(mesh3d) = mesh_q.get(mesh_entity) else {
+        return;
+    };
+    let current: Vec<DVec3> = match meshes
+        .get(&mesh3d.0)
+        .and_then(|m| m.attribute(Mesh::ATTRIBUTE_POSITION).cloned())
+    {
+        Some(VertexAttributeValues::Float32x3(v)) => {
+            v.iter().map(|p| Vec3::from_array(*p).as_dvec3()).collect()
+        }
         _ => sb.mesh.positions.clone(),
     };
     for (i, p) in current.iter().enumerate() {
@@ -679,39 +767,58 @@ fn pose_with_mouse(
     }
     let Some(h) = sb.handle_entity else { return };
     let Ok(window) = window.single() else { return };
-    let Some(cursor) = window.cursor_position() else { return };
+    let Some(cursor) = window.cursor_position() else {
+        return;
+    };
     if !buttons.pressed(MouseButton::Left) {
         *last = None;
         *sb_undo = false;
         return;
     }
-    let Some((cam, cam_tf)) = camera.iter().next() else { return };
-    let Ok(mut t) = transforms.get_mut(h) else { return };
+    let Some((cam, cam_tf)) = camera.iter().next() else {
+        return;
+    };
+    let Ok(mut t) = transforms.get_mut(h) else {
+        return;
+    };
     if !*sb_undo {
         *sb_undo = true;
         undo_out.0.push(*t);
     }
-    let Some(prev) = last.replace(cursor) else { return };
+    let Some(prev) = last.replace(cursor) else {
+        return;
+    };
     if prev == cursor {
         return;
     }
     let cam_rot = cam_tf.compute_transform().rotation;
     if keys.pressed(KeyCode::ShiftLeft) || keys.pressed(KeyCode::ShiftRight) {
         let depth = (t.translation - cam_tf.translation()).length();
-        let (Ok(a), Ok(b)) = (cam.viewport_to_world(cam_tf, prev), cam.viewport_to_world(cam_tf, cursor)) else { return };
+        let (Ok(a), Ok(b)) = (
+            cam.viewport_to_world(cam_tf, prev),
+            cam.viewport_to_world(cam_tf, cursor),
+        ) else {
+            return;
+        };
         let pa = a.origin + *a.direction * depth;
         let pb = b.origin + *b.direction * depth;
         t.translation += pb - pa;
         return;
     }
     // Arcball centred on the handle's screen position.
-    let centre = cam.world_to_viewport(cam_tf, t.translation).unwrap_or(window.size() / 2.0);
+    let centre = cam
+        .world_to_viewport(cam_tf, t.translation)
+        .unwrap_or(window.size() / 2.0);
     let radius = window.size().min_element() * 0.35;
     let to_sphere = |p: Vec2| {
         let v = (p - centre) / radius;
         let v = Vec2::new(v.x, -v.y);
         let d2 = v.length_squared();
-        if d2 <= 1.0 { v.extend((1.0 - d2).sqrt()) } else { (v / d2.sqrt()).extend(0.0) }
+        if d2 <= 1.0 {
+            v.extend((1.0 - d2).sqrt())
+        } else {
+            (v / d2.sqrt()).extend(0.0)
+        }
     };
     let (a, b) = (to_sphere(prev), to_sphere(cursor));
     let q_view = Quat::from_rotation_arc(a, b);
@@ -743,7 +850,10 @@ fn keyboard_shortcuts(
 ) {
     // Pose drags recorded by pose_with_mouse become undo entries.
     for t in undo_in.0.drain(..) {
-        let snap = Snapshot { selection: sb.selection.clone(), handle: t };
+        let snap = Snapshot {
+            selection: sb.selection.clone(),
+            handle: t,
+        };
         sb.undo.push(snap);
         sb.redo.clear();
     }
@@ -788,7 +898,9 @@ fn demo_script(
     if !unattended.demo {
         return;
     }
-    let Some(emu) = emulators.and_then(|e| e.0.first().cloned()) else { return };
+    let Some(emu) = emulators.and_then(|e| e.0.first().cloned()) else {
+        return;
+    };
     let calibrated = remotes
         .iter()
         .any(|w| matches!(w.calibration, WiimoteCalibration::Calibrated(_)));
@@ -822,8 +934,12 @@ fn challenge_progress(
 ) {
     let input = sb.input;
     let diagonal = sb.diagonal;
-    let Some(mesh_entity) = sb.mesh_entity else { return };
-    let Some(ch) = sb.challenge.as_mut() else { return };
+    let Some(mesh_entity) = sb.mesh_entity else {
+        return;
+    };
+    let Some(ch) = sb.challenge.as_mut() else {
+        return;
+    };
     if ch.done.is_some() {
         return;
     }
@@ -856,7 +972,10 @@ fn challenge_progress(
             seconds: secs,
         };
         let msg = match tasks::append_result(RESULTS_CSV, &row) {
-            Ok(()) => format!("done in {secs:.1} s with the {} — saved to {RESULTS_CSV}", input.name()),
+            Ok(()) => format!(
+                "done in {secs:.1} s with the {} — saved to {RESULTS_CSV}",
+                input.name()
+            ),
             Err(e) => format!("done in {secs:.1} s (could not save: {e})"),
         };
         sb.results.push(row);
@@ -872,7 +991,9 @@ fn unattended_frames(
     mut exit: MessageWriter<AppExit>,
 ) {
     u.frame += 1;
-    let Some(path) = u.screenshot.clone() else { return };
+    let Some(path) = u.screenshot.clone() else {
+        return;
+    };
     // Wait for the model to be prepared so the frame shows it.
     let ready = statuses.iter().any(|s| s.vertices > 0);
     if u.requested || u.frame < u.frames || !ready {
@@ -891,23 +1012,29 @@ fn unattended_frames(
     commands
         .spawn(shot)
         .observe(save_to_disk(path.clone()))
-        .observe(move |captured: On<ScreenshotCaptured>, mut exit: MessageWriter<AppExit>| {
-            let img: &Image = &captured;
-            let data = img.data.as_deref().unwrap_or(&[]);
-            let mut distinct = std::collections::HashSet::new();
-            for px in data.chunks_exact(4).step_by(7) {
-                distinct.insert([px[0] / 8, px[1] / 8, px[2] / 8]);
-            }
-            println!("screenshot {path}: {} bytes, {} distinct colours", data.len(), distinct.len());
-            if check && distinct.len() < 8 {
-                eprintln!("render check failed: the frame is blank");
-                exit.write(AppExit::error());
-            } else {
-                // Give save_to_disk a moment before exiting.
-                std::thread::sleep(Duration::from_millis(300));
-                exit.write(AppExit::Success);
-            }
-        });
+        .observe(
+            move |captured: On<ScreenshotCaptured>, mut exit: MessageWriter<AppExit>| {
+                let img: &Image = &captured;
+                let data = img.data.as_deref().unwrap_or(&[]);
+                let mut distinct = std::collections::HashSet::new();
+                for px in data.chunks_exact(4).step_by(7) {
+                    distinct.insert([px[0] / 8, px[1] / 8, px[2] / 8]);
+                }
+                println!(
+                    "screenshot {path}: {} bytes, {} distinct colours",
+                    data.len(),
+                    distinct.len()
+                );
+                if check && distinct.len() < 8 {
+                    eprintln!("render check failed: the frame is blank");
+                    exit.write(AppExit::error());
+                } else {
+                    // Give save_to_disk a moment before exiting.
+                    std::thread::sleep(Duration::from_millis(300));
+                    exit.write(AppExit::Success);
+                }
+            },
+        );
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -931,238 +1058,282 @@ fn ui_panel(
     let mut root = egui::Ui::new(
         ctx.clone(),
         "root".into(),
-        egui::UiBuilder::new().layer_id(egui::LayerId::background()).max_rect(ctx.viewport_rect()),
+        egui::UiBuilder::new()
+            .layer_id(egui::LayerId::background())
+            .max_rect(ctx.viewport_rect()),
     );
     let mut regions_changed = false;
-    egui::Panel::left("panel").default_size(290.0).show(&mut root, |ui| {
-        egui::ScrollArea::vertical().show(ui, |ui| {
-            ui.heading("bevy_wii_deform");
-            ui.label(&sb.message);
-            ui.separator();
-            ui.strong("Model");
-            ui.horizontal_wrapped(|ui| {
-                for m in models::MODELS {
-                    if ui.selectable_label(sb.model_name == m, m).clicked() {
-                        sb.pending_load = Some(m.into());
-                    }
-                }
-            });
-            ui.label("Drop a .obj/.off/.gltf/.glb file on the window to load it.");
-            if let Some(s) = statuses.iter().next() {
-                ui.label(format!(
-                    "{:?} · {} vertices · {:.1} ms · {} it · E {:.5}{}",
-                    s.phase,
-                    s.vertices,
-                    s.solve_ms,
-                    s.iterations,
-                    s.energy,
-                    s.error.as_ref().map(|e| format!(" · error: {e}")).unwrap_or_default()
-                ));
-            }
-            ui.separator();
-            ui.strong("Mode");
-            ui.horizontal(|ui| {
-                ui.selectable_value(&mut sb.mode, Mode::Paint, "Paint regions");
-                ui.selectable_value(&mut sb.mode, Mode::Pose, "Pose");
-            });
-            if sb.mode == Mode::Paint {
-                ui.horizontal(|ui| {
-                    ui.selectable_value(&mut sb.tool, Tool::Fixed, "Fixed (blue)");
-                    ui.selectable_value(&mut sb.tool, Tool::Handle, "Handle (red)");
-                    ui.selectable_value(&mut sb.tool, Tool::Erase, "Erase");
-                });
-                ui.add(egui::Slider::new(&mut sb.radius, 0.01..=0.5).text("brush radius"));
-                ui.horizontal(|ui| {
-                    if ui.button("Clear").clicked() {
-                        let snap = Snapshot { selection: sb.selection.clone(), handle: Transform::default() };
-                        sb.undo.push(snap);
-                        sb.selection.iter_mut().for_each(|s| *s = FREE);
-                        regions_changed = true;
-                    }
-                    if ui.button("Invert fixed").clicked() {
-                        let snap = Snapshot { selection: sb.selection.clone(), handle: Transform::default() };
-                        sb.undo.push(snap);
-                        for s in sb.selection.iter_mut() {
-                            *s = match *s {
-                                FIXED => FREE,
-                                FREE => FIXED,
-                                other => other,
-                            };
-                        }
-                        regions_changed = true;
-                    }
-                });
-            }
-            ui.horizontal(|ui| {
-                if ui.add_enabled(!sb.undo.is_empty(), egui::Button::new("Undo")).clicked() {
-                    history.0 = Some(true);
-                }
-                if ui.add_enabled(!sb.redo.is_empty(), egui::Button::new("Redo")).clicked() {
-                    history.0 = Some(false);
-                }
-                if ui.button("Reset pose").clicked() {
-                    if let Some(h) = sb.handle_entity {
-                        if let Ok(mut t) = transforms.get_mut(h) {
-                            t.rotation = Quat::IDENTITY;
+    egui::Panel::left("panel")
+        .default_size(290.0)
+        .show(&mut root, |ui| {
+            egui::ScrollArea::vertical().show(ui, |ui| {
+                ui.heading("bevy_wii_deform");
+                ui.label(&sb.message);
+                ui.separator();
+                ui.strong("Model");
+                ui.horizontal_wrapped(|ui| {
+                    for m in models::MODELS {
+                        if ui.selectable_label(sb.model_name == m, m).clicked() {
+                            sb.pending_load = Some(m.into());
                         }
                     }
-                    regions_changed = true;
-                }
-            });
-            ui.separator();
-            ui.strong("Input");
-            let before = sb.input;
-            ui.horizontal(|ui| {
-                ui.selectable_value(&mut sb.input, InputMethod::Mouse, "Mouse (arcball)");
-                ui.selectable_value(&mut sb.input, InputMethod::Wiimote, "Wii Remote");
-            });
-            if sb.input != before {
-                regions_changed = true;
-            }
-            if sb.input == InputMethod::Wiimote {
-                let mut filter = wii_settings.filter;
-                ui.horizontal(|ui| {
-                    ui.label("Filter:");
-                    ui.selectable_value(&mut filter, WiimoteFilter::Fusion, "ours");
-                    ui.selectable_value(&mut filter, WiimoteFilter::Paper, "paper");
-                    ui.selectable_value(&mut filter, WiimoteFilter::Raw, "raw");
                 });
-                if filter != wii_settings.filter {
-                    wii_settings.filter = filter;
-                }
-                if remotes.is_empty() {
-                    ui.label("No remote yet (pair with SYNC; see wiimote_monitor for diagnostics).");
-                }
-                for w in &remotes {
+                ui.label("Drop a .obj/.off/.gltf/.glb file on the window to load it.");
+                if let Some(s) = statuses.iter().next() {
                     ui.label(format!(
-                        "Remote {}: {:?} · MotionPlus {} · battery {}% · {:?}{}",
-                        w.id,
-                        w.connection,
-                        if w.motion_plus { "on" } else { "off" },
-                        w.battery as u32 * 100 / 255,
-                        w.calibration,
-                        if w.pressed(Buttons::B) { " · B held" } else { "" }
+                        "{:?} · {} vertices · {:.1} ms · {} it · E {:.5}{}",
+                        s.phase,
+                        s.vertices,
+                        s.solve_ms,
+                        s.iterations,
+                        s.energy,
+                        s.error
+                            .as_ref()
+                            .map(|e| format!(" · error: {e}"))
+                            .unwrap_or_default()
                     ));
-                    if ui.button("Recentre").clicked() {
-                        if let Some(link) = &link {
-                            link.send(w.id, RemoteCommand::Recenter);
-                        }
-                    }
                 }
-                if let Some(emu) = emulators.as_ref().and_then(|e| e.0.first()) {
-                    ui.label("Emulated remote:");
+                ui.separator();
+                ui.strong("Mode");
+                ui.horizontal(|ui| {
+                    ui.selectable_value(&mut sb.mode, Mode::Paint, "Paint regions");
+                    ui.selectable_value(&mut sb.mode, Mode::Pose, "Pose");
+                });
+                if sb.mode == Mode::Paint {
                     ui.horizontal(|ui| {
-                        let mut b = emu.buttons().pressed(Buttons::B);
-                        if ui.checkbox(&mut b, "hold B").changed() {
-                            emu.set_buttons(Buttons(if b { Buttons::B } else { 0 }));
+                        ui.selectable_value(&mut sb.tool, Tool::Fixed, "Fixed (blue)");
+                        ui.selectable_value(&mut sb.tool, Tool::Handle, "Handle (red)");
+                        ui.selectable_value(&mut sb.tool, Tool::Erase, "Erase");
+                    });
+                    ui.add(egui::Slider::new(&mut sb.radius, 0.01..=0.5).text("brush radius"));
+                    ui.horizontal(|ui| {
+                        if ui.button("Clear").clicked() {
+                            let snap = Snapshot {
+                                selection: sb.selection.clone(),
+                                handle: Transform::default(),
+                            };
+                            sb.undo.push(snap);
+                            sb.selection.iter_mut().for_each(|s| *s = FREE);
+                            regions_changed = true;
                         }
-                        if ui.button("play motion").clicked() {
-                            emu.set_motion(std::sync::Arc::new(DemoMotion));
-                        }
-                        if ui.button("hold still").clicked() {
-                            emu.set_motion(std::sync::Arc::new(Still(glam::DQuat::IDENTITY)));
-                        }
-                        let mut on = emu.connected();
-                        if ui.checkbox(&mut on, "power").changed() {
-                            emu.set_connected(on);
+                        if ui.button("Invert fixed").clicked() {
+                            let snap = Snapshot {
+                                selection: sb.selection.clone(),
+                                handle: Transform::default(),
+                            };
+                            sb.undo.push(snap);
+                            for s in sb.selection.iter_mut() {
+                                *s = match *s {
+                                    FIXED => FREE,
+                                    FREE => FIXED,
+                                    other => other,
+                                };
+                            }
+                            regions_changed = true;
                         }
                     });
                 }
-            }
-            ui.separator();
-            ui.strong("Solver");
-            ui.add(egui::Slider::new(&mut config.max_iterations, 1..=30).text("iterations / frame"));
-            ui.add(egui::Slider::new(&mut config.tolerance, 0.0..=0.01).logarithmic(true).text("tolerance"));
-            ui.separator();
-            ui.strong("Challenge");
-            let keys: Vec<(String, String)> = sb.tasks.iter().map(|(k, t)| (k.clone(), t.name.clone())).collect();
-            for (key, name) in keys {
-                if ui.button(format!("Start: {name}")).clicked() {
-                    sb.pending_task = Some(key);
-                }
-            }
-            if let Some(ch) = &sb.challenge {
-                match ch.done {
-                    Some(s) => ui.label(format!("{} done in {s:.1} s", ch.task.name)),
-                    None => ui.label(format!(
-                        "{}: {:.1} s · {:.0}% there (done at {:.0}%)",
-                        ch.task.name,
-                        ch.watch.elapsed_secs(),
-                        ch.progress.max(0.0) * 100.0,
-                        (1.0 - CLOSE_ENOUGH) * 100.0
-                    )),
-                };
-            }
-            if sb.challenge.is_some() && ui.button("Leave challenge").clicked() {
-                sb.challenge = None;
-                if let Some(c) = sb.cloud_entity.take() {
-                    commands.entity(c).despawn();
-                }
-                clear.0 = BACKGROUND;
-            }
-            ui.checkbox(&mut sb.show_results, "Results (Table 1)");
-            if sb.show_results {
-                egui::Grid::new("results").striped(true).show(ui, |ui| {
-                    ui.label("task");
-                    ui.label("mouse s");
-                    ui.label("wiimote s");
-                    ui.label("speed-up");
-                    ui.end_row();
-                    for (task, m, w, s) in tasks::summary(&sb.results) {
-                        let f = |v: Option<f64>| v.map(|v| format!("{v:.1}")).unwrap_or_else(|| "–".into());
-                        ui.label(task);
-                        ui.label(f(m));
-                        ui.label(f(w));
-                        ui.label(s.map(|s| format!("{s:+.0}%")).unwrap_or_else(|| "–".into()));
-                        ui.end_row();
+                ui.horizontal(|ui| {
+                    if ui
+                        .add_enabled(!sb.undo.is_empty(), egui::Button::new("Undo"))
+                        .clicked()
+                    {
+                        history.0 = Some(true);
                     }
-                });
-            }
-            ui.separator();
-            ui.strong("Files");
-            ui.horizontal(|ui| {
-                ui.text_edit_singleline(&mut sb.export_path);
-                if ui.button("Export glTF").clicked() {
-                    let msg = sb
-                        .mesh_entity
-                        .and_then(|e| mesh_q.get(e).ok())
-                        .and_then(|m| meshes.get(&m.0))
-                        .map(|m| match export_glb(m, &sb.export_path) {
-                            Ok(()) => format!("exported {}", sb.export_path),
-                            Err(e) => format!("export failed: {e}"),
-                        })
-                        .unwrap_or_else(|| "nothing to export".into());
-                    sb.message = msg;
-                }
-            });
-            ui.horizontal(|ui| {
-                ui.text_edit_singleline(&mut sb.setup_path);
-                if ui.button("Save setup").clicked() {
-                    let handle = sb.handle_entity.and_then(|h| transforms.get(h).ok().copied()).unwrap_or_default();
-                    sb.message = match save_setup(&sb, handle) {
-                        Ok(()) => format!("saved {}", sb.setup_path),
-                        Err(e) => format!("save failed: {e}"),
-                    };
-                }
-                if ui.button("Load setup").clicked() {
-                    match load_setup(&sb.setup_path) {
-                        Ok(setup) => {
-                            if setup.model != sb.model_name {
-                                sb.message = format!("setup is for model {:?}; load it first", setup.model);
-                            } else if setup.selection.len() != sb.selection.len() {
-                                sb.message = "setup does not match this mesh".into();
-                            } else {
-                                sb.selection = setup.selection;
-                                regions_changed = true;
-                                sb.message = format!("loaded {}", sb.setup_path);
+                    if ui
+                        .add_enabled(!sb.redo.is_empty(), egui::Button::new("Redo"))
+                        .clicked()
+                    {
+                        history.0 = Some(false);
+                    }
+                    if ui.button("Reset pose").clicked() {
+                        if let Some(h) = sb.handle_entity {
+                            if let Ok(mut t) = transforms.get_mut(h) {
+                                t.rotation = Quat::IDENTITY;
                             }
                         }
-                        Err(e) => sb.message = format!("load failed: {e}"),
+                        regions_changed = true;
+                    }
+                });
+                ui.separator();
+                ui.strong("Input");
+                let before = sb.input;
+                ui.horizontal(|ui| {
+                    ui.selectable_value(&mut sb.input, InputMethod::Mouse, "Mouse (arcball)");
+                    ui.selectable_value(&mut sb.input, InputMethod::Wiimote, "Wii Remote");
+                });
+                if sb.input != before {
+                    regions_changed = true;
+                }
+                if sb.input == InputMethod::Wiimote {
+                    let mut filter = wii_settings.filter;
+                    ui.horizontal(|ui| {
+                        ui.label("Filter:");
+                        ui.selectable_value(&mut filter, WiimoteFilter::Fusion, "ours");
+                        ui.selectable_value(&mut filter, WiimoteFilter::Paper, "paper");
+                        ui.selectable_value(&mut filter, WiimoteFilter::Raw, "raw");
+                    });
+                    if filter != wii_settings.filter {
+                        wii_settings.filter = filter;
+                    }
+                    if remotes.is_empty() {
+                        ui.label(
+                            "No remote yet (pair with SYNC; see wiimote_monitor for diagnostics).",
+                        );
+                    }
+                    for w in &remotes {
+                        ui.label(format!(
+                            "Remote {}: {:?} · MotionPlus {} · battery {}% · {:?}{}",
+                            w.id,
+                            w.connection,
+                            if w.motion_plus { "on" } else { "off" },
+                            w.battery as u32 * 100 / 255,
+                            w.calibration,
+                            if w.pressed(Buttons::B) {
+                                " · B held"
+                            } else {
+                                ""
+                            }
+                        ));
+                        if ui.button("Recentre").clicked() {
+                            if let Some(link) = &link {
+                                link.send(w.id, RemoteCommand::Recenter);
+                            }
+                        }
+                    }
+                    if let Some(emu) = emulators.as_ref().and_then(|e| e.0.first()) {
+                        ui.label("Emulated remote:");
+                        ui.horizontal(|ui| {
+                            let mut b = emu.buttons().pressed(Buttons::B);
+                            if ui.checkbox(&mut b, "hold B").changed() {
+                                emu.set_buttons(Buttons(if b { Buttons::B } else { 0 }));
+                            }
+                            if ui.button("play motion").clicked() {
+                                emu.set_motion(std::sync::Arc::new(DemoMotion));
+                            }
+                            if ui.button("hold still").clicked() {
+                                emu.set_motion(std::sync::Arc::new(Still(glam::DQuat::IDENTITY)));
+                            }
+                            let mut on = emu.connected();
+                            if ui.checkbox(&mut on, "power").changed() {
+                                emu.set_connected(on);
+                            }
+                        });
                     }
                 }
+                ui.separator();
+                ui.strong("Solver");
+                ui.add(
+                    egui::Slider::new(&mut config.max_iterations, 1..=30)
+                        .text("iterations / frame"),
+                );
+                ui.add(
+                    egui::Slider::new(&mut config.tolerance, 0.0..=0.01)
+                        .logarithmic(true)
+                        .text("tolerance"),
+                );
+                ui.separator();
+                ui.strong("Challenge");
+                let keys: Vec<(String, String)> = sb
+                    .tasks
+                    .iter()
+                    .map(|(k, t)| (k.clone(), t.name.clone()))
+                    .collect();
+                for (key, name) in keys {
+                    if ui.button(format!("Start: {name}")).clicked() {
+                        sb.pending_task = Some(key);
+                    }
+                }
+                if let Some(ch) = &sb.challenge {
+                    match ch.done {
+                        Some(s) => ui.label(format!("{} done in {s:.1} s", ch.task.name)),
+                        None => ui.label(format!(
+                            "{}: {:.1} s · {:.0}% there (done at {:.0}%)",
+                            ch.task.name,
+                            ch.watch.elapsed_secs(),
+                            ch.progress.max(0.0) * 100.0,
+                            (1.0 - CLOSE_ENOUGH) * 100.0
+                        )),
+                    };
+                }
+                if sb.challenge.is_some() && ui.button("Leave challenge").clicked() {
+                    sb.challenge = None;
+                    if let Some(c) = sb.cloud_entity.take() {
+                        commands.entity(c).despawn();
+                    }
+                    clear.0 = BACKGROUND;
+                }
+                ui.checkbox(&mut sb.show_results, "Results (Table 1)");
+                if sb.show_results {
+                    egui::Grid::new("results").striped(true).show(ui, |ui| {
+                        ui.label("task");
+                        ui.label("mouse s");
+                        ui.label("wiimote s");
+                        ui.label("speed-up");
+                        ui.end_row();
+                        for (task, m, w, s) in tasks::summary(&sb.results) {
+                            let f = |v: Option<f64>| {
+                                v.map(|v| format!("{v:.1}")).unwrap_or_else(|| "–".into())
+                            };
+                            ui.label(task);
+                            ui.label(f(m));
+                            ui.label(f(w));
+                            ui.label(s.map(|s| format!("{s:+.0}%")).unwrap_or_else(|| "–".into()));
+                            ui.end_row();
+                        }
+                    });
+                }
+                ui.separator();
+                ui.strong("Files");
+                ui.horizontal(|ui| {
+                    ui.text_edit_singleline(&mut sb.export_path);
+                    if ui.button("Export glTF").clicked() {
+                        let msg = sb
+                            .mesh_entity
+                            .and_then(|e| mesh_q.get(e).ok())
+                            .and_then(|m| meshes.get(&m.0))
+                            .map(|m| match export_glb(m, &sb.export_path) {
+                                Ok(()) => format!("exported {}", sb.export_path),
+                                Err(e) => format!("export failed: {e}"),
+                            })
+                            .unwrap_or_else(|| "nothing to export".into());
+                        sb.message = msg;
+                    }
+                });
+                ui.horizontal(|ui| {
+                    ui.text_edit_singleline(&mut sb.setup_path);
+                    if ui.button("Save setup").clicked() {
+                        let handle = sb
+                            .handle_entity
+                            .and_then(|h| transforms.get(h).ok().copied())
+                            .unwrap_or_default();
+                        sb.message = match save_setup(&sb, handle) {
+                            Ok(()) => format!("saved {}", sb.setup_path),
+                            Err(e) => format!("save failed: {e}"),
+                        };
+                    }
+                    if ui.button("Load setup").clicked() {
+                        match load_setup(&sb.setup_path) {
+                            Ok(setup) => {
+                                if setup.model != sb.model_name {
+                                    sb.message = format!(
+                                        "setup is for model {:?}; load it first",
+                                        setup.model
+                                    );
+                                } else if setup.selection.len() != sb.selection.len() {
+                                    sb.message = "setup does not match this mesh".into();
+                                } else {
+                                    sb.selection = setup.selection;
+                                    regions_changed = true;
+                                    sb.message = format!("loaded {}", sb.setup_path);
+                                }
+                            }
+                            Err(e) => sb.message = format!("load failed: {e}"),
+                        }
+                    }
+                });
             });
         });
-    });
     if regions_changed {
         sync_regions(&mut commands, &mut sb, &mut meshes);
         if let Some(m) = sb.mesh_entity.and_then(|e| mesh_q.get(e).ok()) {
@@ -1187,7 +1358,8 @@ fn save_setup(sb: &Sandbox, handle: Transform) -> Result<(), String> {
         handle_translation: handle.translation.to_array(),
         handle_rotation: handle.rotation.to_array(),
     };
-    let text = ron::ser::to_string_pretty(&s, ron::ser::PrettyConfig::default()).map_err(|e| e.to_string())?;
+    let text = ron::ser::to_string_pretty(&s, ron::ser::PrettyConfig::default())
+        .map_err(|e| e.to_string())?;
     std::fs::write(&sb.setup_path, text).map_err(|e| e.to_string())
 }
 
@@ -1199,14 +1371,20 @@ fn load_setup(path: &str) -> Result<Setup, String> {
 /// Writes the posed mesh as a binary glTF (positions, normals, indices), validated by
 /// re-reading it with the `gltf` crate before it is written.
 fn export_glb(mesh: &Mesh, path: &str) -> Result<(), String> {
-    let Ok(VertexAttributeValues::Float32x3(pos)) = mesh.try_attribute(Mesh::ATTRIBUTE_POSITION) else {
+    let Ok(VertexAttributeValues::Float32x3(pos)) = mesh.try_attribute(Mesh::ATTRIBUTE_POSITION)
+    else {
         return Err("mesh has no positions".into());
     };
     let normals = match mesh.try_attribute(Mesh::ATTRIBUTE_NORMAL) {
         Ok(VertexAttributeValues::Float32x3(n)) => n.clone(),
         _ => vec![[0.0, 1.0, 0.0]; pos.len()],
     };
-    let indices: Vec<u32> = mesh.try_indices().map_err(|e| e.to_string())?.iter().map(|i| i as u32).collect();
+    let indices: Vec<u32> = mesh
+        .try_indices()
+        .map_err(|e| e.to_string())?
+        .iter()
+        .map(|i| i as u32)
+        .collect();
     let mut bin = Vec::new();
     for p in pos {
         for c in p {
@@ -1267,12 +1445,18 @@ fn export_glb(mesh: &Mesh, path: &str) -> Result<(), String> {
     glb.extend_from_slice(b"BIN\0");
     glb.extend_from_slice(&bin);
     let (doc, buffers, _) = gltf::import_slice(&glb).map_err(|e| format!("invalid glTF: {e}"))?;
-    let count = doc.meshes().next().and_then(|m| m.primitives().next()).map(|p| {
-        p.reader(|b| buffers.get(b.index()).map(|d| &d.0[..])).read_positions().map(|i| i.count()).unwrap_or(0)
-    });
+    let count = doc
+        .meshes()
+        .next()
+        .and_then(|m| m.primitives().next())
+        .map(|p| {
+            p.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]))
+                .read_positions()
+                .map(|i| i.count())
+                .unwrap_or(0)
+        });
     if count != Some(pos.len()) {
         return Err("glTF round trip lost vertices".into());
     }
     std::fs::write(path, glb).map_err(|e| e.to_string())
 }
-

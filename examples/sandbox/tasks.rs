@@ -15,9 +15,15 @@ pub enum Region {
     /// Vertices whose coordinate along `axis` lies in `[from, to]` (fractions of the box).
     Slab { axis: usize, from: f64, to: f64 },
     /// Vertices within `radius` of `center` (model units).
-    Sphere { center: (f64, f64, f64), radius: f64 },
+    Sphere {
+        center: (f64, f64, f64),
+        radius: f64,
+    },
     /// Vertices inside an axis-aligned box (model units).
-    Box { min: (f64, f64, f64), max: (f64, f64, f64) },
+    Box {
+        min: (f64, f64, f64),
+        max: (f64, f64, f64),
+    },
     /// Explicit render vertex indices.
     Indices(Vec<u32>),
 }
@@ -26,7 +32,11 @@ impl Region {
     /// Resolves to render vertex indices.
     pub fn resolve(&self, positions: &[DVec3]) -> Vec<u32> {
         match self {
-            Region::Indices(v) => v.iter().copied().filter(|&i| (i as usize) < positions.len()).collect(),
+            Region::Indices(v) => v
+                .iter()
+                .copied()
+                .filter(|&i| (i as usize) < positions.len())
+                .collect(),
             Region::Sphere { center, radius } => {
                 let c = DVec3::new(center.0, center.1, center.2);
                 (0..positions.len() as u32)
@@ -34,7 +44,10 @@ impl Region {
                     .collect()
             }
             Region::Box { min, max } => {
-                let (lo, hi) = (DVec3::new(min.0, min.1, min.2), DVec3::new(max.0, max.1, max.2));
+                let (lo, hi) = (
+                    DVec3::new(min.0, min.1, min.2),
+                    DVec3::new(max.0, max.1, max.2),
+                );
                 (0..positions.len() as u32)
                     .filter(|&i| {
                         let p = positions[i as usize];
@@ -84,8 +97,17 @@ impl Task {
                 if p.extension().and_then(|e| e.to_str()) != Some("ron") {
                     continue;
                 }
-                match std::fs::read_to_string(&p).map_err(|e| e.to_string()).and_then(|t| ron::from_str::<Task>(&t).map_err(|e| e.to_string())) {
-                    Ok(t) => out.push((p.file_stem().unwrap_or_default().to_string_lossy().into_owned(), t)),
+                match std::fs::read_to_string(&p)
+                    .map_err(|e| e.to_string())
+                    .and_then(|t| ron::from_str::<Task>(&t).map_err(|e| e.to_string()))
+                {
+                    Ok(t) => out.push((
+                        p.file_stem()
+                            .unwrap_or_default()
+                            .to_string_lossy()
+                            .into_owned(),
+                        t,
+                    )),
                     Err(e) => eprintln!("skipping task {}: {e}", p.display()),
                 }
             }
@@ -95,9 +117,13 @@ impl Task {
 
     /// The handle's rigid motion (about its rest centroid).
     pub fn motion(&self, pivot: DVec3) -> RigidTransform {
-        let axis = DVec3::new(self.rotation_axis.0, self.rotation_axis.1, self.rotation_axis.2)
-            .try_normalize()
-            .unwrap_or(DVec3::Z);
+        let axis = DVec3::new(
+            self.rotation_axis.0,
+            self.rotation_axis.1,
+            self.rotation_axis.2,
+        )
+        .try_normalize()
+        .unwrap_or(DVec3::Z);
         RigidTransform::new(
             DQuat::from_axis_angle(axis, self.rotation_degrees.to_radians()),
             DVec3::new(self.translation.0, self.translation.1, self.translation.2),
@@ -107,9 +133,13 @@ impl Task {
 
     /// Target pose (render order) computed by ARAP, converged.
     pub fn target_pose(&self, mesh: &TriMesh) -> Result<Vec<DVec3>, String> {
-        let topology = Arc::new(Topology::new(&mesh.positions, &mesh.triangles).map_err(|e| e.to_string())?);
+        let topology =
+            Arc::new(Topology::new(&mesh.positions, &mesh.triangles).map_err(|e| e.to_string())?);
         let weld = |v: Vec<u32>| -> Vec<u32> {
-            let mut w: Vec<u32> = v.iter().map(|&i| topology.render_to_welded()[i as usize]).collect();
+            let mut w: Vec<u32> = v
+                .iter()
+                .map(|&i| topology.render_to_welded()[i as usize])
+                .collect();
             w.sort_unstable();
             w.dedup();
             w
@@ -122,11 +152,24 @@ impl Task {
         if handle.is_empty() {
             return Err(format!("task {:?}: empty handle region", self.name));
         }
-        let pivot = handle.iter().map(|&i| topology.positions()[i as usize]).sum::<DVec3>() / handle.len() as f64;
+        let pivot = handle
+            .iter()
+            .map(|&i| topology.positions()[i as usize])
+            .sum::<DVec3>()
+            / handle.len() as f64;
         let c = Constraints::with_handle(fixed, handle, self.motion(pivot));
-        let solver = ArapSolver::precompute(topology.clone(), &c, SolverSettings::default()).map_err(|e| e.to_string())?;
+        let solver = ArapSolver::precompute(topology.clone(), &c, SolverSettings::default())
+            .map_err(|e| e.to_string())?;
         let sol = solver
-            .solve(&c, &SolveOptions { max_iterations: 60, tolerance: 1e-5 }, InitialGuess::Laplacian, &|| false)
+            .solve(
+                &c,
+                &SolveOptions {
+                    max_iterations: 60,
+                    tolerance: 1e-5,
+                },
+                InitialGuess::Laplacian,
+                &|| false,
+            )
             .map_err(|e| e.to_string())?;
         Ok(topology.to_render(&sol.positions))
     }
@@ -144,16 +187,27 @@ pub struct ResultRow {
 pub fn append_result(path: &str, row: &ResultRow) -> std::io::Result<()> {
     use std::io::Write;
     let new = !std::path::Path::new(path).exists();
-    let mut f = std::fs::OpenOptions::new().create(true).append(true).open(path)?;
+    let mut f = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(path)?;
     if new {
         writeln!(f, "task,input,seconds")?;
     }
-    writeln!(f, "{},{},{:.3}", row.task.replace(',', " "), row.input, row.seconds)
+    writeln!(
+        f,
+        "{},{},{:.3}",
+        row.task.replace(',', " "),
+        row.input,
+        row.seconds
+    )
 }
 
 /// Reads all results from the CSV (malformed lines skipped).
 pub fn read_results(path: &str) -> Vec<ResultRow> {
-    let Ok(text) = std::fs::read_to_string(path) else { return Vec::new() };
+    let Ok(text) = std::fs::read_to_string(path) else {
+        return Vec::new();
+    };
     text.lines()
         .skip(1)
         .filter_map(|l| {
@@ -176,7 +230,11 @@ pub fn summary(rows: &[ResultRow]) -> Vec<(String, Option<f64>, Option<f64>, Opt
         .into_iter()
         .map(|t| {
             let mean = |input: &str| {
-                let v: Vec<f64> = rows.iter().filter(|r| r.task == t && r.input == input).map(|r| r.seconds).collect();
+                let v: Vec<f64> = rows
+                    .iter()
+                    .filter(|r| r.task == t && r.input == input)
+                    .map(|r| r.seconds)
+                    .collect();
                 (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
             };
             let (m, w) = (mean("mouse"), mean("wiimote"));

@@ -157,10 +157,12 @@ impl Constraints {
     pub(crate) fn roles(&self, n: usize) -> Result<Vec<Role>, ConstraintError> {
         let mut roles = vec![Role::Free; n];
         let mut set = |v: u32, role: Role| -> Result<(), ConstraintError> {
-            let slot = roles.get_mut(v as usize).ok_or(ConstraintError::OutOfRange {
-                vertex: v,
-                vertex_count: n,
-            })?;
+            let slot = roles
+                .get_mut(v as usize)
+                .ok_or(ConstraintError::OutOfRange {
+                    vertex: v,
+                    vertex_count: n,
+                })?;
             if *slot != Role::Free && *slot != role {
                 return Err(ConstraintError::Overlap { vertex: v });
             }
@@ -221,7 +223,10 @@ mod tests {
     #[test]
     fn overlap_and_range_are_errors() {
         let c = Constraints::with_handle(vec![0, 1], vec![1, 2], RigidTransform::IDENTITY);
-        assert_eq!(c.roles(5).unwrap_err(), ConstraintError::Overlap { vertex: 1 });
+        assert_eq!(
+            c.roles(5).unwrap_err(),
+            ConstraintError::Overlap { vertex: 1 }
+        );
         let c = Constraints::with_handle(vec![0], vec![7], RigidTransform::IDENTITY);
         assert!(matches!(
             c.roles(5).unwrap_err(),

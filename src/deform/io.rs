@@ -88,7 +88,10 @@ impl TriMesh {
                 rest
             }
         } else {
-            return Err(parse_err(ln, format!("expected OFF header, found {keyword:?}")));
+            return Err(parse_err(
+                ln,
+                format!("expected OFF header, found {keyword:?}"),
+            ));
         };
         let count = |i: usize, what: &str| -> Result<usize, MeshIoError> {
             let t = counts_line
@@ -110,7 +113,9 @@ impl TriMesh {
             let mut c = [0.0f64; 3];
             let mut it = l.split_whitespace();
             for v in &mut c {
-                let t = it.next().ok_or_else(|| parse_err(ln, "vertex needs 3 coordinates"))?;
+                let t = it
+                    .next()
+                    .ok_or_else(|| parse_err(ln, "vertex needs 3 coordinates"))?;
                 *v = t
                     .parse::<f64>()
                     .map_err(|_| parse_err(ln, format!("bad coordinate {t:?}")))?;
@@ -135,12 +140,17 @@ impl TriMesh {
             }
             let mut idx = Vec::with_capacity(k);
             for _ in 0..k {
-                let t = it.next().ok_or_else(|| parse_err(ln, "face has too few indices"))?;
+                let t = it
+                    .next()
+                    .ok_or_else(|| parse_err(ln, "face has too few indices"))?;
                 let i: usize = t
                     .parse()
                     .map_err(|_| parse_err(ln, format!("bad face index {t:?}")))?;
                 if i >= nv {
-                    return Err(parse_err(ln, format!("face index {i} >= vertex count {nv}")));
+                    return Err(parse_err(
+                        ln,
+                        format!("face index {i} >= vertex count {nv}"),
+                    ));
                 }
                 idx.push(i as u32);
             }
@@ -243,8 +253,8 @@ mod tests {
 
     #[test]
     fn parses_off_with_quads_and_comments() {
-        let m = TriMesh::parse_off("OFF\n# c\n4 1 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n")
-            .unwrap();
+        let m =
+            TriMesh::parse_off("OFF\n# c\n4 1 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n").unwrap();
         assert_eq!(m.positions.len(), 4);
         assert_eq!(m.triangles, vec![[0, 1, 2], [0, 2, 3]]);
         let round = TriMesh::parse_off(&m.to_off()).unwrap();
@@ -262,14 +272,17 @@ mod tests {
         assert!(TriMesh::parse_off("").is_err());
         assert!(TriMesh::parse_off("OFF\n1 0 0\nnan 0 0\n").is_err());
         // COFF with colours, counts on the header line.
-        let m = TriMesh::parse_off("COFF 3 1 0\n0 0 0 1 2 3 4\n1 0 0 1 2 3 4\n0 1 0 1 2 3 4\n3 0 1 2 9 9 9\n").unwrap();
+        let m = TriMesh::parse_off(
+            "COFF 3 1 0\n0 0 0 1 2 3 4\n1 0 0 1 2 3 4\n0 1 0 1 2 3 4\n3 0 1 2 9 9 9\n",
+        )
+        .unwrap();
         assert_eq!(m.triangles, vec![[0, 1, 2]]);
     }
 
     #[test]
     fn parses_obj_with_slashes_and_negative_indices() {
-        let m = TriMesh::parse_obj("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1/1/1 2//1 -1\n")
-            .unwrap();
+        let m =
+            TriMesh::parse_obj("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1/1/1 2//1 -1\n").unwrap();
         assert_eq!(m.triangles, vec![[0, 1, 2]]);
         assert!(TriMesh::parse_obj("v 0 0\n").is_err());
         assert!(TriMesh::parse_obj("v 0 0 0\nf 1 2 3\n").is_err());

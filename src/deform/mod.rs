@@ -34,7 +34,7 @@ pub use energy::arap_energy;
 pub use io::{MeshIoError, TriMesh};
 pub use rotation::{best_rotation_exact, fit_rotation_warm};
 pub use solver::{
-    ArapSolver, Factorization, InitialGuess, PrecomputeStats, SolveError, SolveOptions,
-    SolveStats, Solution, SolverSettings,
+    ArapSolver, Factorization, InitialGuess, PrecomputeStats, Solution, SolveError, SolveOptions,
+    SolveStats, SolverSettings,
 };
 pub use topology::{MeshError, Topology, WeightMode};

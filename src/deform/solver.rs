@@ -461,9 +461,10 @@ impl ArapSolver {
         };
         let mut mats: Vec<DMat3> = quats.par_iter().map(|q| DMat3::from_quat(*q)).collect();
         let mut rhs = Mat::<f64>::zeros(self.free.len(), 3);
-        let mut mem = self.symbolic.as_ref().map(|s| {
-            MemBuffer::new(s.solve_in_place_scratch::<f64>(3, Par::Seq))
-        });
+        let mut mem = self
+            .symbolic
+            .as_ref()
+            .map(|s| MemBuffer::new(s.solve_in_place_scratch::<f64>(3, Par::Seq)));
 
         // Inactive cells (no free vertex in the one-ring) never change during the solve.
         let tl = Instant::now();
@@ -519,9 +520,7 @@ impl ArapSolver {
                 prev_energy = Some(e);
             }
         }
-        if matches!(initial, InitialGuess::Rest | InitialGuess::Warm(_))
-            && stats.iterations == 0
-        {
+        if matches!(initial, InitialGuess::Rest | InitialGuess::Warm(_)) && stats.iterations == 0 {
             // Rotations of free cells were never fitted for these positions.
             let e = constant_energy + self.local_step(&x, &mut quats, &mut mats, true);
             stats.initial_energy = Some(e / self.rest_norm.max(f64::MIN_POSITIVE));
@@ -575,7 +574,8 @@ impl ArapSolver {
                     }
                     let q = fit_rotation_warm(&a, qs[k], 40, 1e-12);
                     let r = DMat3::from_quat(q);
-                    let tr = r.x_axis.dot(a.x_axis) + r.y_axis.dot(a.y_axis) + r.z_axis.dot(a.z_axis);
+                    let tr =
+                        r.x_axis.dot(a.x_axis) + r.y_axis.dot(a.y_axis) + r.z_axis.dot(a.z_axis);
                     energy += sq + self.cell_rest_sq[i] - 2.0 * tr;
                     qs[k] = q;
                     ms[k] = r;
@@ -656,7 +656,11 @@ impl ArapSolver {
             Par::Seq,
             MemStack::new(mem),
         );
-        let (c0, c1, c2) = (rhs.col_as_slice(0), rhs.col_as_slice(1), rhs.col_as_slice(2));
+        let (c0, c1, c2) = (
+            rhs.col_as_slice(0),
+            rhs.col_as_slice(1),
+            rhs.col_as_slice(2),
+        );
         for (f, &i) in self.free.iter().enumerate() {
             x[i as usize] = DVec3::new(c0[f], c1[f], c2[f]);
         }

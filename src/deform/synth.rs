@@ -166,7 +166,12 @@ mod tests {
 
     #[test]
     fn implicit_sphere_is_closed_and_outward() {
-        let m = implicit_surface(&|p: DVec3| p.length() - 1.0, DVec3::splat(-1.3), DVec3::splat(1.3), 20);
+        let m = implicit_surface(
+            &|p: DVec3| p.length() - 1.0,
+            DVec3::splat(-1.3),
+            DVec3::splat(1.3),
+            20,
+        );
         let t = crate::deform::Topology::new(&m.positions, &m.triangles).unwrap();
         // Closed: every edge has exactly two triangles (Euler characteristic 2).
         let edges = t.neighbor_list().len() / 2;
@@ -256,7 +261,11 @@ pub fn implicit_surface(f: &dyn Fn(DVec3) -> f64, lo: DVec3, hi: DVec3, cells: u
         let key = (a.min(b), a.max(b));
         *edge_vertex.entry(key).or_insert_with(|| {
             let (va, vb) = (values[a], values[b]);
-            let t = if (va - vb).abs() > 1e-300 { va / (va - vb) } else { 0.5 };
+            let t = if (va - vb).abs() > 1e-300 {
+                va / (va - vb)
+            } else {
+                0.5
+            };
             positions.push(pos_of(a).lerp(pos_of(b), t.clamp(0.0, 1.0)));
             (positions.len() - 1) as u32
         })
@@ -285,7 +294,9 @@ pub fn implicit_surface(f: &dyn Fn(DVec3) -> f64, lo: DVec3, hi: DVec3, cells: u
                             } else {
                                 (outside[0], inside)
                             };
-                            let t = others.iter().map(|&o| vertex_on(g[apex], g[o], &mut positions));
+                            let t = others
+                                .iter()
+                                .map(|&o| vertex_on(g[apex], g[o], &mut positions));
                             let t: Vec<u32> = t.collect();
                             triangles.push([t[0], t[1], t[2]]);
                         }

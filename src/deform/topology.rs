@@ -174,7 +174,10 @@ impl Topology {
     }
 
     fn edge_slot(&self, i: u32, j: u32) -> usize {
-        let (s, e) = (self.offsets[i as usize] as usize, self.offsets[i as usize + 1] as usize);
+        let (s, e) = (
+            self.offsets[i as usize] as usize,
+            self.offsets[i as usize + 1] as usize,
+        );
         s + self.neighbors[s..e]
             .binary_search(&j)
             .expect("edge of a triangle is in the adjacency")

@@ -12,8 +12,8 @@ use bevy::tasks::{AsyncComputeTaskPool, Task};
 use glam::DVec3;
 
 use crate::deform::{
-    ArapSolver, Constraints, Handle as CoreHandle, InitialGuess, RigidTransform, SolveError,
-    SolveOptions, Solution, SolverSettings, Topology, WeightMode,
+    ArapSolver, Constraints, Handle as CoreHandle, InitialGuess, RigidTransform, Solution,
+    SolveError, SolveOptions, SolverSettings, Topology, WeightMode,
 };
 
 /// Ordered phases of the deformation systems, all in `Update` (chained in this order).
@@ -268,7 +268,9 @@ pub struct DeformState {
 
 fn mesh_positions(mesh: &Mesh) -> Option<Vec<Vec3>> {
     match mesh.try_attribute(Mesh::ATTRIBUTE_POSITION).ok()? {
-        VertexAttributeValues::Float32x3(v) => Some(v.iter().map(|p| Vec3::from_array(*p)).collect()),
+        VertexAttributeValues::Float32x3(v) => {
+            Some(v.iter().map(|p| Vec3::from_array(*p)).collect())
+        }
         _ => None,
     }
 }
@@ -288,7 +290,10 @@ fn centroid(positions: &[Vec3], vertices: &[u32]) -> Vec3 {
 fn prepare_deformables(
     mut commands: Commands,
     mut meshes: ResMut<Assets<Mesh>>,
-    mut new: Query<(Entity, &mut Mesh3d, &mut DeformStatus), (With<Deformable>, Without<DeformState>)>,
+    mut new: Query<
+        (Entity, &mut Mesh3d, &mut DeformStatus),
+        (With<Deformable>, Without<DeformState>),
+    >,
     mut building: Query<(&mut DeformState, &mut DeformStatus)>,
 ) {
     for (entity, mut mesh3d, mut status) in &mut new {
@@ -303,11 +308,15 @@ fn prepare_deformables(
             .ok()
             .map(|i| i.iter().map(|x| x as u32).collect());
         let normals = match copy.try_attribute(Mesh::ATTRIBUTE_NORMAL) {
-            Ok(VertexAttributeValues::Float32x3(v)) => Some(v.iter().map(|p| Vec3::from_array(*p)).collect()),
+            Ok(VertexAttributeValues::Float32x3(v)) => {
+                Some(v.iter().map(|p| Vec3::from_array(*p)).collect())
+            }
             _ => None,
         };
         let tangents = match copy.try_attribute(Mesh::ATTRIBUTE_TANGENT) {
-            Ok(VertexAttributeValues::Float32x4(v)) => Some(v.iter().map(|p| Vec4::from_array(*p)).collect()),
+            Ok(VertexAttributeValues::Float32x4(v)) => {
+                Some(v.iter().map(|p| Vec4::from_array(*p)).collect())
+            }
             _ => None,
         };
         copy.asset_usage = RenderAssetUsages::default();
@@ -318,7 +327,8 @@ fn prepare_deformables(
                 Some(i) => i,
                 None => (0..positions.len() as u32).collect(),
             };
-            let topology = Topology::from_render_mesh(&positions, &indices).map_err(|e| e.to_string())?;
+            let topology =
+                Topology::from_render_mesh(&positions, &indices).map_err(|e| e.to_string())?;
             Ok(Rest {
                 topology: Arc::new(topology),
                 normals,
@@ -340,7 +350,9 @@ fn prepare_deformables(
     }
     for (mut state, mut status) in &mut building {
         let state = state.bypass_change_detection();
-        let Some(task) = state.building.as_mut() else { continue };
+        let Some(task) = state.building.as_mut() else {
+            continue;
+        };
         if let Some(result) = check_ready(task) {
             state.building = None;
             match result {
@@ -405,7 +417,9 @@ fn request_solves(
         if h.pivot.is_some() {
             continue;
         }
-        let Ok((_, _, _, state, _)) = deformables.get(h.target) else { continue };
+        let Ok((_, _, _, state, _)) = deformables.get(h.target) else {
+            continue;
+        };
         let Some(rest) = &state.rest else { continue };
         let topo = &rest.topology;
         let map = topo.render_to_welded();
@@ -415,17 +429,25 @@ fn request_solves(
             .filter_map(|&v| map.get(v as usize))
             .map(|&w| topo.positions()[w as usize].as_vec3())
             .collect();
-        let c = if pts.is_empty() { Vec3::ZERO } else { pts.iter().sum::<Vec3>() / pts.len() as f32 };
+        let c = if pts.is_empty() {
+            Vec3::ZERO
+        } else {
+            pts.iter().sum::<Vec3>() / pts.len() as f32
+        };
         h.pivot = Some(c);
     }
     let any_removed = !removed.is_empty();
     for (entity, deformable, fixed, mut state, mut status) in &mut deformables {
-        let Some(rest) = state.rest.clone() else { continue };
+        let Some(rest) = state.rest.clone() else {
+            continue;
+        };
         let mine: Vec<(Entity, &DeformHandle, Ref<Transform>)> = handles
             .iter()
             .filter(|(_, h, _)| h.target == entity)
             .collect();
-        let changed = mine.iter().any(|(_, h, t)| t.is_changed() || h.pivot.is_none())
+        let changed = mine
+            .iter()
+            .any(|(_, h, t)| t.is_changed() || h.pivot.is_none())
             || fixed.as_ref().is_some_and(|f| f.is_changed())
             || changed_deformable.contains(entity)
             || any_removed
@@ -439,7 +461,8 @@ fn request_solves(
         let mut sorted: Vec<(Entity, &DeformHandle, &Transform)> =
             mine.iter().map(|(e, h, t)| (*e, *h, t.as_ref())).collect();
         sorted.sort_by_key(|(e, _, _)| *e);
-        let pairs: Vec<(&DeformHandle, &Transform)> = sorted.iter().map(|(_, h, t)| (*h, *t)).collect();
+        let pairs: Vec<(&DeformHandle, &Transform)> =
+            sorted.iter().map(|(_, h, t)| (*h, *t)).collect();
         let constraints = build_constraints(&rest.topology, fixed.as_deref(), &pairs);
         let state = state.bypass_change_detection();
         state.attempted = true;
@@ -459,18 +482,28 @@ fn spawn_solve(
     config: &DeformConfig,
     status: &mut DeformStatus,
 ) {
-    let Some(constraints) = state.pending.take() else { return };
+    let Some(constraints) = state.pending.take() else {
+        return;
+    };
     let generation = state.requested.load(Ordering::Relaxed);
     let requested = state.requested.clone();
     let rest = rest.clone();
-    let reuse = state
-        .solver
-        .clone()
-        .filter(|s| s.accepts(&constraints));
-    status.phase = if reuse.is_some() { DeformPhase::Solving } else { DeformPhase::Factorizing };
-    let warm = if reuse.is_some() { state.last.clone() } else { None };
+    let reuse = state.solver.clone().filter(|s| s.accepts(&constraints));
+    status.phase = if reuse.is_some() {
+        DeformPhase::Solving
+    } else {
+        DeformPhase::Factorizing
+    };
+    let warm = if reuse.is_some() {
+        state.last.clone()
+    } else {
+        None
+    };
     let options = SolveOptions {
-        max_iterations: deformable.max_iterations.unwrap_or(config.max_iterations).max(1),
+        max_iterations: deformable
+            .max_iterations
+            .unwrap_or(config.max_iterations)
+            .max(1),
         tolerance: deformable.tolerance.unwrap_or(config.tolerance).max(0.0) as f64,
     };
     let settings = SolverSettings {
@@ -495,7 +528,11 @@ fn spawn_solve(
         let result = (|| {
             let solver = match reuse {
                 Some(s) => s,
-                None => Arc::new(ArapSolver::precompute(rest.topology.clone(), &constraints, settings)?),
+                None => Arc::new(ArapSolver::precompute(
+                    rest.topology.clone(),
+                    &constraints,
+                    settings,
+                )?),
             };
             let init = match &warm {
                 Some(w) => InitialGuess::Warm(w),
@@ -549,8 +586,18 @@ fn render_pose(rest: &Rest, solution: &Solution) -> RenderPose {
 
 fn finite(pose: &RenderPose) -> bool {
     pose.positions.iter().flatten().all(|x| x.is_finite())
-        && pose.normals.iter().flatten().flatten().all(|x| x.is_finite())
-        && pose.tangents.iter().flatten().flatten().all(|x| x.is_finite())
+        && pose
+            .normals
+            .iter()
+            .flatten()
+            .flatten()
+            .all(|x| x.is_finite())
+        && pose
+            .tangents
+            .iter()
+            .flatten()
+            .flatten()
+            .all(|x| x.is_finite())
 }
 
 fn poll_tasks(
@@ -561,8 +608,12 @@ fn poll_tasks(
 ) {
     for (entity, deformable, mut state, mut status) in &mut deformables {
         let state = state.bypass_change_detection();
-        let Some(task) = state.task.as_mut() else { continue };
-        let Some(out) = check_ready(task) else { continue };
+        let Some(task) = state.task.as_mut() else {
+            continue;
+        };
+        let Some(out) = check_ready(task) else {
+            continue;
+        };
         state.task = None;
         match out.result {
             Ok((solver, solution, pose)) if finite(&pose) => {
@@ -612,22 +663,32 @@ fn poll_tasks(
 fn write_back(mut meshes: ResMut<Assets<Mesh>>, mut q: Query<(&Mesh3d, &mut DeformState)>) {
     for (mesh3d, mut state) in &mut q {
         let state = state.bypass_change_detection();
-        let Some(pose) = state.ready.take() else { continue };
-        let Some(mut mesh) = meshes.get_mut(&mesh3d.0) else { continue };
-        if let Ok(VertexAttributeValues::Float32x3(dst)) = mesh.try_attribute_mut(Mesh::ATTRIBUTE_POSITION) {
+        let Some(pose) = state.ready.take() else {
+            continue;
+        };
+        let Some(mut mesh) = meshes.get_mut(&mesh3d.0) else {
+            continue;
+        };
+        if let Ok(VertexAttributeValues::Float32x3(dst)) =
+            mesh.try_attribute_mut(Mesh::ATTRIBUTE_POSITION)
+        {
             if dst.len() == pose.positions.len() {
                 dst.copy_from_slice(&pose.positions);
             }
         }
         if let Some(n) = pose.normals {
-            if let Ok(VertexAttributeValues::Float32x3(dst)) = mesh.try_attribute_mut(Mesh::ATTRIBUTE_NORMAL) {
+            if let Ok(VertexAttributeValues::Float32x3(dst)) =
+                mesh.try_attribute_mut(Mesh::ATTRIBUTE_NORMAL)
+            {
                 if dst.len() == n.len() {
                     dst.copy_from_slice(&n);
                 }
             }
         }
         if let Some(t) = pose.tangents {
-            if let Ok(VertexAttributeValues::Float32x4(dst)) = mesh.try_attribute_mut(Mesh::ATTRIBUTE_TANGENT) {
+            if let Ok(VertexAttributeValues::Float32x4(dst)) =
+                mesh.try_attribute_mut(Mesh::ATTRIBUTE_TANGENT)
+            {
                 if dst.len() == t.len() {
                     dst.copy_from_slice(&t);
                 }
@@ -648,9 +709,15 @@ pub fn mesh_from_triangles(positions: &[DVec3], triangles: &[[u32; 3]]) -> Mesh 
             normals[i as usize] += n;
         }
     }
-    let normals: Vec<[f32; 3]> = normals.iter().map(|n| n.normalize_or(Vec3::Y).to_array()).collect();
-    Mesh::new(bevy::mesh::PrimitiveTopology::TriangleList, RenderAssetUsages::default())
-        .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, pos)
-        .with_inserted_attribute(Mesh::ATTRIBUTE_NORMAL, normals)
-        .with_inserted_indices(Indices::U32(triangles.iter().flatten().copied().collect()))
+    let normals: Vec<[f32; 3]> = normals
+        .iter()
+        .map(|n| n.normalize_or(Vec3::Y).to_array())
+        .collect();
+    Mesh::new(
+        bevy::mesh::PrimitiveTopology::TriangleList,
+        RenderAssetUsages::default(),
+    )
+    .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, pos)
+    .with_inserted_attribute(Mesh::ATTRIBUTE_NORMAL, normals)
+    .with_inserted_indices(Indices::U32(triangles.iter().flatten().copied().collect()))
 }

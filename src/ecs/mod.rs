@@ -17,8 +17,8 @@ use bevy::prelude::*;
 
 pub use control::WiimoteHandleControl;
 pub use deform::{
-    DeformConfig, DeformFailed, DeformHandle, DeformPhase, DeformPlugin, DeformSolved,
-    DeformState, DeformStatus, DeformSystems, Deformable, FixedRegion, mesh_from_triangles,
+    DeformConfig, DeformFailed, DeformHandle, DeformPhase, DeformPlugin, DeformSolved, DeformState,
+    DeformStatus, DeformSystems, Deformable, FixedRegion, mesh_from_triangles,
 };
 pub use wiimote::{
     ConnectionState, Wiimote, WiimoteButtonChanged, WiimoteCalibration, WiimoteConnected,

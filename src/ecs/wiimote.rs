@@ -239,11 +239,17 @@ impl Plugin for WiimotePlugin {
                 )
             }
             WiimoteSource::Emulator(configs) => {
-                let controls: Vec<EmulatorControls> =
-                    configs.iter().map(|_| EmulatorControls::default()).collect();
+                let controls: Vec<EmulatorControls> = configs
+                    .iter()
+                    .map(|_| EmulatorControls::default())
+                    .collect();
                 (
                     RemoteSource::Emulated(
-                        configs.iter().cloned().zip(controls.iter().cloned()).collect(),
+                        configs
+                            .iter()
+                            .cloned()
+                            .zip(controls.iter().cloned())
+                            .collect(),
                     ),
                     WiimoteEmulators(controls),
                 )
@@ -325,9 +331,9 @@ fn receive_wiimote_events(
             | ManagerEvent::MotionPlus { id, .. }
             | ManagerEvent::Nunchuk { id, .. } => *id,
         };
-        let entity = match find(id, &mut remotes).or_else(|| {
-            spawned.iter().find(|(_, w)| w.id == id).map(|(e, _)| *e)
-        }) {
+        let entity = match find(id, &mut remotes)
+            .or_else(|| spawned.iter().find(|(_, w)| w.id == id).map(|(e, _)| *e))
+        {
             Some(e) => e,
             None => {
                 let e = commands.spawn(Name::new(format!("Wii Remote {id}"))).id();
@@ -390,7 +396,9 @@ fn receive_wiimote_events(
                 }
             }
             ManagerEvent::Battery { level, .. } => w.battery = *level,
-            ManagerEvent::MotionPlus { state, .. } => w.motion_plus = *state == MotionPlusState::Active,
+            ManagerEvent::MotionPlus { state, .. } => {
+                w.motion_plus = *state == MotionPlusState::Active
+            }
             ManagerEvent::Extension { .. } => {}
             ManagerEvent::Nunchuk { frame, .. } => {
                 let axis = |v: u8| ((v as f32 - 128.0) / 100.0).clamp(-1.0, 1.0);

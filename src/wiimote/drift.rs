@@ -39,14 +39,24 @@ pub struct DriftScenario {
 impl DriftScenario {
     /// A scenario of about `duration_s` seconds (whole cycles), wiggle frequencies from `seed`.
     pub fn new(seed: u64, duration_s: f64) -> Self {
-        let cycles = (((duration_s - START_STILL - END_STILL) / CYCLE).round().max(1.0)) as u32;
+        let cycles = (((duration_s - START_STILL - END_STILL) / CYCLE)
+            .round()
+            .max(1.0)) as u32;
         let mut rng = Rng::new(seed ^ 0xD21F7);
         let wiggles = (0..cycles)
             .map(|_| {
                 std::array::from_fn(|k| {
                     let slow = k % 2 == 0;
-                    let f = if slow { rng.range(0.2, 0.6) } else { rng.range(0.8, 2.0) };
-                    let amp = if slow { 28.0 } else { (45.0 / (std::f64::consts::TAU * f)).min(10.0) };
+                    let f = if slow {
+                        rng.range(0.2, 0.6)
+                    } else {
+                        rng.range(0.8, 2.0)
+                    };
+                    let amp = if slow {
+                        28.0
+                    } else {
+                        (45.0 / (std::f64::consts::TAU * f)).min(10.0)
+                    };
                     (f, amp, rng.range(0.0, std::f64::consts::TAU))
                 })
             })
@@ -81,7 +91,11 @@ impl DriftScenario {
         let dir = if c % 2 == 0 { 1.0 } else { -1.0 };
         if tc < WIGGLE {
             // Return from the previous held pose during the first 2 s, wiggles enveloped.
-            let back = if c > 0 { 1.0 - smoothstep(tc / 2.0) } else { 0.0 };
+            let back = if c > 0 {
+                1.0 - smoothstep(tc / 2.0)
+            } else {
+                0.0
+            };
             let env = smoothstep(tc / 3.0) * smoothstep((WIGGLE - tc) / 3.0);
             let w = &self.wiggles[c];
             let s = |i: usize| {
@@ -100,7 +114,9 @@ impl DriftScenario {
             for start in [2.0, 6.0] {
                 let tau = ts - start;
                 if (0.0..period).contains(&tau) {
-                    swing = SWING_AMPLITUDE * 0.5 * (1.0 - (std::f64::consts::TAU * tau / period).cos());
+                    swing = SWING_AMPLITUDE
+                        * 0.5
+                        * (1.0 - (std::f64::consts::TAU * tau / period).cos());
                 }
             }
             (yaw + dir * 40.0, 0.0, 0.0, swing)
@@ -206,7 +222,10 @@ pub fn record_session(seed: u64, duration_s: f64) -> Recording {
                 rec.truth.push(scenario.orientation(t));
                 rec.times.push(t);
                 let (_, _, _, swing) = scenario.angles(t);
-                let moving = (scenario.orientation(t + 0.3).angle_between(scenario.orientation(t - 0.3))) > 1e-9
+                let moving = (scenario
+                    .orientation(t + 0.3)
+                    .angle_between(scenario.orientation(t - 0.3)))
+                    > 1e-9
                     || swing != 0.0;
                 rec.still.push(!moving);
             }
@@ -242,7 +261,11 @@ pub fn score(kind: FilterKind, rec: &Recording) -> FilterScore {
         est.push(f.orientation());
     }
     let us = t0.elapsed().as_secs_f64() * 1e6 / rec.samples.len().max(1) as f64;
-    let first = rec.times.iter().position(|t| *t >= START_STILL).unwrap_or(0);
+    let first = rec
+        .times
+        .iter()
+        .position(|t| *t >= START_STILL)
+        .unwrap_or(0);
     let (mut tilt2, mut att2, mut n) = (0.0f64, 0.0f64, 0.0f64);
     let mut tilt_still: f64 = 0.0;
     let (mut sx, mut sy, mut sxx, mut sxy) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
@@ -283,7 +306,11 @@ pub fn score(kind: FilterKind, rec: &Recording) -> FilterScore {
     let mut i = first;
     while i < rec.samples.len() {
         let target = rec.times[i] + 2.0;
-        if let Some(j) = rec.times[i..].iter().position(|t| *t >= target).map(|k| k + i) {
+        if let Some(j) = rec.times[i..]
+            .iter()
+            .position(|t| *t >= target)
+            .map(|k| k + i)
+        {
             let dt = rec.truth[i].inverse() * rec.truth[j];
             let de = est[i].inverse() * est[j];
             rel.push(dt.angle_between(de).to_degrees());

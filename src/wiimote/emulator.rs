@@ -258,7 +258,11 @@ struct Unit {
 impl Unit {
     fn draw(rng: &mut Rng, s: &SensorModel) -> Self {
         let k_slow = s.gyro_slow_counts_per_dps.unwrap_or_else(|| {
-            [rng.range(14.2, 20.1), rng.range(14.2, 20.1), rng.range(14.2, 20.1)]
+            [
+                rng.range(14.2, 20.1),
+                rng.range(14.2, 20.1),
+                rng.range(14.2, 20.1),
+            ]
         });
         let pol = if s.reversed { -1.0 } else { 1.0 };
         let gyro_k_slow = k_slow.map(|k| k * pol);
@@ -269,7 +273,9 @@ impl Unit {
         let gyro_rest = [0; 3].map(|_: i32| rng.range(7100.0, 8100.0));
         let gyro_bias = [0; 3].map(|_: i32| rng.normal() * s.gyro_turn_on_bias_dps);
         let gyro_temp = [0; 3].map(|_: i32| {
-            s.gyro_temperature_drift_dps * if rng.uniform() < 0.5 { -1.0 } else { 1.0 } * rng.range(0.3, 1.0)
+            s.gyro_temperature_drift_dps
+                * if rng.uniform() < 0.5 { -1.0 } else { 1.0 }
+                * rng.range(0.3, 1.0)
         });
         let mis = |rng: &mut Rng, cross: f64, scale: f64| {
             let mut m = DMat3::IDENTITY;
@@ -287,7 +293,9 @@ impl Unit {
         let accel_true_zero = [0; 3].map(|_: i32| 512.0 + rng.normal() * 6.0);
         let accel_true_span = [0; 3].map(|_: i32| rng.range(100.0, 111.0));
         let accel_cal = AccelCalibration {
-            zero: std::array::from_fn(|a| (accel_true_zero[a] + rng.range(-1.0, 1.0)).round() as u16),
+            zero: std::array::from_fn(|a| {
+                (accel_true_zero[a] + rng.range(-1.0, 1.0)).round() as u16
+            }),
             one_g: std::array::from_fn(|a| {
                 (accel_true_zero[a] + accel_true_span[a] + rng.range(-1.0, 1.0)).round() as u16
             }),
@@ -386,7 +394,9 @@ impl EmulatedRemote {
         let block = unit.accel_cal.encode();
         eeprom[0x16..0x20].copy_from_slice(&block);
         eeprom[0x20..0x2A].copy_from_slice(&block);
-        let ir = [0x5A, 0x00, 0x82, 0x8E, 0x5E, 0x00, 0x00, 0x7A, 0x20, 0xB4, 0x00];
+        let ir = [
+            0x5A, 0x00, 0x82, 0x8E, 0x5E, 0x00, 0x00, 0x7A, 0x20, 0xB4, 0x00,
+        ];
         eeprom[0..11].copy_from_slice(&ir);
         eeprom[0x0B..0x16].copy_from_slice(&ir);
         let generation = controls.with(|s| s.generation);
@@ -437,7 +447,11 @@ impl EmulatedRemote {
         self.queue.clear();
         self.ext_initialized = false;
         let mp_plugged = self.has_mp_hardware();
-        self.mp = if mp_plugged { MpPhase::Inactive } else { MpPhase::Absent };
+        self.mp = if mp_plugged {
+            MpPhase::Inactive
+        } else {
+            MpPhase::Absent
+        };
         self.mp_last_mode = 0;
         self.was_mp_plugged = mp_plugged;
         self.was_nunchuk = self.controls.with(|s| s.nunchuk.is_some());
@@ -472,7 +486,9 @@ impl EmulatedRemote {
 
     /// True orientation at the current virtual time.
     pub fn true_orientation(&self) -> DQuat {
-        self.controls.motion().orientation(self.now_us as f64 * 1e-6)
+        self.controls
+            .motion()
+            .orientation(self.now_us as f64 * 1e-6)
     }
 
     /// True gyro bias (deg/s, x = pitch, y = roll, z = yaw) at the current time.
@@ -617,7 +633,11 @@ impl EmulatedRemote {
     }
 
     fn mp_id(&self, active: bool) -> [u8; 6] {
-        let first = if self.config.variant == Variant::Plus { 0x01 } else { 0x00 };
+        let first = if self.config.variant == Variant::Plus {
+            0x01
+        } else {
+            0x00
+        };
         match self.mp {
             MpPhase::Active { mode } if active => [first, 0, 0xA4, 0x20, mode, 0x05],
             _ => [first, 0, 0xA6, 0x20, self.mp_last_mode, 0x05],
@@ -862,7 +882,9 @@ impl EmulatedRemote {
 
     fn bias_dps(&self, t: f64) -> [f64; 3] {
         let ramp = (t / 600.0).min(1.0);
-        std::array::from_fn(|a| self.unit.gyro_bias[a] + self.bias_walk[a] + self.unit.gyro_temp[a] * ramp)
+        std::array::from_fn(|a| {
+            self.unit.gyro_bias[a] + self.bias_walk[a] + self.unit.gyro_temp[a] * ramp
+        })
     }
 
     fn gyro_frame(&mut self, t: f64, motion: &dyn Motion, ext_connected: bool) -> MotionPlusFrame {
@@ -872,7 +894,8 @@ impl EmulatedRemote {
         for b in &mut self.bias_walk {
             *b += self.rng.normal() * s.gyro_bias_walk * dt.sqrt();
         }
-        let w = self.unit.gyro_mis * (motion::body_rate(motion, t) * (180.0 / std::f64::consts::PI));
+        let w =
+            self.unit.gyro_mis * (motion::body_rate(motion, t) * (180.0 / std::f64::consts::PI));
         let bias = self.bias_dps(t);
         // Frame axis order: yaw (z), roll (y), pitch (x).
         let rates = [w.z, w.y, w.x];
@@ -939,7 +962,9 @@ impl EmulatedRemote {
                     g[5] = (g[5] | 0x02) & !0x01;
                     g
                 } else if passthrough {
-                    nunchuk.map(|n| n.encode_passthrough(true)).unwrap_or([0; 6])
+                    nunchuk
+                        .map(|n| n.encode_passthrough(true))
+                        .unwrap_or([0; 6])
                 } else {
                     gyro.encode()
                 }
@@ -1024,8 +1049,7 @@ impl EmulatedRemote {
         }
         let sample_t = nominal as f64 * 1e-6;
         let report = self.data_report(sample_t);
-        if self.config.drop_probability > 0.0 && self.rng.uniform() < self.config.drop_probability
-        {
+        if self.config.drop_probability > 0.0 && self.rng.uniform() < self.config.drop_probability {
             return;
         }
         if self.delivered.len() >= 256 {

@@ -222,7 +222,11 @@ impl OrientationFilter for PaperFilter {
         let Some(g) = s.gyro_dps else { return };
         let Some(bias) = self.bias else {
             // Bias batch: restart on motion or a fast-mode sample.
-            let mean = if self.n > 0 { self.sum / self.n as f64 } else { g };
+            let mean = if self.n > 0 {
+                self.sum / self.n as f64
+            } else {
+                g
+            };
             if s.gyro_fast.iter().any(|f| *f) || (g - mean).abs().max_element() > 3.0 {
                 self.sum = DVec3::ZERO;
                 self.n = 0;
@@ -381,7 +385,11 @@ impl FusionFilter {
         let gate = self.bias_gate_dps + self.bias_gate_growth * self.since_bias_update;
         let gated = !self.calibrated || (gmean - self.bias).abs().max_element() < gate;
         self.still = quiet && gated;
-        self.still_for = if self.still { self.still_for + s.dt } else { 0.0 };
+        self.still_for = if self.still {
+            self.still_for + s.dt
+        } else {
+            0.0
+        };
         if self.still && self.still_for >= 0.5 {
             self.since_bias_update = 0.0;
             if !self.calibrated {
@@ -421,7 +429,11 @@ impl OrientationFilter for FusionFilter {
             let measured_up = s.accel_g / norm;
             let estimated_up = self.q.inverse() * DVec3::Z;
             let e = measured_up.cross(estimated_up);
-            let kp = if self.still { self.kp_still } else { self.kp_moving };
+            let kp = if self.still {
+                self.kp_still
+            } else {
+                self.kp_moving
+            };
             w += e * (kp * purity);
             if s.gyro_dps.is_some() && self.calibrated {
                 let step = e * (self.ki * purity * s.dt);
@@ -508,8 +520,16 @@ mod tests {
             ours.update(&s);
         }
         let yaw = |q: DQuat| q.to_euler(glam::EulerRot::ZXY).0.to_degrees();
-        assert!(yaw(paper.orientation()).abs() < 0.5, "paper {}", yaw(paper.orientation()));
-        assert!((yaw(ours.orientation()) - 8.0).abs() < 1.0, "ours {}", yaw(ours.orientation()));
+        assert!(
+            yaw(paper.orientation()).abs() < 0.5,
+            "paper {}",
+            yaw(paper.orientation())
+        );
+        assert!(
+            (yaw(ours.orientation()) - 8.0).abs() < 1.0,
+            "ours {}",
+            yaw(ours.orientation())
+        );
     }
 
     #[test]
@@ -520,7 +540,11 @@ mod tests {
                 f.update(&sample(k * 10_000, DVec3::new(0.0, 0.0, 20.0), DVec3::Z));
             }
             f.recenter();
-            assert!(f.orientation().angle_between(DQuat::IDENTITY) < 1e-9, "{}", f.name());
+            assert!(
+                f.orientation().angle_between(DQuat::IDENTITY) < 1e-9,
+                "{}",
+                f.name()
+            );
         }
     }
 

@@ -197,9 +197,15 @@ impl WiimoteManager {
             }
             #[cfg(feature = "hidapi")]
             RemoteSource::Hid => {
-                let (tx, stop, cmds, session) =
-                    (tx.clone(), stop.clone(), commands.clone(), config.session.clone());
-                threads.push(std::thread::spawn(move || scan_hid(tx, stop, cmds, session)));
+                let (tx, stop, cmds, session) = (
+                    tx.clone(),
+                    stop.clone(),
+                    commands.clone(),
+                    config.session.clone(),
+                );
+                threads.push(std::thread::spawn(move || {
+                    scan_hid(tx, stop, cmds, session)
+                }));
             }
         }
         Self {
@@ -290,7 +296,13 @@ fn run_remote<T: Transport, F: FnMut() -> Option<T>>(
                     return;
                 }
                 if !reconnect {
-                    send(&tx, ManagerEvent::Disconnected { id, reason: e.to_string() });
+                    send(
+                        &tx,
+                        ManagerEvent::Disconnected {
+                            id,
+                            reason: e.to_string(),
+                        },
+                    );
                     return;
                 }
                 std::thread::sleep(Duration::from_millis(500));

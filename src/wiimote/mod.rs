@@ -40,14 +40,14 @@ pub use manager::{
     ManagerConfig, ManagerEvent, RemoteCommand, RemoteId, RemoteSource, WiimoteManager,
 };
 pub use motion::{
-    ConstantRate, DemoMotion, FnMotion, GRAVITY, Motion, Still, body_rate,
-    from_yaw_elevation_roll, specific_force_g,
+    ConstantRate, DemoMotion, FnMotion, GRAVITY, Motion, Still, body_rate, from_yaw_elevation_roll,
+    specific_force_g,
 };
 pub use rng::Rng;
 pub use session::{
     ExtensionState, MotionPlusState, OrientationSample, RemoteInfo, RemoteKind, Session,
     SessionConfig, SessionError, SessionEvent,
 };
-pub use transport::{Transport, TransportError};
 #[cfg(feature = "hidapi")]
 pub use transport::{DeviceInfo, Diagnosis, HidTransport, diagnose_linux, discover};
+pub use transport::{Transport, TransportError};

@@ -174,7 +174,10 @@ impl OutputReport {
         match self {
             Self::Rumble { rumble } => vec![0x10, r(*rumble)],
             Self::Leds { leds, ack, rumble } => {
-                vec![0x11, ((leds & 0x0F) << 4) | ((*ack as u8) << 1) | r(*rumble)]
+                vec![
+                    0x11,
+                    ((leds & 0x0F) << 4) | ((*ack as u8) << 1) | r(*rumble),
+                ]
             }
             Self::ReportMode {
                 mode,
@@ -191,7 +194,10 @@ impl OutputReport {
                 enable,
                 ack,
                 rumble,
-            } => vec![*id, ((*enable as u8) << 2) | ((*ack as u8) << 1) | r(*rumble)],
+            } => vec![
+                *id,
+                ((*enable as u8) << 2) | ((*ack as u8) << 1) | r(*rumble),
+            ],
             Self::StatusRequest { rumble } => vec![0x15, r(*rumble)],
             Self::WriteMemory {
                 space,
@@ -680,9 +686,8 @@ impl AccelCalibration {
     /// Encodes a 10-byte block with checksum (byte 8 = 0x40).
     pub fn encode(&self) -> [u8; 10] {
         let mut b = [0u8; 10];
-        let pack_lo = |v: [u16; 3]| {
-            (((v[0] & 3) as u8) << 4) | (((v[1] & 3) as u8) << 2) | (v[2] & 3) as u8
-        };
+        let pack_lo =
+            |v: [u16; 3]| (((v[0] & 3) as u8) << 4) | (((v[1] & 3) as u8) << 2) | (v[2] & 3) as u8;
         for i in 0..3 {
             b[i] = (self.zero[i] >> 2) as u8;
             b[4 + i] = (self.one_g[i] >> 2) as u8;
@@ -1004,10 +1009,7 @@ mod tests {
         let mut bad = c.encode();
         bad[9] ^= 1;
         assert_eq!(AccelCalibration::parse(&bad), None);
-        assert_eq!(
-            AccelCalibration::from_blocks(&bad, &c.encode()),
-            (c, true)
-        );
+        assert_eq!(AccelCalibration::from_blocks(&bad, &c.encode()), (c, true));
         assert!(!AccelCalibration::from_blocks(&bad, &bad).1);
     }
 
@@ -1020,7 +1022,10 @@ mod tests {
                 mode: 5
             }
         );
-        assert_eq!(ExtensionId::parse(&[0, 0, 0xA4, 0x20, 0, 0]), ExtensionId::Nunchuk);
+        assert_eq!(
+            ExtensionId::parse(&[0, 0, 0xA4, 0x20, 0, 0]),
+            ExtensionId::Nunchuk
+        );
         assert_eq!(
             ExtensionId::parse(&[0, 0, 0xA4, 0x20, 4, 2]),
             ExtensionId::BalanceBoard

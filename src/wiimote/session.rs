@@ -336,7 +336,9 @@ impl<T: Transport> Session<T> {
                 ack,
                 rumble,
             },
-            OutputReport::Flag { id, enable, ack, .. } => OutputReport::Flag {
+            OutputReport::Flag {
+                id, enable, ack, ..
+            } => OutputReport::Flag {
                 id,
                 enable,
                 ack,
@@ -645,7 +647,11 @@ impl<T: Transport> Session<T> {
                 self.wait(1000)?;
             }
             if self
-                .command(OutputReport::write_register(0xA600FE, self.mp_mode, self.rumble))
+                .command(OutputReport::write_register(
+                    0xA600FE,
+                    self.mp_mode,
+                    self.rumble,
+                ))
                 .is_err()
             {
                 continue;
@@ -683,7 +689,8 @@ impl<T: Transport> Session<T> {
             return Ok(());
         }
         let now = self.now();
-        if now.saturating_sub(self.last_battery_us) >= self.config.battery_interval_ms as u64 * 1000 {
+        if now.saturating_sub(self.last_battery_us) >= self.config.battery_interval_ms as u64 * 1000
+        {
             self.last_battery_us = now;
             self.write(OutputReport::StatusRequest {
                 rumble: self.rumble,

@@ -128,7 +128,8 @@ mod hid {
             let name = entry.file_name().to_string_lossy().into_owned();
             let uevent =
                 std::fs::read_to_string(entry.path().join("device/uevent")).unwrap_or_default();
-            let is_wiimote = uevent.contains("057E") && (uevent.contains("0306") || uevent.contains("0330"))
+            let is_wiimote = uevent.contains("057E")
+                && (uevent.contains("0306") || uevent.contains("0330"))
                 || uevent.contains("RVL-CNT");
             if !is_wiimote {
                 continue;
@@ -139,7 +140,12 @@ mod hid {
                     out.push(Diagnosis::KernelDriverBound { node: node.clone() });
                 }
             }
-            if std::fs::OpenOptions::new().read(true).write(true).open(&node).is_err() {
+            if std::fs::OpenOptions::new()
+                .read(true)
+                .write(true)
+                .open(&node)
+                .is_err()
+            {
                 out.push(Diagnosis::Permission { node });
             }
         }
@@ -156,7 +162,8 @@ mod hid {
         /// Opens the device at `path`.
         pub fn open(path: &str) -> Result<Self, TransportError> {
             let api = hidapi::HidApi::new().map_err(|e| TransportError::Io(e.to_string()))?;
-            let cpath = std::ffi::CString::new(path).map_err(|e| TransportError::Io(e.to_string()))?;
+            let cpath =
+                std::ffi::CString::new(path).map_err(|e| TransportError::Io(e.to_string()))?;
             let device = api
                 .open_path(&cpath)
                 .map_err(|e| TransportError::Io(e.to_string()))?;
@@ -173,7 +180,11 @@ mod hid {
                 .write(report)
                 .map_err(|_| TransportError::Disconnected)
         }
-        fn read_timeout(&mut self, buf: &mut [u8], timeout_ms: u32) -> Result<usize, TransportError> {
+        fn read_timeout(
+            &mut self,
+            buf: &mut [u8],
+            timeout_ms: u32,
+        ) -> Result<usize, TransportError> {
             self.device
                 .read_timeout(buf, timeout_ms.min(i32::MAX as u32) as i32)
                 .map_err(|_| TransportError::Disconnected)
