@@ -16,7 +16,10 @@ use std::time::Instant;
 use bevy_wii_deform::deform::*;
 use glam::DVec3;
 
-fn parse_constraints(text: &str) -> Result<(Vec<u32>, Vec<(u32, DVec3)>), String> {
+/// Fixed vertex indices and handle (index, target) pairs.
+type ParsedConstraints = (Vec<u32>, Vec<(u32, DVec3)>);
+
+fn parse_constraints(text: &str) -> Result<ParsedConstraints, String> {
     let mut lines = text.lines().filter(|l| !l.trim().is_empty());
     let head = lines.next().ok_or("empty constraints file")?;
     let counts: Vec<usize> = head

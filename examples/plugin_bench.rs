@@ -28,11 +28,10 @@ fn start_timer(mut t: ResMut<Timing>) {
 }
 
 fn stop_timer(mut t: ResMut<Timing>) {
-    if let Some(s) = t.start.take() {
-        if t.measuring {
+    if let Some(s) = t.start.take()
+        && t.measuring {
             t.frames_ms.push(s.elapsed().as_secs_f64() * 1e3);
         }
-    }
 }
 
 fn drag(time: Res<Time>, timing: Res<Timing>, mut q: Query<&mut Transform, With<Dragged>>) {

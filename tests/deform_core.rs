@@ -109,6 +109,7 @@ fn energy_never_increases_across_iterations() {
     }
 }
 
+#[allow(clippy::needless_range_loop)]
 /// Dense reference: full Laplacian with constrained rows eliminated, Gaussian elimination,
 /// exact rotations. Independent of faer and of the warm rotation fit.
 fn dense_reference(t: &Topology, c: &Constraints, iterations: usize) -> Vec<DVec3> {
@@ -472,8 +473,8 @@ fn region_of_interest_keeps_outside_at_rest() {
     let sol = solver
         .solve(&c, &SolveOptions::default(), InitialGuess::Laplacian, NEVER)
         .unwrap();
-    for i in 0..t.vertex_count() {
-        if !roi[i] {
+    for (i, inside) in roi.iter().enumerate() {
+        if !inside {
             assert_eq!(sol.positions[i], t.positions()[i]);
         }
     }

@@ -879,11 +879,10 @@ fn keyboard_shortcuts(
         if let Some(m) = sb.mesh_entity.and_then(|e| mesh_q.get(e).ok()) {
             update_colors(&sb, &mut meshes, m);
         }
-    } else if let Some(h) = sb.handle_entity {
-        if let Ok(mut t) = transforms.get_mut(h) {
+    } else if let Some(h) = sb.handle_entity
+        && let Ok(mut t) = transforms.get_mut(h) {
             *t = target.handle;
         }
-    }
 }
 
 /// `--demo`: once the emulated remote is calibrated it grabs (B), rolls 120° about its
@@ -1147,11 +1146,10 @@ fn ui_panel(
                         history.0 = Some(false);
                     }
                     if ui.button("Reset pose").clicked() {
-                        if let Some(h) = sb.handle_entity {
-                            if let Ok(mut t) = transforms.get_mut(h) {
+                        if let Some(h) = sb.handle_entity
+                            && let Ok(mut t) = transforms.get_mut(h) {
                                 t.rotation = Quat::IDENTITY;
                             }
-                        }
                         regions_changed = true;
                     }
                 });
@@ -1195,11 +1193,10 @@ fn ui_panel(
                                 ""
                             }
                         ));
-                        if ui.button("Recentre").clicked() {
-                            if let Some(link) = &link {
+                        if ui.button("Recentre").clicked()
+                            && let Some(link) = &link {
                                 link.send(w.id, RemoteCommand::Recenter);
                             }
-                        }
                     }
                     if let Some(emu) = emulators.as_ref().and_then(|e| e.0.first()) {
                         ui.label("Emulated remote:");

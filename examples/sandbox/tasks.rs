@@ -221,8 +221,11 @@ pub fn read_results(path: &str) -> Vec<ResultRow> {
         .collect()
 }
 
+/// One row of Table 1: task, mean seconds with the mouse, with the Wiimote, speed-up in %.
+pub type SummaryRow = (String, Option<f64>, Option<f64>, Option<f64>);
+
 /// Table 1: per task, mean seconds with mouse and Wiimote and the Wiimote's speed-up in %.
-pub fn summary(rows: &[ResultRow]) -> Vec<(String, Option<f64>, Option<f64>, Option<f64>)> {
+pub fn summary(rows: &[ResultRow]) -> Vec<SummaryRow> {
     let mut tasks: Vec<String> = rows.iter().map(|r| r.task.clone()).collect();
     tasks.sort();
     tasks.dedup();

@@ -19,7 +19,8 @@ pub fn fit_rotation_warm(a: &DMat3, mut q: DQuat, max_iterations: u32, tol: f64)
             + 1e-300;
         let w = num / den;
         let angle = w.length();
-        if !(angle > tol) {
+        // Stops on convergence and on NaN (degenerate covariance).
+        if angle.partial_cmp(&tol) != Some(std::cmp::Ordering::Greater) {
             break;
         }
         q = (DQuat::from_axis_angle(w / angle, angle) * q).normalize();
@@ -30,6 +31,7 @@ pub fn fit_rotation_warm(a: &DMat3, mut q: DQuat, max_iterations: u32, tol: f64)
 /// Exact best-fit rotation (Horn 1987): the unit quaternion is the eigenvector of the largest
 /// eigenvalue of a symmetric 4×4 matrix built from `A`, found with cyclic Jacobi sweeps.
 /// Slower than [`fit_rotation_warm`]; used for reporting energies.
+#[allow(clippy::needless_range_loop)] // 4×4 Jacobi sweeps read clearest with indices
 pub fn best_rotation_exact(a: &DMat3) -> DQuat {
     // Horn's S = Σ rest·deformedᵀ = Aᵀ; S[x][y] = A[y][x] (A column-major: A.col(c).row(r)).
     let s = |x: usize, y: usize| a.col(x)[y];
@@ -47,7 +49,7 @@ pub fn best_rotation_exact(a: &DMat3) -> DQuat {
         row[i] = 1.0;
     }
     let scale: f64 = n.iter().flatten().map(|x| x * x).sum::<f64>().sqrt();
-    if !(scale > 0.0) || !scale.is_finite() {
+    if scale.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) || !scale.is_finite() {
         return DQuat::IDENTITY;
     }
     for _sweep in 0..50 {

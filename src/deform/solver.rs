@@ -538,6 +538,7 @@ impl ArapSolver {
 
     /// Fits rotations for active (`true`) or inactive (`false`) cells; returns their summed
     /// un-normalised energy.
+    #[allow(clippy::needless_range_loop)] // CSR rows: `e` indexes weights and neighbours alike
     fn local_step(
         &self,
         x: &[DVec3],
@@ -587,6 +588,7 @@ impl ArapSolver {
     }
 
     /// `b_i = Σ_j (w_ij/2)(R_i + R_j)(p_i − p_j) + Σ_{j known} w_ij x_j`.
+    #[allow(clippy::needless_range_loop)] // CSR rows: `e` indexes weights and neighbours alike
     fn arap_rhs(&self, x: &[DVec3], mats: &[DMat3], rhs: &mut Mat<f64>) {
         let topo = &*self.topology;
         let rest = topo.positions();

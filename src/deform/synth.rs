@@ -153,49 +153,6 @@ pub fn subdivide_midpoint(mesh: &TriMesh) -> TriMesh {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn bar_counts() {
-        let m = bar(100, 200, 0.1, 1.0);
-        assert_eq!(m.positions.len(), 20_002);
-        assert_eq!(m.triangles.len(), 2 * 100 * 199 + 200);
-    }
-
-    #[test]
-    fn implicit_sphere_is_closed_and_outward() {
-        let m = implicit_surface(
-            &|p: DVec3| p.length() - 1.0,
-            DVec3::splat(-1.3),
-            DVec3::splat(1.3),
-            20,
-        );
-        let t = crate::deform::Topology::new(&m.positions, &m.triangles).unwrap();
-        // Closed: every edge has exactly two triangles (Euler characteristic 2).
-        let edges = t.neighbor_list().len() / 2;
-        let chi = t.vertex_count() as i64 - edges as i64 + t.triangles().len() as i64;
-        assert_eq!(chi, 2);
-        // Outward: positive signed volume ≈ 4/3 π.
-        let vol: f64 = t
-            .triangles()
-            .iter()
-            .map(|tr| {
-                let [a, b, c] = tr.map(|i| t.positions()[i as usize]);
-                a.dot(b.cross(c)) / 6.0
-            })
-            .sum();
-        assert!((vol - 4.18879).abs() < 0.15, "{vol}");
-    }
-
-    #[test]
-    fn icosphere_counts() {
-        assert_eq!(icosphere(2, 1.0).positions.len(), 162);
-        assert_eq!(subdivide_midpoint(&icosphere(1, 1.0)).positions.len(), 162);
-    }
-}
-
 /// Splits vertices into a fixed "bottom" slab and a handle "top" slab along `axis`:
 /// vertices whose coordinate is within the lowest `fixed_fraction` of the bounding box are
 /// fixed, those within the highest `handle_fraction` are the handle. Used by benchmarks and
@@ -349,4 +306,47 @@ pub fn capsule(p: DVec3, a: DVec3, b: DVec3, r: f64) -> f64 {
 pub fn smooth_min(a: f64, b: f64, k: f64) -> f64 {
     let h = (0.5 + 0.5 * (b - a) / k).clamp(0.0, 1.0);
     b + (a - b) * h - k * h * (1.0 - h)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bar_counts() {
+        let m = bar(100, 200, 0.1, 1.0);
+        assert_eq!(m.positions.len(), 20_002);
+        assert_eq!(m.triangles.len(), 2 * 100 * 199 + 200);
+    }
+
+    #[test]
+    fn implicit_sphere_is_closed_and_outward() {
+        let m = implicit_surface(
+            &|p: DVec3| p.length() - 1.0,
+            DVec3::splat(-1.3),
+            DVec3::splat(1.3),
+            20,
+        );
+        let t = crate::deform::Topology::new(&m.positions, &m.triangles).unwrap();
+        // Closed: every edge has exactly two triangles (Euler characteristic 2).
+        let edges = t.neighbor_list().len() / 2;
+        let chi = t.vertex_count() as i64 - edges as i64 + t.triangles().len() as i64;
+        assert_eq!(chi, 2);
+        // Outward: positive signed volume ≈ 4/3 π.
+        let vol: f64 = t
+            .triangles()
+            .iter()
+            .map(|tr| {
+                let [a, b, c] = tr.map(|i| t.positions()[i as usize]);
+                a.dot(b.cross(c)) / 6.0
+            })
+            .sum();
+        assert!((vol - 4.18879).abs() < 0.15, "{vol}");
+    }
+
+    #[test]
+    fn icosphere_counts() {
+        assert_eq!(icosphere(2, 1.0).positions.len(), 162);
+        assert_eq!(subdivide_midpoint(&icosphere(1, 1.0)).positions.len(), 162);
+    }
 }

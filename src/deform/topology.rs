@@ -69,7 +69,7 @@ impl Topology {
     /// Builds the topology of a triangle list given in render order (`f32` positions, flat
     /// `u32` index buffer, as in a Bevy `Mesh`). Vertices at identical positions are welded.
     pub fn from_render_mesh(positions: &[Vec3], indices: &[u32]) -> Result<Self, MeshError> {
-        if indices.len() % 3 != 0 {
+        if !indices.len().is_multiple_of(3) {
             return Err(MeshError::IndexCountNotTriangles(indices.len()));
         }
         let positions: Vec<DVec3> = positions.iter().map(|p| p.as_dvec3()).collect();
@@ -193,7 +193,8 @@ impl Topology {
                 let v = self.positions[b as usize] - self.positions[c as usize];
                 let sine = u.cross(v).length();
                 let scale = u.length() * v.length();
-                if !(sine > DEGENERATE_SINE * scale) {
+                // Also skips NaN: a corner that is not clearly non-degenerate contributes 0.
+                if sine.partial_cmp(&(DEGENERATE_SINE * scale)) != Some(std::cmp::Ordering::Greater) {
                     continue;
                 }
                 let half_cot = 0.5 * u.dot(v) / sine;

@@ -103,6 +103,7 @@ impl Plugin for DeformPlugin {
 #[derive(Component, Debug, Clone, Reflect)]
 #[reflect(Component, Default)]
 #[require(DeformStatus)]
+#[derive(Default)]
 pub struct Deformable {
     /// Iterations per solve (`None` = [`DeformConfig::max_iterations`]).
     pub max_iterations: Option<u32>,
@@ -114,16 +115,6 @@ pub struct Deformable {
     pub region_of_interest: Option<Vec<u32>>,
 }
 
-impl Default for Deformable {
-    fn default() -> Self {
-        Self {
-            max_iterations: None,
-            tolerance: None,
-            raw_cotangent_weights: false,
-            region_of_interest: None,
-        }
-    }
-}
 
 /// Vertices of a [`Deformable`] held at their rest position (render indices).
 #[derive(Component, Debug, Clone, Default, Reflect, PartialEq)]
@@ -287,6 +278,7 @@ fn centroid(positions: &[Vec3], vertices: &[u32]) -> Vec3 {
     if n == 0 { Vec3::ZERO } else { sum / n as f32 }
 }
 
+#[allow(clippy::type_complexity)]
 fn prepare_deformables(
     mut commands: Commands,
     mut meshes: ResMut<Assets<Mesh>>,
@@ -652,11 +644,10 @@ fn poll_tasks(
             }
         }
         // A newer request arrived while solving: start it now with the freshest constraints.
-        if state.pending.is_some() {
-            if let Some(rest) = state.rest.clone() {
+        if state.pending.is_some()
+            && let Some(rest) = state.rest.clone() {
                 spawn_solve(state, &rest, deformable, &config, &mut status);
             }
-        }
     }
 }
 
@@ -671,29 +662,21 @@ fn write_back(mut meshes: ResMut<Assets<Mesh>>, mut q: Query<(&Mesh3d, &mut Defo
         };
         if let Ok(VertexAttributeValues::Float32x3(dst)) =
             mesh.try_attribute_mut(Mesh::ATTRIBUTE_POSITION)
-        {
-            if dst.len() == pose.positions.len() {
+            && dst.len() == pose.positions.len() {
                 dst.copy_from_slice(&pose.positions);
             }
-        }
-        if let Some(n) = pose.normals {
-            if let Ok(VertexAttributeValues::Float32x3(dst)) =
+        if let Some(n) = pose.normals
+            && let Ok(VertexAttributeValues::Float32x3(dst)) =
                 mesh.try_attribute_mut(Mesh::ATTRIBUTE_NORMAL)
-            {
-                if dst.len() == n.len() {
+                && dst.len() == n.len() {
                     dst.copy_from_slice(&n);
                 }
-            }
-        }
-        if let Some(t) = pose.tangents {
-            if let Ok(VertexAttributeValues::Float32x4(dst)) =
+        if let Some(t) = pose.tangents
+            && let Ok(VertexAttributeValues::Float32x4(dst)) =
                 mesh.try_attribute_mut(Mesh::ATTRIBUTE_TANGENT)
-            {
-                if dst.len() == t.len() {
+                && dst.len() == t.len() {
                     dst.copy_from_slice(&t);
                 }
-            }
-        }
     }
 }
 

@@ -88,7 +88,7 @@ impl DriftScenario {
         }
         let c = k as usize;
         let tc = t - START_STILL - k * CYCLE;
-        let dir = if c % 2 == 0 { 1.0 } else { -1.0 };
+        let dir = if c.is_multiple_of(2) { 1.0 } else { -1.0 };
         if tc < WIGGLE {
             // Return from the previous held pose during the first 2 s, wiggles enveloped.
             let back = if c > 0 {
@@ -251,6 +251,7 @@ fn percentile(mut v: Vec<f64>, p: f64) -> f64 {
     v[((v.len() - 1) as f64 * p).round() as usize]
 }
 
+#[allow(clippy::needless_range_loop)] // parallel per-sample arrays
 /// Scores one filter on a recording (metrics from t ≥ 5 s, after the start-up still phase).
 pub fn score(kind: FilterKind, rec: &Recording) -> FilterScore {
     let mut f = kind.build();

@@ -811,6 +811,7 @@ impl MotionPlusCalibration {
     /// Converts a frame to body angular velocity in deg/s (x = pitch, y = roll, z = yaw,
     /// right-hand rule about the §5.3 axes). Uses the block for scale and sign only; the
     /// caller removes the run-time bias.
+    #[allow(clippy::needless_range_loop)] // three axes, indexed in parallel arrays
     pub fn rates_deg(&self, f: &MotionPlusFrame) -> DVec3 {
         // Frame order yaw, roll, pitch → output x = pitch, y = roll, z = yaw.
         let raw = [f.yaw, f.roll, f.pitch];
