@@ -29,9 +29,10 @@ fn start_timer(mut t: ResMut<Timing>) {
 
 fn stop_timer(mut t: ResMut<Timing>) {
     if let Some(s) = t.start.take()
-        && t.measuring {
-            t.frames_ms.push(s.elapsed().as_secs_f64() * 1e3);
-        }
+        && t.measuring
+    {
+        t.frames_ms.push(s.elapsed().as_secs_f64() * 1e3);
+    }
 }
 
 fn drag(time: Res<Time>, timing: Res<Timing>, mut q: Query<&mut Transform, With<Dragged>>) {

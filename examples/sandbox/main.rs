@@ -880,9 +880,10 @@ fn keyboard_shortcuts(
             update_colors(&sb, &mut meshes, m);
         }
     } else if let Some(h) = sb.handle_entity
-        && let Ok(mut t) = transforms.get_mut(h) {
-            *t = target.handle;
-        }
+        && let Ok(mut t) = transforms.get_mut(h)
+    {
+        *t = target.handle;
+    }
 }
 
 /// `--demo`: once the emulated remote is calibrated it grabs (B), rolls 120° about its
@@ -1147,9 +1148,10 @@ fn ui_panel(
                     }
                     if ui.button("Reset pose").clicked() {
                         if let Some(h) = sb.handle_entity
-                            && let Ok(mut t) = transforms.get_mut(h) {
-                                t.rotation = Quat::IDENTITY;
-                            }
+                            && let Ok(mut t) = transforms.get_mut(h)
+                        {
+                            t.rotation = Quat::IDENTITY;
+                        }
                         regions_changed = true;
                     }
                 });
@@ -1194,9 +1196,10 @@ fn ui_panel(
                             }
                         ));
                         if ui.button("Recentre").clicked()
-                            && let Some(link) = &link {
-                                link.send(w.id, RemoteCommand::Recenter);
-                            }
+                            && let Some(link) = &link
+                        {
+                            link.send(w.id, RemoteCommand::Recenter);
+                        }
                     }
                     if let Some(emu) = emulators.as_ref().and_then(|e| e.0.first()) {
                         ui.label("Emulated remote:");

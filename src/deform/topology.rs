@@ -194,7 +194,8 @@ impl Topology {
                 let sine = u.cross(v).length();
                 let scale = u.length() * v.length();
                 // Also skips NaN: a corner that is not clearly non-degenerate contributes 0.
-                if sine.partial_cmp(&(DEGENERATE_SINE * scale)) != Some(std::cmp::Ordering::Greater) {
+                if sine.partial_cmp(&(DEGENERATE_SINE * scale)) != Some(std::cmp::Ordering::Greater)
+                {
                     continue;
                 }
                 let half_cot = 0.5 * u.dot(v) / sine;

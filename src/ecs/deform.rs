@@ -115,7 +115,6 @@ pub struct Deformable {
     pub region_of_interest: Option<Vec<u32>>,
 }
 
-
 /// Vertices of a [`Deformable`] held at their rest position (render indices).
 #[derive(Component, Debug, Clone, Default, Reflect, PartialEq)]
 #[reflect(Component, Default)]
@@ -645,9 +644,10 @@ fn poll_tasks(
         }
         // A newer request arrived while solving: start it now with the freshest constraints.
         if state.pending.is_some()
-            && let Some(rest) = state.rest.clone() {
-                spawn_solve(state, &rest, deformable, &config, &mut status);
-            }
+            && let Some(rest) = state.rest.clone()
+        {
+            spawn_solve(state, &rest, deformable, &config, &mut status);
+        }
     }
 }
 
@@ -662,21 +662,24 @@ fn write_back(mut meshes: ResMut<Assets<Mesh>>, mut q: Query<(&Mesh3d, &mut Defo
         };
         if let Ok(VertexAttributeValues::Float32x3(dst)) =
             mesh.try_attribute_mut(Mesh::ATTRIBUTE_POSITION)
-            && dst.len() == pose.positions.len() {
-                dst.copy_from_slice(&pose.positions);
-            }
+            && dst.len() == pose.positions.len()
+        {
+            dst.copy_from_slice(&pose.positions);
+        }
         if let Some(n) = pose.normals
             && let Ok(VertexAttributeValues::Float32x3(dst)) =
                 mesh.try_attribute_mut(Mesh::ATTRIBUTE_NORMAL)
-                && dst.len() == n.len() {
-                    dst.copy_from_slice(&n);
-                }
+            && dst.len() == n.len()
+        {
+            dst.copy_from_slice(&n);
+        }
         if let Some(t) = pose.tangents
             && let Ok(VertexAttributeValues::Float32x4(dst)) =
                 mesh.try_attribute_mut(Mesh::ATTRIBUTE_TANGENT)
-                && dst.len() == t.len() {
-                    dst.copy_from_slice(&t);
-                }
+            && dst.len() == t.len()
+        {
+            dst.copy_from_slice(&t);
+        }
     }
 }
 

@@ -754,9 +754,10 @@ impl EmulatedRemote {
 
     fn handle_output(&mut self, report: &[u8]) {
         if let Some(&f) = report.get(1)
-            && report[0] != 0x18 {
-                self.rumble = f & 1 != 0;
-            }
+            && report[0] != 0x18
+        {
+            self.rumble = f & 1 != 0;
+        }
         let decoded = OutputReport::decode(report);
         let id = report.first().copied().unwrap_or(0);
         if self.config.error2_acks && id != 0x10 && self.rng.uniform() < 0.2 {
@@ -950,7 +951,8 @@ impl EmulatedRemote {
         let ext: [u8; 6] = match self.mp {
             MpPhase::Active { mode } => {
                 self.frame_counter += 1;
-                let passthrough = mode != 0x04 && nunchuk.is_some() && self.frame_counter.is_multiple_of(2);
+                let passthrough =
+                    mode != 0x04 && nunchuk.is_some() && self.frame_counter.is_multiple_of(2);
                 let gyro = self.gyro_frame(sample_t, &*motion, nunchuk.is_some());
                 if self.garbage_left > 0 {
                     self.garbage_left -= 1;

@@ -136,9 +136,10 @@ mod hid {
             }
             let node = format!("/dev/{name}");
             if let Ok(driver) = std::fs::read_link(entry.path().join("device/driver"))
-                && driver.to_string_lossy().ends_with("wiimote") {
-                    out.push(Diagnosis::KernelDriverBound { node: node.clone() });
-                }
+                && driver.to_string_lossy().ends_with("wiimote")
+            {
+                out.push(Diagnosis::KernelDriverBound { node: node.clone() });
+            }
             if std::fs::OpenOptions::new()
                 .read(true)
                 .write(true)
