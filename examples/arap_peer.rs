@@ -2,6 +2,7 @@
 //!
 //! ```text
 //! cargo run --release --example arap_peer -- MESH.off CONSTRAINTS.txt ITERS REPEATS OUT.bin [--init laplacian|rest]
+//!     [--factorization auto|simplicial|supernodal]
 //! ```
 //! CONSTRAINTS.txt: `n_fixed n_handle`, then `index x y z` per constrained vertex (fixed first,
 //! at rest; then handle vertices at their targets). Each repeat times precompute (topology,
@@ -74,6 +75,25 @@ fn run() -> Result<(), String> {
         Some(Some(v)) if v == "laplacian" || v == "rest" => v.as_str(),
         Some(v) => return Err(format!("--init must be laplacian or rest, got {v:?}")),
     };
+    let factorization = match args
+        .iter()
+        .position(|a| a == "--factorization")
+        .map(|i| args.get(i + 1))
+    {
+        None => Factorization::Auto,
+        Some(Some(v)) if v == "simplicial" => Factorization::Simplicial,
+        Some(Some(v)) if v == "supernodal" => Factorization::Supernodal,
+        Some(Some(v)) if v == "auto" => Factorization::Auto,
+        Some(v) => {
+            return Err(format!(
+                "--factorization must be auto, simplicial or supernodal, got {v:?}"
+            ));
+        }
+    };
+    let settings = SolverSettings {
+        factorization,
+        ..Default::default()
+    };
     let constraints = Constraints {
         fixed,
         handles: vec![],
@@ -89,9 +109,8 @@ fn run() -> Result<(), String> {
         let t0 = Instant::now();
         let topology =
             Arc::new(Topology::new(&mesh.positions, &mesh.triangles).map_err(|e| e.to_string())?);
-        let solver =
-            ArapSolver::precompute(topology.clone(), &constraints, SolverSettings::default())
-                .map_err(|e| e.to_string())?;
+        let solver = ArapSolver::precompute(topology.clone(), &constraints, settings.clone())
+            .map_err(|e| e.to_string())?;
         pre.push(t0.elapsed().as_secs_f64());
         let t1 = Instant::now();
         let guess = if init == "rest" {
@@ -103,6 +122,13 @@ fn run() -> Result<(), String> {
             .solve(&constraints, &options, guess, &|| false)
             .map_err(|e| e.to_string())?;
         sol_s.push(t1.elapsed().as_secs_f64());
+        eprintln!(
+            "solve phases: init {:.2} ms, local {:.2} ms, rhs {:.2} ms, global {:.2} ms",
+            sol.stats.init_s * 1e3,
+            sol.stats.local_s * 1e3,
+            sol.stats.rhs_s * 1e3,
+            sol.stats.global_s * 1e3
+        );
         eprintln!(
             "energies: {:?} (exact final {:.6}); precompute stats {:?}",
             sol.stats.energies,

@@ -21,6 +21,7 @@ fn main() {
     let seconds = value("--seconds", 600.0);
     let json = args.iter().any(|a| a == "--json");
     let mut scores: Vec<Vec<drift::FilterScore>> = vec![Vec::new(); FilterKind::ALL.len()];
+    let mut floor = 0.0;
     for seed in 1..=seeds {
         let rec = drift::record_session(seed, seconds);
         eprintln!(
@@ -28,10 +29,12 @@ fn main() {
             rec.samples.len(),
             rec.times.last().copied().unwrap_or(0.0)
         );
+        floor += drift::accelerometer_tilt_floor(&rec) / seeds as f64;
         for (k, kind) in FilterKind::ALL.iter().enumerate() {
             scores[k].push(drift::score(*kind, &rec));
         }
     }
+    eprintln!("accelerometer-only tilt error while still (the floor for tilt): {floor:.3}° RMS");
     println!(
         "{:<6} {:>10} {:>12} {:>12} {:>12} {:>12} {:>8}",
         "filter", "tilt RMS°", "tilt still°", "yaw °/min", "attitude°", "rel2s p95°", "µs/smp"

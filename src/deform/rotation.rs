@@ -60,6 +60,11 @@ pub fn fit_rotation_warm(a: &DMat3, mut q: DQuat, max_iterations: u32, tol: f64)
             DQuat::from_scaled_axis(w)
         };
         q = (q * inc).normalize();
+        // Newton converges quadratically: after a step of size ε the next would be ~ε², so a
+        // step below √tol already lands within tol — skip the verifying iteration.
+        if newton_ok && angle * angle <= tol {
+            break;
+        }
     }
     q
 }

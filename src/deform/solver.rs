@@ -573,7 +573,7 @@ impl ArapSolver {
                         add_outer(&mut a, w, d, rest[i] - rest[j]);
                         sq += w * d.length_squared();
                     }
-                    let q = fit_rotation_warm(&a, qs[k], 40, 1e-12);
+                    let q = fit_rotation_warm(&a, qs[k], 40, 1e-10);
                     let r = DMat3::from_quat(q);
                     let tr =
                         r.x_axis.dot(a.x_axis) + r.y_axis.dot(a.y_axis) + r.z_axis.dot(a.z_axis);

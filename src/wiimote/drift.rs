@@ -349,3 +349,18 @@ pub fn mean(scores: &[FilterScore]) -> FilterScore {
     }
     m
 }
+
+/// The tilt error of the accelerometer alone during still samples (RMS, degrees): the floor
+/// any gravity-referenced filter converges to (cross-axis and calibration errors of the
+/// emulated sensor).
+pub fn accelerometer_tilt_floor(rec: &Recording) -> f64 {
+    let (mut sum, mut n) = (0.0f64, 0.0f64);
+    for ((s, q), still) in rec.samples.iter().zip(&rec.truth).zip(&rec.still) {
+        if *still {
+            let e = s.accel_g.angle_between(q.inverse() * DVec3::Z).to_degrees();
+            sum += e * e;
+            n += 1.0;
+        }
+    }
+    if n > 0.0 { (sum / n).sqrt() } else { 0.0 }
+}
