@@ -2,7 +2,7 @@
 //! main-thread time spent in the plugin's systems and completed solves per second.
 //!
 //! ```text
-//! cargo run --release --example plugin_bench -- [--mesh PATH | --bar VERTICES] [--seconds 5] [--iterations 1] --json
+//! cargo run --release --example plugin_bench -- [--mesh PATH | --bar VERTICES] [--seconds 5] [--iterations 1] [--fps 120] --json
 //! ```
 //! Default mesh: ../shared/meshes/armadillo.off (26k vertices), else a 26k-vertex bar.
 //! Last stdout line: `{"vertices": N, "frames": F, "main_ms_median": x, "main_ms_p99": y, "solves_per_s": z}`.
@@ -58,6 +58,8 @@ fn main() {
     let iterations: u32 = arg("--iterations")
         .and_then(|v| v.parse().ok())
         .unwrap_or(1);
+    // Frame rate of the simulated game (the handle moves every frame).
+    let fps: f64 = arg("--fps").and_then(|v| v.parse().ok()).unwrap_or(120.0);
     let tri = if let Some(path) = arg("--mesh") {
         TriMesh::read(&path).unwrap_or_else(|e| panic!("{path}: {e}"))
     } else if let Some(n) = arg("--bar").and_then(|v| v.parse().ok()) {
@@ -125,7 +127,7 @@ fn main() {
     let solves0 = app.world().get::<DeformStatus>(e).unwrap().solves;
     app.world_mut().resource_mut::<Timing>().measuring = true;
     let start = Instant::now();
-    let frame = Duration::from_secs_f64(1.0 / 60.0);
+    let frame = Duration::from_secs_f64(1.0 / fps.max(1.0));
     while start.elapsed().as_secs_f64() < seconds {
         let f0 = Instant::now();
         app.update();
