@@ -257,6 +257,7 @@ fn main() -> AppExit {
         .insert_resource(unattended)
         .init_resource::<UndoQueue>()
         .init_resource::<BrushHit>()
+        .init_resource::<Loading>()
         .init_resource::<HistoryRequest>()
         .insert_resource(OrbitCamera {
             yaw: 0.3,
@@ -268,6 +269,7 @@ fn main() -> AppExit {
         .add_systems(
             Update,
             (
+                start_loading,
                 load_pending,
                 file_drop,
                 orbit_camera,
@@ -392,14 +394,23 @@ fn selection_colors(sel: &[u8]) -> Vec<[f32; 4]> {
 }
 
 #[allow(clippy::too_many_arguments)]
-fn load_pending(
-    mut commands: Commands,
-    mut sb: ResMut<Sandbox>,
-    mut meshes: ResMut<Assets<Mesh>>,
-    mut materials: ResMut<Assets<StandardMaterial>>,
-    mut orbit: ResMut<OrbitCamera>,
-    mut clear: ResMut<ClearColor>,
-) {
+/// A model (and challenge target) prepared off the main thread.
+struct Loaded {
+    name: String,
+    mesh: TriMesh,
+    task: Option<(String, tasks::Task)>,
+    target: Option<Result<Vec<DVec3>, String>>,
+}
+
+/// The background load in progress (file parsing, model generation, challenge target solve),
+/// so the UI never freezes.
+#[derive(Resource, Default)]
+struct Loading(Option<bevy::tasks::Task<Result<Loaded, String>>>);
+
+fn start_loading(mut sb: ResMut<Sandbox>, mut loading: ResMut<Loading>) {
+    if loading.0.is_some() {
+        return; // one load at a time; later requests wait their turn
+    }
     let task = sb.pending_task.take().and_then(|t| {
         let found = sb
             .tasks
@@ -417,9 +428,46 @@ fn load_pending(
     let Some(name) = sb.pending_load.take() else {
         return;
     };
-    let mesh = match load_model(&name) {
-        Ok(m) if models::generate(&name).is_some() => m,
-        Ok(m) => normalise(m),
+    sb.message = format!("loading {name}…");
+    loading.0 = Some(bevy::tasks::AsyncComputeTaskPool::get().spawn(async move {
+        let mesh = match load_model(&name) {
+            Ok(m) if models::generate(&name).is_some() => m,
+            Ok(m) => normalise(m),
+            Err(e) => return Err(e),
+        };
+        let target = task.as_ref().map(|(_, t)| t.target_pose(&mesh));
+        Ok(Loaded {
+            name,
+            mesh,
+            task,
+            target,
+        })
+    }));
+}
+
+fn load_pending(
+    mut commands: Commands,
+    mut sb: ResMut<Sandbox>,
+    mut loading: ResMut<Loading>,
+    mut meshes: ResMut<Assets<Mesh>>,
+    mut materials: ResMut<Assets<StandardMaterial>>,
+    mut orbit: ResMut<OrbitCamera>,
+    mut clear: ResMut<ClearColor>,
+) {
+    let Some(job) = loading.0.as_mut() else {
+        return;
+    };
+    let Some(result) = bevy::tasks::futures::check_ready(job) else {
+        return;
+    };
+    loading.0 = None;
+    let Loaded {
+        name,
+        mesh,
+        task,
+        target,
+    } = match result {
+        Ok(l) => l,
         Err(e) => {
             sb.message = e;
             return;
@@ -483,8 +531,8 @@ fn load_pending(
         mesh.triangles.len()
     );
     sb.mesh = mesh;
-    if let Some((key, task)) = task {
-        match task.target_pose(&sb.mesh) {
+    if let (Some((key, task)), Some(target)) = (task, target) {
+        match target {
             Ok(target) => {
                 let cloud = point_cloud(&target, sb.diagonal);
                 let cloud_mesh = meshes.add(cloud);
