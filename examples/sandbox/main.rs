@@ -327,12 +327,12 @@ fn setup_scene(
 
 /// Loads a built-in model by name or a mesh file (OBJ/OFF via our reader, glTF/GLB via gltf).
 fn load_model(name: &str) -> Result<TriMesh, String> {
-    if let Some(m) = models::generate(name) {
-        let path = format!("assets/models/{name}.obj");
-        if let Ok(m) = TriMesh::read(&path) {
+    if models::MODELS.contains(&name) {
+        // Shipped in assets/models (written by `make_assets`); regenerated if missing.
+        if let Ok(m) = TriMesh::read(format!("assets/models/{name}.obj")) {
             return Ok(m);
         }
-        return Ok(m);
+        return models::generate(name).ok_or_else(|| format!("unknown model {name}"));
     }
     let lower = name.to_ascii_lowercase();
     if lower.ends_with(".gltf") || lower.ends_with(".glb") {
@@ -431,7 +431,7 @@ fn start_loading(mut sb: ResMut<Sandbox>, mut loading: ResMut<Loading>) {
     sb.message = format!("loading {name}…");
     loading.0 = Some(bevy::tasks::AsyncComputeTaskPool::get().spawn(async move {
         let mesh = match load_model(&name) {
-            Ok(m) if models::generate(&name).is_some() => m,
+            Ok(m) if models::MODELS.contains(&name.as_str()) => m,
             Ok(m) => normalise(m),
             Err(e) => return Err(e),
         };
