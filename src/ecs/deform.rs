@@ -400,7 +400,7 @@ fn request_solves(
         &mut DeformStatus,
     )>,
     mut handles: Query<(Entity, &mut DeformHandle, Ref<Transform>)>,
-    removed: RemovedComponents<DeformHandle>,
+    mut removed: RemovedComponents<DeformHandle>,
     changed_deformable: Query<(), Changed<Deformable>>,
 ) {
     // Fill in missing pivots (rest centroid) once the topology exists.
@@ -427,7 +427,8 @@ fn request_solves(
         };
         h.pivot = Some(c);
     }
-    let any_removed = !removed.is_empty();
+    // Consume the removals so each one triggers exactly one re-solve.
+    let any_removed = removed.read().count() > 0;
     for (entity, deformable, fixed, mut state, mut status) in &mut deformables {
         let Some(rest) = state.rest.clone() else {
             continue;
