@@ -652,6 +652,11 @@ fn poll_tasks(
     }
 }
 
+/// Number of values of a vertex attribute, if present.
+fn attribute_len(mesh: &Mesh, id: bevy::mesh::MeshVertexAttribute) -> Option<usize> {
+    mesh.try_attribute(id).ok().map(|v| v.len())
+}
+
 fn write_back(mut meshes: ResMut<Assets<Mesh>>, mut q: Query<(&Mesh3d, &mut DeformState)>) {
     for (mesh3d, mut state) in &mut q {
         let state = state.bypass_change_detection();
@@ -661,25 +666,20 @@ fn write_back(mut meshes: ResMut<Assets<Mesh>>, mut q: Query<(&Mesh3d, &mut Defo
         let Some(mut mesh) = meshes.get_mut(&mesh3d.0) else {
             continue;
         };
-        if let Ok(VertexAttributeValues::Float32x3(dst)) =
-            mesh.try_attribute_mut(Mesh::ATTRIBUTE_POSITION)
-            && dst.len() == pose.positions.len()
-        {
-            dst.copy_from_slice(&pose.positions);
+        // The worker built whole attribute buffers: move them in (no per-vertex copy on the
+        // main thread), but only over attributes of the same length.
+        if attribute_len(&mesh, Mesh::ATTRIBUTE_POSITION) == Some(pose.positions.len()) {
+            let _ = mesh.try_insert_attribute(Mesh::ATTRIBUTE_POSITION, pose.positions);
         }
         if let Some(n) = pose.normals
-            && let Ok(VertexAttributeValues::Float32x3(dst)) =
-                mesh.try_attribute_mut(Mesh::ATTRIBUTE_NORMAL)
-            && dst.len() == n.len()
+            && attribute_len(&mesh, Mesh::ATTRIBUTE_NORMAL) == Some(n.len())
         {
-            dst.copy_from_slice(&n);
+            let _ = mesh.try_insert_attribute(Mesh::ATTRIBUTE_NORMAL, n);
         }
         if let Some(t) = pose.tangents
-            && let Ok(VertexAttributeValues::Float32x4(dst)) =
-                mesh.try_attribute_mut(Mesh::ATTRIBUTE_TANGENT)
-            && dst.len() == t.len()
+            && attribute_len(&mesh, Mesh::ATTRIBUTE_TANGENT) == Some(t.len())
         {
-            dst.copy_from_slice(&t);
+            let _ = mesh.try_insert_attribute(Mesh::ATTRIBUTE_TANGENT, t);
         }
     }
 }
