@@ -260,8 +260,10 @@ fn main() -> AppExit {
         .init_resource::<Loading>()
         .init_resource::<HistoryRequest>()
         .insert_resource(OrbitCamera {
-            yaw: 0.3,
-            pitch: 0.15,
+            // The demo looks straight at the model so the remote's roll maps onto the task's
+            // rotation axis; interactive sessions start with a three-quarter view.
+            yaw: if demo { 0.0 } else { 0.3 },
+            pitch: if demo { 0.05 } else { 0.15 },
             distance: 3.0,
             focus: Vec3::new(0.0, 0.8, 0.0),
         })
@@ -935,7 +937,8 @@ fn keyboard_shortcuts(
 }
 
 /// `--demo`: once the emulated remote is calibrated it grabs (B), rolls 120° about its
-/// pointing axis over 3 s and moves the handle up with the D-pad — the mannequin waves.
+/// pointing axis over 3 s and moves the handle up and right with the D-pad — the mannequin
+/// waves.
 fn demo_script(
     unattended: Res<Unattended>,
     time: Res<Time>,
@@ -960,7 +963,7 @@ fn demo_script(
         // The emulator's clock started with the app; script the roll in its time.
         let start = now as f64 + 0.5;
         emu.set_motion(std::sync::Arc::new(FnMotion(move |t: f64| {
-            let angle = ((t - start) / 3.0).clamp(0.0, 1.0) * -120f64.to_radians();
+            let angle = ((t - start) / 3.0).clamp(0.0, 1.0) * 120f64.to_radians();
             (glam::DQuat::from_rotation_y(angle), DVec3::ZERO)
         })));
         now
@@ -969,6 +972,9 @@ fn demo_script(
     let mut b = if t > 0.3 { Buttons::B } else { 0 };
     if (0.5..2.0).contains(&t) {
         b |= Buttons::UP;
+    }
+    if (2.0..2.2).contains(&t) {
+        b |= Buttons::RIGHT;
     }
     emu.set_buttons(Buttons(b));
 }
@@ -1036,6 +1042,7 @@ fn unattended_frames(
     mut u: ResMut<Unattended>,
     target: Option<Res<RenderTargetImage>>,
     statuses: Query<&DeformStatus>,
+    sb: Res<Sandbox>,
     mut exit: MessageWriter<AppExit>,
 ) {
     u.frame += 1;
@@ -1052,6 +1059,14 @@ fn unattended_frames(
         return;
     }
     u.requested = true;
+    if let Some(ch) = &sb.challenge {
+        info!(
+            "challenge {}: {:.0}% of the way{}",
+            ch.key,
+            ch.progress.max(0.0) * 100.0,
+            if ch.done.is_some() { " — done" } else { "" }
+        );
+    }
     let check = u.check_not_blank;
     let shot = match target {
         Some(t) => Screenshot::image(t.0.clone()),
