@@ -570,7 +570,7 @@ fn load_pending(
         }
     }
     info!("{}", sb.message);
-    sync_regions(&mut commands, &mut sb, &mut meshes);
+    sync_regions(&mut commands, &mut sb);
 }
 
 /// A yellow cloud: one tiny octahedron per sampled target vertex, in a single mesh.
@@ -609,7 +609,7 @@ fn point_cloud(points: &[DVec3], diagonal: f64) -> Mesh {
 }
 
 /// Pushes the painted selection into FixedRegion / DeformHandle and the vertex colours.
-fn sync_regions(commands: &mut Commands, sb: &mut Sandbox, meshes: &mut Assets<Mesh>) {
+fn sync_regions(commands: &mut Commands, sb: &mut Sandbox) {
     let Some(mesh_entity) = sb.mesh_entity else {
         return;
     };
@@ -644,7 +644,6 @@ fn sync_regions(commands: &mut Commands, sb: &mut Sandbox, meshes: &mut Assets<M
         }
         sb.handle_entity = Some(e.id());
     }
-    let _ = meshes;
 }
 
 fn update_colors(sb: &Sandbox, meshes: &mut Assets<Mesh>, mesh3d: &Mesh3d) {
@@ -761,7 +760,7 @@ fn paint(
     };
     if buttons.just_released(MouseButton::Left) && sb.stroke {
         sb.stroke = false;
-        sync_regions(&mut commands, &mut sb, &mut meshes);
+        sync_regions(&mut commands, &mut sb);
         return;
     }
     let Some(point) = hit.0 else { return };
@@ -925,7 +924,7 @@ fn keyboard_shortcuts(
     let selection_changed = target.selection != sb.selection;
     sb.selection = target.selection;
     if selection_changed {
-        sync_regions(&mut commands, &mut sb, &mut meshes);
+        sync_regions(&mut commands, &mut sb);
         if let Some(m) = sb.mesh_entity.and_then(|e| mesh_q.get(e).ok()) {
             update_colors(&sb, &mut meshes, m);
         }
@@ -1398,7 +1397,7 @@ fn ui_panel(
             });
         });
     if regions_changed {
-        sync_regions(&mut commands, &mut sb, &mut meshes);
+        sync_regions(&mut commands, &mut sb);
         if let Some(m) = sb.mesh_entity.and_then(|e| mesh_q.get(e).ok()) {
             update_colors(&sb, &mut meshes, m);
         }

@@ -50,7 +50,7 @@ pub fn bar_with_vertices(target_vertices: u32) -> TriMesh {
 /// An icosphere of radius `radius` subdivided `subdivisions` times (12, 42, 162, 642, … vertices).
 pub fn icosphere(subdivisions: u32, radius: f64) -> TriMesh {
     let t = (1.0 + 5f64.sqrt()) / 2.0;
-    let mut positions: Vec<DVec3> = [
+    let positions: Vec<DVec3> = [
         (-1.0, t, 0.0),
         (1.0, t, 0.0),
         (-1.0, -t, 0.0),
@@ -67,7 +67,7 @@ pub fn icosphere(subdivisions: u32, radius: f64) -> TriMesh {
     .iter()
     .map(|&(x, y, z)| DVec3::new(x, y, z).normalize())
     .collect();
-    let mut triangles: Vec<[u32; 3]> = vec![
+    let triangles: Vec<[u32; 3]> = vec![
         [0, 11, 5],
         [0, 5, 1],
         [0, 1, 7],
@@ -89,30 +89,20 @@ pub fn icosphere(subdivisions: u32, radius: f64) -> TriMesh {
         [8, 6, 7],
         [9, 8, 1],
     ];
-    for _ in 0..subdivisions {
-        let mut mid = std::collections::HashMap::new();
-        let mut next = Vec::with_capacity(triangles.len() * 4);
-        let mut midpoint = |a: u32, b: u32, positions: &mut Vec<DVec3>| -> u32 {
-            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                positions.push(((positions[a as usize] + positions[b as usize]) * 0.5).normalize());
-                positions.len() as u32 - 1
-            })
-        };
-        for [a, b, c] in triangles {
-            let ab = midpoint(a, b, &mut positions);
-            let bc = midpoint(b, c, &mut positions);
-            let ca = midpoint(c, a, &mut positions);
-            next.extend_from_slice(&[[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
-        }
-        triangles = next;
-    }
-    for p in &mut positions {
-        *p *= radius;
-    }
-    TriMesh {
+    let mut mesh = TriMesh {
         positions,
         triangles,
+    };
+    for _ in 0..subdivisions {
+        mesh = subdivide_midpoint(&mesh);
+        for p in &mut mesh.positions {
+            *p = p.normalize();
+        }
     }
+    for p in &mut mesh.positions {
+        *p *= radius;
+    }
+    mesh
 }
 
 /// Splits every triangle into its own three vertices (like a flat-shaded render mesh).

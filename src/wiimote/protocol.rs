@@ -275,16 +275,14 @@ impl OutputReport {
                 need(7)?;
                 let address = u32::from_be_bytes([0, rest[1], rest[2], rest[3]]);
                 let n = rest[4] as usize;
-                let avail = rest.len().saturating_sub(5).min(16);
-                let data = rest[5..5 + n.min(avail)].to_vec();
-                let space = decode_space(f)?;
-                let mut data = data;
-                if n > 16 || n == 0 {
-                    data.clear();
-                    data.resize(n.min(255), 0);
-                }
+                // An invalid length (0 or > 16) is kept as such so the remote can ignore it.
+                let data = if (1..=16).contains(&n) {
+                    rest[5..(5 + n).min(rest.len())].to_vec()
+                } else {
+                    vec![0; n]
+                };
                 Self::WriteMemory {
-                    space,
+                    space: decode_space(f)?,
                     address,
                     data,
                     rumble,
@@ -302,6 +300,21 @@ impl OutputReport {
             0x18 => Self::SpeakerData,
             other => return Err(ProtocolError::UnknownReport(other)),
         })
+    }
+
+    /// The same report carrying `rumble` (the motor bit rides in every output report).
+    pub fn with_rumble(mut self, on: bool) -> Self {
+        match &mut self {
+            Self::Rumble { rumble }
+            | Self::Leds { rumble, .. }
+            | Self::ReportMode { rumble, .. }
+            | Self::Flag { rumble, .. }
+            | Self::StatusRequest { rumble }
+            | Self::WriteMemory { rumble, .. }
+            | Self::ReadMemory { rumble, .. } => *rumble = on,
+            Self::SpeakerData => {}
+        }
+        self
     }
 
     /// A one-byte register write at `address` (24-bit `0xA400F0` notation).

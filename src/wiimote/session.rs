@@ -320,57 +320,6 @@ impl<T: Transport> Session<T> {
         })
     }
 
-    fn with_rumble(&self, r: OutputReport) -> OutputReport {
-        let rumble = self.rumble;
-        match r {
-            OutputReport::Rumble { .. } => OutputReport::Rumble { rumble },
-            OutputReport::Leds { leds, ack, .. } => OutputReport::Leds { leds, ack, rumble },
-            OutputReport::ReportMode {
-                mode,
-                continuous,
-                ack,
-                ..
-            } => OutputReport::ReportMode {
-                mode,
-                continuous,
-                ack,
-                rumble,
-            },
-            OutputReport::Flag {
-                id, enable, ack, ..
-            } => OutputReport::Flag {
-                id,
-                enable,
-                ack,
-                rumble,
-            },
-            OutputReport::StatusRequest { .. } => OutputReport::StatusRequest { rumble },
-            OutputReport::WriteMemory {
-                space,
-                address,
-                data,
-                ..
-            } => OutputReport::WriteMemory {
-                space,
-                address,
-                data,
-                rumble,
-            },
-            OutputReport::ReadMemory {
-                space,
-                address,
-                size,
-                ..
-            } => OutputReport::ReadMemory {
-                space,
-                address,
-                size,
-                rumble,
-            },
-            OutputReport::SpeakerData => OutputReport::SpeakerData,
-        }
-    }
-
     /// Writes one report, honouring the write spacing; never waits for an answer.
     fn write(&mut self, report: OutputReport) -> Result<(), SessionError> {
         if let Some(last) = self.last_write_us {
@@ -380,7 +329,7 @@ impl<T: Transport> Session<T> {
                 self.pump(ms)?;
             }
         }
-        let bytes = self.with_rumble(report).encode();
+        let bytes = report.with_rumble(self.rumble).encode();
         self.transport.write(&bytes)?;
         self.last_write_us = Some(self.now());
         Ok(())
