@@ -6,26 +6,12 @@ use std::sync::Arc;
 
 use bevy_wii_deform::deform::*;
 use criterion::{Criterion, criterion_group, criterion_main};
-use glam::{DQuat, DVec3};
+use glam::DVec3;
 
 fn problem(mesh: &TriMesh) -> (Arc<Topology>, Constraints) {
     let topology = Arc::new(Topology::new(&mesh.positions, &mesh.triangles).unwrap());
-    let (fixed, handle) = synth::slab_regions(topology.positions(), 1, 0.1, 0.1);
-    let pivot = handle
-        .iter()
-        .map(|&i| topology.positions()[i as usize])
-        .sum::<DVec3>()
-        / handle.len() as f64;
     let shift = 0.15 * topology.bounding_diagonal();
-    let c = Constraints::with_handle(
-        fixed,
-        handle,
-        RigidTransform::new(
-            DQuat::from_rotation_z(0.6),
-            DVec3::new(shift, 0.0, 0.0),
-            pivot,
-        ),
-    );
+    let c = synth::bend_problem(topology.positions(), 0.6, DVec3::new(shift, 0.0, 0.0));
     (topology, c)
 }
 
@@ -64,6 +50,7 @@ fn bench(c: &mut Criterion) {
                 &SolveOptions {
                     max_iterations: 3,
                     tolerance: 0.0,
+                    ..Default::default()
                 },
                 InitialGuess::Laplacian,
                 &never,
@@ -78,6 +65,7 @@ fn bench(c: &mut Criterion) {
                             &SolveOptions {
                                 max_iterations: iters,
                                 tolerance: 0.0,
+                                ..Default::default()
                             },
                             InitialGuess::Warm(&warm),
                             &never,

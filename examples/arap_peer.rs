@@ -102,6 +102,7 @@ fn run() -> Result<(), String> {
     let options = SolveOptions {
         max_iterations: iters,
         tolerance: 0.0,
+        ..Default::default()
     };
     let (mut pre, mut sol_s) = (Vec::new(), Vec::new());
     let mut last = None;

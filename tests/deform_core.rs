@@ -10,21 +10,7 @@ fn topo(mesh: &TriMesh) -> Arc<Topology> {
 }
 
 fn bend_problem(topology: &Topology, angle: f64) -> Constraints {
-    let (fixed, handle) = synth::slab_regions(topology.positions(), 1, 0.1, 0.1);
-    let pivot = handle
-        .iter()
-        .map(|&i| topology.positions()[i as usize])
-        .sum::<DVec3>()
-        / handle.len() as f64;
-    Constraints::with_handle(
-        fixed,
-        handle,
-        RigidTransform::new(
-            DQuat::from_rotation_z(angle),
-            DVec3::new(0.3, -0.1, 0.05),
-            pivot,
-        ),
-    )
+    synth::bend_problem(topology.positions(), angle, DVec3::new(0.3, -0.1, 0.05))
 }
 
 const NEVER: &dyn Fn() -> bool = &|| false;
@@ -59,6 +45,7 @@ fn one_rigid_transform_everywhere_reproduces_it() {
     let options = SolveOptions {
         max_iterations: 200,
         tolerance: 0.0,
+        ..Default::default()
     };
     let sol = solver
         .solve(&constraints, &options, InitialGuess::Laplacian, NEVER)
@@ -89,6 +76,7 @@ fn energy_never_increases_across_iterations() {
                     &SolveOptions {
                         max_iterations: 30,
                         tolerance: 0.0,
+                        ..Default::default()
                     },
                     init,
                     NEVER,
@@ -223,6 +211,8 @@ fn matches_dense_reference_solve() {
             &SolveOptions {
                 max_iterations: iterations as u32,
                 tolerance: 0.0,
+                // The reference is the plain local/global map.
+                anderson_depth: 0,
             },
             InitialGuess::Rest,
             NEVER,
@@ -422,23 +412,36 @@ fn degenerate_triangles_never_produce_nan() {
 #[test]
 fn warm_start_reuses_factorization_and_converges_closer() {
     let t = topo(&synth::bar(16, 40, 0.1, 1.0));
-    let mut c = bend_problem(&t, 0.0);
-    let solver = ArapSolver::precompute(t.clone(), &c, SolverSettings::default()).unwrap();
-    let opts = SolveOptions {
+    let c0 = bend_problem(&t, 0.0);
+    let solver = ArapSolver::precompute(t.clone(), &c0, SolverSettings::default()).unwrap();
+    // A 30-frame drag, 3 iterations a frame, warm-started, with and without acceleration.
+    let drag = |anderson_depth| {
+        let opts = SolveOptions {
+            max_iterations: 3,
+            tolerance: 0.0,
+            anderson_depth,
+        };
+        let mut c = c0.clone();
+        let mut warm = solver
+            .solve(&c, &opts, InitialGuess::Laplacian, NEVER)
+            .unwrap();
+        for k in 1..=30 {
+            c.handles[0].transform.rotation = DQuat::from_rotation_z(0.04 * k as f64);
+            warm = solver
+                .solve(&c, &opts, InitialGuess::Warm(&warm), NEVER)
+                .unwrap();
+        }
+        (c, arap_energy(&t, &warm.positions))
+    };
+    let (c, warm_plain) = drag(0);
+    let (_, warm_accelerated) = drag(3);
+    let plain = SolveOptions {
         max_iterations: 3,
         tolerance: 0.0,
+        anderson_depth: 0,
     };
-    let mut warm = solver
-        .solve(&c, &opts, InitialGuess::Laplacian, NEVER)
-        .unwrap();
-    for k in 1..=30 {
-        c.handles[0].transform.rotation = DQuat::from_rotation_z(0.04 * k as f64);
-        warm = solver
-            .solve(&c, &opts, InitialGuess::Warm(&warm), NEVER)
-            .unwrap();
-    }
     let cold = solver
-        .solve(&c, &opts, InitialGuess::Laplacian, NEVER)
+        .solve(&c, &plain, InitialGuess::Laplacian, NEVER)
         .unwrap();
     let converged = solver
         .solve(
@@ -446,17 +449,56 @@ fn warm_start_reuses_factorization_and_converges_closer() {
             &SolveOptions {
                 max_iterations: 500,
                 tolerance: 1e-10,
+                ..Default::default()
             },
             InitialGuess::Laplacian,
             NEVER,
         )
         .unwrap();
-    let (ew, ec, e0) = (
-        arap_energy(&t, &warm.positions),
+    let (ec, e0) = (
         arap_energy(&t, &cold.positions),
         arap_energy(&t, &converged.positions),
     );
-    assert!(ew < ec, "warm {ew} should beat cold {ec} (converged {e0})");
+    assert!(
+        warm_plain < ec,
+        "warm {warm_plain} should beat cold {ec} (converged {e0})"
+    );
+    // Three iterations a frame leave acceleration little history to work with: it must at
+    // least never make the drag worse.
+    assert!(
+        warm_accelerated <= warm_plain * (1.0 + 1e-9),
+        "acceleration {warm_accelerated} worse than plain {warm_plain} in a drag"
+    );
+}
+
+#[test]
+fn anderson_acceleration_lowers_the_energy_at_equal_iterations() {
+    let t = topo(&synth::bar(16, 60, 0.1, 1.0));
+    let c = bend_problem(&t, 1.2);
+    let solver = ArapSolver::precompute(t.clone(), &c, SolverSettings::default()).unwrap();
+    let run = |anderson_depth| {
+        let s = solver
+            .solve(
+                &c,
+                &SolveOptions {
+                    max_iterations: 10,
+                    tolerance: 0.0,
+                    anderson_depth,
+                },
+                InitialGuess::Laplacian,
+                NEVER,
+            )
+            .unwrap();
+        for w in s.stats.energies.windows(2) {
+            assert!(w[1] <= w[0] * (1.0 + 1e-12), "energy rose {w:?}");
+        }
+        arap_energy(&t, &s.positions)
+    };
+    let (plain, accelerated) = (run(0), run(3));
+    assert!(
+        accelerated < 0.99 * plain,
+        "accelerated {accelerated} vs plain {plain}"
+    );
 }
 
 #[test]
@@ -489,32 +531,44 @@ fn region_of_interest_keeps_outside_at_rest() {
 }
 
 #[test]
-fn factorization_variants_agree() {
+fn factorization_variants_and_orderings_agree() {
     let t = topo(&synth::bar(20, 50, 0.1, 1.0));
     let c = bend_problem(&t, 0.7);
     let opts = SolveOptions {
         max_iterations: 4,
         tolerance: 0.0,
+        ..Default::default()
     };
-    let run = |f| {
+    let run = |factorization, ordering| {
         let s = SolverSettings {
-            factorization: f,
+            factorization,
+            ordering,
             ..Default::default()
         };
-        ArapSolver::precompute(t.clone(), &c, s)
-            .unwrap()
+        let solver = ArapSolver::precompute(t.clone(), &c, s).unwrap();
+        let parallel = solver.precompute_stats().parallel_solves;
+        let positions = solver
             .solve(&c, &opts, InitialGuess::Laplacian, NEVER)
             .unwrap()
-            .positions
+            .positions;
+        (positions, parallel)
     };
-    let a = run(Factorization::Simplicial);
-    let b = run(Factorization::Supernodal);
-    let d = a
-        .iter()
-        .zip(&b)
-        .map(|(x, y)| (*x - *y).length())
-        .fold(0.0, f64::max);
-    assert!(d < 1e-9, "{d}");
+    let (a, split) = run(Factorization::Simplicial, FillOrdering::Halves);
+    assert!(split, "a 1000-vertex bar is cut into two halves");
+    for (f, o) in [
+        (Factorization::Supernodal, FillOrdering::Halves),
+        (Factorization::Simplicial, FillOrdering::MinimumDegree),
+        (Factorization::Supernodal, FillOrdering::MinimumDegree),
+    ] {
+        let (b, parallel) = run(f, o);
+        assert_eq!(parallel, o == FillOrdering::Halves);
+        let d = a
+            .iter()
+            .zip(&b)
+            .map(|(x, y)| (*x - *y).length())
+            .fold(0.0, f64::max);
+        assert!(d < 1e-9, "{f:?} {o:?}: {d}");
+    }
 }
 
 #[test]

@@ -121,6 +121,7 @@ fn moved_handle_matches_the_core_solver() {
     let opts = SolveOptions {
         max_iterations: 5,
         tolerance: 0.0,
+        ..Default::default()
     };
     let first = solver
         .solve(&c, &opts, InitialGuess::Laplacian, &|| false)

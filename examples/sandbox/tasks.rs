@@ -166,6 +166,7 @@ impl Task {
                 &SolveOptions {
                     max_iterations: 60,
                     tolerance: 1e-5,
+                    ..Default::default()
                 },
                 InitialGuess::Laplacian,
                 &|| false,

@@ -21,9 +21,12 @@
 //! assert!(next.positions.iter().all(|p| p.is_finite()));
 //! ```
 
+mod anderson;
 mod constraints;
 mod energy;
+mod factor;
 mod io;
+mod ordering;
 mod rotation;
 mod solver;
 pub mod synth;
@@ -34,7 +37,7 @@ pub use energy::arap_energy;
 pub use io::{MeshIoError, TriMesh};
 pub use rotation::{best_rotation_exact, fit_rotation_warm};
 pub use solver::{
-    ArapSolver, Factorization, InitialGuess, PrecomputeStats, Solution, SolveError, SolveOptions,
-    SolveStats, SolverSettings,
+    ArapSolver, Factorization, FillOrdering, InitialGuess, PrecomputeStats, Solution, SolveError,
+    SolveOptions, SolveStats, SolverSettings,
 };
 pub use topology::{MeshError, Topology, WeightMode};

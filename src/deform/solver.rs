@@ -5,17 +5,21 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::perm::PermRef;
 use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::linalg::cholesky::{
-    CholeskySymbolicParams, LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
+    CholeskySymbolicParams, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
     factorize_symbolic_cholesky,
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
-use faer::{Conj, Mat, Par, Side};
+use faer::{Par, Side};
 use glam::{DMat3, DQuat, DVec3};
 use rayon::prelude::*;
 
+use super::anderson::Anderson;
 use super::constraints::{ConstraintError, Constraints, Role};
+use super::factor::LowerFactor;
+use super::ordering::{dissect, spatial_order};
 use super::rotation::{add_outer, fit_rotation_warm};
 use super::topology::{MeshError, Topology, WeightMode};
 
@@ -31,6 +35,18 @@ pub enum Factorization {
     Supernodal,
 }
 
+/// Fill-reducing elimination order of the free vertices.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum FillOrdering {
+    /// One geometric cut into two independent halves, each ordered by approximate minimum
+    /// degree (default): about the fill of minimum degree, and the triangular solves run on
+    /// two threads.
+    #[default]
+    Halves,
+    /// faer's approximate minimum degree; the solves run on one thread.
+    MinimumDegree,
+}
+
 /// Settings fixed for the lifetime of a factorization.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SolverSettings {
@@ -39,8 +55,11 @@ pub struct SolverSettings {
     /// Optional region of interest (one flag per welded vertex). Vertices outside it are not
     /// unknowns: they stay at their rest position, which keeps the system small on big meshes.
     pub region_of_interest: Option<Vec<bool>>,
-    /// Cholesky variant.
+    /// Cholesky variant (affects the factorization time only: the iterations always solve
+    /// with the factor copied to compressed columns).
     pub factorization: Factorization,
+    /// Fill-reducing ordering.
+    pub ordering: FillOrdering,
 }
 
 /// Per-solve options.
@@ -50,6 +69,11 @@ pub struct SolveOptions {
     pub max_iterations: u32,
     /// Stop when the relative energy decrease of one iteration falls below this (0 = never).
     pub tolerance: f64,
+    /// Anderson acceleration of the local/global iteration: how many previous iterates it
+    /// combines (0 = plain local/global). Every accelerated iterate is checked against the
+    /// energy and replaced by the plain one when it is not lower, so the energy still never
+    /// rises.
+    pub anderson_depth: usize,
 }
 
 impl Default for SolveOptions {
@@ -57,6 +81,7 @@ impl Default for SolveOptions {
         Self {
             max_iterations: 10,
             tolerance: 1e-3,
+            anderson_depth: 3,
         }
     }
 }
@@ -115,14 +140,17 @@ pub struct PrecomputeStats {
     pub unconstrained_component_vertices: usize,
     /// Whether faer chose (or was told to use) the supernodal variant.
     pub supernodal: bool,
-    /// Non-zeros of the Cholesky factor.
+    /// Non-zeros of the Cholesky factor as the iterations store it.
     pub factor_nonzeros: usize,
     /// Seconds assembling the matrices.
     pub assembly_s: f64,
     /// Seconds in ordering + symbolic factorization.
     pub symbolic_s: f64,
-    /// Seconds in the two numeric factorizations.
+    /// Seconds in the two numeric factorizations (and copying them to the solve layout).
     pub numeric_s: f64,
+    /// Whether the triangular solves run on two threads (independent halves in the
+    /// elimination order).
+    pub parallel_solves: bool,
 }
 
 /// Statistics of one solve.
@@ -142,6 +170,11 @@ pub struct SolveStats {
     pub rhs_s: f64,
     /// Seconds in triangular solves.
     pub global_s: f64,
+    /// Seconds extrapolating (Anderson acceleration).
+    pub acceleration_s: f64,
+    /// Extrapolated iterates that did not lower the energy and were replaced by the plain
+    /// local/global step (each costs one extra local step).
+    pub rejected_extrapolations: u32,
     /// Total seconds.
     pub total_s: f64,
     /// The cancel callback stopped the iterations early (the result is the last completed
@@ -197,17 +230,18 @@ pub struct ArapSolver {
     topology: Arc<Topology>,
     settings: SolverSettings,
     constraints: Constraints,
+    /// The mesh in the solver's memory order; every per-vertex array below follows it.
+    layout: Layout,
     roles: Vec<Role>,
-    weights: Vec<f64>,
     weighted_rest_sum: Vec<DVec3>,
     cell_rest_sq: Vec<f64>,
     rest_norm: f64,
+    /// Free vertices in elimination order.
     free: Vec<u32>,
     free_index: Vec<u32>,
     active: Vec<bool>,
-    symbolic: Option<SymbolicCholesky<u32>>,
-    cot_factor: Vec<f64>,
-    uniform_factor: Vec<f64>,
+    cot_factor: LowerFactor,
+    uniform_factor: LowerFactor,
     stats: PrecomputeStats,
 }
 
@@ -246,10 +280,15 @@ impl ArapSolver {
                 }
             }
         }
-        let weights = topology.weights(settings.weights);
-        let offsets = topology.offsets();
-        let nbrs = topology.neighbor_list();
-        let p = topology.positions();
+        let layout = Layout::new(&topology, &topology.weights(settings.weights));
+        let roles: Vec<Role> = layout
+            .to_welded
+            .iter()
+            .map(|&w| roles[w as usize])
+            .collect();
+        let mut roles = roles;
+        let (offsets, nbrs) = (&layout.offsets[..], &layout.nbrs[..]);
+        let (weights, p) = (&layout.weights[..], &layout.rest[..]);
 
         // Pin free components with no (non-zero weight) path to a constrained vertex.
         let mut pinned = 0usize;
@@ -289,7 +328,7 @@ impl ArapSolver {
         }
 
         let mut free_index = vec![NOT_FREE; n];
-        let free: Vec<u32> = (0..n as u32)
+        let mut free: Vec<u32> = (0..n as u32)
             .filter(|&i| roles[i as usize] == Role::Free)
             .collect();
         for (f, &i) in free.iter().enumerate() {
@@ -313,13 +352,17 @@ impl ArapSolver {
         }
         let rest_norm: f64 = cell_rest_sq.iter().sum();
 
-        // Lower-triangular CSC of the free×free block (same pattern for both systems).
+        // Lower-triangular CSC of the free×free block (same pattern for both systems) and the
+        // free-vertex graph for the ordering.
         let nf = free.len();
         let mut col_ptr = Vec::with_capacity(nf + 1);
         let mut row_idx = Vec::new();
         let mut cot_vals = Vec::new();
         let mut uni_vals = Vec::new();
+        let mut graph_offsets = Vec::with_capacity(nf + 1);
+        let mut graph = Vec::new();
         col_ptr.push(0u32);
+        graph_offsets.push(0u32);
         for (f, &i) in free.iter().enumerate() {
             let i = i as usize;
             let range = offsets[i] as usize..offsets[i + 1] as usize;
@@ -328,13 +371,18 @@ impl ArapSolver {
             uni_vals.push(range.len() as f64);
             for e in range {
                 let fj = free_index[nbrs[e] as usize];
-                if fj != NOT_FREE && fj as usize > f {
+                if fj == NOT_FREE {
+                    continue;
+                }
+                graph.push(fj);
+                if fj as usize > f {
                     row_idx.push(fj);
                     cot_vals.push(-weights[e]);
                     uni_vals.push(-1.0);
                 }
             }
             col_ptr.push(row_idx.len() as u32);
+            graph_offsets.push(graph.len() as u32);
         }
         let assembly_s = t0.elapsed().as_secs_f64();
 
@@ -344,10 +392,26 @@ impl ArapSolver {
             assembly_s,
             ..Default::default()
         };
-        let (symbolic, cot_factor, uniform_factor) = if nf == 0 {
-            (None, Vec::new(), Vec::new())
+        let (cot_factor, uniform_factor) = if nf == 0 {
+            (LowerFactor::default(), LowerFactor::default())
         } else {
             let t1 = Instant::now();
+            let (dissection, inverse) = match settings.ordering {
+                FillOrdering::Halves => {
+                    let coords: Vec<DVec3> = free.iter().map(|&i| p[i as usize]).collect();
+                    let d = dissect(&graph_offsets, &graph, &coords);
+                    let mut inverse = vec![0u32; nf];
+                    for (k, &f) in d.order.iter().enumerate() {
+                        inverse[f as usize] = k as u32;
+                    }
+                    (Some(d), inverse)
+                }
+                FillOrdering::MinimumDegree => (None, Vec::new()),
+            };
+            let ordering = match &dissection {
+                Some(d) => SymmetricOrdering::Custom(PermRef::new_checked(&d.order, &inverse, nf)),
+                None => SymmetricOrdering::Amd,
+            };
             let pattern = SymbolicSparseColMatRef::new_checked(nf, nf, &col_ptr, None, &row_idx);
             let threshold = match settings.factorization {
                 Factorization::Auto => SupernodalThreshold::AUTO,
@@ -357,7 +421,7 @@ impl ArapSolver {
             let symbolic = factorize_symbolic_cholesky(
                 pattern,
                 Side::Lower,
-                SymmetricOrdering::Amd,
+                ordering,
                 CholeskySymbolicParams {
                     supernodal_flop_ratio_threshold: threshold,
                     ..Default::default()
@@ -366,14 +430,25 @@ impl ArapSolver {
             .map_err(|e| SolveError::Factorization(format!("{e:?}")))?;
             stats.symbolic_s = t1.elapsed().as_secs_f64();
             stats.supernodal = matches!(symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_));
-            stats.factor_nonzeros = symbolic.len_val();
+            // The solves work in elimination order: reorder the free list to match.
+            if let Some(perm) = symbolic.perm() {
+                let (forward, _) = perm.arrays();
+                free = forward.iter().map(|&f| free[f as usize]).collect();
+                for (k, &i) in free.iter().enumerate() {
+                    free_index[i as usize] = k as u32;
+                }
+            }
+            let split = dissection.and_then(|d| d.split);
             let t2 = Instant::now();
             let (cot, uni) = rayon::join(
-                || numeric(&symbolic, pattern, &cot_vals),
-                || numeric(&symbolic, pattern, &uni_vals),
+                || numeric(&symbolic, pattern, &cot_vals, split),
+                || numeric(&symbolic, pattern, &uni_vals, split),
             );
             stats.numeric_s = t2.elapsed().as_secs_f64();
-            (Some(symbolic), cot?, uni?)
+            let cot = cot?;
+            stats.parallel_solves = cot.is_split();
+            stats.factor_nonzeros = cot.nonzeros();
+            (cot, uni?)
         };
 
         Ok(Self {
@@ -381,14 +456,13 @@ impl ArapSolver {
             settings,
             constraints: constraints.clone(),
             roles,
-            weights,
+            layout,
             weighted_rest_sum,
             cell_rest_sq,
             rest_norm,
             free,
             free_index,
             active,
-            symbolic,
             cot_factor,
             uniform_factor,
             stats,
@@ -431,9 +505,9 @@ impl ArapSolver {
             return Err(SolveError::ConstraintSetChanged);
         }
         constraints.check_values()?;
-        let topo = &*self.topology;
-        let n = topo.vertex_count();
-        let rest = topo.positions();
+        let layout = &self.layout;
+        let n = layout.rest.len();
+        let rest = &layout.rest[..];
         let mut stats = SolveStats::default();
 
         // Known positions; free ones start at rest (overwritten by the initial guess).
@@ -445,7 +519,7 @@ impl ArapSolver {
                         expected: n,
                     });
                 }
-                prev.positions.clone()
+                layout.gather(&prev.positions)
             }
             _ => rest.to_vec(),
         };
@@ -456,15 +530,11 @@ impl ArapSolver {
             }
         }
         let mut quats = match initial {
-            InitialGuess::Warm(prev) => prev.rotations.clone(),
+            InitialGuess::Warm(prev) => layout.gather(&prev.rotations),
             _ => vec![DQuat::IDENTITY; n],
         };
         let mut mats: Vec<DMat3> = quats.par_iter().map(|q| DMat3::from_quat(*q)).collect();
-        let mut rhs = Mat::<f64>::zeros(self.free.len(), 3);
-        let mut mem = self
-            .symbolic
-            .as_ref()
-            .map(|s| MemBuffer::new(s.solve_in_place_scratch::<f64>(3, Par::Seq)));
+        let mut rhs = vec![DVec3::ZERO; self.free.len()];
 
         // Inactive cells (no free vertex in the one-ring) never change during the solve.
         let tl = Instant::now();
@@ -476,7 +546,7 @@ impl ArapSolver {
         match initial {
             InitialGuess::Laplacian if !self.free.is_empty() => {
                 self.uniform_rhs(&x, &mut rhs);
-                self.back_substitute(&self.uniform_factor, &mut rhs, mem.as_mut(), &mut x);
+                self.back_substitute(&self.uniform_factor, &mut rhs, &mut x);
             }
             _ => {}
         }
@@ -490,6 +560,9 @@ impl ArapSolver {
             prev_energy = Some(e);
         }
 
+        let mut anderson =
+            (options.anderson_depth > 0).then(|| Anderson::new(options.anderson_depth));
+        let (mut proposal, mut current) = (Vec::new(), Vec::new());
         if !self.free.is_empty() {
             for _ in 0..options.max_iterations {
                 if should_cancel() {
@@ -502,12 +575,42 @@ impl ArapSolver {
                 let tr = Instant::now();
                 self.arap_rhs(&x, &mats, &mut rhs);
                 let tg = Instant::now();
-                self.back_substitute(&self.cot_factor, &mut rhs, mem.as_mut(), &mut x);
-                let tl = Instant::now();
-                let e = (constant_energy + self.local_step(&x, &mut quats, &mut mats, true))
-                    / self.rest_norm.max(f64::MIN_POSITIVE);
+                self.cot_factor.solve_in_place(&mut rhs);
                 stats.rhs_s += (tg - tr).as_secs_f64();
-                stats.global_s += (tl - tg).as_secs_f64();
+                stats.global_s += tg.elapsed().as_secs_f64();
+                // `rhs` now holds G(y): the plain next iterate.
+                let ta = Instant::now();
+                let extrapolated = match anderson.as_mut() {
+                    Some(aa) if prev_energy.is_some() => {
+                        current.clear();
+                        current.extend(self.free.iter().map(|&i| x[i as usize]));
+                        aa.extrapolate(&current, &rhs, &mut proposal)
+                    }
+                    _ => false,
+                };
+                stats.acceleration_s += ta.elapsed().as_secs_f64();
+                let norm = self.rest_norm.max(f64::MIN_POSITIVE);
+                let tl = Instant::now();
+                let mut e = f64::INFINITY;
+                if extrapolated {
+                    self.write_free(&proposal, &mut x);
+                    e = (constant_energy + self.local_step(&x, &mut quats, &mut mats, true)) / norm;
+                }
+                // An extrapolation must lower the energy; otherwise take the plain step,
+                // which never raises it.
+                if !extrapolated
+                    || prev_energy
+                        .is_none_or(|pe| e.partial_cmp(&pe) != Some(std::cmp::Ordering::Less))
+                {
+                    if extrapolated {
+                        stats.rejected_extrapolations += 1;
+                        if let Some(aa) = anderson.as_mut() {
+                            aa.reset();
+                        }
+                    }
+                    self.write_free(&rhs, &mut x);
+                    e = (constant_energy + self.local_step(&x, &mut quats, &mut mats, true)) / norm;
+                }
                 stats.local_s += tl.elapsed().as_secs_f64();
                 stats.iterations += 1;
                 stats.energies.push(e);
@@ -530,8 +633,8 @@ impl ArapSolver {
         }
         stats.total_s = t0.elapsed().as_secs_f64();
         Ok(Solution {
-            positions: x,
-            rotations: quats,
+            positions: layout.scatter(&x),
+            rotations: layout.scatter(&quats),
             stats,
         })
     }
@@ -546,10 +649,8 @@ impl ArapSolver {
         mats: &mut [DMat3],
         active: bool,
     ) -> f64 {
-        let topo = &*self.topology;
-        let rest = topo.positions();
-        let offsets = topo.offsets();
-        let nbrs = topo.neighbor_list();
+        let layout = &self.layout;
+        let (rest, offsets, nbrs) = (&layout.rest, &layout.offsets, &layout.nbrs);
         quats
             .par_chunks_mut(CHUNK)
             .zip(mats.par_chunks_mut(CHUNK))
@@ -564,7 +665,7 @@ impl ArapSolver {
                     let mut a = DMat3::ZERO;
                     let mut sq = 0.0;
                     for e in offsets[i] as usize..offsets[i + 1] as usize {
-                        let w = self.weights[e];
+                        let w = layout.weights[e];
                         if w == 0.0 {
                             continue;
                         }
@@ -589,43 +690,35 @@ impl ArapSolver {
 
     /// `b_i = Σ_j (w_ij/2)(R_i + R_j)(p_i − p_j) + Σ_{j known} w_ij x_j`.
     #[allow(clippy::needless_range_loop)] // CSR rows: `e` indexes weights and neighbours alike
-    fn arap_rhs(&self, x: &[DVec3], mats: &[DMat3], rhs: &mut Mat<f64>) {
-        let topo = &*self.topology;
-        let rest = topo.positions();
-        let offsets = topo.offsets();
-        let nbrs = topo.neighbor_list();
-        let b: Vec<DVec3> = self
-            .free
-            .par_iter()
+    fn arap_rhs(&self, x: &[DVec3], mats: &[DMat3], rhs: &mut [DVec3]) {
+        let layout = &self.layout;
+        let (rest, offsets, nbrs) = (&layout.rest, &layout.offsets, &layout.nbrs);
+        rhs.par_iter_mut()
+            .zip(self.free.par_iter())
             .with_min_len(CHUNK)
-            .map(|&i| {
+            .for_each(|(out, &i)| {
                 let i = i as usize;
                 let mut b = 0.5 * (mats[i] * self.weighted_rest_sum[i]);
                 for e in offsets[i] as usize..offsets[i + 1] as usize {
-                    let w = self.weights[e];
+                    let w = layout.weights[e];
                     let j = nbrs[e] as usize;
                     b += (0.5 * w) * (mats[j] * (rest[i] - rest[j]));
                     if self.free_index[j] == NOT_FREE {
                         b += w * x[j];
                     }
                 }
-                b
-            })
-            .collect();
-        write_columns(&b, rhs);
+                *out = b;
+            });
     }
 
     /// Uniform Laplacian right-hand side `deg_i p_i − Σ_j p_j + Σ_{j known} x_j`.
-    fn uniform_rhs(&self, x: &[DVec3], rhs: &mut Mat<f64>) {
-        let topo = &*self.topology;
-        let rest = topo.positions();
-        let offsets = topo.offsets();
-        let nbrs = topo.neighbor_list();
-        let b: Vec<DVec3> = self
-            .free
-            .par_iter()
+    fn uniform_rhs(&self, x: &[DVec3], rhs: &mut [DVec3]) {
+        let layout = &self.layout;
+        let (rest, offsets, nbrs) = (&layout.rest, &layout.offsets, &layout.nbrs);
+        rhs.par_iter_mut()
+            .zip(self.free.par_iter())
             .with_min_len(CHUNK)
-            .map(|&i| {
+            .for_each(|(out, &i)| {
                 let i = i as usize;
                 let range = offsets[i] as usize..offsets[i + 1] as usize;
                 let mut b = range.len() as f64 * rest[i];
@@ -636,45 +729,85 @@ impl ArapSolver {
                         b += x[j];
                     }
                 }
-                b
-            })
-            .collect();
-        write_columns(&b, rhs);
+                *out = b;
+            });
     }
 
-    fn back_substitute(
-        &self,
-        factor: &[f64],
-        rhs: &mut Mat<f64>,
-        mem: Option<&mut MemBuffer>,
-        x: &mut [DVec3],
-    ) {
-        let (Some(symbolic), Some(mem)) = (self.symbolic.as_ref(), mem) else {
-            return;
-        };
-        LltRef::new(symbolic, factor).solve_in_place_with_conj(
-            Conj::No,
-            rhs.as_mut(),
-            Par::Seq,
-            MemStack::new(mem),
-        );
-        let (c0, c1, c2) = (
-            rhs.col_as_slice(0),
-            rhs.col_as_slice(1),
-            rhs.col_as_slice(2),
-        );
-        for (f, &i) in self.free.iter().enumerate() {
-            x[i as usize] = DVec3::new(c0[f], c1[f], c2[f]);
+    fn back_substitute(&self, factor: &LowerFactor, rhs: &mut [DVec3], x: &mut [DVec3]) {
+        factor.solve_in_place(rhs);
+        self.write_free(rhs, x);
+    }
+
+    /// Writes free positions given in elimination order into `x`.
+    fn write_free(&self, free_positions: &[DVec3], x: &mut [DVec3]) {
+        for (&i, v) in self.free.iter().zip(free_positions) {
+            x[i as usize] = *v;
         }
     }
 }
 
-fn write_columns(b: &[DVec3], rhs: &mut Mat<f64>) {
-    for c in 0..3 {
-        let col = rhs.col_as_slice_mut(c);
-        for (dst, v) in col.iter_mut().zip(b) {
-            *dst = v[c];
+/// The mesh renumbered in a spatial (k-d tree) order, so the neighbours a local step or a
+/// right-hand side reads sit close in memory: on meshes whose file order is scattered
+/// (subdivided, edited) this halves the time of those steps.
+#[derive(Debug, Clone)]
+struct Layout {
+    /// Solver index → welded index.
+    to_welded: Vec<u32>,
+    offsets: Vec<u32>,
+    nbrs: Vec<u32>,
+    weights: Vec<f64>,
+    rest: Vec<DVec3>,
+}
+
+impl Layout {
+    fn new(topology: &Topology, weights: &[f64]) -> Self {
+        let to_welded = spatial_order(topology.positions());
+        let mut to_solver = vec![0u32; to_welded.len()];
+        for (k, &w) in to_welded.iter().enumerate() {
+            to_solver[w as usize] = k as u32;
         }
+        let (offsets_w, nbrs_w) = (topology.offsets(), topology.neighbor_list());
+        let mut offsets = Vec::with_capacity(to_welded.len() + 1);
+        let mut nbrs = Vec::with_capacity(nbrs_w.len());
+        let mut new_weights = Vec::with_capacity(nbrs_w.len());
+        offsets.push(0u32);
+        let mut row = Vec::new();
+        for &w in &to_welded {
+            row.clear();
+            for e in offsets_w[w as usize] as usize..offsets_w[w as usize + 1] as usize {
+                row.push((to_solver[nbrs_w[e] as usize], weights[e]));
+            }
+            // Sorted rows: faer wants sorted column patterns.
+            row.sort_unstable_by_key(|&(j, _)| j);
+            nbrs.extend(row.iter().map(|&(j, _)| j));
+            new_weights.extend(row.iter().map(|&(_, wt)| wt));
+            offsets.push(nbrs.len() as u32);
+        }
+        let rest = to_welded
+            .iter()
+            .map(|&w| topology.positions()[w as usize])
+            .collect();
+        Self {
+            to_welded,
+            offsets,
+            nbrs,
+            weights: new_weights,
+            rest,
+        }
+    }
+
+    /// Welded order → solver order.
+    fn gather<T: Copy>(&self, welded: &[T]) -> Vec<T> {
+        self.to_welded.iter().map(|&w| welded[w as usize]).collect()
+    }
+
+    /// Solver order → welded order.
+    fn scatter<T: Copy + Default>(&self, solver: &[T]) -> Vec<T> {
+        let mut out = vec![T::default(); solver.len()];
+        for (&w, &v) in self.to_welded.iter().zip(solver) {
+            out[w as usize] = v;
+        }
+        out
     }
 }
 
@@ -682,7 +815,8 @@ fn numeric(
     symbolic: &SymbolicCholesky<u32>,
     pattern: SymbolicSparseColMatRef<'_, u32>,
     values: &[f64],
-) -> Result<Vec<f64>, SolveError> {
+    split: Option<(usize, usize)>,
+) -> Result<LowerFactor, SolveError> {
     let mut factor = vec![0.0f64; symbolic.len_val()];
     let mut mem = MemBuffer::try_new(
         symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
@@ -702,5 +836,5 @@ fn numeric(
     if factor.iter().any(|v| !v.is_finite()) {
         return Err(SolveError::NotPositiveDefinite);
     }
-    Ok(factor)
+    Ok(LowerFactor::from_faer(symbolic, &factor, split))
 }

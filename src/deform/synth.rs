@@ -1,7 +1,8 @@
 //! Synthetic meshes generated in code (for tests, benchmarks and the sandbox's assets).
 
-use glam::DVec3;
+use glam::{DQuat, DVec3};
 
+use super::constraints::{Constraints, RigidTransform};
 use super::io::TriMesh;
 
 /// A closed cylinder ("bar") along +Y from `y = 0` to `y = length`, with `radial` vertices per
@@ -171,6 +172,20 @@ pub fn slab_regions(
         }
     }
     (fixed, handle)
+}
+
+/// The benchmark problem used throughout the crate's benchmarks and tests: the lowest 10 % of
+/// the mesh along Y is fixed, the highest 10 % is a handle turned by `angle` radians about Z
+/// around its centroid and moved by `shift`.
+pub fn bend_problem(positions: &[DVec3], angle: f64, shift: DVec3) -> Constraints {
+    let (fixed, handle) = slab_regions(positions, 1, 0.1, 0.1);
+    let pivot =
+        handle.iter().map(|&i| positions[i as usize]).sum::<DVec3>() / handle.len().max(1) as f64;
+    Constraints::with_handle(
+        fixed,
+        handle,
+        RigidTransform::new(DQuat::from_rotation_z(angle), shift, pivot),
+    )
 }
 
 /// Extracts the zero level set of `f` (negative inside) inside the box `[lo, hi]` sampled on a

@@ -497,6 +497,7 @@ fn spawn_solve(
             .unwrap_or(config.max_iterations)
             .max(1),
         tolerance: deformable.tolerance.unwrap_or(config.tolerance).max(0.0) as f64,
+        ..Default::default()
     };
     let settings = SolverSettings {
         weights: if deformable.raw_cotangent_weights {
