@@ -1,5 +1,5 @@
-//! ARAP core benchmarks: precompute, 1 iteration and 10 iterations (warm-started) on the
-//! peer-comparison meshes. Run with `cargo bench --bench arap`.
+//! ARAP core benchmarks: precompute, 1 and 10 plain iterations and 10 accelerated ones
+//! (warm-started) on the peer-comparison meshes. Run with `cargo bench --bench arap`.
 
 use std::path::Path;
 use std::sync::Arc;
@@ -56,8 +56,18 @@ fn bench(c: &mut Criterion) {
                 &never,
             )
             .unwrap();
-        for iters in [1u32, 10] {
-            g.bench_function(format!("iterations_{iters}"), |b| {
+        // Plain local/global iterations (the per-iteration cost the peers are compared on)
+        // and the default, Anderson-accelerated ones.
+        for (label, iters, anderson_depth) in [
+            ("iterations_1", 1u32, 0usize),
+            ("iterations_10", 10, 0),
+            (
+                "iterations_10_anderson",
+                10,
+                SolveOptions::default().anderson_depth,
+            ),
+        ] {
+            g.bench_function(label, |b| {
                 b.iter(|| {
                     solver
                         .solve(
@@ -65,7 +75,7 @@ fn bench(c: &mut Criterion) {
                             &SolveOptions {
                                 max_iterations: iters,
                                 tolerance: 0.0,
-                                ..Default::default()
+                                anderson_depth,
                             },
                             InitialGuess::Warm(&warm),
                             &never,

@@ -2,7 +2,7 @@
 //!
 //! ```text
 //! cargo run --release --example arap_peer -- MESH.off CONSTRAINTS.txt ITERS REPEATS OUT.bin [--init laplacian|rest]
-//!     [--factorization auto|simplicial|supernodal]
+//!     [--factorization auto|simplicial|supernodal] [--anderson DEPTH]
 //! ```
 //! CONSTRAINTS.txt: `n_fixed n_handle`, then `index x y z` per constrained vertex (fixed first,
 //! at rest; then handle vertices at their targets). Each repeat times precompute (topology,
@@ -90,6 +90,15 @@ fn run() -> Result<(), String> {
             ));
         }
     };
+    let anderson_depth = match args
+        .iter()
+        .position(|a| a == "--anderson")
+        .map(|i| args.get(i + 1).and_then(|v| v.parse::<usize>().ok()))
+    {
+        None => 0,
+        Some(Some(depth)) => depth,
+        Some(None) => return Err("--anderson needs a history depth (0 = off)".into()),
+    };
     let settings = SolverSettings {
         factorization,
         ..Default::default()
@@ -102,7 +111,7 @@ fn run() -> Result<(), String> {
     let options = SolveOptions {
         max_iterations: iters,
         tolerance: 0.0,
-        ..Default::default()
+        anderson_depth,
     };
     let (mut pre, mut sol_s) = (Vec::new(), Vec::new());
     let mut last = None;

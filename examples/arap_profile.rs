@@ -6,7 +6,7 @@
 //! ```text
 //! cargo run --release --example arap_profile -- [--repeats N] [--mesh FILE.off|obj]...
 //!     [--factorization auto|simplicial|supernodal] [--ordering halves|amd]
-//!     [--anderson DEPTH | --no-acceleration]
+//!     [--anderson DEPTH]
 //! ```
 //!
 //! Without `--mesh` it profiles the benchmark set: armadillo (26k) and armadillo subdivided
@@ -131,12 +131,11 @@ fn main() -> std::process::ExitCode {
     let mut repeats = 7;
     let mut meshes = Vec::new();
     let mut settings = SolverSettings::default();
-    let mut depth = SolveOptions::default().anderson_depth;
+    let mut depth = 0;
     let mut it = args.iter();
     while let Some(a) = it.next() {
         match a.as_str() {
             "--repeats" => repeats = it.next().and_then(|v| v.parse().ok()).unwrap_or(7),
-            "--no-acceleration" => depth = 0,
             "--anderson" => depth = it.next().and_then(|v| v.parse().ok()).unwrap_or(depth),
             "--ordering" => {
                 settings.ordering = match it.next().map(String::as_str) {

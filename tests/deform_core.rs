@@ -197,10 +197,42 @@ fn dense_reference(t: &Topology, c: &Constraints, iterations: usize) -> Vec<DVec
     x
 }
 
+/// The bar with its vertices stored in a scrambled order (so the solver renumbers them for
+/// locality instead of keeping the file order).
+fn scrambled(mesh: &TriMesh) -> TriMesh {
+    let n = mesh.positions.len();
+    let mut order: Vec<u32> = (0..n as u32).collect();
+    let mut seed = 12345u64;
+    for i in (1..n).rev() {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        order.swap(i, (seed >> 33) as usize % (i + 1));
+    }
+    let mut slot = vec![0u32; n];
+    for (k, &v) in order.iter().enumerate() {
+        slot[v as usize] = k as u32;
+    }
+    TriMesh {
+        positions: order.iter().map(|&v| mesh.positions[v as usize]).collect(),
+        triangles: mesh
+            .triangles
+            .iter()
+            .map(|t| t.map(|v| slot[v as usize]))
+            .collect(),
+    }
+}
+
 #[test]
 fn matches_dense_reference_solve() {
-    let mesh = synth::bar(10, 12, 0.1, 1.0);
-    let t = topo(&mesh);
+    let bar = synth::bar(10, 12, 0.1, 1.0);
+    for mesh in [bar.clone(), scrambled(&bar)] {
+        matches_dense_reference_on(&mesh);
+    }
+}
+
+fn matches_dense_reference_on(mesh: &TriMesh) {
+    let t = topo(mesh);
     let c = bend_problem(&t, 0.9);
     let iterations = 6;
     let reference = dense_reference(&t, &c, iterations);

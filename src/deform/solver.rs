@@ -70,9 +70,11 @@ pub struct SolveOptions {
     /// Stop when the relative energy decrease of one iteration falls below this (0 = never).
     pub tolerance: f64,
     /// Anderson acceleration of the local/global iteration: how many previous iterates it
-    /// combines (0 = plain local/global). Every accelerated iterate is checked against the
-    /// energy and replaced by the plain one when it is not lower, so the energy still never
-    /// rises.
+    /// combines (0 = plain local/global, the default; 3 is a good value). Every extrapolated
+    /// iterate is checked against the energy and replaced by the plain one when it is not
+    /// lower, so the energy still never rises. It pays off in long solves from a cold start
+    /// (16 % lower energy after 10 iterations on the armadillo); in a drag with a few
+    /// warm-started iterations per frame it has too little history to help.
     pub anderson_depth: usize,
 }
 
@@ -81,7 +83,7 @@ impl Default for SolveOptions {
         Self {
             max_iterations: 10,
             tolerance: 1e-3,
-            anderson_depth: 3,
+            anderson_depth: 0,
         }
     }
 }
@@ -761,12 +763,27 @@ struct Layout {
 
 impl Layout {
     fn new(topology: &Topology, weights: &[f64]) -> Self {
-        let to_welded = spatial_order(topology.positions());
+        let n = topology.vertex_count();
+        let (offsets_w, nbrs_w) = (topology.offsets(), topology.neighbor_list());
+        // Keep the mesh's own order when neighbours already sit close (generated grids,
+        // ring-by-ring bars): mean index distance within a few rows of a √n × √n grid.
+        let spread: f64 = (0..n)
+            .flat_map(|i| {
+                nbrs_w[offsets_w[i] as usize..offsets_w[i + 1] as usize]
+                    .iter()
+                    .map(move |&j| (i as f64 - j as f64).abs())
+            })
+            .sum::<f64>()
+            / nbrs_w.len().max(1) as f64;
+        let to_welded = if spread <= 2.0 * (n as f64).sqrt() {
+            (0..n as u32).collect()
+        } else {
+            spatial_order(topology.positions())
+        };
         let mut to_solver = vec![0u32; to_welded.len()];
         for (k, &w) in to_welded.iter().enumerate() {
             to_solver[w as usize] = k as u32;
         }
-        let (offsets_w, nbrs_w) = (topology.offsets(), topology.neighbor_list());
         let mut offsets = Vec::with_capacity(to_welded.len() + 1);
         let mut nbrs = Vec::with_capacity(nbrs_w.len());
         let mut new_weights = Vec::with_capacity(nbrs_w.len());
