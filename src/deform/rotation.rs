@@ -12,7 +12,12 @@ use glam::{DMat3, DQuat, DVec3};
 /// optimum) it takes the scaled-gradient step of Müller et al. 2016 instead. Quadratic
 /// convergence near the optimum: from last iteration's rotation one or two steps reach
 /// `tol` radians, also on flat one-rings where gradient-only methods crawl.
-pub fn fit_rotation_warm(a: &DMat3, mut q: DQuat, max_iterations: u32, tol: f64) -> DQuat {
+pub fn fit_rotation_warm(a: &DMat3, q: DQuat, max_iterations: u32, tol: f64) -> DQuat {
+    let mut q = if q.length_squared() > 0.0 {
+        q.normalize()
+    } else {
+        DQuat::IDENTITY
+    };
     for _ in 0..max_iterations {
         let r = DMat3::from_quat(q);
         let b = r.transpose() * *a;
@@ -40,29 +45,34 @@ pub fn fit_rotation_warm(a: &DMat3, mut q: DQuat, max_iterations: u32, tol: f64)
                 m00 * g.x + m01 * g.y + m02 * g.z,
                 m01 * g.x + m11 * g.y + m12 * g.z,
                 m02 * g.x + m12 * g.y + m22 * g.z,
-            ) / det
+            ) * det.recip()
         } else {
-            g / scale
+            g * scale.recip()
         };
-        let mut angle = w.length();
+        // Square roots only where needed: convergence and the small-angle exponential work on
+        // the squared step length.
+        let mut angle_sq = w.length_squared();
         // Stops on convergence and on NaN (degenerate covariance).
-        if angle.partial_cmp(&tol) != Some(std::cmp::Ordering::Greater) {
+        if angle_sq.partial_cmp(&(tol * tol)) != Some(std::cmp::Ordering::Greater) {
             break;
         }
-        if angle > 1.0 {
-            w /= angle;
-            angle = 1.0;
+        if angle_sq > 1.0 {
+            w /= angle_sq.sqrt();
+            angle_sq = 1.0;
         }
-        let inc = if angle < 1e-3 {
+        let inc = if angle_sq < 1e-6 {
             // Exp(ω) to third order without trig.
-            DQuat::from_xyzw(w.x * 0.5, w.y * 0.5, w.z * 0.5, 1.0 - angle * angle / 8.0)
+            DQuat::from_xyzw(w.x * 0.5, w.y * 0.5, w.z * 0.5, 1.0 - angle_sq / 8.0)
         } else {
             DQuat::from_scaled_axis(w)
         };
-        q = (q * inc).normalize();
+        q = q * inc;
+        // |q| stays within ~1e-14 of 1 (the increment is unit to third order): one Newton
+        // step of the normalisation replaces the square root.
+        q = q * (1.5 - 0.5 * q.length_squared());
         // Newton converges quadratically: after a step of size ε the next would be ~ε², so a
         // step below √tol already lands within tol — skip the verifying iteration.
-        if newton_ok && angle * angle <= tol {
+        if newton_ok && angle_sq <= tol {
             break;
         }
     }
