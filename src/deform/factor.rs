@@ -45,8 +45,25 @@ impl LowerFactor {
             SymbolicCholeskyRaw::Simplicial(s) => {
                 let (col_ptr, row_idx) = (s.col_ptr(), s.row_idx());
                 for j in 0..n {
-                    for p in col_ptr[j] as usize..col_ptr[j + 1] as usize {
-                        out.push(j, row_idx[p] as usize, values[p]);
+                    let range = col_ptr[j] as usize..col_ptr[j + 1] as usize;
+                    let (rows, vals) = (&row_idx[range.clone()], &values[range]);
+                    match rows.first() {
+                        // Sorted columns start with their diagonal: copy the rest as is.
+                        Some(&d) if d as usize == j => {
+                            out.inv_diagonal[j] = 1.0 / vals[0];
+                            out.rows.extend_from_slice(&rows[1..]);
+                            out.values.extend_from_slice(&vals[1..]);
+                        }
+                        _ => {
+                            for (&r, &v) in rows.iter().zip(vals) {
+                                if r as usize == j {
+                                    out.inv_diagonal[j] = 1.0 / v;
+                                } else {
+                                    out.rows.push(r);
+                                    out.values.push(v);
+                                }
+                            }
+                        }
                     }
                     out.col_ptr.push(out.rows.len() as u32);
                 }
@@ -61,20 +78,26 @@ impl LowerFactor {
                     let width = e - b;
                     let height = width + pattern.len();
                     let block = &values[val_ptr[sn] as usize..val_ptr[sn + 1] as usize];
-                    // Column-major `height × width`: the dense diagonal block, then `pattern`.
+                    // Column-major `height × width`: the dense diagonal block (lower part
+                    // used), then the rows of `pattern`. Explicit zeros of relaxed supernodes
+                    // are dropped; columns without any are copied whole.
                     for c in 0..width {
                         let column = &block[c * height..(c + 1) * height];
                         out.inv_diagonal[b + c] = 1.0 / column[c];
-                        for (r, &v) in column[c + 1..width].iter().enumerate() {
-                            if v != 0.0 {
-                                out.rows.push((b + c + 1 + r) as u32);
-                                out.values.push(v);
-                            }
-                        }
-                        for (&row, &v) in pattern.iter().zip(&column[width..]) {
-                            if v != 0.0 {
-                                out.rows.push(row);
-                                out.values.push(v);
+                        let tail = &column[c + 1..];
+                        if tail.iter().all(|&v| v != 0.0) {
+                            out.rows.extend((b + c + 1..e).map(|r| r as u32));
+                            out.rows.extend_from_slice(pattern);
+                            out.values.extend_from_slice(tail);
+                        } else {
+                            let rows = (b + c + 1..e)
+                                .map(|r| r as u32)
+                                .chain(pattern.iter().copied());
+                            for (r, &v) in rows.zip(tail) {
+                                if v != 0.0 {
+                                    out.rows.push(r);
+                                    out.values.push(v);
+                                }
                             }
                         }
                         out.col_ptr.push(out.rows.len() as u32);
@@ -84,15 +107,6 @@ impl LowerFactor {
         }
         out.split = split.filter(|&s| out.halves_are_independent(s));
         out
-    }
-
-    fn push(&mut self, column: usize, row: usize, value: f64) {
-        if row == column {
-            self.inv_diagonal[column] = 1.0 / value;
-        } else if value != 0.0 {
-            self.rows.push(row as u32);
-            self.values.push(value);
-        }
     }
 
     fn column(&self, j: usize) -> std::ops::Range<usize> {
@@ -118,7 +132,7 @@ impl LowerFactor {
         self.inv_diagonal.len()
     }
 
-    /// Stored non-zeros (diagonal included; exact zeros of supernodal blocks dropped).
+    /// Stored non-zeros (diagonal included; explicit zeros of supernodal blocks dropped).
     pub fn nonzeros(&self) -> usize {
         self.rows.len() + self.inv_diagonal.len()
     }

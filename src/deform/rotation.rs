@@ -66,7 +66,7 @@ pub fn fit_rotation_warm(a: &DMat3, q: DQuat, max_iterations: u32, tol: f64) -> 
         } else {
             DQuat::from_scaled_axis(w)
         };
-        q = q * inc;
+        q *= inc;
         // |q| stays within ~1e-14 of 1 (the increment is unit to third order): one Newton
         // step of the normalisation replaces the square root.
         q = q * (1.5 - 0.5 * q.length_squared());
