@@ -285,12 +285,12 @@ impl ArapSolver {
             }
         }
         let layout = Layout::new(&topology, &topology.weights(settings.weights));
-        let roles: Vec<Role> = layout
+        // From here on every per-vertex array is in the solver's order.
+        let mut roles: Vec<Role> = layout
             .to_welded
             .iter()
             .map(|&w| roles[w as usize])
             .collect();
-        let mut roles = roles;
         let (offsets, nbrs) = (&layout.offsets[..], &layout.nbrs[..]);
         let (weights, p) = (&layout.weights[..], &layout.rest[..]);
 
