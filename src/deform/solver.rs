@@ -786,21 +786,35 @@ impl Layout {
         for (k, &w) in to_welded.iter().enumerate() {
             to_solver[w as usize] = k as u32;
         }
-        let mut offsets = Vec::with_capacity(to_welded.len() + 1);
+        // Rows renumbered and sorted (faer wants sorted column patterns), in parallel chunks.
+        let chunks: Vec<(Vec<u32>, Vec<u32>, Vec<f64>)> = to_welded
+            .par_chunks(4096)
+            .map(|rows| {
+                let (mut lengths, mut nbrs, mut wts) = (Vec::new(), Vec::new(), Vec::new());
+                let mut row = Vec::new();
+                for &w in rows {
+                    row.clear();
+                    for e in offsets_w[w as usize] as usize..offsets_w[w as usize + 1] as usize {
+                        row.push((to_solver[nbrs_w[e] as usize], weights[e]));
+                    }
+                    row.sort_unstable_by_key(|&(j, _)| j);
+                    nbrs.extend(row.iter().map(|&(j, _)| j));
+                    wts.extend(row.iter().map(|&(_, wt)| wt));
+                    lengths.push(row.len() as u32);
+                }
+                (lengths, nbrs, wts)
+            })
+            .collect();
+        let mut offsets = Vec::with_capacity(n + 1);
         let mut nbrs = Vec::with_capacity(nbrs_w.len());
         let mut new_weights = Vec::with_capacity(nbrs_w.len());
         offsets.push(0u32);
-        let mut row = Vec::new();
-        for &w in &to_welded {
-            row.clear();
-            for e in offsets_w[w as usize] as usize..offsets_w[w as usize + 1] as usize {
-                row.push((to_solver[nbrs_w[e] as usize], weights[e]));
+        for (lengths, chunk_nbrs, chunk_weights) in chunks {
+            for len in lengths {
+                offsets.push(offsets[offsets.len() - 1] + len);
             }
-            // Sorted rows: faer wants sorted column patterns.
-            row.sort_unstable_by_key(|&(j, _)| j);
-            nbrs.extend(row.iter().map(|&(j, _)| j));
-            new_weights.extend(row.iter().map(|&(_, wt)| wt));
-            offsets.push(nbrs.len() as u32);
+            nbrs.extend_from_slice(&chunk_nbrs);
+            new_weights.extend_from_slice(&chunk_weights);
         }
         let rest = to_welded
             .iter()
