@@ -75,7 +75,7 @@ pub struct SolveOptions {
     /// combines (0 = plain local/global, the default; 3 is a good value). Every extrapolated
     /// iterate is checked against the energy and replaced by the plain one when it is not
     /// lower, so the energy still never rises. It pays off in long solves from a cold start
-    /// (16 % lower energy after 10 iterations on the armadillo); in a drag with a few
+    /// (15 % lower energy after 10 iterations on the armadillo); in a drag with a few
     /// warm-started iterations per frame it has too little history to help.
     pub anderson_depth: usize,
 }
