@@ -125,9 +125,7 @@ impl Anderson {
         });
         true
     }
-}
 
-impl Anderson {
     /// `(ΔF_i · ΔF_newest, ΔF_i · f)` for every `i`, reading each vector once.
     fn dots_with_newest(&self) -> (Vec<f64>, Vec<f64>) {
         let m = self.history.len();

@@ -602,10 +602,8 @@ impl ArapSolver {
                 }
                 // An extrapolation must lower the energy; otherwise take the plain step,
                 // which never raises it.
-                if !extrapolated
-                    || prev_energy
-                        .is_none_or(|pe| e.partial_cmp(&pe) != Some(std::cmp::Ordering::Less))
-                {
+                let accepted = extrapolated && prev_energy.is_some_and(|pe| e < pe);
+                if !accepted {
                     if extrapolated {
                         stats.rejected_extrapolations += 1;
                         if let Some(aa) = anderson.as_mut() {
