@@ -51,12 +51,13 @@ fn profile(
         Arc::new(Topology::new(&mesh.positions, &mesh.triangles).map_err(|e| e.to_string())?);
     let shift = 0.15 * topology.bounding_diagonal();
     let constraints = synth::bend_problem(topology.positions(), 0.6, DVec3::new(shift, 0.0, 0.0));
-    let mut precompute = Vec::new();
+    let (mut precompute, mut topology_ms) = (Vec::new(), Vec::new());
     let mut solver = None;
     for _ in 0..repeats {
         let t0 = Instant::now();
         let t =
             Arc::new(Topology::new(&mesh.positions, &mesh.triangles).map_err(|e| e.to_string())?);
+        topology_ms.push(t0.elapsed().as_secs_f64() * 1e3);
         let s =
             ArapSolver::precompute(t, &constraints, settings.clone()).map_err(|e| e.to_string())?;
         precompute.push(t0.elapsed().as_secs_f64() * 1e3);
@@ -104,6 +105,8 @@ fn profile(
         "free": stats.free_vertices,
         "supernodal": stats.supernodal,
         "parallel_solves": stats.parallel_solves,
+        "topology_ms": median(topology_ms),
+        "assembly_ms": stats.assembly_s * 1e3,
         "symbolic_ms": stats.symbolic_s * 1e3,
         "numeric_ms": stats.numeric_s * 1e3,
         "factor_nonzeros": stats.factor_nonzeros,

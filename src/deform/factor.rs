@@ -29,80 +29,78 @@ impl LowerFactor {
     /// pattern and dropped if it does not hold.
     pub fn from_faer(
         symbolic: &SymbolicCholesky<u32>,
-        values: &[f64],
+        values: Vec<f64>,
         split: Option<(usize, usize)>,
     ) -> Self {
         let n = symbolic.nrows();
         let mut out = Self {
             col_ptr: Vec::with_capacity(n + 1),
             rows: Vec::with_capacity(symbolic.len_val().saturating_sub(n)),
-            values: Vec::with_capacity(symbolic.len_val().saturating_sub(n)),
+            values: Vec::new(),
             inv_diagonal: vec![0.0; n],
             split: None,
         };
         out.col_ptr.push(0);
         match symbolic.raw() {
             SymbolicCholeskyRaw::Simplicial(s) => {
+                // Compacted in place, as below: the diagonal moves out, the rest moves up.
                 let (col_ptr, row_idx) = (s.col_ptr(), s.row_idx());
+                let mut values = values;
+                let mut at = 0usize;
                 for j in 0..n {
-                    let range = col_ptr[j] as usize..col_ptr[j + 1] as usize;
-                    let (rows, vals) = (&row_idx[range.clone()], &values[range]);
-                    match rows.first() {
-                        // Sorted columns start with their diagonal: copy the rest as is.
-                        Some(&d) if d as usize == j => {
-                            out.inv_diagonal[j] = 1.0 / vals[0];
-                            out.rows.extend_from_slice(&rows[1..]);
-                            out.values.extend_from_slice(&vals[1..]);
-                        }
-                        _ => {
-                            for (&r, &v) in rows.iter().zip(vals) {
-                                if r as usize == j {
-                                    out.inv_diagonal[j] = 1.0 / v;
-                                } else {
-                                    out.rows.push(r);
-                                    out.values.push(v);
-                                }
-                            }
+                    for k in col_ptr[j] as usize..col_ptr[j + 1] as usize {
+                        let (r, v) = (row_idx[k], values[k]);
+                        if r as usize == j {
+                            out.inv_diagonal[j] = 1.0 / v;
+                        } else {
+                            values[at] = v;
+                            out.rows.push(r);
+                            at += 1;
                         }
                     }
-                    out.col_ptr.push(out.rows.len() as u32);
+                    out.col_ptr.push(at as u32);
                 }
+                values.truncate(at);
+                out.values = values;
             }
             SymbolicCholeskyRaw::Supernodal(s) => {
                 let (begin, end) = (s.supernode_begin(), s.supernode_end());
                 let (row_ptr, val_ptr, row_idx) =
                     (s.col_ptr_for_row_idx(), s.col_ptr_for_val(), s.row_idx());
+                // The values are compacted in place: every entry is written at or before the
+                // position it is read from, so no second buffer is allocated (fresh pages
+                // cost more than the copy). Rows are written into a buffer sized for the
+                // worst case; dropping a zero is one conditional increment, not a branch.
+                let mut values = values;
+                out.rows.resize(values.len().saturating_sub(n), 0);
+                let mut at = 0usize;
                 for sn in 0..s.n_supernodes() {
                     let (b, e) = (begin[sn] as usize, end[sn] as usize);
                     let pattern = &row_idx[row_ptr[sn] as usize..row_ptr[sn + 1] as usize];
                     let width = e - b;
                     let height = width + pattern.len();
-                    let block = &values[val_ptr[sn] as usize..val_ptr[sn + 1] as usize];
+                    let block = val_ptr[sn] as usize;
                     // Column-major `height × width`: the dense diagonal block (lower part
                     // used), then the rows of `pattern`. Explicit zeros of relaxed supernodes
-                    // are dropped; columns without any are copied whole.
+                    // are dropped.
                     for c in 0..width {
-                        let column = &block[c * height..(c + 1) * height];
-                        out.inv_diagonal[b + c] = 1.0 / column[c];
-                        let tail = &column[c + 1..];
-                        if tail.iter().all(|&v| v != 0.0) {
-                            out.rows.extend((b + c + 1..e).map(|r| r as u32));
-                            out.rows.extend_from_slice(pattern);
-                            out.values.extend_from_slice(tail);
-                        } else {
-                            let rows = (b + c + 1..e)
-                                .map(|r| r as u32)
-                                .chain(pattern.iter().copied());
-                            for (r, &v) in rows.zip(tail) {
-                                if v != 0.0 {
-                                    out.rows.push(r);
-                                    out.values.push(v);
-                                }
-                            }
+                        let column = block + c * height;
+                        out.inv_diagonal[b + c] = 1.0 / values[column + c];
+                        let rows = (b + c + 1..e)
+                            .map(|r| r as u32)
+                            .chain(pattern.iter().copied());
+                        for (k, r) in (column + c + 1..column + height).zip(rows) {
+                            let v = values[k];
+                            values[at] = v;
+                            out.rows[at] = r;
+                            at += (v != 0.0) as usize;
                         }
-                        out.col_ptr.push(out.rows.len() as u32);
+                        out.col_ptr.push(at as u32);
                     }
                 }
+                out.rows.truncate(at);
+                values.truncate(at);
+                out.values = values;
             }
         }
         out.split = split.filter(|&s| out.halves_are_independent(s));

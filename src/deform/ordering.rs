@@ -96,6 +96,13 @@ pub(crate) fn dissect(offsets: &[u32], adjacency: &[u32], coords: &[DVec3]) -> D
     }
 }
 
+/// The whole graph with CSR adjacency `offsets`/`adjacency` in approximate-minimum-degree
+/// order: `order[k]` is the vertex eliminated `k`-th.
+pub(crate) fn minimum_degree(offsets: &[u32], adjacency: &[u32]) -> Vec<u32> {
+    let all: Vec<u32> = (0..offsets.len() as u32 - 1).collect();
+    Graph { offsets, adjacency }.minimum_degree(&all)
+}
+
 struct Graph<'a> {
     offsets: &'a [u32],
     adjacency: &'a [u32],

@@ -5,7 +5,6 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::perm::PermRef;
 use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::linalg::cholesky::{
     CholeskySymbolicParams, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
@@ -19,7 +18,7 @@ use rayon::prelude::*;
 use super::anderson::Anderson;
 use super::constraints::{ConstraintError, Constraints, Role};
 use super::factor::LowerFactor;
-use super::ordering::{dissect, spatial_order};
+use super::ordering::{dissect, minimum_degree, spatial_order};
 use super::rotation::{add_outer, fit_rotation_warm};
 use super::topology::{MeshError, Topology, WeightMode};
 
@@ -356,36 +355,19 @@ impl ArapSolver {
         }
         let rest_norm: f64 = cell_rest_sq.iter().sum();
 
-        // Lower-triangular CSC of the free×free block (same pattern for both systems) and the
-        // free-vertex graph for the ordering.
+        // The free-vertex graph, for the ordering.
         let nf = free.len();
-        let mut col_ptr = Vec::with_capacity(nf + 1);
-        let mut row_idx = Vec::new();
-        let mut cot_vals = Vec::new();
-        let mut uni_vals = Vec::new();
         let mut graph_offsets = Vec::with_capacity(nf + 1);
         let mut graph = Vec::new();
-        col_ptr.push(0u32);
         graph_offsets.push(0u32);
-        for (f, &i) in free.iter().enumerate() {
+        for &i in &free {
             let i = i as usize;
-            let range = offsets[i] as usize..offsets[i + 1] as usize;
-            row_idx.push(f as u32);
-            cot_vals.push(weights[range.clone()].iter().sum::<f64>());
-            uni_vals.push(range.len() as f64);
-            for e in range {
-                let fj = free_index[nbrs[e] as usize];
-                if fj == NOT_FREE {
-                    continue;
-                }
-                graph.push(fj);
-                if fj as usize > f {
-                    row_idx.push(fj);
-                    cot_vals.push(-weights[e]);
-                    uni_vals.push(-1.0);
-                }
-            }
-            col_ptr.push(row_idx.len() as u32);
+            graph.extend(
+                nbrs[offsets[i] as usize..offsets[i + 1] as usize]
+                    .iter()
+                    .map(|&j| free_index[j as usize])
+                    .filter(|&fj| fj != NOT_FREE),
+            );
             graph_offsets.push(graph.len() as u32);
         }
         let assembly_s = t0.elapsed().as_secs_f64();
@@ -400,32 +382,45 @@ impl ArapSolver {
             (LowerFactor::default(), LowerFactor::default())
         } else {
             let t1 = Instant::now();
-            let (dissection, inverse) = match settings.ordering {
+            let (order, split) = match settings.ordering {
                 FillOrdering::Halves => {
                     let coords: Vec<DVec3> = free.iter().map(|&i| p[i as usize]).collect();
                     let d = dissect(&graph_offsets, &graph, &coords);
-                    let mut inverse = vec![0u32; nf];
-                    for (k, &f) in d.order.iter().enumerate() {
-                        inverse[f as usize] = k as u32;
-                    }
-                    (Some(d), inverse)
+                    (d.order, d.split)
                 }
-                FillOrdering::MinimumDegree => (None, Vec::new()),
+                FillOrdering::MinimumDegree => (minimum_degree(&graph_offsets, &graph), None),
             };
-            let ordering = match &dissection {
-                Some(d) => SymmetricOrdering::Custom(PermRef::new_checked(&d.order, &inverse, nf)),
-                None => SymmetricOrdering::Amd,
-            };
-            let pattern = SymbolicSparseColMatRef::new_checked(nf, nf, &col_ptr, None, &row_idx);
+            // The solves work in elimination order: the free list takes that order, and the
+            // matrices are assembled in it, so faer needs no permutation of its own.
+            free = order.iter().map(|&f| free[f as usize]).collect();
+            for (k, &i) in free.iter().enumerate() {
+                free_index[i as usize] = k as u32;
+            }
+            let system = FreeLaplacians::new(offsets, nbrs, weights, &free, &free_index);
+            let upper = SymbolicSparseColMatRef::new_checked(
+                nf,
+                nf,
+                &system.upper_col_ptr,
+                None,
+                &system.upper_rows,
+            );
+            let pattern = SymbolicSparseColMatRef::new_checked(
+                nf,
+                nf,
+                &system.lower_col_ptr,
+                None,
+                &system.lower_rows,
+            );
             let threshold = match settings.factorization {
                 Factorization::Auto => SupernodalThreshold::AUTO,
                 Factorization::Simplicial => SupernodalThreshold::FORCE_SIMPLICIAL,
                 Factorization::Supernodal => SupernodalThreshold::FORCE_SUPERNODAL,
             };
+            // With the identity ordering faer reads the upper triangle.
             let symbolic = factorize_symbolic_cholesky(
-                pattern,
-                Side::Lower,
-                ordering,
+                upper,
+                Side::Upper,
+                SymmetricOrdering::Identity,
                 CholeskySymbolicParams {
                     supernodal_flop_ratio_threshold: threshold,
                     ..Default::default()
@@ -434,19 +429,10 @@ impl ArapSolver {
             .map_err(|e| SolveError::Factorization(format!("{e:?}")))?;
             stats.symbolic_s = t1.elapsed().as_secs_f64();
             stats.supernodal = matches!(symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_));
-            // The solves work in elimination order: reorder the free list to match.
-            if let Some(perm) = symbolic.perm() {
-                let (forward, _) = perm.arrays();
-                free = forward.iter().map(|&f| free[f as usize]).collect();
-                for (k, &i) in free.iter().enumerate() {
-                    free_index[i as usize] = k as u32;
-                }
-            }
-            let split = dissection.and_then(|d| d.split);
             let t2 = Instant::now();
             let (cot, uni) = rayon::join(
-                || numeric(&symbolic, pattern, &cot_vals, split),
-                || numeric(&symbolic, pattern, &uni_vals, split),
+                || numeric(&symbolic, pattern, &system.cotangent, split),
+                || numeric(&symbolic, pattern, &system.uniform, split),
             );
             stats.numeric_s = t2.elapsed().as_secs_f64();
             let cot = cot?;
@@ -842,6 +828,112 @@ impl Layout {
     }
 }
 
+/// The cotangent and the uniform Laplacian restricted to the free vertices, in the order of
+/// `free` (`free_index` maps a vertex to its position there, or [`NOT_FREE`]). Both share
+/// one pattern.
+struct FreeLaplacians {
+    /// Lower triangle, compressed columns with sorted rows, diagonal first.
+    lower_col_ptr: Vec<u32>,
+    lower_rows: Vec<u32>,
+    cotangent: Vec<f64>,
+    uniform: Vec<f64>,
+    /// Upper triangle pattern (what faer's symbolic analysis reads).
+    upper_col_ptr: Vec<u32>,
+    upper_rows: Vec<u32>,
+}
+
+impl FreeLaplacians {
+    fn new(
+        offsets: &[u32],
+        nbrs: &[u32],
+        weights: &[f64],
+        free: &[u32],
+        free_index: &[u32],
+    ) -> Self {
+        struct Chunk {
+            lower_lengths: Vec<u32>,
+            lower_rows: Vec<u32>,
+            cotangent: Vec<f64>,
+            uniform: Vec<f64>,
+            upper_lengths: Vec<u32>,
+            upper_rows: Vec<u32>,
+        }
+        const COLUMNS: usize = 4096;
+        let chunks: Vec<Chunk> = free
+            .par_chunks(COLUMNS)
+            .enumerate()
+            .map(|(c, columns)| {
+                let mut out = Chunk {
+                    lower_lengths: Vec::with_capacity(columns.len()),
+                    lower_rows: Vec::new(),
+                    cotangent: Vec::new(),
+                    uniform: Vec::new(),
+                    upper_lengths: Vec::with_capacity(columns.len()),
+                    upper_rows: Vec::new(),
+                };
+                let mut row = Vec::new();
+                for (k, &i) in columns.iter().enumerate() {
+                    let col = (c * COLUMNS + k) as u32;
+                    let range = offsets[i as usize] as usize..offsets[i as usize + 1] as usize;
+                    row.clear();
+                    row.extend(range.clone().filter_map(|e| {
+                        let r = free_index[nbrs[e] as usize];
+                        (r != NOT_FREE).then_some((r, weights[e]))
+                    }));
+                    row.sort_unstable_by_key(|&(r, _)| r);
+                    let split = row.partition_point(|&(r, _)| r < col);
+                    out.upper_rows.extend(row[..split].iter().map(|&(r, _)| r));
+                    out.upper_rows.push(col);
+                    out.upper_lengths.push(split as u32 + 1);
+                    out.lower_rows.push(col);
+                    out.cotangent
+                        .push(weights[range.clone()].iter().sum::<f64>());
+                    out.uniform.push(range.len() as f64);
+                    for &(r, w) in &row[split..] {
+                        out.lower_rows.push(r);
+                        out.cotangent.push(-w);
+                        out.uniform.push(-1.0);
+                    }
+                    out.lower_lengths.push((row.len() - split) as u32 + 1);
+                }
+                out
+            })
+            .collect();
+        let concat = |lengths: &dyn Fn(&Chunk) -> &[u32]| {
+            let mut ptr = Vec::with_capacity(free.len() + 1);
+            ptr.push(0u32);
+            for chunk in &chunks {
+                for &len in lengths(chunk) {
+                    ptr.push(ptr[ptr.len() - 1] + len);
+                }
+            }
+            ptr
+        };
+        let lower_col_ptr = concat(&|c| &c.lower_lengths);
+        let upper_col_ptr = concat(&|c| &c.upper_lengths);
+        Self {
+            lower_col_ptr,
+            lower_rows: chunks
+                .iter()
+                .flat_map(|c| c.lower_rows.iter().copied())
+                .collect(),
+            cotangent: chunks
+                .iter()
+                .flat_map(|c| c.cotangent.iter().copied())
+                .collect(),
+            uniform: chunks
+                .iter()
+                .flat_map(|c| c.uniform.iter().copied())
+                .collect(),
+            upper_col_ptr,
+            upper_rows: chunks
+                .iter()
+                .flat_map(|c| c.upper_rows.iter().copied())
+                .collect(),
+        }
+    }
+}
+
 fn numeric(
     symbolic: &SymbolicCholesky<u32>,
     pattern: SymbolicSparseColMatRef<'_, u32>,
@@ -867,5 +959,5 @@ fn numeric(
     if factor.iter().any(|v| !v.is_finite()) {
         return Err(SolveError::NotPositiveDefinite);
     }
-    Ok(LowerFactor::from_faer(symbolic, &factor, split))
+    Ok(LowerFactor::from_faer(symbolic, factor, split))
 }

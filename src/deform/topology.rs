@@ -4,6 +4,7 @@ use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 
 use glam::{DVec3, Vec3};
+use rayon::prelude::*;
 
 /// Errors raised while building a [`Topology`] from render-mesh data.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -60,6 +61,20 @@ pub struct Topology {
     offsets: Vec<u32>,
     neighbors: Vec<u32>,
     cotangent: Vec<f64>,
+}
+
+/// Half the cotangent of the corner of `t` at `t[k]` (0 when the corner is degenerate).
+fn half_cotangent(positions: &[DVec3], t: [u32; 3], k: usize) -> f64 {
+    let c = positions[t[k] as usize];
+    let u = positions[t[(k + 1) % 3] as usize] - c;
+    let v = positions[t[(k + 2) % 3] as usize] - c;
+    let sine = u.cross(v).length();
+    let scale = u.length() * v.length();
+    // Also skips NaN: a corner that is not clearly non-degenerate contributes 0.
+    if sine.partial_cmp(&(DEGENERATE_SINE * scale)) != Some(std::cmp::Ordering::Greater) {
+        return 0.0;
+    }
+    0.5 * u.dot(v) / sine
 }
 
 /// Below this ratio of `|u × v|` to `|u|·|v|` a corner angle counts as degenerate (0 or 180°)
@@ -127,54 +142,82 @@ impl Topology {
             .collect();
         let n = welded.len();
 
-        // CSR adjacency: count, fill, sort, dedup.
-        let mut counts = vec![0u32; n + 1];
+        // Half-cotangent of each corner (in parallel: the square roots and divisions are the
+        // expensive part), then CSR rows of (neighbour, weight) filled in triangle order,
+        // sorted stably and merged. Both ends of an edge see its contributions in the same
+        // (triangle) order, so `w_ij == w_ji` exactly.
+        let corners: Vec<[f64; 3]> = tris
+            .par_iter()
+            .map(|t| std::array::from_fn(|k| half_cotangent(&welded, *t, k)))
+            .collect();
+        let mut counts = vec![0usize; n + 1];
         for t in &tris {
-            for k in 0..3 {
-                counts[t[k] as usize] += 2;
+            for &v in t {
+                counts[v as usize + 1] += 2;
             }
         }
-        let mut starts = vec![0usize; n + 1];
         for i in 0..n {
-            starts[i + 1] = starts[i] + counts[i] as usize;
+            counts[i + 1] += counts[i];
         }
-        let mut raw = vec![0u32; starts[n]];
+        let starts = counts;
+        let mut raw = vec![(0u32, 0.0f64); starts[n]];
         let mut fill = starts.clone();
-        for t in &tris {
+        for (t, half_cot) in tris.iter().zip(&corners) {
             for k in 0..3 {
                 let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
-                raw[fill[a as usize]] = b;
-                raw[fill[a as usize] + 1] = c;
+                // Edge (a, b) is opposite the corner at c; edge (a, c) the corner at b.
+                raw[fill[a as usize]] = (b, half_cot[(k + 2) % 3]);
+                raw[fill[a as usize] + 1] = (c, half_cot[(k + 1) % 3]);
                 fill[a as usize] += 2;
             }
         }
+        let chunks: Vec<(Vec<u32>, Vec<u32>, Vec<f64>)> = (0..n)
+            .collect::<Vec<_>>()
+            .par_chunks(4096)
+            .map(|rows| {
+                let (mut lengths, mut nbrs, mut wts) = (Vec::new(), Vec::new(), Vec::new());
+                let mut row = Vec::new();
+                for &i in rows {
+                    row.clear();
+                    row.extend_from_slice(&raw[starts[i]..starts[i + 1]]);
+                    row.sort_by_key(|&(j, _)| j);
+                    let before = nbrs.len();
+                    for &(j, w) in &row {
+                        if nbrs.len() > before && nbrs[nbrs.len() - 1] == j {
+                            *wts.last_mut().expect("pushed with nbrs") += w;
+                        } else {
+                            nbrs.push(j);
+                            wts.push(w);
+                        }
+                    }
+                    lengths.push((nbrs.len() - before) as u32);
+                }
+                (lengths, nbrs, wts)
+            })
+            .collect();
         let mut offsets = Vec::with_capacity(n + 1);
         let mut neighbors = Vec::with_capacity(raw.len() / 2);
+        let mut cotangent = Vec::with_capacity(raw.len() / 2);
         offsets.push(0u32);
-        for i in 0..n {
-            let row = &mut raw[starts[i]..starts[i + 1]];
-            row.sort_unstable();
-            let mut last = u32::MAX;
-            for &j in row.iter() {
-                if j != last {
-                    neighbors.push(j);
-                    last = j;
-                }
+        for (lengths, chunk_nbrs, chunk_weights) in chunks {
+            for len in lengths {
+                offsets.push(offsets[offsets.len() - 1] + len);
             }
-            offsets.push(neighbors.len() as u32);
+            neighbors.extend_from_slice(&chunk_nbrs);
+            cotangent.extend_from_slice(&chunk_weights);
         }
-        let mut topo = Topology {
+        Ok(Topology {
             positions: welded,
             triangles: tris,
             render_to_welded,
             offsets,
             neighbors,
-            cotangent: Vec::new(),
-        };
-        topo.cotangent = topo.compute_cotangents();
-        Ok(topo)
+            cotangent,
+        })
     }
 
+    /// CSR slot of edge `i → j` (test helper).
+    #[cfg(test)]
     fn edge_slot(&self, i: u32, j: u32) -> usize {
         let (s, e) = (
             self.offsets[i as usize] as usize,
@@ -183,31 +226,6 @@ impl Topology {
         s + self.neighbors[s..e]
             .binary_search(&j)
             .expect("edge of a triangle is in the adjacency")
-    }
-
-    fn compute_cotangents(&self) -> Vec<f64> {
-        let mut w = vec![0.0f64; self.neighbors.len()];
-        for t in &self.triangles {
-            for k in 0..3 {
-                let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
-                // Corner at c, opposite edge (a, b).
-                let u = self.positions[a as usize] - self.positions[c as usize];
-                let v = self.positions[b as usize] - self.positions[c as usize];
-                let sine = u.cross(v).length();
-                let scale = u.length() * v.length();
-                // Also skips NaN: a corner that is not clearly non-degenerate contributes 0.
-                if sine.partial_cmp(&(DEGENERATE_SINE * scale)) != Some(std::cmp::Ordering::Greater)
-                {
-                    continue;
-                }
-                let half_cot = 0.5 * u.dot(v) / sine;
-                let ab = self.edge_slot(a, b);
-                let ba = self.edge_slot(b, a);
-                w[ab] += half_cot;
-                w[ba] += half_cot;
-            }
-        }
-        w
     }
 
     /// Number of welded vertices.
