@@ -116,50 +116,67 @@ impl Graph<'_> {
     /// Splits `vertices` by a plane across the longest side of their bounding box into two
     /// halves with no edge between them and the separator (the boundary of one half). Of a
     /// few cut positions around the median, the one with the smallest separator wins: the
-    /// separator's size drives the fill it adds.
-    fn cut(&self, mut vertices: Vec<u32>, coords: &[DVec3]) -> (Vec<u32>, Vec<u32>, Vec<u32>) {
+    /// separator's size drives the fill it adds. The cut positions are found by selection,
+    /// not by sorting.
+    fn cut(&self, vertices: Vec<u32>, coords: &[DVec3]) -> (Vec<u32>, Vec<u32>, Vec<u32>) {
+        const PERCENTILES: [usize; 5] = [40, 45, 50, 55, 60];
         let axis = longest_axis(&vertices, coords);
-        vertices.sort_unstable_by(|&a, &b| {
-            coords[a as usize][axis].total_cmp(&coords[b as usize][axis])
-        });
         let n = vertices.len();
-        let mut rank = vec![0u32; self.offsets.len() - 1];
-        for (k, &v) in vertices.iter().enumerate() {
-            rank[v as usize] = k as u32;
+        // By (coordinate, index): a strict total order, so each cut is one key.
+        let order = |a: &u32, b: &u32| {
+            coords[*a as usize][axis]
+                .total_cmp(&coords[*b as usize][axis])
+                .then(a.cmp(b))
+        };
+        let mut scratch = vertices.clone();
+        let mut cuts = [0u32; PERCENTILES.len()];
+        let mut done = 0;
+        for (cut, percent) in cuts.iter_mut().zip(PERCENTILES) {
+            let at = n * percent / 100;
+            scratch[done..].select_nth_unstable_by(at - done, order);
+            *cut = scratch[at];
+            done = at;
         }
-        let mut best: Option<(usize, bool, usize)> = None; // (separator size, from first, cut)
-        for tenth in [40, 45, 50, 55, 60] {
-            let cut = n * tenth / 100;
-            let crosses = |v: &u32, below: bool| {
-                self.neighbours(*v)
-                    .iter()
-                    .any(|&w| ((rank[w as usize] as usize) < cut) != below)
-            };
-            let in_first = vertices[..cut].iter().filter(|v| crosses(v, true)).count();
-            let in_second = vertices[cut..].iter().filter(|v| crosses(v, false)).count();
-            let candidate = if in_first <= in_second {
-                (in_first, true, cut)
+        // `v` is below cut `c` iff `bucket[v] <= c` (the number of cut keys at or under it).
+        let mut bucket = vec![0u8; self.offsets.len() - 1];
+        for &v in &vertices {
+            bucket[v as usize] = cuts.iter().filter(|c| order(c, &v).is_le()).count() as u8;
+        }
+        let below = |v: u32, c: usize| bucket[v as usize] as usize <= c;
+        let on_boundary = |v: u32, c: usize| {
+            let side = below(v, c);
+            self.neighbours(v).iter().any(|&w| below(w, c) != side)
+        };
+        let mut best: Option<(usize, bool, usize)> = None; // (separator size, low side, cut)
+        for c in 0..PERCENTILES.len() {
+            let (mut low, mut high) = (0, 0);
+            for &v in &vertices {
+                if on_boundary(v, c) {
+                    if below(v, c) {
+                        low += 1;
+                    } else {
+                        high += 1;
+                    }
+                }
+            }
+            let candidate = if low <= high {
+                (low, true, c)
             } else {
-                (in_second, false, cut)
+                (high, false, c)
             };
             if best.is_none_or(|b| candidate.0 < b.0) {
                 best = Some(candidate);
             }
         }
-        let (_, from_first, cut) = best.unwrap_or((0, true, n / 2));
-        let mut first = Vec::with_capacity(cut);
-        let mut second = Vec::with_capacity(n - cut);
+        let (_, low_side, c) = best.unwrap_or((0, true, PERCENTILES.len() / 2));
+        let mut first = Vec::with_capacity(n / 2);
+        let mut second = Vec::with_capacity(n / 2);
         let mut separator = Vec::new();
-        for (k, &v) in vertices.iter().enumerate() {
-            let below = k < cut;
-            let on_boundary = below == from_first
-                && self
-                    .neighbours(v)
-                    .iter()
-                    .any(|&w| ((rank[w as usize] as usize) < cut) != below);
-            if on_boundary {
+        for &v in &vertices {
+            let side = below(v, c);
+            if side == low_side && on_boundary(v, c) {
                 separator.push(v);
-            } else if below {
+            } else if side {
                 first.push(v);
             } else {
                 second.push(v);

@@ -176,13 +176,21 @@ impl Topology {
             .par_chunks(4096)
             .map(|rows| {
                 let (mut lengths, mut nbrs, mut wts) = (Vec::new(), Vec::new(), Vec::new());
-                let mut row = Vec::new();
+                let mut keys: Vec<u64> = Vec::new();
                 for &i in rows {
-                    row.clear();
-                    row.extend_from_slice(&raw[starts[i]..starts[i + 1]]);
-                    row.sort_by_key(|&(j, _)| j);
+                    let row = &raw[starts[i]..starts[i + 1]];
+                    // (neighbour, position in the row): unique keys, so an unstable sort of
+                    // plain integers gives the stable order.
+                    keys.clear();
+                    keys.extend(
+                        row.iter()
+                            .enumerate()
+                            .map(|(k, &(j, _))| (j as u64) << 32 | k as u64),
+                    );
+                    keys.sort_unstable();
                     let before = nbrs.len();
-                    for &(j, w) in &row {
+                    for &key in &keys {
+                        let (j, w) = ((key >> 32) as u32, row[key as u32 as usize].1);
                         if nbrs.len() > before && nbrs[nbrs.len() - 1] == j {
                             *wts.last_mut().expect("pushed with nbrs") += w;
                         } else {
