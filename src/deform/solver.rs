@@ -915,21 +915,25 @@ impl FreeLaplacians {
             lower_col_ptr,
             lower_rows: chunks
                 .iter()
-                .flat_map(|c| c.lower_rows.iter().copied())
-                .collect(),
+                .map(|c| &c.lower_rows[..])
+                .collect::<Vec<_>>()
+                .concat(),
             cotangent: chunks
                 .iter()
-                .flat_map(|c| c.cotangent.iter().copied())
-                .collect(),
+                .map(|c| &c.cotangent[..])
+                .collect::<Vec<_>>()
+                .concat(),
             uniform: chunks
                 .iter()
-                .flat_map(|c| c.uniform.iter().copied())
-                .collect(),
+                .map(|c| &c.uniform[..])
+                .collect::<Vec<_>>()
+                .concat(),
             upper_col_ptr,
             upper_rows: chunks
                 .iter()
-                .flat_map(|c| c.upper_rows.iter().copied())
-                .collect(),
+                .map(|c| &c.upper_rows[..])
+                .collect::<Vec<_>>()
+                .concat(),
         }
     }
 }
