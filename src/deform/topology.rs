@@ -418,4 +418,63 @@ mod tests {
         let topo = Topology::new(&p, &t).unwrap();
         assert!(topo.neighbors(4).is_empty());
     }
+
+    /// Every edge weight from the definition: the sum, over triangles holding the edge, of
+    /// half the cotangent of the opposite corner (computed with `atan2`, independently of
+    /// `half_cotangent`).
+    fn reference_weights(p: &[DVec3], t: &[[u32; 3]]) -> HashMap<(u32, u32), f64> {
+        let mut w = HashMap::new();
+        for tri in t {
+            for k in 0..3 {
+                let (a, b, c) = (tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]);
+                let (u, v) = (p[a as usize] - p[c as usize], p[b as usize] - p[c as usize]);
+                let angle = u.cross(v).length().atan2(u.dot(v));
+                let half_cot = 0.5 / angle.tan();
+                *w.entry((a.min(b), a.max(b))).or_insert(0.0) += half_cot;
+            }
+        }
+        w
+    }
+
+    #[test]
+    fn weights_match_the_definition_and_are_exactly_symmetric() {
+        // A bent strip plus a fin on one of its edges: three triangles share edge 2-3
+        // (non-manifold), and the strip's vertices have irregular valence.
+        let mut p: Vec<DVec3> = (0..6)
+            .flat_map(|i| {
+                let x = i as f64 * 0.7;
+                [
+                    DVec3::new(x, 0.0, 0.1 * x * x),
+                    DVec3::new(x + 0.3, 1.0, 0.2 * x),
+                ]
+            })
+            .collect();
+        p.push(DVec3::new(0.8, 0.5, 1.3));
+        let mut t = Vec::new();
+        for i in 0..5u32 {
+            let (a, b, c, d) = (2 * i, 2 * i + 1, 2 * i + 2, 2 * i + 3);
+            t.push([a, c, b]);
+            t.push([b, c, d]);
+        }
+        t.push([2, 3, 12]);
+        let topo = Topology::new(&p, &t).unwrap();
+        let reference = reference_weights(&p, &t);
+        let mut checked = 0;
+        for i in 0..topo.vertex_count() {
+            for (slot, &j) in topo.neighbors(i).iter().enumerate() {
+                let w = topo.raw_cotangents()[topo.offsets()[i] as usize + slot];
+                let back = topo.raw_cotangents()[topo.edge_slot(j, i as u32)];
+                assert_eq!(w.to_bits(), back.to_bits(), "w[{i}][{j}] != w[{j}][{i}]");
+                let expected = reference[&(j.min(i as u32), j.max(i as u32))];
+                assert!(
+                    (w - expected).abs() < 1e-12,
+                    "edge {i}-{j}: {w} vs {expected}"
+                );
+                checked += 1;
+            }
+        }
+        assert_eq!(checked, 2 * reference.len());
+        assert_eq!(topo.neighbors(12), &[2, 3]);
+        assert_eq!(topo.neighbors(2).len(), 5);
+    }
 }
