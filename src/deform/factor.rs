@@ -2,8 +2,9 @@
 //! indices, the inverted diagonal kept apart, and the three coordinates of a right-hand side
 //! interleaved, so one pass over `L` (and one over `Lᵀ`) solves for x, y and z together.
 //!
-//! faer computes the factor (supernodal or simplicial); it is copied into this layout once per
-//! constraint set. The triangular solves are memory-bound: this layout reads 12 bytes per
+//! faer computes the factor (supernodal or simplicial); once per constraint set it is
+//! compacted into this layout in place (faer's value buffer becomes ours: fresh pages cost
+//! more than the copy). The triangular solves are memory-bound: this layout reads 12 bytes per
 //! non-zero and touches one 24-byte row of the right-hand side per entry. When the elimination
 //! order has two independent halves (nested dissection), each half is solved on its own thread
 //! and only the separator is solved alone.
@@ -24,7 +25,8 @@ pub(crate) struct LowerFactor {
 }
 
 impl LowerFactor {
-    /// Copies faer's factor (`values` laid out as `symbolic` says). `split` is the
+    /// Takes over faer's factor (`values` laid out as `symbolic` says), compacting it in
+    /// place: diagonals move out, explicit zeros of relaxed supernodes are dropped. `split` is the
     /// independent-halves hint of the elimination order; it is verified against the factor's
     /// pattern and dropped if it does not hold.
     pub fn from_faer(

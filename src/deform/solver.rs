@@ -145,11 +145,12 @@ pub struct PrecomputeStats {
     pub supernodal: bool,
     /// Non-zeros of the Cholesky factor as the iterations store it.
     pub factor_nonzeros: usize,
-    /// Seconds assembling the matrices.
+    /// Seconds building the solver's vertex layout, finding the free vertices and their graph.
     pub assembly_s: f64,
-    /// Seconds in ordering + symbolic factorization.
+    /// Seconds ordering, assembling both matrices in elimination order and analysing the
+    /// factor's structure.
     pub symbolic_s: f64,
-    /// Seconds in the two numeric factorizations (and copying them to the solve layout).
+    /// Seconds in the two numeric factorizations (and compacting them to the solve layout).
     pub numeric_s: f64,
     /// Whether the triangular solves run on two threads (independent halves in the
     /// elimination order).
@@ -525,6 +526,7 @@ impl ArapSolver {
         };
         let mut mats: Vec<DMat3> = quats.par_iter().map(|q| DMat3::from_quat(*q)).collect();
         let mut rhs = vec![DVec3::ZERO; self.free.len()];
+        let mut rhs_by_vertex = vec![DVec3::ZERO; n];
 
         // Inactive cells (no free vertex in the one-ring) never change during the solve.
         let tl = Instant::now();
@@ -563,7 +565,7 @@ impl ArapSolver {
                     break;
                 }
                 let tr = Instant::now();
-                self.arap_rhs(&x, &mats, &mut rhs);
+                self.arap_rhs(&x, &mats, &mut rhs_by_vertex, &mut rhs);
                 let tg = Instant::now();
                 self.cot_factor.solve_in_place(&mut rhs);
                 stats.rhs_s += (tg - tr).as_secs_f64();
@@ -676,27 +678,39 @@ impl ArapSolver {
             .max(0.0)
     }
 
-    /// `b_i = Σ_j (w_ij/2)(R_i + R_j)(p_i − p_j) + Σ_{j known} w_ij x_j`.
+    /// `b_i = Σ_j (w_ij/2)(R_i + R_j)(p_i − p_j) + Σ_{j known} w_ij x_j`, in elimination
+    /// order. Computed in the solver's memory order into `by_vertex` (one-rings read from
+    /// nearby memory), then gathered: walking the elimination order directly would jump
+    /// across the mesh at every vertex.
     #[allow(clippy::needless_range_loop)] // CSR rows: `e` indexes weights and neighbours alike
-    fn arap_rhs(&self, x: &[DVec3], mats: &[DMat3], rhs: &mut [DVec3]) {
+    fn arap_rhs(&self, x: &[DVec3], mats: &[DMat3], by_vertex: &mut [DVec3], rhs: &mut [DVec3]) {
         let layout = &self.layout;
         let (rest, offsets, nbrs) = (&layout.rest, &layout.offsets, &layout.nbrs);
+        by_vertex
+            .par_chunks_mut(CHUNK)
+            .enumerate()
+            .for_each(|(c, out)| {
+                for (k, b_out) in out.iter_mut().enumerate() {
+                    let i = c * CHUNK + k;
+                    if self.free_index[i] == NOT_FREE {
+                        continue;
+                    }
+                    let mut b = 0.5 * (mats[i] * self.weighted_rest_sum[i]);
+                    for e in offsets[i] as usize..offsets[i + 1] as usize {
+                        let w = layout.weights[e];
+                        let j = nbrs[e] as usize;
+                        b += (0.5 * w) * (mats[j] * (rest[i] - rest[j]));
+                        if self.free_index[j] == NOT_FREE {
+                            b += w * x[j];
+                        }
+                    }
+                    *b_out = b;
+                }
+            });
         rhs.par_iter_mut()
             .zip(self.free.par_iter())
             .with_min_len(CHUNK)
-            .for_each(|(out, &i)| {
-                let i = i as usize;
-                let mut b = 0.5 * (mats[i] * self.weighted_rest_sum[i]);
-                for e in offsets[i] as usize..offsets[i + 1] as usize {
-                    let w = layout.weights[e];
-                    let j = nbrs[e] as usize;
-                    b += (0.5 * w) * (mats[j] * (rest[i] - rest[j]));
-                    if self.free_index[j] == NOT_FREE {
-                        b += w * x[j];
-                    }
-                }
-                *out = b;
-            });
+            .for_each(|(out, &i)| *out = by_vertex[i as usize]);
     }
 
     /// Uniform Laplacian right-hand side `deg_i p_i − Σ_j p_j + Σ_{j known} x_j`.
