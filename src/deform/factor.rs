@@ -28,12 +28,12 @@ impl LowerFactor {
     /// Takes over faer's factor (`values` laid out as `symbolic` says), compacting it in
     /// place: diagonals move out, explicit zeros of relaxed supernodes are dropped. `split` is the
     /// independent-halves hint of the elimination order; it is verified against the factor's
-    /// pattern and dropped if it does not hold.
+    /// pattern and dropped if it does not hold. `None` when an entry is not finite.
     pub fn from_faer(
         symbolic: &SymbolicCholesky<u32>,
         values: Vec<f64>,
         split: Option<(usize, usize)>,
-    ) -> Self {
+    ) -> Option<Self> {
         let n = symbolic.nrows();
         let mut out = Self {
             col_ptr: Vec::with_capacity(n + 1),
@@ -43,6 +43,8 @@ impl LowerFactor {
             split: None,
         };
         out.col_ptr.push(0);
+        // Checked on the way through rather than in a pass of its own.
+        let mut finite = true;
         match symbolic.raw() {
             SymbolicCholeskyRaw::Simplicial(s) => {
                 // Compacted in place, as below: the diagonal moves out, the rest moves up.
@@ -55,6 +57,7 @@ impl LowerFactor {
                         if r as usize == j {
                             out.inv_diagonal[j] = 1.0 / v;
                         } else {
+                            finite &= v.is_finite();
                             values[at] = v;
                             out.rows.push(r);
                             at += 1;
@@ -93,6 +96,7 @@ impl LowerFactor {
                             .chain(pattern.iter().copied());
                         for (k, r) in (column + c + 1..column + height).zip(rows) {
                             let v = values[k];
+                            finite &= v.is_finite();
                             values[at] = v;
                             out.rows[at] = r;
                             at += (v != 0.0) as usize;
@@ -105,8 +109,11 @@ impl LowerFactor {
                 out.values = values;
             }
         }
+        if !finite || !out.inv_diagonal.iter().all(|d| d.is_finite()) {
+            return None;
+        }
         out.split = split.filter(|&s| out.halves_are_independent(s));
-        out
+        Some(out)
     }
 
     fn column(&self, j: usize) -> std::ops::Range<usize> {

@@ -974,8 +974,5 @@ fn numeric(
             Default::default(),
         )
         .map_err(|_| SolveError::NotPositiveDefinite)?;
-    if factor.iter().any(|v| !v.is_finite()) {
-        return Err(SolveError::NotPositiveDefinite);
-    }
-    Ok(LowerFactor::from_faer(symbolic, factor, split))
+    LowerFactor::from_faer(symbolic, factor, split).ok_or(SolveError::NotPositiveDefinite)
 }
