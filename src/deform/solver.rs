@@ -338,22 +338,29 @@ impl ArapSolver {
         for (f, &i) in free.iter().enumerate() {
             free_index[i as usize] = f as u32;
         }
-        let mut active = vec![false; n];
-        for &i in &free {
-            active[i as usize] = true;
-            for e in offsets[i as usize]..offsets[i as usize + 1] {
-                active[nbrs[e as usize] as usize] = true;
-            }
-        }
-        let mut weighted_rest_sum = vec![DVec3::ZERO; n];
-        let mut cell_rest_sq = vec![0.0; n];
-        for i in 0..n {
-            for e in offsets[i] as usize..offsets[i + 1] as usize {
-                let d = p[i] - p[nbrs[e] as usize];
-                weighted_rest_sum[i] += weights[e] * d;
-                cell_rest_sq[i] += weights[e] * d.length_squared();
-            }
-        }
+        // A cell is active when its vertex or a neighbour is free (adjacency is symmetric).
+        let one_ring = |i: usize| &nbrs[offsets[i] as usize..offsets[i + 1] as usize];
+        let active: Vec<bool> = (0..n)
+            .into_par_iter()
+            .map(|i| {
+                free_index[i] != NOT_FREE
+                    || one_ring(i)
+                        .iter()
+                        .any(|&j| free_index[j as usize] != NOT_FREE)
+            })
+            .collect();
+        let (weighted_rest_sum, cell_rest_sq): (Vec<DVec3>, Vec<f64>) = (0..n)
+            .into_par_iter()
+            .map(|i| {
+                let (mut sum, mut sq) = (DVec3::ZERO, 0.0);
+                for e in offsets[i] as usize..offsets[i + 1] as usize {
+                    let d = p[i] - p[nbrs[e] as usize];
+                    sum += weights[e] * d;
+                    sq += weights[e] * d.length_squared();
+                }
+                (sum, sq)
+            })
+            .unzip();
         let rest_norm: f64 = cell_rest_sq.iter().sum();
 
         // The free-vertex graph, for the ordering.
@@ -767,13 +774,15 @@ impl Layout {
         let (offsets_w, nbrs_w) = (topology.offsets(), topology.neighbor_list());
         // Keep the mesh's own order when neighbours already sit close (generated grids,
         // ring-by-ring bars): mean index distance within a few rows of a √n × √n grid.
-        let spread: f64 = (0..n)
-            .flat_map(|i| {
+        let spread = (0..n)
+            .into_par_iter()
+            .map(|i| {
                 nbrs_w[offsets_w[i] as usize..offsets_w[i + 1] as usize]
                     .iter()
-                    .map(move |&j| (i as f64 - j as f64).abs())
+                    .map(|&j| (i as u64).abs_diff(j as u64))
+                    .sum::<u64>()
             })
-            .sum::<f64>()
+            .sum::<u64>() as f64
             / nbrs_w.len().max(1) as f64;
         let to_welded = if spread <= 2.0 * (n as f64).sqrt() {
             (0..n as u32).collect()
