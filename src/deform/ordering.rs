@@ -196,11 +196,13 @@ impl Graph<'_> {
         let mut col_ptr = Vec::with_capacity(m + 1);
         let mut rows = Vec::new();
         col_ptr.push(0u32);
-        for &v in piece {
+        // AMD orders the pattern of A + Aᵀ: the strict lower triangle is all it needs, and
+        // half the entries to symmetrise.
+        for (k, &v) in piece.iter().enumerate() {
             let start = rows.len();
             for &w in self.neighbours(v) {
                 let l = local[w as usize];
-                if l != u32::MAX && w != v {
+                if l != u32::MAX && l > k as u32 {
                     rows.push(l);
                 }
             }
