@@ -1,7 +1,7 @@
 //! Fill-reducing elimination order for the Cholesky factor: geometric dissection on top,
 //! approximate minimum degree below.
 //!
-//! A surface mesh cut by a plane falls apart along a curve of vertices. Splitting at the
+//! A surface mesh cut by a plane falls apart along a curve of vertices. Splitting near the
 //! median coordinate of the longest bounding-box side and eliminating the cut vertices last
 //! leaves the factor with independent pieces, which the triangular solves run on separate
 //! threads. Inside each piece faer's approximate minimum degree orders the vertices: on

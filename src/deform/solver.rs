@@ -40,8 +40,8 @@ pub enum Factorization {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum FillOrdering {
     /// One geometric cut into two independent halves, each ordered by approximate minimum
-    /// degree (default): about the fill of minimum degree, and the triangular solves run on
-    /// two threads.
+    /// degree (default). The factor holds 9–24 % more non-zeros than with minimum degree on
+    /// the whole system (benchmark meshes), but the triangular solves run on two threads.
     #[default]
     Halves,
     /// faer's approximate minimum degree; the solves run on one thread.
