@@ -284,52 +284,20 @@ impl ArapSolver {
                 }
             }
         }
-        let layout = Layout::new(&topology, &topology.weights(settings.weights));
+        // The solver's layout and the search for unanchored components are independent.
+        let mesh_weights = topology.weights(settings.weights);
+        let (layout, pinned) = rayon::join(
+            || Layout::new(&topology, &mesh_weights),
+            || pin_unanchored_components(&topology, &mesh_weights, &mut roles),
+        );
         // From here on every per-vertex array is in the solver's order.
-        let mut roles: Vec<Role> = layout
+        let roles: Vec<Role> = layout
             .to_welded
             .iter()
             .map(|&w| roles[w as usize])
             .collect();
         let (offsets, nbrs) = (&layout.offsets[..], &layout.nbrs[..]);
         let (weights, p) = (&layout.weights[..], &layout.rest[..]);
-
-        // Pin free components with no (non-zero weight) path to a constrained vertex.
-        let mut pinned = 0usize;
-        let mut seen = vec![false; n];
-        let mut stack = Vec::new();
-        let mut comp = Vec::new();
-        for s in 0..n {
-            if seen[s] || roles[s] != Role::Free {
-                continue;
-            }
-            comp.clear();
-            let mut anchored = false;
-            seen[s] = true;
-            stack.push(s as u32);
-            while let Some(i) = stack.pop() {
-                comp.push(i);
-                let i = i as usize;
-                for e in offsets[i] as usize..offsets[i + 1] as usize {
-                    if weights[e] == 0.0 {
-                        continue;
-                    }
-                    let j = nbrs[e] as usize;
-                    if roles[j] != Role::Free {
-                        anchored = true;
-                    } else if !seen[j] {
-                        seen[j] = true;
-                        stack.push(j as u32);
-                    }
-                }
-            }
-            if !anchored {
-                pinned += comp.len();
-                for &v in &comp {
-                    roles[v as usize] = Role::Fixed;
-                }
-            }
-        }
 
         let mut free_index = vec![NOT_FREE; n];
         let mut free: Vec<u32> = (0..n as u32)
@@ -793,21 +761,17 @@ impl Layout {
         for (k, &w) in to_welded.iter().enumerate() {
             to_solver[w as usize] = k as u32;
         }
-        // Rows renumbered and sorted (faer wants sorted column patterns), in parallel chunks.
+        // Rows renumbered, in parallel chunks. Their order within a row does not matter
+        // (the matrices are assembled, sorted, from them later).
         let chunks: Vec<(Vec<u32>, Vec<u32>, Vec<f64>)> = to_welded
             .par_chunks(4096)
             .map(|rows| {
                 let (mut lengths, mut nbrs, mut wts) = (Vec::new(), Vec::new(), Vec::new());
-                let mut row = Vec::new();
                 for &w in rows {
-                    row.clear();
-                    for e in offsets_w[w as usize] as usize..offsets_w[w as usize + 1] as usize {
-                        row.push((to_solver[nbrs_w[e] as usize], weights[e]));
-                    }
-                    row.sort_unstable_by_key(|&(j, _)| j);
-                    nbrs.extend(row.iter().map(|&(j, _)| j));
-                    wts.extend(row.iter().map(|&(_, wt)| wt));
-                    lengths.push(row.len() as u32);
+                    let range = offsets_w[w as usize] as usize..offsets_w[w as usize + 1] as usize;
+                    nbrs.extend(nbrs_w[range.clone()].iter().map(|&j| to_solver[j as usize]));
+                    wts.extend_from_slice(&weights[range.clone()]);
+                    lengths.push(range.len() as u32);
                 }
                 (lengths, nbrs, wts)
             })
@@ -849,6 +813,50 @@ impl Layout {
         }
         out
     }
+}
+
+/// Fixes the free vertices of every connected component (through non-zero weights) that
+/// reaches no constrained vertex: they keep their rest pose, and the system stays
+/// non-singular. Returns how many vertices were fixed.
+fn pin_unanchored_components(topology: &Topology, weights: &[f64], roles: &mut [Role]) -> usize {
+    let (offsets, nbrs) = (topology.offsets(), topology.neighbor_list());
+    let n = roles.len();
+    let mut pinned = 0usize;
+    let mut seen = vec![false; n];
+    let mut stack = Vec::new();
+    let mut comp = Vec::new();
+    for s in 0..n {
+        if seen[s] || roles[s] != Role::Free {
+            continue;
+        }
+        comp.clear();
+        let mut anchored = false;
+        seen[s] = true;
+        stack.push(s as u32);
+        while let Some(i) = stack.pop() {
+            comp.push(i);
+            let i = i as usize;
+            for e in offsets[i] as usize..offsets[i + 1] as usize {
+                if weights[e] == 0.0 {
+                    continue;
+                }
+                let j = nbrs[e] as usize;
+                if roles[j] != Role::Free {
+                    anchored = true;
+                } else if !seen[j] {
+                    seen[j] = true;
+                    stack.push(j as u32);
+                }
+            }
+        }
+        if !anchored {
+            pinned += comp.len();
+            for &v in &comp {
+                roles[v as usize] = Role::Fixed;
+            }
+        }
+    }
+    pinned
 }
 
 /// The cotangent and the uniform Laplacian restricted to the free vertices, in the order of
