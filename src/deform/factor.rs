@@ -26,12 +26,12 @@ pub(crate) struct LowerFactor {
 
 impl LowerFactor {
     /// Takes over faer's factor (`values` laid out as `symbolic` says), compacting it in
-    /// place: diagonals move out, explicit zeros of relaxed supernodes are dropped. `split` is the
-    /// independent-halves hint of the elimination order; it is verified against the factor's
-    /// pattern and dropped if it does not hold. `None` when an entry is not finite.
+    /// place: diagonals move out, explicit zeros of relaxed supernodes are dropped. `split`
+    /// is the independent-halves hint of the elimination order; it is verified against the
+    /// factor's pattern and dropped if it does not hold. `None` when an entry is not finite.
     pub fn from_faer(
         symbolic: &SymbolicCholesky<u32>,
-        values: Vec<f64>,
+        mut values: Vec<f64>,
         split: Option<(usize, usize)>,
     ) -> Option<Self> {
         let n = symbolic.nrows();
@@ -45,11 +45,12 @@ impl LowerFactor {
         out.col_ptr.push(0);
         // Checked on the way through rather than in a pass of its own.
         let mut finite = true;
-        match symbolic.raw() {
+        // Every value is written at or before the position it is read from, so the buffer is
+        // compacted in place (fresh pages cost more than the copy).
+        let len = match symbolic.raw() {
             SymbolicCholeskyRaw::Simplicial(s) => {
-                // Compacted in place, as below: the diagonal moves out, the rest moves up.
+                // The diagonal moves out, the rest moves up.
                 let (col_ptr, row_idx) = (s.col_ptr(), s.row_idx());
-                let mut values = values;
                 let mut at = 0usize;
                 for j in 0..n {
                     for k in col_ptr[j] as usize..col_ptr[j + 1] as usize {
@@ -65,18 +66,14 @@ impl LowerFactor {
                     }
                     out.col_ptr.push(at as u32);
                 }
-                values.truncate(at);
-                out.values = values;
+                at
             }
             SymbolicCholeskyRaw::Supernodal(s) => {
                 let (begin, end) = (s.supernode_begin(), s.supernode_end());
                 let (row_ptr, val_ptr, row_idx) =
                     (s.col_ptr_for_row_idx(), s.col_ptr_for_val(), s.row_idx());
-                // The values are compacted in place: every entry is written at or before the
-                // position it is read from, so no second buffer is allocated (fresh pages
-                // cost more than the copy). Rows are written into a buffer sized for the
-                // worst case; dropping a zero is one conditional increment, not a branch.
-                let mut values = values;
+                // Rows are written into a buffer sized for the worst case; dropping a zero is
+                // one conditional increment, not a branch.
                 out.rows.resize(values.len().saturating_sub(n), 0);
                 let mut at = 0usize;
                 for sn in 0..s.n_supernodes() {
@@ -105,10 +102,11 @@ impl LowerFactor {
                     }
                 }
                 out.rows.truncate(at);
-                values.truncate(at);
-                out.values = values;
+                at
             }
-        }
+        };
+        values.truncate(len);
+        out.values = values;
         if !finite || !out.inv_diagonal.iter().all(|d| d.is_finite()) {
             return None;
         }

@@ -20,10 +20,10 @@ use super::constraints::{ConstraintError, Constraints, Role};
 use super::factor::LowerFactor;
 use super::ordering::{dissect, minimum_degree, spatial_order};
 use super::rotation::{add_outer, fit_rotation_warm};
-use super::topology::{MeshError, Topology, WeightMode};
+use super::topology::{MeshError, RowPiece, Topology, WeightMode, join_rows, row_offsets};
 
-/// Which faer Cholesky variant computes the factor. Either way the factor is then copied to
-/// the solver's own compressed-column layout, so this choice only changes how long the
+/// Which faer Cholesky variant computes the factor. Either way the factor is then compacted
+/// into the solver's own compressed-column layout, so this choice only changes how long the
 /// factorization takes, never the result or the speed of the iterations.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Factorization {
@@ -57,7 +57,7 @@ pub struct SolverSettings {
     /// unknowns: they stay at their rest position, which keeps the system small on big meshes.
     pub region_of_interest: Option<Vec<bool>>,
     /// Cholesky variant (affects the factorization time only: the iterations always solve
-    /// with the factor copied to compressed columns).
+    /// with the factor compacted to compressed columns).
     pub factorization: Factorization,
     /// Fill-reducing ordering.
     pub ordering: FillOrdering,
@@ -337,9 +337,8 @@ impl ArapSolver {
         let mut graph = Vec::new();
         graph_offsets.push(0u32);
         for &i in &free {
-            let i = i as usize;
             graph.extend(
-                nbrs[offsets[i] as usize..offsets[i + 1] as usize]
+                one_ring(i as usize)
                     .iter()
                     .map(|&j| free_index[j as usize])
                     .filter(|&fj| fj != NOT_FREE),
@@ -763,7 +762,7 @@ impl Layout {
         }
         // Rows renumbered, in parallel chunks. Their order within a row does not matter
         // (the matrices are assembled, sorted, from them later).
-        let chunks: Vec<(Vec<u32>, Vec<u32>, Vec<f64>)> = to_welded
+        let pieces: Vec<RowPiece> = to_welded
             .par_chunks(4096)
             .map(|rows| {
                 let (mut lengths, mut nbrs, mut wts) = (Vec::new(), Vec::new(), Vec::new());
@@ -776,17 +775,7 @@ impl Layout {
                 (lengths, nbrs, wts)
             })
             .collect();
-        let mut offsets = Vec::with_capacity(n + 1);
-        let mut nbrs = Vec::with_capacity(nbrs_w.len());
-        let mut new_weights = Vec::with_capacity(nbrs_w.len());
-        offsets.push(0u32);
-        for (lengths, chunk_nbrs, chunk_weights) in chunks {
-            for len in lengths {
-                offsets.push(offsets[offsets.len() - 1] + len);
-            }
-            nbrs.extend_from_slice(&chunk_nbrs);
-            new_weights.extend_from_slice(&chunk_weights);
-        }
+        let (offsets, nbrs, weights) = join_rows(&pieces);
         let rest = to_welded
             .iter()
             .map(|&w| topology.positions()[w as usize])
@@ -795,7 +784,7 @@ impl Layout {
             to_welded,
             offsets,
             nbrs,
-            weights: new_weights,
+            weights,
             rest,
         }
     }
@@ -930,20 +919,8 @@ impl FreeLaplacians {
                 out
             })
             .collect();
-        let concat = |lengths: &dyn Fn(&Chunk) -> &[u32]| {
-            let mut ptr = Vec::with_capacity(free.len() + 1);
-            ptr.push(0u32);
-            for chunk in &chunks {
-                for &len in lengths(chunk) {
-                    ptr.push(ptr[ptr.len() - 1] + len);
-                }
-            }
-            ptr
-        };
-        let lower_col_ptr = concat(&|c| &c.lower_lengths);
-        let upper_col_ptr = concat(&|c| &c.upper_lengths);
         Self {
-            lower_col_ptr,
+            lower_col_ptr: row_offsets(chunks.iter().map(|c| &c.lower_lengths[..])),
             lower_rows: chunks
                 .iter()
                 .map(|c| &c.lower_rows[..])
@@ -959,7 +936,7 @@ impl FreeLaplacians {
                 .map(|c| &c.uniform[..])
                 .collect::<Vec<_>>()
                 .concat(),
-            upper_col_ptr,
+            upper_col_ptr: row_offsets(chunks.iter().map(|c| &c.upper_lengths[..])),
             upper_rows: chunks
                 .iter()
                 .map(|c| &c.upper_rows[..])

@@ -63,6 +63,29 @@ pub struct Topology {
     cotangent: Vec<f64>,
 }
 
+/// CSR rows built piece by piece (in parallel): `(row lengths, neighbours, weights)`.
+pub(crate) type RowPiece = (Vec<u32>, Vec<u32>, Vec<f64>);
+
+/// Joins row pieces, given in row order, into CSR `(offsets, neighbours, weights)`.
+pub(crate) fn join_rows(pieces: &[RowPiece]) -> (Vec<u32>, Vec<u32>, Vec<f64>) {
+    (
+        row_offsets(pieces.iter().map(|p| &p.0[..])),
+        pieces.iter().map(|p| &p.1[..]).collect::<Vec<_>>().concat(),
+        pieces.iter().map(|p| &p.2[..]).collect::<Vec<_>>().concat(),
+    )
+}
+
+/// CSR row offsets (starting at 0) from row lengths given piece by piece, in row order.
+pub(crate) fn row_offsets<'a>(lengths: impl Iterator<Item = &'a [u32]>) -> Vec<u32> {
+    let mut offsets = vec![0u32];
+    for piece in lengths {
+        for &len in piece {
+            offsets.push(offsets[offsets.len() - 1] + len);
+        }
+    }
+    offsets
+}
+
 /// Half the cotangent of the corner of `t` at `t[k]` (0 when the corner is degenerate).
 fn half_cotangent(positions: &[DVec3], t: [u32; 3], k: usize) -> f64 {
     let c = positions[t[k] as usize];
@@ -171,13 +194,13 @@ impl Topology {
                 fill[a as usize] += 2;
             }
         }
-        let chunks: Vec<(Vec<u32>, Vec<u32>, Vec<f64>)> = (0..n)
-            .collect::<Vec<_>>()
-            .par_chunks(4096)
-            .map(|rows| {
+        const ROWS: usize = 4096;
+        let pieces: Vec<RowPiece> = (0..n.div_ceil(ROWS))
+            .into_par_iter()
+            .map(|c| {
                 let (mut lengths, mut nbrs, mut wts) = (Vec::new(), Vec::new(), Vec::new());
                 let mut keys: Vec<u64> = Vec::new();
-                for &i in rows {
+                for i in c * ROWS..n.min((c + 1) * ROWS) {
                     let row = &raw[starts[i]..starts[i + 1]];
                     // (neighbour, position in the row): unique keys, so an unstable sort of
                     // plain integers gives the stable order.
@@ -203,17 +226,7 @@ impl Topology {
                 (lengths, nbrs, wts)
             })
             .collect();
-        let mut offsets = Vec::with_capacity(n + 1);
-        let mut neighbors = Vec::with_capacity(raw.len() / 2);
-        let mut cotangent = Vec::with_capacity(raw.len() / 2);
-        offsets.push(0u32);
-        for (lengths, chunk_nbrs, chunk_weights) in chunks {
-            for len in lengths {
-                offsets.push(offsets[offsets.len() - 1] + len);
-            }
-            neighbors.extend_from_slice(&chunk_nbrs);
-            cotangent.extend_from_slice(&chunk_weights);
-        }
+        let (offsets, neighbors, cotangent) = join_rows(&pieces);
         Ok(Topology {
             positions: welded,
             triangles: tris,
