@@ -28,7 +28,9 @@ impl LowerFactor {
     /// Takes over faer's factor (`values` laid out as `symbolic` says), compacting it in
     /// place: diagonals move out, explicit zeros of relaxed supernodes are dropped. `split`
     /// is the independent-halves hint of the elimination order; it is verified against the
-    /// factor's pattern and dropped if it does not hold. `None` when an entry is not finite.
+    /// factor's pattern and dropped if it does not hold. `None` when a diagonal entry is not
+    /// finite and positive. Off-diagonal entries need no check: `|L_ij| ≤ √A_ii`, and the
+    /// assembled diagonal is finite (the solve checks its output all the same).
     pub fn from_faer(
         symbolic: &SymbolicCholesky<u32>,
         mut values: Vec<f64>,
@@ -43,8 +45,6 @@ impl LowerFactor {
             split: None,
         };
         out.col_ptr.push(0);
-        // Checked on the way through rather than in a pass of its own.
-        let mut finite = true;
         // Every value is written at or before the position it is read from, so the buffer is
         // compacted in place (fresh pages cost more than the copy).
         let len = match symbolic.raw() {
@@ -58,7 +58,6 @@ impl LowerFactor {
                         if r as usize == j {
                             out.inv_diagonal[j] = 1.0 / v;
                         } else {
-                            finite &= v.is_finite();
                             values[at] = v;
                             out.rows.push(r);
                             at += 1;
@@ -88,14 +87,20 @@ impl LowerFactor {
                     for c in 0..width {
                         let column = block + c * height;
                         out.inv_diagonal[b + c] = 1.0 / values[column + c];
-                        let rows = (b + c + 1..e)
-                            .map(|r| r as u32)
-                            .chain(pattern.iter().copied());
-                        for (k, r) in (column + c + 1..column + height).zip(rows) {
+                        // Rows below the diagonal inside the supernode, then the pattern.
+                        let first = column + c + 1;
+                        let split = first + (e - (b + c + 1));
+                        let rows = &mut out.rows[..];
+                        for (k, r) in (first..split).zip((b + c + 1) as u32..) {
                             let v = values[k];
-                            finite &= v.is_finite();
                             values[at] = v;
-                            out.rows[at] = r;
+                            rows[at] = r;
+                            at += (v != 0.0) as usize;
+                        }
+                        for (k, &r) in (split..column + height).zip(pattern) {
+                            let v = values[k];
+                            values[at] = v;
+                            rows[at] = r;
                             at += (v != 0.0) as usize;
                         }
                         out.col_ptr.push(at as u32);
@@ -107,7 +112,7 @@ impl LowerFactor {
         };
         values.truncate(len);
         out.values = values;
-        if !finite || !out.inv_diagonal.iter().all(|d| d.is_finite()) {
+        if !out.inv_diagonal.iter().all(|d| d.is_finite() && *d > 0.0) {
             return None;
         }
         out.split = split.filter(|&s| out.halves_are_independent(s));

@@ -11,6 +11,7 @@ use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::SymbolicSparseColMatRef;
 use faer::sparse::linalg::amd;
 use glam::DVec3;
+use rayon::prelude::*;
 
 /// Pieces at most this big are never cut.
 const LEAF: usize = 64;
@@ -139,26 +140,50 @@ impl Graph<'_> {
         }
         // `v` is below cut `c` iff `bucket[v] <= c` (the number of cut keys at or under it).
         let mut bucket = vec![0u8; self.offsets.len() - 1];
-        for &v in &vertices {
-            bucket[v as usize] = cuts.iter().filter(|c| order(c, &v).is_le()).count() as u8;
+        let key_count = |v: &u32| cuts.iter().filter(|c| order(c, v).is_le()).count() as u8;
+        if n == bucket.len() {
+            // All vertices: in parallel, indexed by vertex.
+            bucket
+                .par_iter_mut()
+                .enumerate()
+                .for_each(|(v, b)| *b = key_count(&(v as u32)));
+        } else {
+            for &v in &vertices {
+                bucket[v as usize] = key_count(&v);
+            }
         }
         let below = |v: u32, c: usize| bucket[v as usize] as usize <= c;
         let on_boundary = |v: u32, c: usize| {
             let side = below(v, c);
             self.neighbours(v).iter().any(|&w| below(w, c) != side)
         };
-        let mut best: Option<(usize, bool, usize)> = None; // (separator size, low side, cut)
-        for c in 0..PERCENTILES.len() {
-            let (mut low, mut high) = (0, 0);
-            for &v in &vertices {
-                if on_boundary(v, c) {
-                    if below(v, c) {
-                        low += 1;
-                    } else {
-                        high += 1;
+        // Boundary vertices below and above each cut.
+        const CUTS: usize = PERCENTILES.len();
+        let counts = vertices
+            .par_iter()
+            .fold(
+                || [[0usize; 2]; CUTS],
+                |mut acc, &v| {
+                    for (c, count) in acc.iter_mut().enumerate() {
+                        if on_boundary(v, c) {
+                            count[!below(v, c) as usize] += 1;
+                        }
                     }
-                }
-            }
+                    acc
+                },
+            )
+            .reduce(
+                || [[0usize; 2]; CUTS],
+                |mut a, b| {
+                    for (x, y) in a.iter_mut().zip(b) {
+                        x[0] += y[0];
+                        x[1] += y[1];
+                    }
+                    a
+                },
+            );
+        let mut best: Option<(usize, bool, usize)> = None; // (separator size, low side, cut)
+        for (c, &[low, high]) in counts.iter().enumerate() {
             let candidate = if low <= high {
                 (low, true, c)
             } else {
@@ -168,18 +193,27 @@ impl Graph<'_> {
                 best = Some(candidate);
             }
         }
-        let (_, low_side, c) = best.unwrap_or((0, true, PERCENTILES.len() / 2));
+        let (_, low_side, c) = best.unwrap_or((0, true, CUTS / 2));
+        // 0: first half, 1: second half, 2: separator.
+        let class: Vec<u8> = vertices
+            .par_iter()
+            .map(|&v| {
+                let side = below(v, c);
+                if side == low_side && on_boundary(v, c) {
+                    2
+                } else {
+                    (!side) as u8
+                }
+            })
+            .collect();
         let mut first = Vec::with_capacity(n / 2);
         let mut second = Vec::with_capacity(n / 2);
         let mut separator = Vec::new();
-        for &v in &vertices {
-            let side = below(v, c);
-            if side == low_side && on_boundary(v, c) {
-                separator.push(v);
-            } else if side {
-                first.push(v);
-            } else {
-                second.push(v);
+        for (&v, &k) in vertices.iter().zip(&class) {
+            match k {
+                0 => first.push(v),
+                1 => second.push(v),
+                _ => separator.push(v),
             }
         }
         (first, second, separator)

@@ -20,7 +20,7 @@ use super::constraints::{ConstraintError, Constraints, Role};
 use super::factor::LowerFactor;
 use super::ordering::{dissect, minimum_degree, spatial_order};
 use super::rotation::{add_outer, fit_rotation_warm};
-use super::topology::{MeshError, RowPiece, Topology, WeightMode, join_rows, row_offsets};
+use super::topology::{MeshError, RowPiece, Topology, WeightMode, join_rows};
 
 /// Which faer Cholesky variant computes the factor. Either way the factor is then compacted
 /// into the solver's own compressed-column layout, so this choice only changes how long the
@@ -371,37 +371,45 @@ impl ArapSolver {
             for (k, &i) in free.iter().enumerate() {
                 free_index[i as usize] = k as u32;
             }
-            let system = FreeLaplacians::new(offsets, nbrs, weights, &free, &free_index);
-            let upper = SymbolicSparseColMatRef::new_checked(
-                nf,
-                nf,
-                &system.upper_col_ptr,
-                None,
-                &system.upper_rows,
-            );
-            let pattern = SymbolicSparseColMatRef::new_checked(
-                nf,
-                nf,
-                &system.lower_col_ptr,
-                None,
-                &system.lower_rows,
-            );
+            let laplacians = FreeGraph {
+                offsets,
+                nbrs,
+                weights,
+                free: &free,
+                free_index: &free_index,
+            };
+            let upper = laplacians.upper();
             let threshold = match settings.factorization {
                 Factorization::Auto => SupernodalThreshold::AUTO,
                 Factorization::Simplicial => SupernodalThreshold::FORCE_SIMPLICIAL,
                 Factorization::Supernodal => SupernodalThreshold::FORCE_SUPERNODAL,
             };
-            // With the identity ordering faer reads the upper triangle.
-            let symbolic = factorize_symbolic_cholesky(
-                upper,
-                Side::Upper,
-                SymmetricOrdering::Identity,
-                CholeskySymbolicParams {
-                    supernodal_flop_ratio_threshold: threshold,
-                    ..Default::default()
+            // faer's symbolic analysis reads the upper triangle (with the identity ordering);
+            // the lower one, with the values, is built meanwhile.
+            let (symbolic, system) = rayon::join(
+                || {
+                    let pattern = SymbolicSparseColMatRef::new_checked(
+                        nf,
+                        nf,
+                        &upper.col_ptr,
+                        None,
+                        &upper.rows,
+                    );
+                    factorize_symbolic_cholesky(
+                        pattern,
+                        Side::Upper,
+                        SymmetricOrdering::Identity,
+                        CholeskySymbolicParams {
+                            supernodal_flop_ratio_threshold: threshold,
+                            ..Default::default()
+                        },
+                    )
                 },
-            )
-            .map_err(|e| SolveError::Factorization(format!("{e:?}")))?;
+                || laplacians.lower(),
+            );
+            let symbolic = symbolic.map_err(|e| SolveError::Factorization(format!("{e:?}")))?;
+            let pattern =
+                SymbolicSparseColMatRef::new_checked(nf, nf, &system.col_ptr, None, &system.rows);
             stats.symbolic_s = t1.elapsed().as_secs_f64();
             stats.supernodal = matches!(symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_));
             let t2 = Instant::now();
@@ -850,98 +858,103 @@ fn pin_unanchored_components(topology: &Topology, weights: &[f64], roles: &mut [
 
 /// The cotangent and the uniform Laplacian restricted to the free vertices, in the order of
 /// `free` (`free_index` maps a vertex to its position there, or [`NOT_FREE`]). Both share
-/// one pattern.
-struct FreeLaplacians {
-    /// Lower triangle, compressed columns with sorted rows, diagonal first.
-    lower_col_ptr: Vec<u32>,
-    lower_rows: Vec<u32>,
-    cotangent: Vec<f64>,
-    uniform: Vec<f64>,
-    /// Upper triangle pattern (what faer's symbolic analysis reads).
-    upper_col_ptr: Vec<u32>,
-    upper_rows: Vec<u32>,
+/// one pattern; the upper triangle's pattern (all faer's symbolic analysis reads) is built
+/// on its own, so the lower triangle with the values can be built while faer analyses it.
+struct FreeGraph<'a> {
+    offsets: &'a [u32],
+    nbrs: &'a [u32],
+    weights: &'a [f64],
+    free: &'a [u32],
+    free_index: &'a [u32],
 }
 
-impl FreeLaplacians {
-    fn new(
-        offsets: &[u32],
-        nbrs: &[u32],
-        weights: &[f64],
-        free: &[u32],
-        free_index: &[u32],
-    ) -> Self {
-        struct Chunk {
-            lower_lengths: Vec<u32>,
-            lower_rows: Vec<u32>,
-            cotangent: Vec<f64>,
-            uniform: Vec<f64>,
-            upper_lengths: Vec<u32>,
-            upper_rows: Vec<u32>,
-        }
-        const COLUMNS: usize = 4096;
-        let chunks: Vec<Chunk> = free
-            .par_chunks(COLUMNS)
+/// Upper triangle pattern of the free Laplacians, compressed columns, sorted rows.
+struct UpperPattern {
+    col_ptr: Vec<u32>,
+    rows: Vec<u32>,
+}
+
+/// Lower triangle of both free Laplacians, compressed columns with sorted rows, diagonal
+/// first.
+struct LowerLaplacians {
+    col_ptr: Vec<u32>,
+    rows: Vec<u32>,
+    cotangent: Vec<f64>,
+    uniform: Vec<f64>,
+}
+
+impl FreeGraph<'_> {
+    /// Columns per parallel piece.
+    const COLUMNS: usize = 4096;
+
+    /// Free neighbours of free vertex `i` (a mesh vertex) on one side of column `col`, with
+    /// their edge weights, sorted: below it (`upper`) or above it.
+    fn side(&self, i: u32, col: u32, upper: bool, out: &mut Vec<(u32, f64)>) {
+        let range = self.offsets[i as usize] as usize..self.offsets[i as usize + 1] as usize;
+        out.clear();
+        out.extend(range.filter_map(|e| {
+            let r = self.free_index[self.nbrs[e] as usize];
+            (r != NOT_FREE && (r < col) == upper).then_some((r, self.weights[e]))
+        }));
+        out.sort_unstable_by_key(|&(r, _)| r);
+    }
+
+    fn upper(&self) -> UpperPattern {
+        let pieces: Vec<RowPiece> = self
+            .free
+            .par_chunks(Self::COLUMNS)
             .enumerate()
             .map(|(c, columns)| {
-                let mut out = Chunk {
-                    lower_lengths: Vec::with_capacity(columns.len()),
-                    lower_rows: Vec::new(),
-                    cotangent: Vec::new(),
-                    uniform: Vec::new(),
-                    upper_lengths: Vec::with_capacity(columns.len()),
-                    upper_rows: Vec::new(),
-                };
-                let mut row = Vec::new();
+                let mut lengths = Vec::with_capacity(columns.len());
+                let mut rows = Vec::new();
+                let mut side = Vec::new();
                 for (k, &i) in columns.iter().enumerate() {
-                    let col = (c * COLUMNS + k) as u32;
-                    let range = offsets[i as usize] as usize..offsets[i as usize + 1] as usize;
-                    row.clear();
-                    row.extend(range.clone().filter_map(|e| {
-                        let r = free_index[nbrs[e] as usize];
-                        (r != NOT_FREE).then_some((r, weights[e]))
-                    }));
-                    row.sort_unstable_by_key(|&(r, _)| r);
-                    let split = row.partition_point(|&(r, _)| r < col);
-                    out.upper_rows.extend(row[..split].iter().map(|&(r, _)| r));
-                    out.upper_rows.push(col);
-                    out.upper_lengths.push(split as u32 + 1);
-                    out.lower_rows.push(col);
-                    out.cotangent
-                        .push(weights[range.clone()].iter().sum::<f64>());
-                    out.uniform.push(range.len() as f64);
-                    for &(r, w) in &row[split..] {
-                        out.lower_rows.push(r);
-                        out.cotangent.push(-w);
-                        out.uniform.push(-1.0);
-                    }
-                    out.lower_lengths.push((row.len() - split) as u32 + 1);
+                    let col = (c * Self::COLUMNS + k) as u32;
+                    self.side(i, col, true, &mut side);
+                    rows.extend(side.iter().map(|&(r, _)| r));
+                    rows.push(col);
+                    lengths.push(side.len() as u32 + 1);
                 }
-                out
+                (lengths, rows, Vec::new())
             })
             .collect();
-        Self {
-            lower_col_ptr: row_offsets(chunks.iter().map(|c| &c.lower_lengths[..])),
-            lower_rows: chunks
-                .iter()
-                .map(|c| &c.lower_rows[..])
-                .collect::<Vec<_>>()
-                .concat(),
-            cotangent: chunks
-                .iter()
-                .map(|c| &c.cotangent[..])
-                .collect::<Vec<_>>()
-                .concat(),
-            uniform: chunks
-                .iter()
-                .map(|c| &c.uniform[..])
-                .collect::<Vec<_>>()
-                .concat(),
-            upper_col_ptr: row_offsets(chunks.iter().map(|c| &c.upper_lengths[..])),
-            upper_rows: chunks
-                .iter()
-                .map(|c| &c.upper_rows[..])
-                .collect::<Vec<_>>()
-                .concat(),
+        let (col_ptr, rows, _) = join_rows(&pieces);
+        UpperPattern { col_ptr, rows }
+    }
+
+    fn lower(&self) -> LowerLaplacians {
+        let (pieces, uniform): (Vec<RowPiece>, Vec<Vec<f64>>) = self
+            .free
+            .par_chunks(Self::COLUMNS)
+            .enumerate()
+            .map(|(c, columns)| {
+                let mut lengths = Vec::with_capacity(columns.len());
+                let (mut rows, mut cotangent, mut uniform) = (Vec::new(), Vec::new(), Vec::new());
+                let mut side = Vec::new();
+                for (k, &i) in columns.iter().enumerate() {
+                    let col = (c * Self::COLUMNS + k) as u32;
+                    let range =
+                        self.offsets[i as usize] as usize..self.offsets[i as usize + 1] as usize;
+                    self.side(i, col, false, &mut side);
+                    rows.push(col);
+                    cotangent.push(self.weights[range.clone()].iter().sum::<f64>());
+                    uniform.push(range.len() as f64);
+                    for &(r, w) in &side {
+                        rows.push(r);
+                        cotangent.push(-w);
+                        uniform.push(-1.0);
+                    }
+                    lengths.push(side.len() as u32 + 1);
+                }
+                ((lengths, rows, cotangent), uniform)
+            })
+            .unzip();
+        let (col_ptr, rows, cotangent) = join_rows(&pieces);
+        LowerLaplacians {
+            col_ptr,
+            rows,
+            cotangent,
+            uniform: uniform.concat(),
         }
     }
 }

@@ -86,18 +86,34 @@ pub(crate) fn row_offsets<'a>(lengths: impl Iterator<Item = &'a [u32]>) -> Vec<u
     offsets
 }
 
-/// Half the cotangent of the corner of `t` at `t[k]` (0 when the corner is degenerate).
-fn half_cotangent(positions: &[DVec3], t: [u32; 3], k: usize) -> f64 {
-    let c = positions[t[k] as usize];
-    let u = positions[t[(k + 1) % 3] as usize] - c;
-    let v = positions[t[(k + 2) % 3] as usize] - c;
-    let sine = u.cross(v).length();
-    let scale = u.length() * v.length();
-    // Also skips NaN: a corner that is not clearly non-degenerate contributes 0.
-    if sine.partial_cmp(&(DEGENERATE_SINE * scale)) != Some(std::cmp::Ordering::Greater) {
-        return 0.0;
+/// Half the cotangent of each corner of the triangle `p` (0 for a corner that is not clearly
+/// non-degenerate, NaN included). The cross product of the two sides at a corner is twice
+/// the area at every corner, so one square root serves all three.
+fn half_cotangents(p: [DVec3; 3]) -> [f64; 3] {
+    let twice_area = (p[1] - p[0]).cross(p[2] - p[0]).length();
+    let half_inverse = 0.5 / twice_area;
+    std::array::from_fn(|k| {
+        let (u, v) = (p[(k + 1) % 3] - p[k], p[(k + 2) % 3] - p[k]);
+        // sin = 2A / (|u| |v|), compared squared.
+        let clear = twice_area * twice_area
+            > DEGENERATE_SINE * DEGENERATE_SINE * u.length_squared() * v.length_squared();
+        if clear { u.dot(v) * half_inverse } else { 0.0 }
+    })
+}
+
+/// Sorts a short row by neighbour (neighbours are distinct), carrying the weights along.
+fn sort_row(nbrs: &mut [u32], wts: &mut [f64]) {
+    for a in 1..nbrs.len() {
+        let (j, w) = (nbrs[a], wts[a]);
+        let mut b = a;
+        while b > 0 && nbrs[b - 1] > j {
+            nbrs[b] = nbrs[b - 1];
+            wts[b] = wts[b - 1];
+            b -= 1;
+        }
+        nbrs[b] = j;
+        wts[b] = w;
     }
-    0.5 * u.dot(v) / sine
 }
 
 /// Below this ratio of `|u × v|` to `|u|·|v|` a corner angle counts as degenerate (0 or 180°)
@@ -165,66 +181,71 @@ impl Topology {
             .collect();
         let n = welded.len();
 
-        // Half-cotangent of each corner (in parallel: the square roots and divisions are the
-        // expensive part), then CSR rows of (neighbour, weight) filled in triangle order,
-        // sorted stably and merged. Both ends of an edge see its contributions in the same
-        // (triangle) order, so `w_ij == w_ji` exactly.
+        // Half-cotangent of each corner, per triangle in parallel. Then every corner's two
+        // edges are scattered, in triangle order, into its vertex's raw row, and the rows are
+        // merged in parallel: duplicates are summed in raw order, so both ends of an edge add
+        // the same contributions in the same (triangle) order and `w_ij == w_ji` exactly.
         let corners: Vec<[f64; 3]> = tris
             .par_iter()
-            .map(|t| std::array::from_fn(|k| half_cotangent(&welded, *t, k)))
+            .map(|t| half_cotangents(t.map(|i| welded[i as usize])))
             .collect();
-        let mut counts = vec![0usize; n + 1];
+        let mut starts = vec![0u32; n + 1];
         for t in &tris {
             for &v in t {
-                counts[v as usize + 1] += 2;
+                starts[v as usize + 1] += 2;
             }
         }
         for i in 0..n {
-            counts[i + 1] += counts[i];
+            starts[i + 1] += starts[i];
         }
-        let starts = counts;
-        let mut raw = vec![(0u32, 0.0f64); starts[n]];
-        let mut fill = starts.clone();
+        let mut raw = vec![(0u32, 0.0f64); starts[n] as usize];
+        let mut fill = starts[..n].to_vec();
         for (t, half_cot) in tris.iter().zip(&corners) {
             for k in 0..3 {
                 let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
                 // Edge (a, b) is opposite the corner at c; edge (a, c) the corner at b.
-                raw[fill[a as usize]] = (b, half_cot[(k + 2) % 3]);
-                raw[fill[a as usize] + 1] = (c, half_cot[(k + 1) % 3]);
+                let at = fill[a as usize] as usize;
+                raw[at] = (b, half_cot[(k + 2) % 3]);
+                raw[at + 1] = (c, half_cot[(k + 1) % 3]);
                 fill[a as usize] += 2;
             }
         }
         const ROWS: usize = 4096;
         let pieces: Vec<RowPiece> = (0..n.div_ceil(ROWS))
             .into_par_iter()
-            .map(|c| {
-                let (mut lengths, mut nbrs, mut wts) = (Vec::new(), Vec::new(), Vec::new());
-                let mut keys: Vec<u64> = Vec::new();
-                for i in c * ROWS..n.min((c + 1) * ROWS) {
-                    let row = &raw[starts[i]..starts[i + 1]];
-                    // (neighbour, position in the row): unique keys, so an unstable sort of
-                    // plain integers gives the stable order.
-                    keys.clear();
-                    keys.extend(
-                        row.iter()
-                            .enumerate()
-                            .map(|(k, &(j, _))| (j as u64) << 32 | k as u64),
-                    );
-                    keys.sort_unstable();
-                    let before = nbrs.len();
-                    for &key in &keys {
-                        let (j, w) = ((key >> 32) as u32, row[key as u32 as usize].1);
-                        if nbrs.len() > before && nbrs[nbrs.len() - 1] == j {
-                            *wts.last_mut().expect("pushed with nbrs") += w;
-                        } else {
-                            nbrs.push(j);
-                            wts.push(w);
+            .map_init(
+                || vec![u32::MAX; n],
+                // `slot_of[j]`: where neighbour `j` sits in the row being merged.
+                |slot_of, c| {
+                    let rows = c * ROWS..n.min((c + 1) * ROWS);
+                    // Every edge but a boundary one appears twice: half the raw entries, and
+                    // a little more, holds the row.
+                    let guess = (starts[rows.end] - starts[rows.start]) as usize * 5 / 8;
+                    let mut lengths = Vec::with_capacity(rows.len());
+                    let (mut nbrs, mut wts) =
+                        (Vec::with_capacity(guess), Vec::with_capacity(guess));
+                    for i in rows {
+                        let before = nbrs.len();
+                        for &(j, w) in &raw[starts[i] as usize..starts[i + 1] as usize] {
+                            let slot = &mut slot_of[j as usize];
+                            if *slot == u32::MAX {
+                                *slot = nbrs.len() as u32;
+                                nbrs.push(j);
+                                wts.push(w);
+                            } else {
+                                wts[*slot as usize] += w;
+                            }
                         }
+                        let row = before..nbrs.len();
+                        for &j in &nbrs[row.clone()] {
+                            slot_of[j as usize] = u32::MAX;
+                        }
+                        sort_row(&mut nbrs[row.clone()], &mut wts[row.clone()]);
+                        lengths.push(row.len() as u32);
                     }
-                    lengths.push((nbrs.len() - before) as u32);
-                }
-                (lengths, nbrs, wts)
-            })
+                    (lengths, nbrs, wts)
+                },
+            )
             .collect();
         let (offsets, neighbors, cotangent) = join_rows(&pieces);
         Ok(Topology {
