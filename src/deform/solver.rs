@@ -730,7 +730,7 @@ impl ArapSolver {
     }
 }
 
-/// The mesh renumbered in a spatial (k-d tree) order, so the neighbours a local step or a
+/// The mesh renumbered in a spatial (Z-order curve) order, so the neighbours a local step or a
 /// right-hand side reads sit close in memory: on meshes whose file order is scattered
 /// (subdivided, edited) this halves the time of those steps.
 #[derive(Debug, Clone)]
