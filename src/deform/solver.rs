@@ -40,7 +40,7 @@ pub enum Factorization {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum FillOrdering {
     /// One geometric cut into two independent halves, each ordered by approximate minimum
-    /// degree (default). The factor holds 9–24 % more non-zeros than with minimum degree on
+    /// degree (default). The factor holds 9–16 % more non-zeros than with minimum degree on
     /// the whole system (benchmark meshes), but the triangular solves run on two threads.
     #[default]
     Halves,
