@@ -378,6 +378,29 @@ mod tests {
     }
 
     #[test]
+    fn spatial_order_of_degenerate_clouds_is_a_permutation() {
+        for coords in [
+            vec![],
+            vec![DVec3::splat(3.0)],
+            vec![DVec3::splat(-1.0); 100],
+            (0..100).map(|i| DVec3::new(i as f64, 0.0, 0.0)).collect(),
+            vec![
+                DVec3::new(1e300, -1e300, 0.0),
+                DVec3::new(-1e300, 1e300, 1e-300),
+            ],
+        ] {
+            let mut order = spatial_order(&coords);
+            order.sort_unstable();
+            assert_eq!(order, (0..coords.len() as u32).collect::<Vec<_>>());
+        }
+        // Points along a line keep their order along it.
+        let line: Vec<DVec3> = (0..50)
+            .map(|i| DVec3::new(0.0, 49.0 - i as f64, 0.0))
+            .collect();
+        assert_eq!(spatial_order(&line), (0..50).rev().collect::<Vec<u32>>());
+    }
+
+    #[test]
     fn tiny_graphs_are_not_split() {
         let (offsets, adjacency, coords) = grid(3, 3);
         let d = dissect(&offsets, &adjacency, &coords);
