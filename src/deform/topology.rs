@@ -101,8 +101,17 @@ fn half_cotangents(p: [DVec3; 3]) -> [f64; 3] {
     })
 }
 
-/// Sorts a short row by neighbour (neighbours are distinct), carrying the weights along.
+/// Sorts a row by neighbour (neighbours are distinct), carrying the weights along.
 fn sort_row(nbrs: &mut [u32], wts: &mut [f64]) {
+    if nbrs.len() > 32 {
+        let mut pairs: Vec<(u32, f64)> = nbrs.iter().copied().zip(wts.iter().copied()).collect();
+        pairs.sort_unstable_by_key(|&(j, _)| j);
+        for ((n, w), (j, v)) in nbrs.iter_mut().zip(wts.iter_mut()).zip(pairs) {
+            (*n, *w) = (j, v);
+        }
+        return;
+    }
+    // Insertion sort: rows of ordinary meshes are short.
     for a in 1..nbrs.len() {
         let (j, w) = (nbrs[a], wts[a]);
         let mut b = a;
@@ -189,7 +198,7 @@ impl Topology {
             .par_iter()
             .map(|t| half_cotangents(t.map(|i| welded[i as usize])))
             .collect();
-        let mut starts = vec![0u32; n + 1];
+        let mut starts = vec![0usize; n + 1];
         for t in &tris {
             for &v in t {
                 starts[v as usize + 1] += 2;
@@ -198,54 +207,54 @@ impl Topology {
         for i in 0..n {
             starts[i + 1] += starts[i];
         }
-        let mut raw = vec![(0u32, 0.0f64); starts[n] as usize];
+        let mut raw = vec![(0u32, 0.0f64); starts[n]];
         let mut fill = starts[..n].to_vec();
         for (t, half_cot) in tris.iter().zip(&corners) {
             for k in 0..3 {
                 let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
                 // Edge (a, b) is opposite the corner at c; edge (a, c) the corner at b.
-                let at = fill[a as usize] as usize;
+                let at = fill[a as usize];
                 raw[at] = (b, half_cot[(k + 2) % 3]);
                 raw[at + 1] = (c, half_cot[(k + 1) % 3]);
                 fill[a as usize] += 2;
             }
         }
-        const ROWS: usize = 4096;
-        let pieces: Vec<RowPiece> = (0..n.div_ceil(ROWS))
+        // A few groups of rows, merged in parallel, each with a marker array over all
+        // vertices (4 bytes per vertex per group: the group count is capped).
+        let groups = rayon::current_num_threads().clamp(1, 4);
+        let per_group = n.div_ceil(groups).max(1);
+        let pieces: Vec<RowPiece> = (0..n.div_ceil(per_group))
             .into_par_iter()
-            .map_init(
-                || vec![u32::MAX; n],
+            .map(|g| {
+                let rows = g * per_group..n.min((g + 1) * per_group);
+                // Every edge but a boundary one appears twice: half the raw entries, and a
+                // little more, holds the rows.
+                let guess = (starts[rows.end] - starts[rows.start]) * 5 / 8;
+                let mut lengths = Vec::with_capacity(rows.len());
+                let (mut nbrs, mut wts) = (Vec::with_capacity(guess), Vec::with_capacity(guess));
                 // `slot_of[j]`: where neighbour `j` sits in the row being merged.
-                |slot_of, c| {
-                    let rows = c * ROWS..n.min((c + 1) * ROWS);
-                    // Every edge but a boundary one appears twice: half the raw entries, and
-                    // a little more, holds the row.
-                    let guess = (starts[rows.end] - starts[rows.start]) as usize * 5 / 8;
-                    let mut lengths = Vec::with_capacity(rows.len());
-                    let (mut nbrs, mut wts) =
-                        (Vec::with_capacity(guess), Vec::with_capacity(guess));
-                    for i in rows {
-                        let before = nbrs.len();
-                        for &(j, w) in &raw[starts[i] as usize..starts[i + 1] as usize] {
-                            let slot = &mut slot_of[j as usize];
-                            if *slot == u32::MAX {
-                                *slot = nbrs.len() as u32;
-                                nbrs.push(j);
-                                wts.push(w);
-                            } else {
-                                wts[*slot as usize] += w;
-                            }
+                let mut slot_of = vec![u32::MAX; n];
+                for i in rows {
+                    let before = nbrs.len();
+                    for &(j, w) in &raw[starts[i]..starts[i + 1]] {
+                        let slot = &mut slot_of[j as usize];
+                        if *slot == u32::MAX {
+                            *slot = nbrs.len() as u32;
+                            nbrs.push(j);
+                            wts.push(w);
+                        } else {
+                            wts[*slot as usize] += w;
                         }
-                        let row = before..nbrs.len();
-                        for &j in &nbrs[row.clone()] {
-                            slot_of[j as usize] = u32::MAX;
-                        }
-                        sort_row(&mut nbrs[row.clone()], &mut wts[row.clone()]);
-                        lengths.push(row.len() as u32);
                     }
-                    (lengths, nbrs, wts)
-                },
-            )
+                    let row = before..nbrs.len();
+                    for &j in &nbrs[row.clone()] {
+                        slot_of[j as usize] = u32::MAX;
+                    }
+                    sort_row(&mut nbrs[row.clone()], &mut wts[row.clone()]);
+                    lengths.push(row.len() as u32);
+                }
+                (lengths, nbrs, wts)
+            })
             .collect();
         let (offsets, neighbors, cotangent) = join_rows(&pieces);
         Ok(Topology {
@@ -510,5 +519,36 @@ mod tests {
         assert_eq!(checked, 2 * reference.len());
         assert_eq!(topo.neighbors(12), &[2, 3]);
         assert_eq!(topo.neighbors(2).len(), 5);
+    }
+
+    #[test]
+    fn high_valence_rows_are_sorted_and_exact() {
+        // A closed fan of 50 triangles (the centre's raw row has 100 entries), its rim
+        // vertices numbered out of angular order.
+        let rim = 50u32;
+        let label = |k: u32| (k * 7) % rim + 1;
+        let mut p = vec![DVec3::new(0.0, 0.0, 0.3); rim as usize + 1];
+        for k in 0..rim {
+            let a = std::f64::consts::TAU * k as f64 / rim as f64;
+            p[label(k) as usize] = DVec3::new(a.cos(), a.sin(), 0.1 * (3.0 * a).sin());
+        }
+        let t: Vec<[u32; 3]> = (0..rim)
+            .map(|k| [0, label(k), label((k + 1) % rim)])
+            .collect();
+        let topo = Topology::new(&p, &t).unwrap();
+        assert_eq!(topo.neighbors(0), (1..=rim).collect::<Vec<u32>>());
+        let reference = reference_weights(&p, &t);
+        for i in 0..topo.vertex_count() {
+            for (slot, &j) in topo.neighbors(i).iter().enumerate() {
+                let w = topo.raw_cotangents()[topo.offsets()[i] as usize + slot];
+                let back = topo.raw_cotangents()[topo.edge_slot(j, i as u32)];
+                assert_eq!(w.to_bits(), back.to_bits(), "w[{i}][{j}] != w[{j}][{i}]");
+                let expected = reference[&(j.min(i as u32), j.max(i as u32))];
+                assert!(
+                    (w - expected).abs() < 1e-12,
+                    "edge {i}-{j}: {w} vs {expected}"
+                );
+            }
+        }
     }
 }
