@@ -30,10 +30,7 @@ pub(crate) struct Dissection {
 /// bounding box, so mesh neighbours sit close in memory. `order[k]` is the vertex stored
 /// `k`-th.
 pub(crate) fn spatial_order(coords: &[DVec3]) -> Vec<u32> {
-    let (lo, hi) = coords.iter().fold(
-        (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
-        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-    );
+    let (lo, hi) = bounding_box(coords);
     // 21 bits per axis; a flat box gets the same scale on every axis.
     let scale = ((1u64 << 21) - 1) as f64 / (hi - lo).max_element().max(f64::MIN_POSITIVE);
     let mut keyed: Vec<(u64, u32)> = coords
@@ -62,6 +59,14 @@ fn spread_bits(x: u64) -> u64 {
     x
 }
 
+/// Corners `(lo, hi)` of the bounding box of `coords`.
+fn bounding_box(coords: &[DVec3]) -> (DVec3, DVec3) {
+    coords.iter().fold(
+        (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    )
+}
+
 /// The longest of the three sides `extent` of a box.
 fn longest(extent: DVec3) -> usize {
     if extent.x >= extent.y && extent.x >= extent.z {
@@ -71,16 +76,6 @@ fn longest(extent: DVec3) -> usize {
     } else {
         2
     }
-}
-
-/// Longest side of the bounding box of `vertices`.
-fn longest_axis(vertices: &[u32], coords: &[DVec3]) -> usize {
-    let (mut lo, mut hi) = (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN));
-    for &v in vertices {
-        lo = lo.min(coords[v as usize]);
-        hi = hi.max(coords[v as usize]);
-    }
-    longest(hi - lo)
 }
 
 /// Orders the graph with CSR adjacency `offsets`/`adjacency` (symmetric, local indices) and
@@ -96,7 +91,7 @@ pub(crate) fn dissect(offsets: &[u32], adjacency: &[u32], coords: &[DVec3]) -> D
             split: None,
         };
     }
-    let (first, second, separator) = graph.cut(all, coords);
+    let (first, second, separator) = graph.cut(coords);
     let (mut order, second) = rayon::join(
         || graph.minimum_degree(&first),
         || graph.minimum_degree(&second),
@@ -128,22 +123,23 @@ impl Graph<'_> {
         &self.adjacency[self.offsets[v as usize] as usize..self.offsets[v as usize + 1] as usize]
     }
 
-    /// Splits `vertices` by a plane across the longest side of their bounding box into two
+    /// Splits the graph by a plane across the longest side of its bounding box into two
     /// halves with no edge between them and the separator (the boundary of one half). Of a
     /// few cut positions around the median, the one with the smallest separator wins: the
     /// separator's size drives the fill it adds. The cut positions are found by selection,
     /// not by sorting.
-    fn cut(&self, vertices: Vec<u32>, coords: &[DVec3]) -> (Vec<u32>, Vec<u32>, Vec<u32>) {
+    fn cut(&self, coords: &[DVec3]) -> (Vec<u32>, Vec<u32>, Vec<u32>) {
         const PERCENTILES: [usize; 5] = [40, 45, 50, 55, 60];
-        let axis = longest_axis(&vertices, coords);
-        let n = vertices.len();
+        let (lo, hi) = bounding_box(coords);
+        let axis = longest(hi - lo);
+        let n = coords.len();
         // By (coordinate, index): a strict total order, so each cut is one key.
         let order = |a: &u32, b: &u32| {
             coords[*a as usize][axis]
                 .total_cmp(&coords[*b as usize][axis])
                 .then(a.cmp(b))
         };
-        let mut scratch = vertices.clone();
+        let mut scratch: Vec<u32> = (0..n as u32).collect();
         let mut cuts = [0u32; PERCENTILES.len()];
         let mut done = 0;
         for (cut, percent) in cuts.iter_mut().zip(PERCENTILES) {
@@ -153,19 +149,10 @@ impl Graph<'_> {
             done = at;
         }
         // `v` is below cut `c` iff `bucket[v] <= c` (the number of cut keys at or under it).
-        let mut bucket = vec![0u8; self.offsets.len() - 1];
-        let key_count = |v: &u32| cuts.iter().filter(|c| order(c, v).is_le()).count() as u8;
-        if n == bucket.len() {
-            // All vertices: in parallel, indexed by vertex.
-            bucket
-                .par_iter_mut()
-                .enumerate()
-                .for_each(|(v, b)| *b = key_count(&(v as u32)));
-        } else {
-            for &v in &vertices {
-                bucket[v as usize] = key_count(&v);
-            }
-        }
+        let bucket: Vec<u8> = (0..n as u32)
+            .into_par_iter()
+            .map(|v| cuts.iter().filter(|c| order(c, &v).is_le()).count() as u8)
+            .collect();
         let below = |v: u32, c: usize| bucket[v as usize] as usize <= c;
         let on_boundary = |v: u32, c: usize| {
             let side = below(v, c);
@@ -173,11 +160,11 @@ impl Graph<'_> {
         };
         // Boundary vertices below and above each cut.
         const CUTS: usize = PERCENTILES.len();
-        let counts = vertices
-            .par_iter()
+        let counts = (0..n as u32)
+            .into_par_iter()
             .fold(
                 || [[0usize; 2]; CUTS],
-                |mut acc, &v| {
+                |mut acc, v| {
                     for (c, count) in acc.iter_mut().enumerate() {
                         if on_boundary(v, c) {
                             count[!below(v, c) as usize] += 1;
@@ -209,9 +196,9 @@ impl Graph<'_> {
         }
         let (_, low_side, c) = best.unwrap_or((0, true, CUTS / 2));
         // 0: first half, 1: second half, 2: separator.
-        let class: Vec<u8> = vertices
-            .par_iter()
-            .map(|&v| {
+        let class: Vec<u8> = (0..n as u32)
+            .into_par_iter()
+            .map(|v| {
                 let side = below(v, c);
                 if side == low_side && on_boundary(v, c) {
                     2
@@ -223,7 +210,7 @@ impl Graph<'_> {
         let mut first = Vec::with_capacity(n / 2);
         let mut second = Vec::with_capacity(n / 2);
         let mut separator = Vec::new();
-        for (&v, &k) in vertices.iter().zip(&class) {
+        for (v, &k) in (0..n as u32).zip(&class) {
             match k {
                 0 => first.push(v),
                 1 => second.push(v),

@@ -371,7 +371,7 @@ impl ArapSolver {
             for (k, &i) in free.iter().enumerate() {
                 free_index[i as usize] = k as u32;
             }
-            let laplacians = FreeGraph {
+            let laplacians = FreeLaplacians {
                 offsets,
                 nbrs,
                 weights,
@@ -860,7 +860,7 @@ fn pin_unanchored_components(topology: &Topology, weights: &[f64], roles: &mut [
 /// `free` (`free_index` maps a vertex to its position there, or [`NOT_FREE`]). Both share
 /// one pattern; the upper triangle's pattern (all faer's symbolic analysis reads) is built
 /// on its own, so the lower triangle with the values can be built while faer analyses it.
-struct FreeGraph<'a> {
+struct FreeLaplacians<'a> {
     offsets: &'a [u32],
     nbrs: &'a [u32],
     weights: &'a [f64],
@@ -883,7 +883,7 @@ struct LowerLaplacians {
     uniform: Vec<f64>,
 }
 
-impl FreeGraph<'_> {
+impl FreeLaplacians<'_> {
     /// Columns per parallel piece.
     const COLUMNS: usize = 4096;
 

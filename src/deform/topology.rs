@@ -479,6 +479,27 @@ mod tests {
         w
     }
 
+    /// Every stored weight of `topo` (built from `p`, `t`) equals its mirror `w_ji` bit for
+    /// bit and the definition to 1e-12, and every edge of the definition is stored both ways.
+    fn assert_weights_match_definition(topo: &Topology, p: &[DVec3], t: &[[u32; 3]]) {
+        let reference = reference_weights(p, t);
+        let mut checked = 0;
+        for i in 0..topo.vertex_count() {
+            for (slot, &j) in topo.neighbors(i).iter().enumerate() {
+                let w = topo.raw_cotangents()[topo.offsets()[i] as usize + slot];
+                let back = topo.raw_cotangents()[topo.edge_slot(j, i as u32)];
+                assert_eq!(w.to_bits(), back.to_bits(), "w[{i}][{j}] != w[{j}][{i}]");
+                let expected = reference[&(j.min(i as u32), j.max(i as u32))];
+                assert!(
+                    (w - expected).abs() < 1e-12,
+                    "edge {i}-{j}: {w} vs {expected}"
+                );
+                checked += 1;
+            }
+        }
+        assert_eq!(checked, 2 * reference.len());
+    }
+
     #[test]
     fn weights_match_the_definition_and_are_exactly_symmetric() {
         // A bent strip plus a fin on one of its edges: three triangles share edge 2-3
@@ -501,22 +522,7 @@ mod tests {
         }
         t.push([2, 3, 12]);
         let topo = Topology::new(&p, &t).unwrap();
-        let reference = reference_weights(&p, &t);
-        let mut checked = 0;
-        for i in 0..topo.vertex_count() {
-            for (slot, &j) in topo.neighbors(i).iter().enumerate() {
-                let w = topo.raw_cotangents()[topo.offsets()[i] as usize + slot];
-                let back = topo.raw_cotangents()[topo.edge_slot(j, i as u32)];
-                assert_eq!(w.to_bits(), back.to_bits(), "w[{i}][{j}] != w[{j}][{i}]");
-                let expected = reference[&(j.min(i as u32), j.max(i as u32))];
-                assert!(
-                    (w - expected).abs() < 1e-12,
-                    "edge {i}-{j}: {w} vs {expected}"
-                );
-                checked += 1;
-            }
-        }
-        assert_eq!(checked, 2 * reference.len());
+        assert_weights_match_definition(&topo, &p, &t);
         assert_eq!(topo.neighbors(12), &[2, 3]);
         assert_eq!(topo.neighbors(2).len(), 5);
     }
@@ -537,18 +543,6 @@ mod tests {
             .collect();
         let topo = Topology::new(&p, &t).unwrap();
         assert_eq!(topo.neighbors(0), (1..=rim).collect::<Vec<u32>>());
-        let reference = reference_weights(&p, &t);
-        for i in 0..topo.vertex_count() {
-            for (slot, &j) in topo.neighbors(i).iter().enumerate() {
-                let w = topo.raw_cotangents()[topo.offsets()[i] as usize + slot];
-                let back = topo.raw_cotangents()[topo.edge_slot(j, i as u32)];
-                assert_eq!(w.to_bits(), back.to_bits(), "w[{i}][{j}] != w[{j}][{i}]");
-                let expected = reference[&(j.min(i as u32), j.max(i as u32))];
-                assert!(
-                    (w - expected).abs() < 1e-12,
-                    "edge {i}-{j}: {w} vs {expected}"
-                );
-            }
-        }
+        assert_weights_match_definition(&topo, &p, &t);
     }
 }
