@@ -1,60 +1,140 @@
 //! Drift benchmark (PROTOCOL.md §14): seeded 10-minute synthetic sessions through the
-//! emulator and the session code, scored for every filter against the ground truth.
+//! emulator and the session code, scored for every filter against the ground truth, on every
+//! session set (`default`, `no_warm_up`, `continuous`; see `wiimote::drift`).
 //!
 //! ```text
-//! cargo run --release --example orientation_drift -- --json [--seeds 5] [--seconds 600]
+//! cargo run --release --example orientation_drift -- --json [--seeds 5] [--first-seed 1] [--seconds 600] [--set NAME]
 //! ```
-//! The last stdout line is one JSON object keyed by filter name (`raw`, `paper`, `ours`).
+//! The last stdout line is one JSON object: the default set's scores keyed by filter name
+//! (`raw`, `paper`, `ours`, `vqf`), and under `sets` every set's scores by filter plus the
+//! accelerometer-only tilt floor. Metrics include BROAD-style `heading_rmse_deg` and
+//! `inclination_rmse_deg`.
 
-use bevy_wii_deform::wiimote::{FilterKind, drift};
+use bevy_wii_deform::wiimote::{
+    FilterKind,
+    drift::{self, SessionSet},
+};
 
-fn main() {
-    let args: Vec<String> = std::env::args().collect();
-    let value = |name: &str, default: f64| {
-        args.iter()
-            .position(|a| a == name)
-            .and_then(|i| args.get(i + 1))
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(default)
-    };
-    let seeds = value("--seeds", 5.0) as u64;
-    let seconds = value("--seconds", 600.0);
-    let json = args.iter().any(|a| a == "--json");
-    let mut scores: Vec<Vec<drift::FilterScore>> = vec![Vec::new(); FilterKind::ALL.len()];
-    let mut floor = 0.0;
-    for seed in 1..=seeds {
-        let rec = drift::record_session(seed, seconds);
+/// Mean scores of every filter on one set, and the accelerometer's own tilt error.
+struct SetReport {
+    set: SessionSet,
+    scores: Vec<drift::FilterScore>,
+    floor: f64,
+}
+
+fn run_set(set: SessionSet, seeds: std::ops::RangeInclusive<u64>, seconds: f64) -> SetReport {
+    let mut per_filter: Vec<Vec<drift::FilterScore>> = vec![Vec::new(); FilterKind::ALL.len()];
+    let mut floors = Vec::new();
+    for seed in seeds {
+        let rec = set.record(seed, seconds);
         eprintln!(
-            "seed {seed}: {} samples, {:.0} s",
+            "{} seed {seed}: {} samples, {:.0} s",
+            set.name(),
             rec.samples.len(),
             rec.times.last().copied().unwrap_or(0.0)
         );
-        floor += drift::accelerometer_tilt_floor(&rec) / seeds as f64;
+        floors.push(drift::accelerometer_tilt_floor(&rec));
         for (k, kind) in FilterKind::ALL.iter().enumerate() {
-            scores[k].push(drift::score(*kind, &rec));
+            per_filter[k].push(drift::score(*kind, &rec));
         }
     }
-    eprintln!("accelerometer-only tilt error while still (the floor for tilt): {floor:.3}° RMS");
+    SetReport {
+        set,
+        scores: per_filter.iter().map(|s| drift::mean(s)).collect(),
+        floor: floors.iter().sum::<f64>() / floors.len().max(1) as f64,
+    }
+}
+
+fn print_table(report: &SetReport) {
     println!(
-        "{:<6} {:>10} {:>12} {:>12} {:>12} {:>12} {:>8}",
-        "filter", "tilt RMS°", "tilt still°", "yaw °/min", "attitude°", "rel2s p95°", "µs/smp"
+        "\n{} (accelerometer-only tilt error while still: {:.3}° RMS)",
+        report.set.name(),
+        report.floor
     );
-    let mut parts = Vec::new();
-    for (k, kind) in FilterKind::ALL.iter().enumerate() {
-        let m = drift::mean(&scores[k]);
+    println!(
+        "{:<6} {:>9} {:>11} {:>10} {:>10} {:>11} {:>9} {:>9} {:>7}",
+        "filter",
+        "tilt RMS°",
+        "tilt still°",
+        "yaw °/min",
+        "attitude°",
+        "rel2s p95°",
+        "heading°",
+        "inclin.°",
+        "µs/smp"
+    );
+    for (kind, m) in FilterKind::ALL.iter().zip(&report.scores) {
         println!(
-            "{:<6} {:>10.3} {:>12.3} {:>12.3} {:>12.3} {:>12.3} {:>8.3}",
+            "{:<6} {:>9.3} {:>11.3} {:>10.3} {:>10.3} {:>11.3} {:>9.3} {:>9.3} {:>7.3}",
             kind.name(),
             m.tilt_rms_deg,
             m.tilt_max_still_deg,
             m.yaw_drift_deg_per_min,
             m.attitude_rms_deg,
             m.relative_rotation_p95_deg,
+            m.heading_rmse_deg,
+            m.inclination_rmse_deg,
             m.us_per_sample
         );
-        parts.push(format!("\"{}\": {}", kind.name(), m.to_json()));
+    }
+}
+
+fn filters_json(report: &SetReport) -> String {
+    FilterKind::ALL
+        .iter()
+        .zip(&report.scores)
+        .map(|(kind, m)| format!("\"{}\": {}", kind.name(), m.to_json()))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let value = |name: &str| {
+        args.iter()
+            .position(|a| a == name)
+            .and_then(|i| args.get(i + 1))
+    };
+    let number =
+        |name: &str, default: f64| value(name).and_then(|v| v.parse().ok()).unwrap_or(default);
+    let seeds = number("--seeds", 5.0).max(1.0) as u64;
+    let first = number("--first-seed", 1.0).max(0.0) as u64;
+    let seconds = number("--seconds", 600.0);
+    let json = args.iter().any(|a| a == "--json");
+    let sets: Vec<SessionSet> = match value("--set") {
+        Some(name) => match SessionSet::from_name(name) {
+            Some(set) => vec![set],
+            None => {
+                eprintln!("unknown set {name}: default, no_warm_up or continuous");
+                std::process::exit(2);
+            }
+        },
+        None => SessionSet::ALL.to_vec(),
+    };
+    let reports: Vec<SetReport> = sets
+        .iter()
+        .map(|set| run_set(*set, first..=first + seeds - 1, seconds))
+        .collect();
+    for r in &reports {
+        print_table(r);
     }
     if json {
-        println!("{{{}}}", parts.join(", "));
+        let head = reports
+            .iter()
+            .find(|r| r.set == SessionSet::Default)
+            .unwrap_or(&reports[0]);
+        let sets = reports
+            .iter()
+            .map(|r| {
+                format!(
+                    "\"{}\": {{{}, \"accelerometer_floor_deg\": {:.4}}}",
+                    r.set.name(),
+                    filters_json(r),
+                    r.floor
+                )
+            })
+            .collect::<Vec<_>>()
+            .join(", ");
+        println!("{{{}, \"sets\": {{{sets}}}}}", filters_json(head));
     }
 }

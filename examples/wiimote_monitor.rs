@@ -2,10 +2,11 @@
 //! and calibration state. `--emulate` runs the same against the software emulator.
 //!
 //! ```text
-//! cargo run --release --example wiimote_monitor [-- --emulate] [--seconds 30] [--filter paper|ours|raw]
+//! cargo run --release --example wiimote_monitor [-- --emulate] [--seconds 30] [--filter ours|vqf|paper|raw]
 //! ```
-//! On Linux, when no usable remote is found it explains why (hidraw permissions → the udev
-//! rule to add; the hid-wiimote kernel driver bound → how to unbind or blacklist it).
+//! On Linux, when a remote is listed but unusable (or none is), it prints why with the exact
+//! fix: hidraw permissions → the udev rule to add; the hid-wiimote kernel driver bound → the
+//! unbind line with the remote's real HID id, or the blacklist line; busy; no answer.
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -56,6 +57,7 @@ fn main() {
     {
         Some("paper") => FilterKind::Paper,
         Some("raw") => FilterKind::Raw,
+        Some("vqf") => FilterKind::Vqf,
         _ => FilterKind::Fusion,
     };
     let source = if emulate {
@@ -82,8 +84,8 @@ fn main() {
                     println!(
                         "No Wii Remote visible through hidapi. Pair it with the red SYNC button."
                     );
-                    for d in diagnose_linux() {
-                        println!("- {d}");
+                    for problem in LinuxDevices::system().diagnose_all() {
+                        println!("- {problem}");
                     }
                 }
                 Err(e) => println!("hidapi failed: {e}"),
@@ -127,7 +129,10 @@ fn main() {
                 ManagerEvent::Disconnected { id, reason } => {
                     println!("remote {id} disconnected: {reason}")
                 }
-                ManagerEvent::Problem(p) => println!("problem: {p}"),
+                ManagerEvent::Problem { id, problem } => match id {
+                    Some(id) => println!("remote {id} is unusable: {problem}"),
+                    None => println!("problem: {problem}"),
+                },
                 ManagerEvent::Buttons { buttons: b, .. } => buttons = b,
                 ManagerEvent::Battery { level, .. } => battery = level,
                 ManagerEvent::Orientation { id, sample } => latest = Some((id, sample)),

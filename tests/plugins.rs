@@ -341,3 +341,50 @@ fn an_emulated_remote_turns_a_handle_and_a_disconnect_keeps_the_pose() {
         ConnectionState::Connected
     );
 }
+
+#[derive(Resource, Default)]
+struct SeenProblems(Vec<WiimoteProblem>);
+
+fn collect_problems(mut reader: MessageReader<WiimoteProblem>, mut seen: ResMut<SeenProblems>) {
+    seen.0.extend(reader.read().cloned());
+}
+
+#[test]
+fn a_remote_that_cannot_be_opened_reaches_a_message_and_its_entity() {
+    use bevy_wii_deform::wiimote::{EmulatorConfig, OpenErrorKind, RemoteProblem};
+    let mut app = app();
+    app.add_plugins(WiimotePlugin {
+        source: WiimoteSource::Emulator(vec![EmulatorConfig {
+            open_error: Some(OpenErrorKind::PermissionDenied),
+            ..Default::default()
+        }]),
+        ..Default::default()
+    });
+    app.init_resource::<SeenProblems>()
+        .add_systems(Update, collect_problems);
+    let expected = RemoteProblem::PermissionDenied {
+        node: "emulator:0".into(),
+    };
+    // The manager's thread reports at once; updates (no sleeping) until the message is read.
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while app.world().resource::<SeenProblems>().0.is_empty() {
+        assert!(Instant::now() < deadline, "no WiimoteProblem message");
+        app.update();
+        std::thread::yield_now();
+    }
+    app.update();
+    let seen = &app.world().resource::<SeenProblems>().0;
+    assert_eq!(seen.len(), 1, "reported once: {seen:?}");
+    assert_eq!(seen[0].problem, expected);
+    let entity = seen[0]
+        .entity
+        .expect("the problem names its remote's entity");
+    let remote = app.world().get::<Wiimote>(entity).expect("remote entity");
+    assert_eq!(remote.connection, ConnectionState::Unusable);
+    assert_eq!(remote.problems, vec![expected.clone()]);
+    assert_eq!(
+        app.world().resource::<WiimoteProblems>().0,
+        vec![expected.clone()]
+    );
+    assert!(expected.to_string().contains("udev"), "{expected}");
+}

@@ -659,3 +659,326 @@ fn filters_track_a_short_drift_session() {
         "raw {raw:?} ours {ours:?}"
     );
 }
+
+/// `VqfFilter` against the authors' C++ implementation (the `vqf` 2.1.2 Python package,
+/// `VQF(0.01).updateBatch(gyr, acc)['quat6D']`, default parameters) on this sequence: 400
+/// samples at 100 Hz, t = k / 100,
+/// gyr = (0.3 sin 1.1t, −0.2 cos 0.7t, 0.25 + 0.1 sin 2.3t) rad/s,
+/// acc = 9.81 · normalise(0.1 sin 0.5t, −0.15 cos 0.9t + 0.05, 1) m/s².
+#[test]
+fn vqf_matches_the_reference_implementation() {
+    let reference = [
+        (
+            99,
+            [
+                0.984650478187492,
+                0.009338481755786632,
+                -0.04959200702871836,
+                0.1670833965494606,
+            ],
+        ),
+        (
+            199,
+            [
+                0.9505755105187943,
+                0.11452586736199794,
+                -0.049470309321723055,
+                0.284328530053755,
+            ],
+        ),
+        (
+            399,
+            [
+                0.8429663902993155,
+                0.00043600676348170067,
+                -0.008395216512598258,
+                0.5379005438401705,
+            ],
+        ),
+    ];
+    let mut f = VqfFilter::default();
+    let mut checked = 0;
+    for k in 0..400u64 {
+        let t = k as f64 / 100.0;
+        let gyr = DVec3::new(
+            0.3 * (1.1 * t).sin(),
+            -0.2 * (0.7 * t).cos(),
+            0.25 + 0.1 * (2.3 * t).sin(),
+        );
+        let a = DVec3::new(0.1 * (0.5 * t).sin(), -0.15 * (0.9 * t).cos() + 0.05, 1.0);
+        f.update(&ImuSample {
+            timestamp_us: k * 10_000,
+            dt: 0.01,
+            gyro_dps: Some(gyr * (180.0 / std::f64::consts::PI)),
+            gyro_fast: [false; 3],
+            accel_g: a.normalize() * 9.81 / 9.80665,
+        });
+        if let Some((_, [w, x, y, z])) = reference.iter().find(|(i, _)| *i == k) {
+            let q = f.orientation();
+            let err = (q.w - w)
+                .abs()
+                .max((q.x - x).abs())
+                .max((q.y - y).abs())
+                .max((q.z - z).abs());
+            assert!(err < 1e-9, "sample {k}: {q:?} vs {:?}", [w, x, y, z]);
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, reference.len());
+}
+
+#[test]
+fn every_filter_is_scored_on_every_session_set() {
+    for set in drift::SessionSet::ALL {
+        let rec = set.record(2, 120.0);
+        assert!(
+            rec.samples.len() > 10_000,
+            "{}: {}",
+            set.name(),
+            rec.samples.len()
+        );
+        for kind in FilterKind::ALL {
+            let s = drift::score(kind, &rec);
+            let all = [
+                s.tilt_rms_deg,
+                s.yaw_drift_deg_per_min,
+                s.attitude_rms_deg,
+                s.relative_rotation_p95_deg,
+                s.heading_rmse_deg,
+                s.inclination_rmse_deg,
+            ];
+            assert!(
+                all.iter().all(|v| v.is_finite() && *v >= 0.0),
+                "{} {}: {s:?}",
+                set.name(),
+                kind.name()
+            );
+            // Inclination error is the tilt error measured another way.
+            assert!(
+                (s.inclination_rmse_deg - s.tilt_rms_deg).abs() < 0.05 * s.tilt_rms_deg + 1e-6,
+                "{s:?}"
+            );
+        }
+        let ours = drift::score(FilterKind::Fusion, &rec);
+        assert!(ours.tilt_rms_deg < 2.0, "{}: {ours:?}", set.name());
+        assert!(ours.heading_rmse_deg < 15.0, "{}: {ours:?}", set.name());
+    }
+}
+
+#[test]
+fn continuous_sessions_never_hold_still_for_a_second() {
+    let scenario = drift::ContinuousScenario::new(4, 300.0);
+    let mut still_run = 0.0f64;
+    let mut longest = 0.0f64;
+    let mut t = 5.0;
+    while t < scenario.duration() {
+        let rate = body_rate(&scenario, t).length().to_degrees();
+        still_run = if rate < 0.5 { still_run + 0.01 } else { 0.0 };
+        longest = longest.max(still_run);
+        t += 0.01;
+    }
+    assert!(longest < 1.0, "still for {longest} s");
+}
+
+#[test]
+fn paper_filter_snaps_tilt_when_still_without_warm_up() {
+    // Without warm-up drift the paper's bias stays valid, so in the final still phase its
+    // stillness test passes and tilt is snapped onto the accelerometer's gravity.
+    let rec = drift::SessionSet::NoWarmUp.record(1, 160.0);
+    let mut paper = PaperFilter::default();
+    for s in &rec.samples {
+        paper.update(s);
+    }
+    assert!(*rec.still.last().unwrap());
+    assert!(paper.is_still());
+    let truth = *rec.truth.last().unwrap();
+    let tilt = (truth.inverse() * DVec3::Z)
+        .angle_between(paper.orientation().inverse() * DVec3::Z)
+        .to_degrees();
+    let floor = drift::accelerometer_tilt_floor(&rec);
+    assert!(
+        tilt < floor + 1.0,
+        "tilt {tilt}° (accelerometer floor {floor}°)"
+    );
+}
+
+#[test]
+fn heading_and_inclination_split_an_error_rotation() {
+    let (h, i) = drift::heading_inclination_deg(DQuat::from_rotation_z(10f64.to_radians()));
+    assert!((h - 10.0).abs() < 1e-9 && i.abs() < 1e-6, "{h} {i}");
+    let (h, i) = drift::heading_inclination_deg(DQuat::from_rotation_x(-5f64.to_radians()));
+    assert!(h.abs() < 1e-9 && (i - 5.0).abs() < 1e-9, "{h} {i}");
+    let q = DQuat::from_rotation_z(0.3) * DQuat::from_rotation_y(0.2);
+    let (h, i) = drift::heading_inclination_deg(q);
+    assert!(
+        (h - 0.3f64.to_degrees()).abs() < 1e-9 && (i - 0.2f64.to_degrees()).abs() < 1e-9,
+        "{h} {i}"
+    );
+}
+
+/// A fake sysfs + /dev tree with one Wii Remote Plus at hidraw3 (HID id 0005:057E:0330.0007),
+/// its node's mode and its bound driver chosen by the test.
+struct FakeDevices {
+    root: std::path::PathBuf,
+}
+
+impl FakeDevices {
+    fn new(name: &str, mode: u32, driver: &str) -> Self {
+        use std::os::unix::fs::{PermissionsExt, symlink};
+        let root = std::env::temp_dir().join(format!("wii-sysfs-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&root);
+        let hid = root.join("sys/devices/virtual/bluetooth/hci0/0005:057E:0330.0007");
+        let drivers = root.join("sys/bus/hid/drivers");
+        std::fs::create_dir_all(hid.join("hidraw/hidraw3")).unwrap();
+        std::fs::create_dir_all(drivers.join(driver)).unwrap();
+        std::fs::create_dir_all(root.join("sys/class/hidraw")).unwrap();
+        std::fs::create_dir_all(root.join("dev")).unwrap();
+        std::fs::write(
+            hid.join("uevent"),
+            "DRIVER=x\nHID_ID=0005:0000057E:00000330\nHID_NAME=Nintendo RVL-CNT-01-TR\n",
+        )
+        .unwrap();
+        symlink(drivers.join(driver), hid.join("driver")).unwrap();
+        symlink(&hid, hid.join("hidraw/hidraw3/device")).unwrap();
+        symlink(
+            hid.join("hidraw/hidraw3"),
+            root.join("sys/class/hidraw/hidraw3"),
+        )
+        .unwrap();
+        // An unrelated hidraw device (a keyboard) that must be ignored.
+        let other = root.join("sys/devices/pci/0003:046D:C31C.0001");
+        std::fs::create_dir_all(other.join("hidraw/hidraw0")).unwrap();
+        std::fs::write(other.join("uevent"), "HID_ID=0003:0000046D:0000C31C\n").unwrap();
+        symlink(&other, other.join("hidraw/hidraw0/device")).unwrap();
+        symlink(
+            other.join("hidraw/hidraw0"),
+            root.join("sys/class/hidraw/hidraw0"),
+        )
+        .unwrap();
+        for node in ["hidraw3", "hidraw0"] {
+            let path = root.join("dev").join(node);
+            std::fs::write(&path, b"").unwrap();
+            std::fs::set_permissions(&path, std::fs::Permissions::from_mode(mode)).unwrap();
+        }
+        Self { root }
+    }
+
+    /// The tree as seen by an ordinary user (uid 1000, not in the node's group).
+    fn devices(&self) -> LinuxDevices {
+        let user = diagnosis::UserIds {
+            uid: 1000,
+            groups: vec![1000],
+        };
+        LinuxDevices::at(self.root.join("sys"), self.root.join("dev"), user)
+    }
+
+    fn node(&self) -> std::path::PathBuf {
+        self.root.join("dev/hidraw3")
+    }
+}
+
+impl Drop for FakeDevices {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.root);
+    }
+}
+
+#[test]
+fn diagnosis_finds_only_the_remote_and_its_hid_id() {
+    let fake = FakeDevices::new("list", 0o666, "hid-generic");
+    let nodes = fake.devices().wiimote_nodes();
+    assert_eq!(nodes.len(), 1, "{nodes:?}");
+    assert_eq!(nodes[0].node, fake.node());
+    assert_eq!(nodes[0].hid_id, "0005:057E:0330.0007");
+    assert_eq!(nodes[0].driver.as_deref(), Some("hid-generic"));
+}
+
+#[test]
+fn diagnosis_of_a_root_only_node_gives_the_udev_rule() {
+    let fake = FakeDevices::new("root-only", 0o600, "hid-generic");
+    let problems = fake.devices().diagnose(&fake.node(), None);
+    assert_eq!(
+        problems,
+        vec![RemoteProblem::PermissionDenied {
+            node: fake.node().display().to_string()
+        }]
+    );
+    let text = problems[0].to_string();
+    assert!(
+        text.contains("60-wiimote.rules") && text.contains("057E:0330"),
+        "{text}"
+    );
+    // The error of an actual open is authoritative, whatever the mode bits say.
+    let open_error = OpenErrorKind::PermissionDenied;
+    let fake_open = FakeDevices::new("root-only-open", 0o666, "hid-generic");
+    assert!(matches!(
+        fake_open
+            .devices()
+            .diagnose(&fake_open.node(), Some(&open_error))[..],
+        [RemoteProblem::PermissionDenied { .. }]
+    ));
+}
+
+#[test]
+fn diagnosis_of_a_node_bound_to_hid_wiimote_gives_the_unbind_line() {
+    let fake = FakeDevices::new("bound", 0o666, "wiimote");
+    let problems = fake.devices().diagnose(&fake.node(), None);
+    assert_eq!(problems.len(), 1, "{problems:?}");
+    let RemoteProblem::KernelDriverBound { hid_id, .. } = &problems[0] else {
+        panic!("{problems:?}");
+    };
+    assert_eq!(hid_id, "0005:057E:0330.0007");
+    let text = problems[0].to_string();
+    assert!(
+        text.contains("echo 0005:057E:0330.0007 > /sys/bus/hid/drivers/wiimote/unbind"),
+        "{text}"
+    );
+    assert!(text.contains("blacklist hid_wiimote"), "{text}");
+}
+
+#[test]
+fn diagnosis_of_a_root_only_node_bound_to_hid_wiimote_gives_both_fixes() {
+    let fake = FakeDevices::new("both", 0o600, "wiimote");
+    let problems = fake.devices().diagnose(&fake.node(), None);
+    assert!(
+        matches!(
+            problems[..],
+            [
+                RemoteProblem::KernelDriverBound { .. },
+                RemoteProblem::PermissionDenied { .. }
+            ]
+        ),
+        "{problems:?}"
+    );
+    assert_eq!(fake.devices().diagnose_all(), problems);
+}
+
+#[test]
+fn diagnosis_of_a_usable_node_finds_nothing() {
+    let fake = FakeDevices::new("neither", 0o660, "hid-generic");
+    // Group read/write does not help a user outside the group …
+    assert_eq!(fake.devices().diagnose(&fake.node(), None).len(), 1);
+    // … but does help one inside it (gid 0 here: the test's files belong to root's group).
+    let mut devices = fake.devices();
+    devices.user = Some(diagnosis::UserIds {
+        uid: 1000,
+        groups: vec![1000, file_gid(&fake.node())],
+    });
+    assert!(devices.diagnose(&fake.node(), None).is_empty());
+    let open = FakeDevices::new("neither-open", 0o666, "hid-generic");
+    assert!(open.devices().diagnose(&open.node(), None).is_empty());
+    assert!(open.devices().diagnose_all().is_empty());
+    // A busy node says so.
+    assert_eq!(
+        open.devices()
+            .diagnose(&open.node(), Some(&OpenErrorKind::Busy)),
+        vec![RemoteProblem::Busy {
+            node: open.node().display().to_string()
+        }]
+    );
+}
+
+fn file_gid(path: &std::path::Path) -> u32 {
+    use std::os::unix::fs::MetadataExt;
+    std::fs::metadata(path).unwrap().gid()
+}

@@ -1109,7 +1109,7 @@ fn ui_panel(
     mut wii_settings: ResMut<WiimoteSettings>,
     link: Option<Res<WiimoteLink>>,
     emulators: Option<Res<WiimoteEmulators>>,
-    remotes: Query<&Wiimote>,
+    (remotes, wii_problems): (Query<&Wiimote>, Option<Res<WiimoteProblems>>),
     statuses: Query<&DeformStatus>,
     mesh_q: Query<&Mesh3d>,
     mut transforms: Query<&mut Transform, Without<Camera3d>>,
@@ -1232,6 +1232,7 @@ fn ui_panel(
                     ui.horizontal(|ui| {
                         ui.label("Filter:");
                         ui.selectable_value(&mut filter, WiimoteFilter::Fusion, "ours");
+                        ui.selectable_value(&mut filter, WiimoteFilter::Vqf, "VQF");
                         ui.selectable_value(&mut filter, WiimoteFilter::Paper, "paper");
                         ui.selectable_value(&mut filter, WiimoteFilter::Raw, "raw");
                     });
@@ -1239,8 +1240,19 @@ fn ui_panel(
                         wii_settings.filter = filter;
                     }
                     if remotes.is_empty() {
-                        ui.label(
-                            "No remote yet (pair with SYNC; see wiimote_monitor for diagnostics).",
+                        ui.label("No remote yet (pair with SYNC).");
+                    }
+                    // Why a remote is unusable, with the exact fix (selectable, to copy).
+                    for problem in wii_problems.iter().flat_map(|p| p.0.iter()) {
+                        ui.colored_label(
+                            egui::Color32::from_rgb(230, 120, 60),
+                            "Wii Remote problem:",
+                        );
+                        let mut text = problem.to_string();
+                        ui.add(
+                            egui::TextEdit::multiline(&mut text)
+                                .desired_rows(3)
+                                .interactive(true),
                         );
                     }
                     for w in &remotes {

@@ -23,8 +23,8 @@ pub use deform::{
 pub use wiimote::{
     ConnectionState, Wiimote, WiimoteButtonChanged, WiimoteCalibration, WiimoteConnected,
     WiimoteDisconnected, WiimoteEmulators, WiimoteFilter, WiimoteLink, WiimoteOrientationChanged,
-    WiimotePlugin, WiimoteSettings, WiimoteSource, WiimoteSystems, remote_to_bevy,
-    remote_vec_to_bevy,
+    WiimotePlugin, WiimoteProblem, WiimoteProblems, WiimoteSettings, WiimoteSource, WiimoteSystems,
+    remote_to_bevy, remote_vec_to_bevy,
 };
 
 /// Adds [`WiimoteHandleControl`] (requires [`WiimotePlugin`]).

@@ -5,8 +5,8 @@ use bevy::prelude::*;
 
 use crate::wiimote::{
     CalibrationPhase, EmulatorConfig, EmulatorControls, FilterKind, ManagerConfig, ManagerEvent,
-    MotionPlusState, RemoteCommand, RemoteId, RemoteSource, SessionConfig, WiimoteManager,
-    protocol::Buttons,
+    MotionPlusState, RemoteCommand, RemoteId, RemoteProblem, RemoteSource, SessionConfig,
+    WiimoteManager, protocol::Buttons,
 };
 
 /// Wiimote systems, in `PreUpdate`.
@@ -30,6 +30,8 @@ pub enum WiimoteFilter {
     /// Ours (default).
     #[default]
     Fusion,
+    /// VQF (Laidig & Seel 2023).
+    Vqf,
 }
 
 impl From<WiimoteFilter> for FilterKind {
@@ -38,6 +40,7 @@ impl From<WiimoteFilter> for FilterKind {
             WiimoteFilter::Raw => FilterKind::Raw,
             WiimoteFilter::Paper => FilterKind::Paper,
             WiimoteFilter::Fusion => FilterKind::Fusion,
+            WiimoteFilter::Vqf => FilterKind::Vqf,
         }
     }
 }
@@ -118,6 +121,8 @@ pub enum ConnectionState {
     Connected,
     /// Gone; the entity stays and reconnects in place.
     Disconnected,
+    /// Listed by the OS but unusable: see [`Wiimote::problems`] for why and the fix.
+    Unusable,
 }
 
 /// Calibration state mirrored for reflection/UIs.
@@ -157,6 +162,10 @@ pub struct Wiimote {
     pub stick: Vec2,
     /// Host timestamp of the last sample, µs.
     pub timestamp_us: u64,
+    /// Why the remote is unusable (permissions, the kernel driver, …), each with its fix in
+    /// `Display`; cleared when it connects.
+    #[reflect(ignore)]
+    pub problems: Vec<RemoteProblem>,
 }
 
 impl Wiimote {
@@ -183,6 +192,21 @@ pub struct WiimoteDisconnected {
     /// Manager id.
     pub id: u32,
 }
+
+/// A remote is listed but unusable, or no remote is usable: the reason, whose `Display` is
+/// the fix to apply. Written once per distinct problem.
+#[derive(Message, Debug, Clone, PartialEq)]
+pub struct WiimoteProblem {
+    /// The remote's entity, when the problem is about one remote.
+    pub entity: Option<Entity>,
+    /// What is wrong and how to fix it.
+    pub problem: RemoteProblem,
+}
+
+/// Every Wii Remote problem reported and not yet resolved by a connection (for UIs that
+/// list them; per-remote problems are also on [`Wiimote::problems`]).
+#[derive(Resource, Debug, Clone, Default)]
+pub struct WiimoteProblems(pub Vec<RemoteProblem>);
 
 /// A new orientation sample.
 #[derive(Message, Debug, Clone, Copy, PartialEq)]
@@ -274,6 +298,8 @@ impl Plugin for WiimotePlugin {
             .add_message::<WiimoteDisconnected>()
             .add_message::<WiimoteOrientationChanged>()
             .add_message::<WiimoteButtonChanged>()
+            .add_message::<WiimoteProblem>()
+            .init_resource::<WiimoteProblems>()
             .add_systems(
                 PreUpdate,
                 (apply_settings, receive_wiimote_events)
@@ -297,32 +323,52 @@ fn apply_settings(
     }
 }
 
-#[allow(clippy::too_many_arguments)]
+/// The messages [`receive_wiimote_events`] writes.
+#[derive(bevy::ecs::system::SystemParam)]
+struct WiimoteWriters<'w> {
+    connected: MessageWriter<'w, WiimoteConnected>,
+    disconnected: MessageWriter<'w, WiimoteDisconnected>,
+    orientation: MessageWriter<'w, WiimoteOrientationChanged>,
+    buttons_changed: MessageWriter<'w, WiimoteButtonChanged>,
+    problems: MessageWriter<'w, WiimoteProblem>,
+}
+
 fn receive_wiimote_events(
     mut commands: Commands,
     link: Res<WiimoteLink>,
     mut remotes: Query<(Entity, &mut Wiimote)>,
-    mut connected: MessageWriter<WiimoteConnected>,
-    mut disconnected: MessageWriter<WiimoteDisconnected>,
-    mut orientation: MessageWriter<WiimoteOrientationChanged>,
-    mut buttons_changed: MessageWriter<WiimoteButtonChanged>,
-    mut problems: Local<Vec<String>>,
+    mut writers: WiimoteWriters,
+    mut open_problems: ResMut<WiimoteProblems>,
 ) {
+    let WiimoteWriters {
+        connected,
+        disconnected,
+        orientation,
+        buttons_changed,
+        problems,
+    } = &mut writers;
     let find = |id: u32, remotes: &mut Query<(Entity, &mut Wiimote)>| -> Option<Entity> {
         remotes.iter().find(|(_, w)| w.id == id).map(|(e, _)| e)
     };
     // Entities spawned this frame are not queryable yet: buffer their state locally.
     let mut spawned: Vec<(Entity, Wiimote)> = Vec::new();
     while let Ok(event) = link.manager.events().try_recv() {
+        if let ManagerEvent::Problem { problem, .. } = &event {
+            warn!("Wii Remote: {problem}");
+            if !open_problems.0.contains(problem) {
+                open_problems.0.push(problem.clone());
+            }
+        }
         let id = match &event {
-            ManagerEvent::Problem(p) => {
-                if !problems.contains(p) {
-                    warn!("Wii Remote: {p}");
-                    problems.push(p.clone());
-                }
+            ManagerEvent::Problem { id: None, problem } => {
+                problems.write(WiimoteProblem {
+                    entity: None,
+                    problem: problem.clone(),
+                });
                 continue;
             }
-            ManagerEvent::Connected { id, .. }
+            ManagerEvent::Problem { id: Some(id), .. }
+            | ManagerEvent::Connected { id, .. }
             | ManagerEvent::Disconnected { id, .. }
             | ManagerEvent::Buttons { id, .. }
             | ManagerEvent::Orientation { id, .. }
@@ -352,6 +398,9 @@ fn receive_wiimote_events(
         let mut apply = |w: &mut Wiimote| match &event {
             ManagerEvent::Connected { info, .. } => {
                 w.connection = ConnectionState::Connected;
+                for p in w.problems.drain(..) {
+                    open_problems.0.retain(|q| *q != p);
+                }
                 w.battery = info.battery;
                 w.motion_plus = info.motion_plus == MotionPlusState::Active;
                 connected.write(WiimoteConnected { entity, id });
@@ -404,7 +453,18 @@ fn receive_wiimote_events(
                 let axis = |v: u8| ((v as f32 - 128.0) / 100.0).clamp(-1.0, 1.0);
                 w.stick = Vec2::new(axis(frame.stick_x), axis(frame.stick_y));
             }
-            ManagerEvent::Problem(_) => {}
+            ManagerEvent::Problem { problem, .. } => {
+                if w.connection != ConnectionState::Connected {
+                    w.connection = ConnectionState::Unusable;
+                }
+                if !w.problems.contains(problem) {
+                    w.problems.push(problem.clone());
+                }
+                problems.write(WiimoteProblem {
+                    entity: Some(entity),
+                    problem: problem.clone(),
+                });
+            }
         };
         if let Some((_, w)) = spawned.iter_mut().find(|(e, _)| *e == entity) {
             apply(w);

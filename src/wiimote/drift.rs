@@ -1,13 +1,18 @@
 //! The drift benchmark of `PROTOCOL.md` §14: a scripted 10-minute session (still, wiggles,
 //! slow yaw, fast swings, held tilted poses) through the emulator and the session code, scored
 //! against the ground truth for every filter.
+//!
+//! Three [`SessionSet`]s: the default sessions; the same without the gyro's warm-up drift (the
+//! conditions the paper's filter was designed for); and continuous motion with no still period
+//! longer than 1 s after the first 5 s on the table (the hard case for stillness-gated bias
+//! estimation).
 
 use std::time::Instant;
 
 use glam::{DQuat, DVec3};
 
-use super::emulator::{EmulatedRemote, EmulatorConfig, Variant};
-use super::filter::{FilterKind, ImuSample};
+use super::emulator::{EmulatedRemote, EmulatorConfig, SensorModel, Variant};
+use super::filter::{FilterKind, ImuSample, OrientationFilter};
 use super::motion::{Motion, from_yaw_elevation_roll};
 use super::rng::Rng;
 use super::session::{Session, SessionConfig, SessionEvent};
@@ -145,6 +150,140 @@ impl Motion for DriftScenario {
     }
 }
 
+/// Continuous hand motion: after the first 5 s on the table, every axis moves all the time
+/// (three incommensurate sinusoids each, one of them a slow 0.03–0.08 Hz "aiming" drift), so no
+/// still period lasts longer than the instants where all rates cross zero together.
+#[derive(Debug, Clone)]
+pub struct ContinuousScenario {
+    duration: f64,
+    /// Per axis (yaw, elevation, roll): (frequency Hz, amplitude deg, phase rad) × 3.
+    waves: [[(f64, f64, f64); 3]; 3],
+}
+
+impl ContinuousScenario {
+    /// A scenario of `duration_s` seconds with frequencies and phases drawn from `seed`.
+    pub fn new(seed: u64, duration_s: f64) -> Self {
+        let mut rng = Rng::new(seed ^ 0xC0471);
+        let waves = std::array::from_fn(|axis| {
+            let scale = if axis == 0 { 1.5 } else { 1.0 };
+            [
+                (rng.range(0.03, 0.08), 25.0 * scale, rng.range(0.0, 6.3)),
+                (rng.range(0.2, 0.5), 12.0 * scale, rng.range(0.0, 6.3)),
+                (rng.range(0.9, 1.6), 4.0, rng.range(0.0, 6.3)),
+            ]
+        });
+        Self {
+            duration: duration_s.max(START_STILL + 1.0),
+            waves,
+        }
+    }
+
+    /// Total length in seconds.
+    pub fn duration(&self) -> f64 {
+        self.duration
+    }
+
+    fn angles(&self, t: f64) -> [f64; 3] {
+        if t < START_STILL {
+            return [0.0; 3];
+        }
+        let tc = t - START_STILL;
+        // Ease in over 2 s; the waves start at their value at tc = 0 subtracted, so the pose is
+        // continuous at the end of the still start.
+        let env = smoothstep(tc / 2.0);
+        std::array::from_fn(|axis| {
+            self.waves[axis]
+                .iter()
+                .map(|(f, a, p)| {
+                    let w = std::f64::consts::TAU * f;
+                    a * ((w * tc + p).sin() - p.sin())
+                })
+                .sum::<f64>()
+                * env
+        })
+    }
+}
+
+impl Motion for ContinuousScenario {
+    fn orientation(&self, t: f64) -> DQuat {
+        let [y, e, r] = self.angles(t);
+        from_yaw_elevation_roll(y.to_radians(), e.to_radians(), r.to_radians())
+    }
+    fn position(&self, _t: f64) -> DVec3 {
+        DVec3::ZERO
+    }
+}
+
+/// A family of benchmark sessions (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum SessionSet {
+    /// The §14 scenario with the default sensor model (gyro warm-up drift included).
+    Default,
+    /// The §14 scenario without the gyro's temperature (warm-up) drift.
+    NoWarmUp,
+    /// [`ContinuousScenario`] with the default sensor model.
+    Continuous,
+}
+
+impl SessionSet {
+    /// Every set, in report order.
+    pub const ALL: [SessionSet; 3] = [
+        SessionSet::Default,
+        SessionSet::NoWarmUp,
+        SessionSet::Continuous,
+    ];
+
+    /// The name used in reports (`default`, `no_warm_up`, `continuous`).
+    pub fn name(self) -> &'static str {
+        match self {
+            SessionSet::Default => "default",
+            SessionSet::NoWarmUp => "no_warm_up",
+            SessionSet::Continuous => "continuous",
+        }
+    }
+
+    /// Parses [`SessionSet::name`].
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|s| s.name() == name)
+    }
+
+    /// The emulated sensor of this set.
+    pub fn sensor(self) -> SensorModel {
+        match self {
+            SessionSet::NoWarmUp => SensorModel {
+                gyro_temperature_drift_dps: 0.0,
+                ..SensorModel::default()
+            },
+            SessionSet::Default | SessionSet::Continuous => SensorModel::default(),
+        }
+    }
+
+    /// Records one session of this set.
+    pub fn record(self, seed: u64, duration_s: f64) -> Recording {
+        match self {
+            SessionSet::Default | SessionSet::NoWarmUp => {
+                let scenario = std::sync::Arc::new(DriftScenario::new(seed, duration_s));
+                let still = {
+                    let s = scenario.clone();
+                    move |t: f64| {
+                        let moving = s.orientation(t + 0.3).angle_between(s.orientation(t - 0.3))
+                            > 1e-9
+                            || s.angles(t).3 != 0.0;
+                        !moving
+                    }
+                };
+                let end = scenario.duration();
+                record_motion(scenario, self.sensor(), seed, end, still)
+            }
+            SessionSet::Continuous => {
+                let scenario = std::sync::Arc::new(ContinuousScenario::new(seed, duration_s));
+                let end = scenario.duration();
+                record_motion(scenario, self.sensor(), seed, end, |t| t < START_STILL)
+            }
+        }
+    }
+}
+
 /// Scores of one filter on one or more sessions.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct FilterScore {
@@ -158,6 +297,13 @@ pub struct FilterScore {
     pub attitude_rms_deg: f64,
     /// 95th percentile of the error of 2-second relative rotations, degrees.
     pub relative_rotation_p95_deg: f64,
+    /// BROAD-style heading error: RMS over the session of the rotation about the world's
+    /// vertical in the error quaternion `q_est · q_true⁻¹` (swing–twist split), degrees. Every
+    /// filter starts with the true heading, so no offset is removed.
+    pub heading_rmse_deg: f64,
+    /// BROAD-style inclination error: RMS of the remaining (horizontal-axis) rotation of the
+    /// same error quaternion, degrees.
+    pub inclination_rmse_deg: f64,
     /// Filter update cost, µs per sample.
     pub us_per_sample: f64,
 }
@@ -166,12 +312,14 @@ impl FilterScore {
     /// The scores as a JSON object (keeps serde out of the library's dependencies).
     pub fn to_json(&self) -> String {
         format!(
-            "{{\"tilt_rms_deg\": {:.4}, \"tilt_max_still_deg\": {:.4}, \"yaw_drift_deg_per_min\": {:.4}, \"attitude_rms_deg\": {:.4}, \"relative_rotation_p95_deg\": {:.4}, \"us_per_sample\": {:.4}}}",
+            "{{\"tilt_rms_deg\": {:.4}, \"tilt_max_still_deg\": {:.4}, \"yaw_drift_deg_per_min\": {:.4}, \"attitude_rms_deg\": {:.4}, \"relative_rotation_p95_deg\": {:.4}, \"heading_rmse_deg\": {:.4}, \"inclination_rmse_deg\": {:.4}, \"us_per_sample\": {:.4}}}",
             self.tilt_rms_deg,
             self.tilt_max_still_deg,
             self.yaw_drift_deg_per_min,
             self.attitude_rms_deg,
             self.relative_rotation_p95_deg,
+            self.heading_rmse_deg,
+            self.inclination_rmse_deg,
             self.us_per_sample
         )
     }
@@ -190,22 +338,34 @@ pub struct Recording {
     pub still: Vec<bool>,
 }
 
-/// Runs the scenario through the emulator (Remote Plus, default sensor model, seed) and the
-/// session, and records what a filter would see.
+/// Runs the default §14 scenario through the emulator (Remote Plus, default sensor model, seed)
+/// and the session, and records what a filter would see ([`SessionSet::Default`]).
 pub fn record_session(seed: u64, duration_s: f64) -> Recording {
-    let scenario = std::sync::Arc::new(DriftScenario::new(seed, duration_s));
+    SessionSet::Default.record(seed, duration_s)
+}
+
+/// Runs `motion` for `duration_s` seconds through the emulator (Remote Plus, `sensor`, `seed`)
+/// and the session code; `still(t)` marks the instants scored as held still.
+pub fn record_motion<M: Motion + 'static>(
+    motion: std::sync::Arc<M>,
+    sensor: SensorModel,
+    seed: u64,
+    duration_s: f64,
+    still: impl Fn(f64) -> bool,
+) -> Recording {
     let emu = EmulatedRemote::new(EmulatorConfig {
         variant: Variant::Plus,
         seed,
+        sensors: sensor,
         ..Default::default()
     });
-    emu.controls().set_motion(scenario.clone());
+    emu.controls().set_motion(motion.clone());
     let mut session = Session::new(emu, SessionConfig::default());
     let mut rec = Recording::default();
     if session.connect().is_err() {
         return rec;
     }
-    let end_us = (scenario.duration() * 1e6) as u64;
+    let end_us = (duration_s * 1e6) as u64;
     while session.transport().now_us() < end_us {
         if session.poll(20).is_err() {
             break;
@@ -219,19 +379,22 @@ pub fn record_session(seed: u64, duration_s: f64) -> Recording {
                     .unwrap_or(s.timestamp_us);
                 let t = t_us as f64 * 1e-6;
                 rec.samples.push(s);
-                rec.truth.push(scenario.orientation(t));
+                rec.truth.push(motion.orientation(t));
                 rec.times.push(t);
-                let (_, _, _, swing) = scenario.angles(t);
-                let moving = (scenario
-                    .orientation(t + 0.3)
-                    .angle_between(scenario.orientation(t - 0.3)))
-                    > 1e-9
-                    || swing != 0.0;
-                rec.still.push(!moving);
+                rec.still.push(still(t));
             }
         }
     }
     rec
+}
+
+/// Splits a world-frame error rotation into (heading, inclination) angles in degrees: the
+/// twist about world Z and the angle of the remaining swing about a horizontal axis.
+pub fn heading_inclination_deg(error: DQuat) -> (f64, f64) {
+    let q = if error.w < 0.0 { -error } else { error };
+    let heading = wrap((2.0 * q.z.atan2(q.w)).to_degrees());
+    let inclination = (2.0 * (q.w * q.w + q.z * q.z).sqrt().min(1.0).acos()).to_degrees();
+    (heading, inclination)
 }
 
 fn heading(q: DQuat) -> f64 {
@@ -251,10 +414,14 @@ fn percentile(mut v: Vec<f64>, p: f64) -> f64 {
     v[((v.len() - 1) as f64 * p).round() as usize]
 }
 
-#[allow(clippy::needless_range_loop)] // parallel per-sample arrays
 /// Scores one filter on a recording (metrics from t ≥ 5 s, after the start-up still phase).
 pub fn score(kind: FilterKind, rec: &Recording) -> FilterScore {
-    let mut f = kind.build();
+    score_filter(&mut *kind.build(), rec)
+}
+
+#[allow(clippy::needless_range_loop)] // parallel per-sample arrays
+/// Scores a filter instance (e.g. with tuned parameters) on a recording, from its current state.
+pub fn score_filter(f: &mut dyn OrientationFilter, rec: &Recording) -> FilterScore {
     let mut est = Vec::with_capacity(rec.samples.len());
     let t0 = Instant::now();
     for s in &rec.samples {
@@ -268,6 +435,7 @@ pub fn score(kind: FilterKind, rec: &Recording) -> FilterScore {
         .position(|t| *t >= START_STILL)
         .unwrap_or(0);
     let (mut tilt2, mut att2, mut n) = (0.0f64, 0.0f64, 0.0f64);
+    let (mut heading2, mut inclination2) = (0.0f64, 0.0f64);
     let mut tilt_still: f64 = 0.0;
     let (mut sx, mut sy, mut sxx, mut sxy) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
     let mut yaw_err_unwrapped = 0.0;
@@ -280,6 +448,9 @@ pub fn score(kind: FilterKind, rec: &Recording) -> FilterScore {
         let att = qt.angle_between(qe).to_degrees();
         tilt2 += tilt * tilt;
         att2 += att * att;
+        let (h, inc) = heading_inclination_deg(qe * qt.inverse());
+        heading2 += h * h;
+        inclination2 += inc * inc;
         n += 1.0;
         if rec.still[i] {
             tilt_still = tilt_still.max(tilt);
@@ -331,6 +502,8 @@ pub fn score(kind: FilterKind, rec: &Recording) -> FilterScore {
         yaw_drift_deg_per_min: slope.abs(),
         attitude_rms_deg: (att2 / m).sqrt(),
         relative_rotation_p95_deg: percentile(rel, 0.95),
+        heading_rmse_deg: (heading2 / m).sqrt(),
+        inclination_rmse_deg: (inclination2 / m).sqrt(),
         us_per_sample: us,
     }
 }
@@ -345,6 +518,8 @@ pub fn mean(scores: &[FilterScore]) -> FilterScore {
         m.yaw_drift_deg_per_min += s.yaw_drift_deg_per_min / n;
         m.attitude_rms_deg += s.attitude_rms_deg / n;
         m.relative_rotation_p95_deg += s.relative_rotation_p95_deg / n;
+        m.heading_rmse_deg += s.heading_rmse_deg / n;
+        m.inclination_rmse_deg += s.inclination_rmse_deg / n;
         m.us_per_sample += s.us_per_sample / n;
     }
     m

@@ -133,6 +133,9 @@ pub struct EmulatorConfig {
     pub battery: u8,
     /// Sensor error model.
     pub sensors: SensorModel,
+    /// Emulates a remote the OS lists but refuses to open (the manager reports this as a
+    /// [`crate::wiimote::RemoteProblem`] and retries); `None` opens normally.
+    pub open_error: Option<crate::wiimote::OpenErrorKind>,
 }
 
 impl Default for EmulatorConfig {
@@ -154,6 +157,7 @@ impl Default for EmulatorConfig {
             realtime: false,
             battery: 0x68,
             sensors: SensorModel::default(),
+            open_error: None,
         }
     }
 }

@@ -9,6 +9,7 @@ use std::time::Duration;
 
 use crossbeam_channel::{Receiver, Sender, TrySendError, bounded, unbounded};
 
+use super::diagnosis::RemoteProblem;
 use super::emulator::{EmulatedRemote, EmulatorConfig, EmulatorControls};
 use super::filter::FilterKind;
 use super::protocol::{Buttons, NunchukFrame};
@@ -85,8 +86,14 @@ pub enum ManagerEvent {
         /// Frame.
         frame: NunchukFrame,
     },
-    /// A problem that is not tied to a connected remote (e.g. permissions), with advice.
-    Problem(String),
+    /// A remote is listed but unusable, or none is usable: a typed reason whose `Display`
+    /// is the fix. Reported once per distinct problem until the remote connects.
+    Problem {
+        /// The remote, when the problem is about one the manager has an id for.
+        id: Option<RemoteId>,
+        /// What is wrong and how to fix it.
+        problem: RemoteProblem,
+    },
 }
 
 /// Commands to a remote's I/O thread.
@@ -178,7 +185,24 @@ impl WiimoteManager {
                     lock(&commands).insert(id, ctx);
                     let (tx, stop) = (tx.clone(), stop.clone());
                     threads.push(std::thread::spawn(move || {
+                        let problem_tx = tx.clone();
+                        let mut reported = false;
                         let open = move || {
+                            if let Some(kind) = &emu.open_error {
+                                if !reported {
+                                    reported = true;
+                                    let node = format!("emulator:{id}");
+                                    let problem = RemoteProblem::from_open_error(&node, kind);
+                                    send(
+                                        &problem_tx,
+                                        ManagerEvent::Problem {
+                                            id: Some(id),
+                                            problem,
+                                        },
+                                    );
+                                }
+                                return None;
+                            }
                             if controls.connected() {
                                 Some(EmulatedRemote::with_controls(
                                     EmulatorConfig {
@@ -261,6 +285,17 @@ fn send(tx: &Sender<ManagerEvent>, e: ManagerEvent) {
     }
 }
 
+/// How a remote's I/O loop ended.
+#[derive(Debug)]
+enum RemoteExit {
+    /// Stopped, or the source had no more transports.
+    Stopped,
+    /// The handshake failed (without reconnecting).
+    ConnectFailed(super::session::SessionError),
+    /// It was connected and went away (without reconnecting).
+    Disconnected,
+}
+
 /// Connects, polls, reports; on disconnect waits and reconnects until `stop`.
 fn run_remote<T: Transport, F: FnMut() -> Option<T>>(
     id: RemoteId,
@@ -270,12 +305,12 @@ fn run_remote<T: Transport, F: FnMut() -> Option<T>>(
     commands: Receiver<RemoteCommand>,
     stop: Arc<AtomicBool>,
     reconnect: bool,
-) {
+) -> RemoteExit {
     let mut filter = config.filter;
     while !stop.load(Ordering::Relaxed) {
         let Some(transport) = open() else {
             if !reconnect {
-                return;
+                return RemoteExit::Stopped;
             }
             std::thread::sleep(Duration::from_millis(100));
             continue;
@@ -291,9 +326,19 @@ fn run_remote<T: Transport, F: FnMut() -> Option<T>>(
             Ok(info) => send(&tx, ManagerEvent::Connected { id, info }),
             Err(e) => {
                 forward(id, &mut session, &tx);
-                if matches!(e, super::session::SessionError::UnsupportedDevice(_)) {
-                    send(&tx, ManagerEvent::Problem(format!("remote {id}: {e}")));
-                    return;
+                if let super::session::SessionError::UnsupportedDevice(what) = e {
+                    let problem = RemoteProblem::Unsupported {
+                        node: format!("remote {id}"),
+                        what: what.to_string(),
+                    };
+                    send(
+                        &tx,
+                        ManagerEvent::Problem {
+                            id: Some(id),
+                            problem,
+                        },
+                    );
+                    return RemoteExit::ConnectFailed(e);
                 }
                 if !reconnect {
                     send(
@@ -303,7 +348,7 @@ fn run_remote<T: Transport, F: FnMut() -> Option<T>>(
                             reason: e.to_string(),
                         },
                     );
-                    return;
+                    return RemoteExit::ConnectFailed(e);
                 }
                 std::thread::sleep(Duration::from_millis(500));
                 continue;
@@ -311,7 +356,7 @@ fn run_remote<T: Transport, F: FnMut() -> Option<T>>(
         }
         let reason = loop {
             if stop.load(Ordering::Relaxed) {
-                return;
+                return RemoteExit::Stopped;
             }
             let mut failed = None;
             while let Ok(c) = commands.try_recv() {
@@ -347,10 +392,11 @@ fn run_remote<T: Transport, F: FnMut() -> Option<T>>(
         forward(id, &mut session, &tx);
         send(&tx, ManagerEvent::Disconnected { id, reason });
         if !reconnect {
-            return;
+            return RemoteExit::Disconnected;
         }
         std::thread::sleep(Duration::from_millis(200));
     }
+    RemoteExit::Stopped
 }
 
 fn forward<T: Transport>(id: RemoteId, session: &mut Session<T>, tx: &Sender<ManagerEvent>) {
@@ -375,6 +421,102 @@ fn forward<T: Transport>(id: RemoteId, session: &mut Session<T>, tx: &Sender<Man
     }
 }
 
+/// Problems already reported, per device node (so a remote failing every scan is reported
+/// once, and again only when what is wrong changes).
+#[cfg(feature = "hidapi")]
+type Reported = Arc<Mutex<HashMap<String, Vec<RemoteProblem>>>>;
+
+#[cfg(feature = "hidapi")]
+fn report_once(
+    tx: &Sender<ManagerEvent>,
+    reported: &Reported,
+    key: &str,
+    id: Option<RemoteId>,
+    problems: Vec<RemoteProblem>,
+) {
+    let mut map = lock(reported);
+    if problems.is_empty() || map.get(key) == Some(&problems) {
+        return;
+    }
+    for problem in &problems {
+        send(
+            tx,
+            ManagerEvent::Problem {
+                id,
+                problem: problem.clone(),
+            },
+        );
+    }
+    map.insert(key.to_string(), problems);
+}
+
+/// Opens and runs one listed remote; a failed open or a handshake nobody answers is
+/// diagnosed (sysfs: permissions, the kernel driver) and reported.
+#[cfg(feature = "hidapi")]
+fn run_hid_remote(
+    id: RemoteId,
+    path: &str,
+    session: SessionConfig,
+    tx: Sender<ManagerEvent>,
+    commands: Receiver<RemoteCommand>,
+    stop: Arc<AtomicBool>,
+    reported: &Reported,
+) {
+    use super::diagnosis::LinuxDevices;
+    use super::session::SessionError;
+    use super::transport::{HidTransport, TransportError};
+    let node = std::path::Path::new(path);
+    let transport = match HidTransport::open(path) {
+        Ok(t) => t,
+        Err(e) => {
+            let mut problems = match &e {
+                TransportError::Open { kind, .. } => {
+                    LinuxDevices::system().diagnose(node, Some(kind))
+                }
+                _ => Vec::new(),
+            };
+            if problems.is_empty() {
+                problems.push(RemoteProblem::OpenFailed {
+                    node: path.to_string(),
+                    message: e.to_string(),
+                });
+            }
+            report_once(&tx, reported, path, Some(id), problems);
+            return;
+        }
+    };
+    // One open per discovery: a dead handle never recovers, the scanner finds the device
+    // again when it comes back.
+    let mut once = Some(transport);
+    match run_remote(
+        id,
+        || once.take(),
+        session,
+        tx.clone(),
+        commands,
+        stop,
+        false,
+    ) {
+        RemoteExit::ConnectFailed(SessionError::Timeout(_) | SessionError::Transport(_)) => {
+            let mut problems = LinuxDevices::system().diagnose(node, None);
+            if !problems
+                .iter()
+                .any(|p| matches!(p, RemoteProblem::KernelDriverBound { .. }))
+            {
+                problems.push(RemoteProblem::NoAnswer {
+                    node: path.to_string(),
+                });
+            }
+            report_once(&tx, reported, path, Some(id), problems);
+        }
+        RemoteExit::Disconnected => {
+            // It worked: report again if it fails later.
+            lock(reported).remove(path);
+        }
+        RemoteExit::ConnectFailed(_) | RemoteExit::Stopped => {}
+    }
+}
+
 #[cfg(feature = "hidapi")]
 fn scan_hid(
     tx: Sender<ManagerEvent>,
@@ -382,19 +524,19 @@ fn scan_hid(
     commands: CommandMap,
     config: SessionConfig,
 ) {
-    use super::transport::{HidTransport, diagnose_linux, discover};
+    use super::diagnosis::LinuxDevices;
+    use super::transport::discover;
     let mut ids: HashMap<String, RemoteId> = HashMap::new();
     let busy: Arc<Mutex<HashSet<String>>> = Arc::default();
+    let reported: Reported = Arc::default();
     let mut threads: Vec<JoinHandle<()>> = Vec::new();
-    let mut warned = false;
     while !stop.load(Ordering::Relaxed) {
         match discover() {
             Ok(found) => {
-                if found.is_empty() && !warned {
-                    for d in diagnose_linux() {
-                        send(&tx, ManagerEvent::Problem(d.to_string()));
-                        warned = true;
-                    }
+                if found.is_empty() {
+                    // Nothing listed: say why, if sysfs knows (e.g. nodes hidapi skipped).
+                    let problems = LinuxDevices::system().diagnose_all();
+                    report_once(&tx, &reported, "", None, problems);
                 }
                 for dev in found {
                     if lock(&busy).contains(&dev.path) {
@@ -407,30 +549,24 @@ fn scan_hid(
                     lock(&commands).insert(id, ctx);
                     let mut session = config.clone();
                     session.player = (id % 4) as u8 + 1;
-                    let (tx, stop, busy, path) = (tx.clone(), stop.clone(), busy.clone(), dev.path);
+                    let (tx, stop, busy, reported, path) = (
+                        tx.clone(),
+                        stop.clone(),
+                        busy.clone(),
+                        reported.clone(),
+                        dev.path,
+                    );
                     threads.push(std::thread::spawn(move || {
-                        let mut opened = false;
-                        let p = path.clone();
-                        // One open per discovery: a dead handle never recovers, the scanner
-                        // finds the device again when it comes back.
-                        let open = || {
-                            if opened {
-                                None
-                            } else {
-                                opened = true;
-                                HidTransport::open(&p).ok()
-                            }
-                        };
-                        run_remote(id, open, session, tx, crx, stop, false);
+                        run_hid_remote(id, &path, session, tx, crx, stop, &reported);
                         lock(&busy).remove(&path);
                     }));
                 }
             }
             Err(e) => {
-                if !warned {
-                    send(&tx, ManagerEvent::Problem(format!("hidapi: {e}")));
-                    warned = true;
-                }
+                let problems = vec![RemoteProblem::HidApi {
+                    message: e.to_string(),
+                }];
+                report_once(&tx, &reported, "", None, problems);
             }
         }
         for _ in 0..20 {

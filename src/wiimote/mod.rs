@@ -21,6 +21,7 @@
 //! assert!(session.drain_events().any(|e| matches!(e, SessionEvent::Orientation(_))));
 //! ```
 
+pub mod diagnosis;
 pub mod drift;
 mod emulator;
 mod filter;
@@ -30,11 +31,13 @@ pub mod protocol;
 mod rng;
 mod session;
 mod transport;
+mod vqf;
 
+pub use diagnosis::{LinuxDevices, OpenErrorKind, RemoteProblem};
 pub use emulator::{EmulatedRemote, EmulatorConfig, EmulatorControls, SensorModel, Variant};
 pub use filter::{
     Calibration, CalibrationPhase, FilterKind, FusionFilter, ImuSample, OrientationFilter,
-    PaperFilter, RawIntegration, snap_tilt,
+    PaperFilter, RawIntegration, StillnessBias, snap_tilt,
 };
 pub use manager::{
     ManagerConfig, ManagerEvent, RemoteCommand, RemoteId, RemoteSource, WiimoteManager,
@@ -49,5 +52,6 @@ pub use session::{
     SessionConfig, SessionError, SessionEvent,
 };
 #[cfg(feature = "hidapi")]
-pub use transport::{DeviceInfo, Diagnosis, HidTransport, diagnose_linux, discover};
+pub use transport::{DeviceInfo, HidTransport, discover};
 pub use transport::{Transport, TransportError};
+pub use vqf::VqfFilter;

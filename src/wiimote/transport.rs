@@ -9,6 +9,14 @@ pub enum TransportError {
     /// Another I/O error (message from the OS / hidapi).
     #[error("I/O error: {0}")]
     Io(String),
+    /// The device node could not be opened.
+    #[error("cannot open {node}: {kind:?}")]
+    Open {
+        /// Device node.
+        node: String,
+        /// Why.
+        kind: super::diagnosis::OpenErrorKind,
+    },
 }
 
 /// Raw HID report I/O with a clock. One transport per remote, used from one I/O thread.
@@ -60,42 +68,6 @@ mod hid {
         pub serial: Option<String>,
     }
 
-    /// Why no usable remote was found, with what to do about it.
-    #[derive(Debug, Clone, PartialEq, Eq)]
-    pub enum Diagnosis {
-        /// `/dev/hidrawN` is not readable by this user: needs a udev rule.
-        Permission {
-            /// Device node.
-            node: String,
-        },
-        /// The in-kernel `hid-wiimote` driver is bound and will fight us.
-        KernelDriverBound {
-            /// Device node.
-            node: String,
-        },
-    }
-
-    impl std::fmt::Display for Diagnosis {
-        fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-            match self {
-                Diagnosis::Permission { node } => write!(
-                    f,
-                    "{node} is not accessible. Add /etc/udev/rules.d/60-wiimote.rules with\n  \
-                     KERNEL==\"hidraw*\", KERNELS==\"0005:057E:0306.*\", TAG+=\"uaccess\"\n  \
-                     KERNEL==\"hidraw*\", KERNELS==\"0005:057E:0330.*\", TAG+=\"uaccess\"\n\
-                     (or MODE=\"0660\", GROUP=\"input\"), then `sudo udevadm control --reload` and reconnect the remote."
-                ),
-                Diagnosis::KernelDriverBound { node } => write!(
-                    f,
-                    "the hid-wiimote kernel driver is bound to {node} and talks to the remote too. \
-                     Unbind it (as root): echo <HID id, e.g. 0005:057E:0306.0007> > /sys/bus/hid/drivers/wiimote/unbind \
-                     && echo <same id> > /sys/bus/hid/drivers/hid-generic/bind; or blacklist it: \
-                     echo 'blacklist hid_wiimote' > /etc/modprobe.d/wiimote.conf"
-                ),
-            }
-        }
-    }
-
     /// Lists Wii Remotes (by VID/PID and by product string, for clones).
     pub fn discover() -> Result<Vec<DeviceInfo>, TransportError> {
         let api = hidapi::HidApi::new().map_err(|e| TransportError::Io(e.to_string()))?;
@@ -118,40 +90,6 @@ mod hid {
         Ok(out)
     }
 
-    /// Linux: explains why hidraw remotes are unusable (permissions, kernel driver).
-    pub fn diagnose_linux() -> Vec<Diagnosis> {
-        let mut out = Vec::new();
-        let Ok(dir) = std::fs::read_dir("/sys/class/hidraw") else {
-            return out;
-        };
-        for entry in dir.flatten() {
-            let name = entry.file_name().to_string_lossy().into_owned();
-            let uevent =
-                std::fs::read_to_string(entry.path().join("device/uevent")).unwrap_or_default();
-            let is_wiimote = uevent.contains("057E")
-                && (uevent.contains("0306") || uevent.contains("0330"))
-                || uevent.contains("RVL-CNT");
-            if !is_wiimote {
-                continue;
-            }
-            let node = format!("/dev/{name}");
-            if let Ok(driver) = std::fs::read_link(entry.path().join("device/driver"))
-                && driver.to_string_lossy().ends_with("wiimote")
-            {
-                out.push(Diagnosis::KernelDriverBound { node: node.clone() });
-            }
-            if std::fs::OpenOptions::new()
-                .read(true)
-                .write(true)
-                .open(&node)
-                .is_err()
-            {
-                out.push(Diagnosis::Permission { node });
-            }
-        }
-        out
-    }
-
     /// A remote opened through hidapi.
     pub struct HidTransport {
         device: hidapi::HidDevice,
@@ -159,8 +97,17 @@ mod hid {
     }
 
     impl HidTransport {
-        /// Opens the device at `path`.
+        /// Opens the device at `path`. A node that cannot be opened gives
+        /// [`TransportError::Open`] with the OS's reason (hidapi's own error is only a message,
+        /// so the node is probed first).
         pub fn open(path: &str) -> Result<Self, TransportError> {
+            #[cfg(target_os = "linux")]
+            if let Err(kind) = crate::wiimote::diagnosis::probe_open(std::path::Path::new(path)) {
+                return Err(TransportError::Open {
+                    node: path.to_string(),
+                    kind,
+                });
+            }
             let api = hidapi::HidApi::new().map_err(|e| TransportError::Io(e.to_string()))?;
             let cpath =
                 std::ffi::CString::new(path).map_err(|e| TransportError::Io(e.to_string()))?;
