@@ -1,5 +1,7 @@
 //! ARAP core benchmarks: precompute, 1 and 10 plain iterations and 10 accelerated ones
-//! (warm-started) on the peer-comparison meshes. Run with `cargo bench --bench arap`.
+//! (warm-started) on the peer-comparison meshes and on game-asset sizes (cactus 620, dino
+//! 3.9k, bars of 500, 2k and 5k vertices). Run with `cargo bench --bench arap`; one mesh with
+//! e.g. `cargo bench --bench arap -- dino_4k`.
 
 use std::path::Path;
 use std::sync::Arc;
@@ -21,6 +23,16 @@ fn problem(mesh: &TriMesh) -> (Arc<Topology>, Constraints) {
 fn meshes() -> Vec<(String, TriMesh)> {
     let mut out = Vec::new();
     let dir = Path::new("../shared/meshes");
+    // Game-asset sizes first: a regression there is what most users feel.
+    for (name, file) in [("cactus_620", "cactus.off"), ("dino_4k", "dino.off")] {
+        match TriMesh::read(dir.join(file)) {
+            Ok(mesh) => out.push((name.into(), mesh)),
+            Err(_) => eprintln!("../shared/meshes/{file} absent: skipped"),
+        }
+    }
+    for (name, vertices) in [("bar_500", 500), ("bar_2k", 2_000), ("bar_5k", 5_000)] {
+        out.push((name.into(), synth::bar_with_vertices(vertices)));
+    }
     if let Ok(arm) = TriMesh::read(dir.join("armadillo.off")) {
         out.push(("armadillo_26k".into(), arm.clone()));
         out.push(("armadillo_x4_104k".into(), synth::subdivide_midpoint(&arm)));

@@ -2,8 +2,11 @@
 //!
 //! ```text
 //! cargo run --release --example arap_peer -- MESH.off CONSTRAINTS.txt ITERS REPEATS OUT.bin [--init laplacian|rest]
-//!     [--factorization auto|simplicial|supernodal] [--anderson DEPTH]
+//!     [--factorization auto|simplicial|supernodal] [--anderson DEPTH] [--weld none|seams|all]
 //! ```
+//! Constraint indices are input vertex indices; they are mapped through the weld map, and the
+//! output is in input order. `--weld none` (the default) solves the mesh's own index topology,
+//! the problem the peers solve, so coincident but unconnected vertices stay apart.
 //! CONSTRAINTS.txt: `n_fixed n_handle`, then `index x y z` per constrained vertex (fixed first,
 //! at rest; then handle vertices at their targets). Each repeat times precompute (topology,
 //! weights, assembly, both factorizations) and exactly ITERS iterations (no early stop).
@@ -99,11 +102,24 @@ fn run() -> Result<(), String> {
         Some(Some(depth)) => depth,
         Some(None) => return Err("--anderson needs a history depth (0 = off)".into()),
     };
+    // The peers solve the mesh's own index topology: weld nothing unless asked.
+    let weld = match args
+        .iter()
+        .position(|a| a == "--weld")
+        .map(|i| args.get(i + 1))
+    {
+        None => WeldPolicy::None,
+        Some(Some(v)) if v == "none" => WeldPolicy::None,
+        Some(Some(v)) if v == "seams" => WeldPolicy::Seams,
+        Some(Some(v)) if v == "all" => WeldPolicy::AllCoincident,
+        Some(v) => return Err(format!("--weld must be none, seams or all, got {v:?}")),
+    };
     let settings = SolverSettings {
         factorization,
         ..Default::default()
     };
-    let constraints = Constraints {
+    // In input (render) vertex order, as in the constraints file.
+    let input_constraints = Constraints {
         fixed,
         handles: vec![],
         targets,
@@ -117,8 +133,13 @@ fn run() -> Result<(), String> {
     let mut last = None;
     for _ in 0..repeats.max(1) {
         let t0 = Instant::now();
-        let topology =
-            Arc::new(Topology::new(&mesh.positions, &mesh.triangles).map_err(|e| e.to_string())?);
+        let topology = Arc::new(
+            Topology::with_weld(&mesh.positions, &mesh.triangles, weld)
+                .map_err(|e| e.to_string())?,
+        );
+        let constraints = input_constraints
+            .from_render(&topology)
+            .map_err(|e| e.to_string())?;
         let solver = ArapSolver::precompute(topology.clone(), &constraints, settings.clone())
             .map_err(|e| e.to_string())?;
         pre.push(t0.elapsed().as_secs_f64());

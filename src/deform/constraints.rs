@@ -115,6 +115,51 @@ pub(crate) enum Role {
 }
 
 impl Constraints {
+    /// These constraints given in *render* (input) vertex indices, mapped to the welded
+    /// indices of `topology`. Several render vertices of one welded vertex count once; a target
+    /// given for several of them keeps the first. A render index out of range is
+    /// [`ConstraintError::OutOfRange`] (with the render vertex count).
+    pub fn from_render(&self, topology: &super::Topology) -> Result<Constraints, ConstraintError> {
+        let map = topology.render_to_welded();
+        let check = |v: u32| {
+            if (v as usize) < map.len() {
+                Ok(())
+            } else {
+                Err(ConstraintError::OutOfRange {
+                    vertex: v,
+                    vertex_count: map.len(),
+                })
+            }
+        };
+        let all = self
+            .fixed
+            .iter()
+            .chain(self.handles.iter().flat_map(|h| &h.vertices))
+            .chain(self.targets.iter().map(|(v, _)| v));
+        for &v in all {
+            check(v)?;
+        }
+        let mut targets: Vec<(u32, DVec3)> = Vec::with_capacity(self.targets.len());
+        for &(v, p) in &self.targets {
+            let w = map[v as usize];
+            if !targets.iter().any(|(t, _)| *t == w) {
+                targets.push((w, p));
+            }
+        }
+        Ok(Constraints {
+            fixed: topology.welded_set(&self.fixed),
+            handles: self
+                .handles
+                .iter()
+                .map(|h| Handle {
+                    vertices: topology.welded_set(&h.vertices),
+                    transform: h.transform,
+                })
+                .collect(),
+            targets,
+        })
+    }
+
     /// Creates constraints with a fixed set and one handle.
     pub fn with_handle(fixed: Vec<u32>, handle: Vec<u32>, transform: RigidTransform) -> Self {
         Self {

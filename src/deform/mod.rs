@@ -40,4 +40,4 @@ pub use solver::{
     ArapSolver, Factorization, FillOrdering, InitialGuess, PrecomputeStats, Solution, SolveError,
     SolveOptions, SolveStats, SolverSettings,
 };
-pub use topology::{MeshError, Topology, WeightMode};
+pub use topology::{MeshError, Topology, WeightMode, WeldPolicy};

@@ -47,12 +47,32 @@ pub enum WeightMode {
     Uniform,
 }
 
+/// Which coincident vertices [`Topology`] merges.
+///
+/// Render meshes (glTF, OBJ) duplicate vertices at UV and normal seams; solving on the split
+/// copies tears the surface along the seam. But two vertices can also share a position
+/// without being a seam: a pinch point, a hand modelled resting on a hip, two closed parts
+/// that touch. Gluing those makes the surfaces bend together.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum WeldPolicy {
+    /// Weld coincident vertices only where that closes a split seam (default): a vertex is
+    /// welded when it lies on a *boundary* edge of the index topology (an edge of one
+    /// triangle) that has a twin — another boundary edge between the same two positions. A
+    /// closed surface has no boundary edges, so coincident vertices of touching closed parts
+    /// stay apart, and so do open borders that merely touch at a point.
+    #[default]
+    Seams,
+    /// Weld every pair of vertices at bit-identical positions.
+    AllCoincident,
+    /// Weld nothing: the index topology as given.
+    None,
+}
+
 /// Welded triangle-mesh connectivity with per-edge cotangent weights, in CSR form.
 ///
-/// Render meshes (glTF, OBJ) duplicate vertices at UV and normal seams. Solving on those split
-/// vertices tears the surface, so [`Topology`] welds vertices whose positions are bit-identical
-/// and keeps the map from render vertex to welded vertex. All vertex indices used by the solver
-/// are *welded* indices.
+/// Coincident vertices are merged as [`WeldPolicy`] says (seams only, by default), and the map
+/// from render vertex to welded vertex is kept. All vertex indices used by the solver are
+/// *welded* indices.
 #[derive(Debug, Clone)]
 pub struct Topology {
     positions: Vec<DVec3>,
@@ -131,7 +151,7 @@ const DEGENERATE_SINE: f64 = 1e-12;
 
 impl Topology {
     /// Builds the topology of a triangle list given in render order (`f32` positions, flat
-    /// `u32` index buffer, as in a Bevy `Mesh`). Vertices at identical positions are welded.
+    /// `u32` index buffer, as in a Bevy `Mesh`). Split seams are welded ([`WeldPolicy::Seams`]).
     pub fn from_render_mesh(positions: &[Vec3], indices: &[u32]) -> Result<Self, MeshError> {
         if !indices.len().is_multiple_of(3) {
             return Err(MeshError::IndexCountNotTriangles(indices.len()));
@@ -144,9 +164,18 @@ impl Topology {
         Self::new(&positions, &triangles)
     }
 
-    /// Builds the topology from `f64` positions and triangles. Vertices at bit-identical
-    /// positions are welded; triangles that become degenerate (repeated corner) are dropped.
+    /// Builds the topology from `f64` positions and triangles, welding split seams
+    /// ([`WeldPolicy::Seams`]); triangles that become degenerate (repeated corner) are dropped.
     pub fn new(positions: &[DVec3], triangles: &[[u32; 3]]) -> Result<Self, MeshError> {
+        Self::with_weld(positions, triangles, WeldPolicy::Seams)
+    }
+
+    /// As [`Topology::new`], merging coincident vertices as `policy` says.
+    pub fn with_weld(
+        positions: &[DVec3],
+        triangles: &[[u32; 3]],
+        policy: WeldPolicy,
+    ) -> Result<Self, MeshError> {
         if positions.is_empty() {
             return Err(MeshError::NoVertices);
         }
@@ -166,23 +195,7 @@ impl Topology {
                 }
             }
         }
-        // Weld by exact bit pattern (with -0.0 folded into 0.0).
-        let key = |p: DVec3| {
-            let f = |x: f64| if x == 0.0 { 0u64 } else { x.to_bits() };
-            [f(p.x), f(p.y), f(p.z)]
-        };
-        let mut map: HashMap<[u64; 3], u32, BuildHasherDefault<PositionHasher>> =
-            HashMap::with_capacity_and_hasher(positions.len(), Default::default());
-        let mut welded = Vec::with_capacity(positions.len());
-        let render_to_welded: Vec<u32> = positions
-            .iter()
-            .map(|&p| {
-                *map.entry(key(p)).or_insert_with(|| {
-                    welded.push(p);
-                    (welded.len() - 1) as u32
-                })
-            })
-            .collect();
+        let (welded, render_to_welded) = weld(positions, triangles, policy);
         let tris: Vec<[u32; 3]> = triangles
             .iter()
             .map(|t| t.map(|i| render_to_welded[i as usize]))
@@ -336,6 +349,19 @@ impl Topology {
         self.cotangent.iter().filter(|w| **w < 0.0).count() as f64 / self.cotangent.len() as f64
     }
 
+    /// The welded vertices of a set of render vertices, sorted and without repeats (render
+    /// indices out of range are skipped; [`crate::deform::Constraints::from_render`] rejects
+    /// them instead).
+    pub fn welded_set(&self, render: &[u32]) -> Vec<u32> {
+        let mut out: Vec<u32> = render
+            .iter()
+            .filter_map(|&i| self.render_to_welded.get(i as usize).copied())
+            .collect();
+        out.sort_unstable();
+        out.dedup();
+        out
+    }
+
     /// Scatters per-welded-vertex values back to render order.
     pub fn to_render<T: Copy>(&self, welded: &[T]) -> Vec<T> {
         self.render_to_welded
@@ -353,6 +379,99 @@ impl Topology {
         }
         (hi - lo).length()
     }
+}
+
+/// Merges coincident vertices as `policy` says: the welded positions and, per input vertex,
+/// its welded index (welded vertices are numbered in order of first appearance).
+fn weld(positions: &[DVec3], triangles: &[[u32; 3]], policy: WeldPolicy) -> (Vec<DVec3>, Vec<u32>) {
+    let identity = || (positions.to_vec(), (0..positions.len() as u32).collect());
+    if policy == WeldPolicy::None {
+        return identity();
+    }
+    // Position classes by exact bit pattern (with -0.0 folded into 0.0).
+    let key = |p: DVec3| {
+        let f = |x: f64| if x == 0.0 { 0u64 } else { x.to_bits() };
+        [f(p.x), f(p.y), f(p.z)]
+    };
+    let mut map: HashMap<[u64; 3], u32, BuildHasherDefault<PositionHasher>> =
+        HashMap::with_capacity_and_hasher(positions.len(), Default::default());
+    let class: Vec<u32> = positions
+        .iter()
+        .map(|&p| {
+            let next = map.len() as u32;
+            *map.entry(key(p)).or_insert(next)
+        })
+        .collect();
+    let classes = map.len();
+    drop(map);
+    if classes == positions.len() {
+        return identity();
+    }
+    let mergeable: Vec<bool> = match policy {
+        WeldPolicy::AllCoincident => vec![true; positions.len()],
+        _ => seam_vertices(&class, classes, triangles),
+    };
+    let mut class_to_welded = vec![u32::MAX; classes];
+    let mut welded = Vec::with_capacity(classes);
+    let render_to_welded = positions
+        .iter()
+        .enumerate()
+        .map(|(v, &p)| {
+            let slot = &mut class_to_welded[class[v] as usize];
+            if mergeable[v] && *slot != u32::MAX {
+                return *slot;
+            }
+            welded.push(p);
+            let id = (welded.len() - 1) as u32;
+            if mergeable[v] {
+                *slot = id;
+            }
+            id
+        })
+        .collect();
+    (welded, render_to_welded)
+}
+
+/// Vertices on a split seam: endpoints of boundary edges (used by one triangle) that have a
+/// twin boundary edge between the same two position classes. Only edges whose both ends
+/// share their position with another vertex can be seam edges, so only those are counted.
+fn seam_vertices(class: &[u32], classes: usize, triangles: &[[u32; 3]]) -> Vec<bool> {
+    let mut members = vec![0u32; classes];
+    for &c in class {
+        members[c as usize] += 1;
+    }
+    let shared = |v: u32| members[class[v as usize] as usize] > 1;
+    type EdgeMap = HashMap<(u32, u32), u32, BuildHasherDefault<PositionHasher>>;
+    let mut uses = EdgeMap::default();
+    for t in triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            if a != b && shared(a) && shared(b) {
+                *uses.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+            }
+        }
+    }
+    let boundary: Vec<(u32, u32)> = uses
+        .into_iter()
+        .filter(|&(_, n)| n == 1)
+        .map(|(e, _)| e)
+        .collect();
+    let geometric = |(a, b): (u32, u32)| {
+        let (ca, cb) = (class[a as usize], class[b as usize]);
+        (ca.min(cb), ca.max(cb))
+    };
+    let mut twins = EdgeMap::default();
+    for &e in &boundary {
+        *twins.entry(geometric(e)).or_insert(0) += 1;
+    }
+    let mut seam = vec![false; class.len()];
+    for &e in &boundary {
+        if twins[&geometric(e)] > 1 {
+            seam[e.0 as usize] = true;
+            seam[e.1 as usize] = true;
+        }
+    }
+    seam
 }
 
 /// Hasher for welding keys (three `f64` bit patterns): a multiply–rotate mix, far cheaper
@@ -392,6 +511,103 @@ mod tests {
             ],
             vec![[0, 1, 2], [0, 2, 3]],
         )
+    }
+
+    /// An octahedron of radius `r` centred at `c`: a closed surface.
+    fn octahedron(c: DVec3, r: f64) -> (Vec<DVec3>, Vec<[u32; 3]>) {
+        let p = vec![
+            c + DVec3::X * r,
+            c - DVec3::X * r,
+            c + DVec3::Y * r,
+            c - DVec3::Y * r,
+            c + DVec3::Z * r,
+            c - DVec3::Z * r,
+        ];
+        let t = vec![
+            [0, 2, 4],
+            [2, 1, 4],
+            [1, 3, 4],
+            [3, 0, 4],
+            [2, 0, 5],
+            [1, 2, 5],
+            [3, 1, 5],
+            [0, 3, 5],
+        ];
+        (p, t)
+    }
+
+    /// Connected components of the welded adjacency.
+    fn components(topo: &Topology) -> usize {
+        let n = topo.vertex_count();
+        let mut seen = vec![false; n];
+        let mut count = 0;
+        for s in 0..n {
+            if seen[s] {
+                continue;
+            }
+            count += 1;
+            let mut stack = vec![s];
+            seen[s] = true;
+            while let Some(v) = stack.pop() {
+                for &w in topo.neighbors(v) {
+                    if !seen[w as usize] {
+                        seen[w as usize] = true;
+                        stack.push(w as usize);
+                    }
+                }
+            }
+        }
+        count
+    }
+
+    #[test]
+    fn touching_closed_surfaces_stay_apart_unless_asked() {
+        // Two octahedra touching at one vertex: (1,0,0) of the first is (−1,0,0) of the second.
+        let (mut p, mut t) = octahedron(DVec3::ZERO, 1.0);
+        let (p2, t2) = octahedron(DVec3::new(2.0, 0.0, 0.0), 1.0);
+        t.extend(t2.iter().map(|tri| tri.map(|i| i + 6)));
+        p.extend(p2);
+        let seams = Topology::new(&p, &t).unwrap();
+        assert_eq!(seams.vertex_count(), 12);
+        assert_eq!(components(&seams), 2);
+        let all = Topology::with_weld(&p, &t, WeldPolicy::AllCoincident).unwrap();
+        assert_eq!(all.vertex_count(), 11);
+        assert_eq!(components(&all), 1);
+        let none = Topology::with_weld(&p, &t, WeldPolicy::None).unwrap();
+        assert_eq!(none.render_to_welded(), (0..12).collect::<Vec<u32>>());
+    }
+
+    #[test]
+    fn a_split_seam_is_welded_and_touching_borders_are_not() {
+        // The octahedron cut open along the edge 0–4: triangles [3,0,4] use copies 6 (of 0)
+        // and 7 (of 4), so edges 0–4 and 6–7 are twin boundary edges.
+        let (mut p, mut t) = octahedron(DVec3::ZERO, 1.0);
+        p.push(p[0]);
+        p.push(p[4]);
+        t[3] = [3, 6, 7];
+        let none = Topology::with_weld(&p, &t, WeldPolicy::None).unwrap();
+        assert_eq!(none.vertex_count(), 8);
+        let seams = Topology::new(&p, &t).unwrap();
+        assert_eq!(seams.vertex_count(), 6);
+        assert_eq!(seams.render_to_welded()[6], seams.render_to_welded()[0]);
+        assert_eq!(seams.render_to_welded()[7], seams.render_to_welded()[4]);
+        // Closed again: every vertex has the octahedron's four neighbours.
+        assert!((0..6).all(|v| seams.neighbors(v).len() == 4));
+        // Two separate squares whose corners touch at one point: a border, not a seam.
+        let p = vec![
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::new(0.0, 1.0, 0.0),
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::new(2.0, 1.0, 0.0),
+            DVec3::new(2.0, 2.0, 0.0),
+            DVec3::new(1.0, 2.0, 0.0),
+        ];
+        let t = vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]];
+        let touching = Topology::new(&p, &t).unwrap();
+        assert_eq!(touching.vertex_count(), 8);
+        assert_eq!(components(&touching), 2);
     }
 
     #[test]

@@ -366,22 +366,12 @@ fn build_constraints(
     fixed: Option<&FixedRegion>,
     handles: &[(&DeformHandle, &Transform)],
 ) -> Constraints {
-    let map = topology.render_to_welded();
-    let weld = |v: &[u32]| -> Vec<u32> {
-        let mut out: Vec<u32> = v
-            .iter()
-            .filter_map(|&i| map.get(i as usize).copied())
-            .collect();
-        out.sort_unstable();
-        out.dedup();
-        out
-    };
     Constraints {
-        fixed: fixed.map(|f| weld(&f.0)).unwrap_or_default(),
+        fixed: fixed.map(|f| topology.welded_set(&f.0)).unwrap_or_default(),
         handles: handles
             .iter()
             .map(|(h, t)| CoreHandle {
-                vertices: weld(&h.vertices),
+                vertices: topology.welded_set(&h.vertices),
                 transform: h.rigid_transform(t),
             })
             .collect(),
