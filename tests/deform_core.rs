@@ -654,9 +654,16 @@ fn gltf_triangles(path: &str) -> Option<(Vec<DVec3>, Vec<[u32; 3]>)> {
         for prim in mesh.primitives() {
             let reader = prim.reader(|b| Some(&buffers[b.index()]));
             let base = positions.len() as u32;
-            positions.extend(reader.read_positions()?.map(|p| DVec3::from(p.map(f64::from))));
+            positions.extend(
+                reader
+                    .read_positions()?
+                    .map(|p| DVec3::from(p.map(f64::from))),
+            );
             let idx: Vec<u32> = reader.read_indices()?.into_u32().collect();
-            triangles.extend(idx.chunks_exact(3).map(|t| [t[0] + base, t[1] + base, t[2] + base]));
+            triangles.extend(
+                idx.chunks_exact(3)
+                    .map(|t| [t[0] + base, t[1] + base, t[2] + base]),
+            );
         }
     }
     Some((positions, triangles))
@@ -680,14 +687,29 @@ fn a_gltf_sphere_split_at_its_uv_seam_welds_to_one_closed_surface() {
         return;
     };
     let none = Topology::with_weld(&positions, &triangles, WeldPolicy::None).unwrap();
-    let open = edge_uses(none.triangles()).values().filter(|&&n| n == 1).count();
+    let open = edge_uses(none.triangles())
+        .values()
+        .filter(|&&n| n == 1)
+        .count();
     assert!(open > 0, "the asset is split at a seam");
     let seams = Topology::new(&positions, &triangles).unwrap();
-    assert!(seams.vertex_count() < positions.len(), "{} of {}", seams.vertex_count(), positions.len());
+    assert!(
+        seams.vertex_count() < positions.len(),
+        "{} of {}",
+        seams.vertex_count(),
+        positions.len()
+    );
     let uses = edge_uses(seams.triangles());
-    assert!(uses.values().all(|&n| n == 2), "a boundary or non-manifold edge remains after welding");
+    assert!(
+        uses.values().all(|&n| n == 2),
+        "a boundary or non-manifold edge remains after welding"
+    );
     // Closed genus-0 surface: V − E + F = 2.
-    let (v, e, f) = (seams.vertex_count() as i64, uses.len() as i64, seams.triangles().len() as i64);
+    let (v, e, f) = (
+        seams.vertex_count() as i64,
+        uses.len() as i64,
+        seams.triangles().len() as i64,
+    );
     assert_eq!(v - e + f, 2);
     // Seams-only welding agrees with welding everything here (no touching parts).
     let all = Topology::with_weld(&positions, &triangles, WeldPolicy::AllCoincident).unwrap();
@@ -696,7 +718,11 @@ fn a_gltf_sphere_split_at_its_uv_seam_welds_to_one_closed_surface() {
 
 /// The peer CLI's path (`arap_peer`): mesh's own topology (no welding), constraints in input
 /// order mapped through the weld map, output in input order.
-fn solve_in_input_order(positions: &[DVec3], triangles: &[[u32; 3]], input: &Constraints) -> Vec<DVec3> {
+fn solve_in_input_order(
+    positions: &[DVec3],
+    triangles: &[[u32; 3]],
+    input: &Constraints,
+) -> Vec<DVec3> {
     let topology = Arc::new(Topology::with_weld(positions, triangles, WeldPolicy::None).unwrap());
     let c = input.from_render(&topology).unwrap();
     let solver = ArapSolver::precompute(topology.clone(), &c, SolverSettings::default()).unwrap();
@@ -705,7 +731,9 @@ fn solve_in_input_order(positions: &[DVec3], triangles: &[[u32; 3]], input: &Con
         tolerance: 0.0,
         ..Default::default()
     };
-    let s = solver.solve(&c, &options, InitialGuess::Laplacian, NEVER).unwrap();
+    let s = solver
+        .solve(&c, &options, InitialGuess::Laplacian, NEVER)
+        .unwrap();
     topology.to_render(&s.positions)
 }
 
@@ -728,10 +756,22 @@ fn coincident_vertices_solve_like_vertices_a_hair_apart() {
     // Fix the bottom of both bars, move the tops (input indices after the coincident pair).
     let (fixed_a, handle_a) = synth::slab_regions(&a.positions, 1, 0.1, 0.1);
     let input = Constraints {
-        fixed: fixed_a.iter().copied().chain(fixed_a.iter().map(|i| i + n)).collect(),
+        fixed: fixed_a
+            .iter()
+            .copied()
+            .chain(fixed_a.iter().map(|i| i + n))
+            .collect(),
         handles: vec![Handle {
-            vertices: handle_a.iter().copied().chain(handle_a.iter().map(|i| i + n)).collect(),
-            transform: RigidTransform::new(DQuat::from_rotation_z(0.5), DVec3::new(0.2, 0.0, 0.0), DVec3::Y),
+            vertices: handle_a
+                .iter()
+                .copied()
+                .chain(handle_a.iter().map(|i| i + n))
+                .collect(),
+            transform: RigidTransform::new(
+                DQuat::from_rotation_z(0.5),
+                DVec3::new(0.2, 0.0, 0.0),
+                DVec3::Y,
+            ),
         }],
         targets: vec![],
     };
@@ -739,7 +779,9 @@ fn coincident_vertices_solve_like_vertices_a_hair_apart() {
     let mut apart = positions.clone();
     apart[(n + 7) as usize] += DVec3::splat(1e-9);
     let separated = solve_in_input_order(&apart, &triangles, &input);
-    let diag = Topology::new(&positions, &triangles).unwrap().bounding_diagonal();
+    let diag = Topology::new(&positions, &triangles)
+        .unwrap()
+        .bounding_diagonal();
     let worst = together
         .iter()
         .zip(&separated)
@@ -747,7 +789,10 @@ fn coincident_vertices_solve_like_vertices_a_hair_apart() {
         .fold(0.0, f64::max);
     assert!(worst < 1e-6 * diag, "worst {worst} vs diagonal {diag}");
     // The moved tops really moved (the problem is not trivial).
-    let moved = handle_a.iter().map(|&i| together[i as usize].distance(positions[i as usize])).fold(0.0, f64::max);
+    let moved = handle_a
+        .iter()
+        .map(|&i| together[i as usize].distance(positions[i as usize]))
+        .fold(0.0, f64::max);
     assert!(moved > 0.05, "{moved}");
 }
 
@@ -759,5 +804,8 @@ fn render_constraints_out_of_range_are_rejected() {
         fixed: vec![0, mesh.positions.len() as u32],
         ..Default::default()
     };
-    assert!(matches!(c.from_render(&t), Err(ConstraintError::OutOfRange { .. })));
+    assert!(matches!(
+        c.from_render(&t),
+        Err(ConstraintError::OutOfRange { .. })
+    ));
 }

@@ -12,8 +12,8 @@ use bevy::tasks::{AsyncComputeTaskPool, Task};
 use glam::DVec3;
 
 use crate::deform::{
-    ArapSolver, Constraints, Handle as CoreHandle, InitialGuess, RigidTransform, Solution,
-    SolveError, SolveOptions, SolverSettings, Topology, WeightMode,
+    ArapSolver, Constraints, Handle as CoreHandle, InitialGuess, MeshError, RigidTransform,
+    Solution, SolveError, SolveOptions, SolverSettings, Topology, WeightMode,
 };
 
 /// Ordered phases of the deformation systems, all in `Update` (chained in this order).
@@ -182,7 +182,30 @@ pub struct DeformStatus {
     /// Completed solves so far.
     pub solves: u64,
     /// Last error, if the last attempt failed.
-    pub error: Option<String>,
+    #[reflect(ignore)]
+    pub error: Option<DeformError>,
+}
+
+/// Why a [`Deformable`] could not be prepared or solved (in [`DeformFailed`] and
+/// [`DeformStatus::error`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum DeformError {
+    /// The mesh has no CPU-side `Float32x3` positions (e.g. its asset usage is render-world
+    /// only, or positions are another format).
+    #[error("the mesh has no CPU-side Float32x3 positions")]
+    NoPositions,
+    /// The mesh is not a triangle list.
+    #[error("the mesh topology is {0}, not a triangle list")]
+    NotTriangleList(String),
+    /// The mesh data is invalid (bad indices, NaN positions, …).
+    #[error(transparent)]
+    Mesh(#[from] MeshError),
+    /// Precompute or solve failed (bad constraints, not positive definite, …).
+    #[error(transparent)]
+    Solve(#[from] SolveError),
+    /// The solve produced NaN or infinity; the mesh was left unchanged.
+    #[error("the solve produced non-finite values; the mesh was left unchanged")]
+    NonFinite,
 }
 
 /// Background phase of a deformable.
@@ -199,6 +222,9 @@ pub enum DeformPhase {
     Factorizing,
     /// Iterating.
     Solving,
+    /// The mesh could not be prepared (see [`DeformStatus::error`]); nothing will be solved
+    /// until the [`Deformable`] is re-inserted.
+    Failed,
 }
 
 /// A solve finished and was written to the mesh.
@@ -214,13 +240,13 @@ pub struct DeformSolved {
     pub solve_ms: f64,
 }
 
-/// A solve failed; the mesh was left as it was.
+/// Preparing or solving a deformable failed; the mesh was left as it was.
 #[derive(Message, Debug, Clone, PartialEq)]
 pub struct DeformFailed {
     /// The deformable entity.
     pub entity: Entity,
     /// What went wrong.
-    pub error: String,
+    pub error: DeformError,
 }
 
 /// Rest data of a prepared mesh.
@@ -244,9 +270,9 @@ struct RenderPose {
 
 /// Internal per-deformable state (not reflected).
 #[derive(Component)]
-pub struct DeformState {
+pub(crate) struct DeformState {
     rest: Option<Arc<Rest>>,
-    building: Option<Task<Result<Rest, String>>>,
+    building: Option<Task<Result<Rest, DeformError>>>,
     solver: Option<Arc<ArapSolver>>,
     last: Option<Arc<Solution>>,
     task: Option<Task<SolveOutput>>,
@@ -285,12 +311,15 @@ fn prepare_deformables(
         (Entity, &mut Mesh3d, &mut DeformStatus),
         (With<Deformable>, Without<DeformState>),
     >,
-    mut building: Query<(&mut DeformState, &mut DeformStatus)>,
+    mut building: Query<(Entity, &mut DeformState, &mut DeformStatus)>,
+    mut failed: MessageWriter<DeformFailed>,
 ) {
     for (entity, mut mesh3d, mut status) in &mut new {
         let Some(mesh) = meshes.get(&mesh3d.0) else {
             continue; // not loaded yet
         };
+        let topology = mesh.primitive_topology();
+        let triangles = topology == bevy::mesh::PrimitiveTopology::TriangleList;
         // Copy per instance: glTF entities may share one mesh asset.
         let mut copy = mesh.clone();
         let positions = mesh_positions(&copy);
@@ -313,13 +342,15 @@ fn prepare_deformables(
         copy.asset_usage = RenderAssetUsages::default();
         mesh3d.0 = meshes.add(copy);
         let task = AsyncComputeTaskPool::get().spawn(async move {
-            let positions = positions.ok_or("mesh has no Float32x3 positions")?;
+            if !triangles {
+                return Err(DeformError::NotTriangleList(format!("{topology:?}")));
+            }
+            let positions = positions.ok_or(DeformError::NoPositions)?;
             let indices = match indices {
                 Some(i) => i,
                 None => (0..positions.len() as u32).collect(),
             };
-            let topology =
-                Topology::from_render_mesh(&positions, &indices).map_err(|e| e.to_string())?;
+            let topology = Topology::from_render_mesh(&positions, &indices)?;
             Ok(Rest {
                 topology: Arc::new(topology),
                 normals,
@@ -339,7 +370,7 @@ fn prepare_deformables(
             attempted: false,
         });
     }
-    for (mut state, mut status) in &mut building {
+    for (entity, mut state, mut status) in &mut building {
         let state = state.bypass_change_detection();
         let Some(task) = state.building.as_mut() else {
             continue;
@@ -352,8 +383,11 @@ fn prepare_deformables(
                     status.phase = DeformPhase::Idle;
                     state.rest = Some(Arc::new(rest));
                 }
-                Err(e) => {
-                    status.error = Some(e);
+                Err(error) => {
+                    warn!("Deformable {entity}: {error}");
+                    status.phase = DeformPhase::Failed;
+                    status.error = Some(error.clone());
+                    failed.write(DeformFailed { entity, error });
                 }
             }
         }
@@ -389,12 +423,13 @@ fn request_solves(
         &mut DeformState,
         &mut DeformStatus,
     )>,
-    mut handles: Query<(Entity, &mut DeformHandle, Ref<Transform>)>,
+    mut handles: Query<(Entity, &mut DeformHandle, &mut Transform)>,
     mut removed: RemovedComponents<DeformHandle>,
     changed_deformable: Query<(), Changed<Deformable>>,
 ) {
-    // Fill in missing pivots (rest centroid) once the topology exists.
-    for (_, mut h, _) in &mut handles {
+    // Fill in missing pivots (rest centroid) once the topology exists; a handle left at the
+    // identity Transform is put at its pivot, its rest pose (else it would jump by −pivot).
+    for (_, mut h, mut transform) in &mut handles {
         if h.pivot.is_some() {
             continue;
         }
@@ -416,6 +451,9 @@ fn request_solves(
             pts.iter().sum::<Vec3>() / pts.len() as f32
         };
         h.pivot = Some(c);
+        if *transform == Transform::IDENTITY {
+            transform.translation = c;
+        }
     }
     // Consume the removals so each one triggers exactly one re-solve.
     let any_removed = removed.read().count() > 0;
@@ -423,8 +461,9 @@ fn request_solves(
         let Some(rest) = state.rest.clone() else {
             continue;
         };
-        let mine: Vec<(Entity, &DeformHandle, Ref<Transform>)> = handles
-            .iter()
+        // (Mutable access only to read change ticks: nothing is written here.)
+        let mine: Vec<(Entity, Mut<DeformHandle>, Mut<Transform>)> = handles
+            .iter_mut()
             .filter(|(_, h, _)| h.target == entity)
             .collect();
         let changed = mine
@@ -441,7 +480,7 @@ fn request_solves(
             continue; // next frame, once the pivots exist
         }
         let mut sorted: Vec<(Entity, &DeformHandle, &Transform)> =
-            mine.iter().map(|(e, h, t)| (*e, *h, t.as_ref())).collect();
+            mine.iter().map(|(e, h, t)| (*e, &**h, &**t)).collect();
         sorted.sort_by_key(|(e, _, _)| *e);
         let pairs: Vec<(&DeformHandle, &Transform)> =
             sorted.iter().map(|(_, h, t)| (*h, *t)).collect();
@@ -470,7 +509,13 @@ fn spawn_solve(
     let generation = state.requested.load(Ordering::Relaxed);
     let requested = state.requested.clone();
     let rest = rest.clone();
-    let reuse = state.solver.clone().filter(|s| s.accepts(&constraints));
+    let settings = solver_settings(deformable, &rest.topology);
+    // The factorization depends on the constraint sets *and* the settings (weights, region
+    // of interest): reuse it only when both are unchanged.
+    let reuse = state
+        .solver
+        .clone()
+        .filter(|s| s.accepts(&constraints) && *s.settings() == settings);
     status.phase = if reuse.is_some() {
         DeformPhase::Solving
     } else {
@@ -487,23 +532,6 @@ fn spawn_solve(
             .unwrap_or(config.max_iterations)
             .max(1),
         tolerance: deformable.tolerance.unwrap_or(config.tolerance).max(0.0) as f64,
-        ..Default::default()
-    };
-    let settings = SolverSettings {
-        weights: if deformable.raw_cotangent_weights {
-            WeightMode::RawCotangent
-        } else {
-            WeightMode::ClampedCotangent
-        },
-        region_of_interest: deformable.region_of_interest.as_ref().map(|roi| {
-            let mut mask = vec![false; rest.topology.vertex_count()];
-            for &v in roi {
-                if let Some(&w) = rest.topology.render_to_welded().get(v as usize) {
-                    mask[w as usize] = true;
-                }
-            }
-            mask
-        }),
         ..Default::default()
     };
     state.task = Some(AsyncComputeTaskPool::get().spawn(async move {
@@ -535,6 +563,25 @@ fn spawn_solve(
             ms: t0.elapsed().as_secs_f64() * 1e3,
         }
     }));
+}
+
+/// The solver settings a [`Deformable`] asks for (welded region-of-interest mask).
+fn solver_settings(deformable: &Deformable, topology: &Topology) -> SolverSettings {
+    SolverSettings {
+        weights: if deformable.raw_cotangent_weights {
+            WeightMode::RawCotangent
+        } else {
+            WeightMode::ClampedCotangent
+        },
+        region_of_interest: deformable.region_of_interest.as_ref().map(|roi| {
+            let mut mask = vec![false; topology.vertex_count()];
+            for w in topology.welded_set(roi) {
+                mask[w as usize] = true;
+            }
+            mask
+        }),
+        ..Default::default()
+    }
 }
 
 /// Positions, rotated rest normals and tangents in render order (f32), validated finite.
@@ -618,20 +665,17 @@ fn poll_tasks(
             }
             Ok(_) => {
                 status.phase = DeformPhase::Idle;
-                status.error = Some("solve produced non-finite values".into());
+                status.error = Some(DeformError::NonFinite);
                 failed.write(DeformFailed {
                     entity,
-                    error: "solve produced non-finite values; mesh left unchanged".into(),
+                    error: DeformError::NonFinite,
                 });
             }
             Err(e) => {
                 status.phase = DeformPhase::Idle;
-                status.error = Some(e.to_string());
-                // A set change that fails must not keep the old solver for the new sets.
-                failed.write(DeformFailed {
-                    entity,
-                    error: e.to_string(),
-                });
+                let error = DeformError::from(e);
+                status.error = Some(error.clone());
+                failed.write(DeformFailed { entity, error });
             }
         }
         // A newer request arrived while solving: start it now with the freshest constraints.

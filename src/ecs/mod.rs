@@ -17,7 +17,7 @@ use bevy::prelude::*;
 
 pub use control::WiimoteHandleControl;
 pub use deform::{
-    DeformConfig, DeformFailed, DeformHandle, DeformPhase, DeformPlugin, DeformSolved, DeformState,
+    DeformConfig, DeformError, DeformFailed, DeformHandle, DeformPhase, DeformPlugin, DeformSolved,
     DeformStatus, DeformSystems, Deformable, FixedRegion, mesh_from_triangles,
 };
 pub use wiimote::{
