@@ -216,7 +216,7 @@ fn invalid_constraints_fail_and_leave_the_mesh() {
     assert!(
         matches!(
             bad[0].error,
-            DeformError::Solve(deform::SolveError::Constraints(
+            DeformError::Solve(deform::SolveError::Constraint(
                 deform::ConstraintError::Overlap { .. }
             ))
         ),
