@@ -531,3 +531,91 @@ fn a_mesh_that_cannot_be_prepared_fails_with_a_typed_reason() {
         assert!(status.error.is_some());
     }
 }
+
+#[test]
+fn deformable_on_an_ancestor_applies_to_the_meshes_below_it() {
+    let mut app = app();
+    app.add_plugins(DeformPlugin::default());
+    // A glTF-like hierarchy: root → node (its own transform) → primitive with the mesh.
+    let (mesh, tri) = bar_mesh();
+    let (fixed, handle_vertices) = regions(&tri);
+    let bundle_source = mesh.clone();
+    let h = app.world_mut().resource_mut::<Assets<Mesh>>().add(mesh);
+    let root = app
+        .world_mut()
+        .spawn((
+            Deformable {
+                max_iterations: Some(5),
+                ..default()
+            },
+            Transform::from_scale(Vec3::splat(2.0)),
+        ))
+        .id();
+    let node = app
+        .world_mut()
+        .spawn((
+            Transform::from_rotation(Quat::from_rotation_x(0.7)),
+            ChildOf(root),
+        ))
+        .id();
+    let primitive = app
+        .world_mut()
+        .spawn((
+            Mesh3d(h),
+            Transform::default(),
+            FixedRegion(fixed),
+            ChildOf(node),
+        ))
+        .id();
+    let lonely = app.world_mut().spawn(Deformable::default()).id();
+    let handle = app
+        .world_mut()
+        .spawn(DeformHandle::bundle(
+            &bundle_source,
+            primitive,
+            handle_vertices,
+        ))
+        .id();
+    let (ok, bad) = run_until_messages(&mut app, 2);
+    assert_eq!(ok.len(), 1, "{ok:?} {bad:?}");
+    assert_eq!(ok[0].entity, primitive);
+    assert_eq!(bad.len(), 1, "{bad:?}");
+    assert_eq!(
+        (bad[0].entity, &bad[0].error),
+        (lonely, &DeformError::NoMeshBelow)
+    );
+    assert_eq!(
+        app.world().get::<DeformableScene>(root).unwrap().primitives,
+        vec![primitive]
+    );
+    assert_eq!(
+        app.world().get::<DeformableFrom>(primitive),
+        Some(&DeformableFrom(root))
+    );
+    // The handle bends the primitive; settings changed on the root reach it.
+    app.world_mut()
+        .get_mut::<Transform>(handle)
+        .unwrap()
+        .translation
+        .x += 0.2;
+    let (ok, _) = run_until_messages(&mut app, 1);
+    assert_eq!(ok.len(), 1);
+    assert!(
+        positions(&app, primitive)
+            .iter()
+            .zip(&tri.positions)
+            .any(|(a, b)| (a.as_dvec3() - *b).length() > 0.05)
+    );
+    app.world_mut()
+        .get_mut::<Deformable>(root)
+        .unwrap()
+        .max_iterations = Some(2);
+    app.update();
+    assert_eq!(
+        app.world()
+            .get::<Deformable>(primitive)
+            .unwrap()
+            .max_iterations,
+        Some(2)
+    );
+}

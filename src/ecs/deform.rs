@@ -11,6 +11,7 @@ use bevy::tasks::futures::check_ready;
 use bevy::tasks::{AsyncComputeTaskPool, Task};
 use glam::DVec3;
 
+use super::scene::DeformableScene;
 use crate::deform::{
     ArapSolver, Constraints, Handle as CoreHandle, InitialGuess, MeshError, RigidTransform,
     Solution, SolveError, SolveOptions, SolverSettings, Topology, WeightMode,
@@ -72,6 +73,9 @@ impl Plugin for DeformPlugin {
         .register_type::<DeformHandle>()
         .register_type::<DeformStatus>()
         .register_type::<DeformConfig>()
+        .register_type::<super::scene::DeformableScene>()
+        .register_type::<super::scene::DeformableFrom>()
+        .add_observer(super::scene::mark_scene_spawned)
         .add_message::<DeformSolved>()
         .add_message::<DeformFailed>()
         .configure_sets(
@@ -87,7 +91,13 @@ impl Plugin for DeformPlugin {
         .add_systems(
             Update,
             (
-                prepare_deformables.in_set(DeformSystems::Prepare),
+                (
+                    super::scene::expand_deformable_ancestors,
+                    super::scene::sync_deformable_ancestors,
+                    prepare_deformables,
+                )
+                    .chain()
+                    .in_set(DeformSystems::Prepare),
                 request_solves.in_set(DeformSystems::Request),
                 poll_tasks.in_set(DeformSystems::Poll),
                 write_back.in_set(DeformSystems::Writeback),
@@ -98,9 +108,12 @@ impl Plugin for DeformPlugin {
 
 /// Marks a `Mesh3d` entity as deformable. Handles refer to it by entity.
 ///
+/// Put on an entity without a mesh — a glTF scene root (`WorldAssetRoot`) or any ancestor —
+/// it applies to every mesh primitive below it once they exist (see [`DeformableScene`]).
+///
 /// Vertex indices everywhere in the plugin are *render* vertex indices of the mesh (as in its
 /// index buffer); seams are welded internally so split vertices move together.
-#[derive(Component, Debug, Clone, Reflect)]
+#[derive(Component, Debug, Clone, Reflect, PartialEq)]
 #[reflect(Component, Default)]
 #[require(DeformStatus)]
 #[derive(Default)]
@@ -203,6 +216,11 @@ pub enum DeformError {
     /// Precompute or solve failed (bad constraints, not positive definite, …).
     #[error(transparent)]
     Solve(#[from] SolveError),
+    /// A [`Deformable`] on an entity with no mesh below it (after its scene spawned).
+    #[error(
+        "no mesh below this entity: put Deformable on a Mesh3d entity, a glTF scene root or an ancestor of meshes"
+    )]
+    NoMeshBelow,
     /// The solve produced NaN or infinity; the mesh was left unchanged.
     #[error("the solve produced non-finite values; the mesh was left unchanged")]
     NonFinite,

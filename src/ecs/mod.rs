@@ -10,6 +10,7 @@
 
 mod control;
 mod deform;
+mod scene;
 mod wiimote;
 
 use bevy::app::PluginGroupBuilder;
@@ -20,6 +21,7 @@ pub use deform::{
     DeformConfig, DeformError, DeformFailed, DeformHandle, DeformPhase, DeformPlugin, DeformSolved,
     DeformStatus, DeformSystems, Deformable, FixedRegion, mesh_from_triangles,
 };
+pub use scene::{DeformableFrom, DeformableScene};
 pub use wiimote::{
     ConnectionState, Wiimote, WiimoteButtonChanged, WiimoteCalibration, WiimoteConnected,
     WiimoteDisconnected, WiimoteEmulators, WiimoteFilter, WiimoteLink, WiimoteOrientationChanged,
