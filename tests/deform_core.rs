@@ -752,7 +752,8 @@ fn coincident_vertices_solve_like_vertices_a_hair_apart() {
     positions.extend(&b.positions);
     let mut triangles = a.triangles.clone();
     triangles.extend(b.triangles.iter().map(|t| t.map(|i| i + n)));
-    assert_eq!(positions[3], positions[(n + 7) as usize]);
+    // Make the pair bit-identical (the shift above leaves a rounding difference).
+    positions[(n + 7) as usize] = positions[3];
     // Fix the bottom of both bars, move the tops (input indices after the coincident pair).
     let (fixed_a, handle_a) = synth::slab_regions(&a.positions, 1, 0.1, 0.1);
     let input = Constraints {

@@ -433,8 +433,9 @@ fn weld(positions: &[DVec3], triangles: &[[u32; 3]], policy: WeldPolicy) -> (Vec
 }
 
 /// Vertices on a split seam: endpoints of boundary edges (used by one triangle) that have a
-/// twin boundary edge between the same two position classes. Only edges whose both ends
-/// share their position with another vertex can be seam edges, so only those are counted.
+/// twin boundary edge between the same two position classes. Only edges with at least one end
+/// sharing its position with another vertex can be seam edges (a pole fan split per triangle
+/// has seam edges whose other end is unique), so only those are counted.
 fn seam_vertices(class: &[u32], classes: usize, triangles: &[[u32; 3]]) -> Vec<bool> {
     let mut members = vec![0u32; classes];
     for &c in class {
@@ -446,7 +447,7 @@ fn seam_vertices(class: &[u32], classes: usize, triangles: &[[u32; 3]]) -> Vec<b
     for t in triangles {
         for k in 0..3 {
             let (a, b) = (t[k], t[(k + 1) % 3]);
-            if a != b && shared(a) && shared(b) {
+            if a != b && (shared(a) || shared(b)) {
                 *uses.entry((a.min(b), a.max(b))).or_insert(0) += 1;
             }
         }

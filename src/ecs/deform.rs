@@ -11,7 +11,6 @@ use bevy::tasks::futures::check_ready;
 use bevy::tasks::{AsyncComputeTaskPool, Task};
 use glam::DVec3;
 
-use super::scene::DeformableScene;
 use crate::deform::{
     ArapSolver, Constraints, Handle as CoreHandle, InitialGuess, MeshError, RigidTransform,
     Solution, SolveError, SolveOptions, SolverSettings, Topology, WeightMode,
