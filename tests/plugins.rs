@@ -619,3 +619,190 @@ fn deformable_on_an_ancestor_applies_to_the_meshes_below_it() {
         Some(2)
     );
 }
+
+fn cursor_to(app: &mut App, at: Vec2) {
+    let mut windows = app
+        .world_mut()
+        .query_filtered::<&mut Window, With<bevy::window::PrimaryWindow>>();
+    windows
+        .single_mut(app.world_mut())
+        .unwrap()
+        .set_cursor_position(Some(at));
+}
+
+#[test]
+fn a_mouse_drag_moves_a_handle_on_a_scaled_rotated_mesh_with_the_cursor() {
+    let mut app = app();
+    app.add_plugins((
+        bevy::window::WindowPlugin::default(),
+        bevy::input::InputPlugin,
+        bevy::camera::CameraPlugin,
+        DeformPlugin::default(),
+        MouseControlPlugin,
+    ));
+    app.finish();
+    app.cleanup();
+    // What the renderer computes for a 1280×720 window (no renderer here).
+    let mut camera_component = Camera::default();
+    camera_component.computed.target_info = Some(bevy::camera::RenderTargetInfo {
+        physical_size: UVec2::new(1280, 720),
+        scale_factor: 1.0,
+    });
+    let mut perspective = PerspectiveProjection::default();
+    bevy::camera::CameraProjection::update(&mut perspective, 1280.0, 720.0);
+    camera_component.computed.clip_from_view =
+        bevy::camera::CameraProjection::get_clip_from_view(&perspective);
+    let projection = Projection::Perspective(perspective);
+    let camera = app
+        .world_mut()
+        .spawn((
+            Camera3d::default(),
+            camera_component,
+            projection,
+            Transform::from_xyz(0.5, 1.0, 6.0).looking_at(Vec3::new(0.0, 1.0, 0.0), Vec3::Y),
+        ))
+        .id();
+    let (mesh, tri) = bar_mesh();
+    let (fixed, handle_vertices) = regions(&tri);
+    let bundle_source = mesh.clone();
+    let h = app.world_mut().resource_mut::<Assets<Mesh>>().add(mesh);
+    let mesh_transform = Transform::from_xyz(0.3, 0.2, 0.0)
+        .with_rotation(Quat::from_rotation_z(0.6))
+        .with_scale(Vec3::splat(2.0));
+    let e = app
+        .world_mut()
+        .spawn((
+            Mesh3d(h),
+            mesh_transform,
+            Deformable {
+                max_iterations: Some(30),
+                tolerance: Some(0.0),
+                ..default()
+            },
+            FixedRegion(fixed),
+        ))
+        .id();
+    let (handle_component, handle_transform) =
+        DeformHandle::bundle(&bundle_source, e, handle_vertices.clone());
+    let handle = app
+        .world_mut()
+        .spawn((
+            handle_component,
+            handle_transform,
+            MouseHandleControl::default()
+                .with_camera(camera)
+                .with_space(e),
+        ))
+        .id();
+    assert_eq!(run_until_messages(&mut app, 1).0.len(), 1);
+    app.update();
+    // Where the handle is on screen.
+    let world_of = |app: &App, local: Vec3| {
+        app.world()
+            .get::<GlobalTransform>(e)
+            .unwrap()
+            .transform_point(local)
+    };
+    let start_world = world_of(&app, handle_transform.translation);
+    let (cam, cam_tf) = {
+        let mut q = app.world_mut().query::<(&Camera, &GlobalTransform)>();
+        let (c, t) = q.single(app.world()).unwrap();
+        (c.clone(), *t)
+    };
+    let start = cam.world_to_viewport(&cam_tf, start_world).unwrap();
+    let end = start + Vec2::new(60.0, -25.0);
+    // Shift + press at the handle, drag in three steps, release.
+    cursor_to(&mut app, start);
+    app.world_mut()
+        .resource_mut::<ButtonInput<KeyCode>>()
+        .press(KeyCode::ShiftLeft);
+    app.world_mut()
+        .resource_mut::<ButtonInput<MouseButton>>()
+        .press(MouseButton::Left);
+    app.update();
+    for k in 1..=3 {
+        cursor_to(&mut app, start + (end - start) * k as f32 / 3.0);
+        app.update();
+    }
+    app.world_mut()
+        .resource_mut::<ButtonInput<MouseButton>>()
+        .release(MouseButton::Left);
+    app.update();
+    // The handle is under the cursor, at its depth.
+    let moved_world = world_of(
+        &app,
+        app.world().get::<Transform>(handle).unwrap().translation,
+    );
+    let ray = cam.viewport_to_world(&cam_tf, end).unwrap();
+    let normal = *cam_tf.forward();
+    let expected = ray.origin
+        + *ray.direction * ((start_world - ray.origin).dot(normal) / ray.direction.dot(normal));
+    let drag = expected - start_world;
+    assert!(drag.length() > 0.1, "{drag}");
+    assert!(
+        (moved_world - expected).length() < 0.02 * drag.length(),
+        "handle at {moved_world}, cursor ray at {expected}"
+    );
+    // The solve moves the handle's vertices by the drag, in world space; the fixed end stays.
+    // (Solves of the drag's intermediate frames may land first: wait until the latest did.)
+    let deadline = Instant::now() + Duration::from_secs(30);
+    let mut idle_frames = 0;
+    while idle_frames < 20 {
+        assert!(Instant::now() < deadline, "never settled");
+        let before = app.world().get::<DeformStatus>(e).unwrap().solves;
+        app.update();
+        std::thread::sleep(Duration::from_millis(2));
+        let status = app.world().get::<DeformStatus>(e).unwrap();
+        idle_frames = if status.phase == DeformPhase::Idle && status.solves == before {
+            idle_frames + 1
+        } else {
+            0
+        };
+    }
+    let got = positions(&app, e);
+    let mesh_to_world = app.world().get::<GlobalTransform>(e).unwrap().affine();
+    for &v in handle_vertices.iter().take(20) {
+        let rest = mesh_to_world.transform_point3(tri.positions[v as usize].as_vec3());
+        let now = mesh_to_world.transform_point3(got[v as usize]);
+        assert!(
+            ((now - rest) - drag).length() < 0.02 * drag.length(),
+            "vertex {v}: {}",
+            now - rest
+        );
+    }
+    let (fixed, _) = regions(&tri);
+    for &v in &fixed {
+        assert!((got[v as usize].as_dvec3() - tri.positions[v as usize]).length() < 1e-5);
+    }
+    assert!(
+        !app.world()
+            .get::<MouseHandleControl>(handle)
+            .unwrap()
+            .is_dragging()
+    );
+}
+
+#[test]
+fn the_arcball_turns_about_the_view_axes() {
+    let centre = Vec2::new(400.0, 300.0);
+    // A horizontal drag through the centre turns about the view's up axis, to the right.
+    use bevy_wii_deform::ecs::arcball_rotation;
+    let q = arcball_rotation(centre, centre + Vec2::new(50.0, 0.0), centre, 200.0);
+    let (axis, angle) = q.to_axis_angle();
+    assert!(
+        axis.y > 0.99 && (angle - (0.25f32).asin()).abs() < 1e-4,
+        "{axis} {angle}"
+    );
+    // Dragging along the rim rolls about the view direction.
+    let q = arcball_rotation(
+        centre + Vec2::new(300.0, 0.0),
+        centre + Vec2::new(0.0, -300.0),
+        centre,
+        200.0,
+    );
+    let (axis, angle) = q.to_axis_angle();
+    assert!(
+        axis.z > 0.99 && (angle - std::f32::consts::FRAC_PI_2).abs() < 1e-4,
+        "{axis} {angle}"
+    );
+}

@@ -10,6 +10,7 @@
 
 mod control;
 mod deform;
+mod mouse;
 mod scene;
 mod wiimote;
 
@@ -21,6 +22,7 @@ pub use deform::{
     DeformConfig, DeformError, DeformFailed, DeformHandle, DeformPhase, DeformPlugin, DeformSolved,
     DeformStatus, DeformSystems, Deformable, FixedRegion, mesh_from_triangles,
 };
+pub use mouse::{MouseHandleControl, arcball_rotation};
 pub use scene::{DeformableFrom, DeformableScene};
 pub use wiimote::{
     ConnectionState, Wiimote, WiimoteButtonChanged, WiimoteCalibration, WiimoteConnected,
@@ -45,7 +47,23 @@ impl Plugin for WiimoteControlPlugin {
     }
 }
 
-/// Both plugins: [`DeformPlugin`], [`WiimotePlugin`] and [`WiimoteControlPlugin`].
+/// Adds [`MouseHandleControl`]: mouse drags turn and move handles (in `Update`, before
+/// [`DeformSystems::Request`]).
+#[derive(Debug, Clone, Default)]
+pub struct MouseControlPlugin;
+
+impl Plugin for MouseControlPlugin {
+    fn build(&self, app: &mut App) {
+        app.register_type::<MouseHandleControl>();
+        app.add_systems(
+            Update,
+            mouse::drive_mouse_handles.before(DeformSystems::Request),
+        );
+    }
+}
+
+/// Every plugin: [`DeformPlugin`], [`WiimotePlugin`], [`WiimoteControlPlugin`] and
+/// [`MouseControlPlugin`].
 #[derive(Debug, Clone, Default)]
 pub struct WiiDeformPlugins {
     /// Deformation settings.
@@ -60,5 +78,6 @@ impl PluginGroup for WiiDeformPlugins {
             .add(self.deform)
             .add(self.wiimote)
             .add(WiimoteControlPlugin)
+            .add(MouseControlPlugin)
     }
 }
