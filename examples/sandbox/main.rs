@@ -250,45 +250,50 @@ fn main() -> AppExit {
     if demo && sandbox.pending_task.is_none() {
         sandbox.pending_task = Some("mannequin_wave".into());
     }
-    app.add_plugins((DeformPlugin::default(), wiimote, WiimoteControlPlugin))
-        .add_plugins(MeshPickingPlugin)
-        .insert_resource(ClearColor(BACKGROUND))
-        .insert_resource(sandbox)
-        .insert_resource(unattended)
-        .init_resource::<UndoQueue>()
-        .init_resource::<BrushHit>()
-        .init_resource::<Loading>()
-        .init_resource::<HistoryRequest>()
-        .insert_resource(OrbitCamera {
-            // The demo looks straight at the model so the remote's roll maps onto the task's
-            // rotation axis; interactive sessions start with a three-quarter view.
-            yaw: if demo { 0.0 } else { 0.3 },
-            pitch: if demo { 0.05 } else { 0.15 },
-            distance: 3.0,
-            focus: Vec3::new(0.0, 0.8, 0.0),
-        })
-        .add_systems(Startup, setup_scene)
-        .add_systems(
-            Update,
-            (
-                start_loading,
-                load_pending,
-                file_drop,
-                orbit_camera,
-                brush_ray.run_if(not_over_ui),
-                paint,
-                pose_with_mouse.run_if(not_over_ui),
-                keyboard_shortcuts,
-                demo_script,
-            )
-                .chain()
-                .before(DeformSystems::Request),
+    app.add_plugins((
+        DeformPlugin::default(),
+        wiimote,
+        WiimoteControlPlugin,
+        MouseControlPlugin,
+    ))
+    .add_plugins(MeshPickingPlugin)
+    .insert_resource(ClearColor(BACKGROUND))
+    .insert_resource(sandbox)
+    .insert_resource(unattended)
+    .init_resource::<UndoQueue>()
+    .init_resource::<BrushHit>()
+    .init_resource::<Loading>()
+    .init_resource::<HistoryRequest>()
+    .insert_resource(OrbitCamera {
+        // The demo looks straight at the model so the remote's roll maps onto the task's
+        // rotation axis; interactive sessions start with a three-quarter view.
+        yaw: if demo { 0.0 } else { 0.3 },
+        pitch: if demo { 0.05 } else { 0.15 },
+        distance: 3.0,
+        focus: Vec3::new(0.0, 0.8, 0.0),
+    })
+    .add_systems(Startup, setup_scene)
+    .add_systems(
+        Update,
+        (
+            start_loading,
+            load_pending,
+            file_drop,
+            orbit_camera,
+            brush_ray.run_if(not_over_ui),
+            paint,
+            gate_mouse_control,
+            keyboard_shortcuts,
+            demo_script,
         )
-        .add_systems(
-            Update,
-            (challenge_progress, unattended_frames).after(DeformSystems::Writeback),
-        )
-        .run()
+            .chain()
+            .before(DeformSystems::Request),
+    )
+    .add_systems(
+        Update,
+        (challenge_progress, unattended_frames).after(DeformSystems::Writeback),
+    )
+    .run()
 }
 
 fn not_over_ui(world: &World) -> bool {
@@ -642,6 +647,12 @@ fn sync_regions(commands: &mut Commands, sb: &mut Sandbox) {
         if sb.input == InputMethod::Wiimote {
             e.insert(WiimoteHandleControl::default().with_space(mesh_entity));
         }
+        // The paper's mouse baseline (the library's arcball); enabled in Pose mode only.
+        e.insert(
+            MouseHandleControl::default()
+                .with_space(mesh_entity)
+                .with_enabled(false),
+        );
         sb.handle_entity = Some(e.id());
     }
 }
@@ -797,84 +808,30 @@ fn paint(
     update_colors(&sb, &mut meshes, mesh3d);
 }
 
-/// Arcball (Shoemake) rotation of the handle and view-plane translation.
-#[allow(clippy::too_many_arguments)]
-fn pose_with_mouse(
+/// Turns the library's [`MouseHandleControl`] on in Pose mode with mouse input (not when a
+/// drag would start over the panel), and turns each finished drag into an undo entry.
+fn gate_mouse_control(
     sb: Res<Sandbox>,
-    buttons: Res<ButtonInput<MouseButton>>,
-    keys: Res<ButtonInput<KeyCode>>,
-    window: Query<&Window, With<PrimaryWindow>>,
-    camera: Query<(&Camera, &GlobalTransform)>,
-    mut transforms: Query<&mut Transform, Without<Camera3d>>,
-    mut last: Local<Option<Vec2>>,
-    mut sb_undo: Local<bool>,
+    wants_pointer: Option<Res<bevy_egui::input::EguiWantsInput>>,
+    mut controls: Query<&mut MouseHandleControl>,
+    mut drag_start: Local<Option<Transform>>,
     mut undo_out: ResMut<UndoQueue>,
 ) {
-    if sb.mode != Mode::Pose || sb.input != InputMethod::Mouse {
-        *last = None;
-        return;
-    }
-    let Some(h) = sb.handle_entity else { return };
-    let Ok(window) = window.single() else { return };
-    let Some(cursor) = window.cursor_position() else {
+    let Some(mut control) = sb.handle_entity.and_then(|h| controls.get_mut(h).ok()) else {
+        *drag_start = None;
         return;
     };
-    if !buttons.pressed(MouseButton::Left) {
-        *last = None;
-        *sb_undo = false;
-        return;
+    let over_ui = wants_pointer.is_some_and(|w| w.wants_any_pointer_input());
+    let enabled = sb.mode == Mode::Pose
+        && sb.input == InputMethod::Mouse
+        && (control.is_dragging() || !over_ui);
+    if control.enabled != enabled {
+        control.enabled = enabled;
     }
-    let Some((cam, cam_tf)) = camera.iter().next() else {
-        return;
-    };
-    let Ok(mut t) = transforms.get_mut(h) else {
-        return;
-    };
-    if !*sb_undo {
-        *sb_undo = true;
-        undo_out.0.push(*t);
-    }
-    let Some(prev) = last.replace(cursor) else {
-        return;
-    };
-    if prev == cursor {
-        return;
-    }
-    let cam_rot = cam_tf.compute_transform().rotation;
-    if keys.pressed(KeyCode::ShiftLeft) || keys.pressed(KeyCode::ShiftRight) {
-        let depth = (t.translation - cam_tf.translation()).length();
-        let (Ok(a), Ok(b)) = (
-            cam.viewport_to_world(cam_tf, prev),
-            cam.viewport_to_world(cam_tf, cursor),
-        ) else {
-            return;
-        };
-        let pa = a.origin + *a.direction * depth;
-        let pb = b.origin + *b.direction * depth;
-        t.translation += pb - pa;
-        return;
-    }
-    // Arcball centred on the handle's screen position.
-    let centre = cam
-        .world_to_viewport(cam_tf, t.translation)
-        .unwrap_or(window.size() / 2.0);
-    let radius = window.size().min_element() * 0.35;
-    let to_sphere = |p: Vec2| {
-        let v = (p - centre) / radius;
-        let v = Vec2::new(v.x, -v.y);
-        let d2 = v.length_squared();
-        if d2 <= 1.0 {
-            v.extend((1.0 - d2).sqrt())
-        } else {
-            (v / d2.sqrt()).extend(0.0)
-        }
-    };
-    let (a, b) = (to_sphere(prev), to_sphere(cursor));
-    let q_view = Quat::from_rotation_arc(a, b);
-    let q_world = cam_rot * q_view * cam_rot.inverse();
-    let r = (q_world * t.rotation).normalize();
-    if r.is_finite() {
-        t.rotation = r;
+    match (control.drag_start(), drag_start.take()) {
+        (Some(start), _) => *drag_start = Some(start),
+        (None, Some(start)) => undo_out.0.push(start),
+        (None, None) => {}
     }
 }
 
@@ -897,7 +854,7 @@ fn keyboard_shortcuts(
     mut undo_in: ResMut<UndoQueue>,
     mut history: ResMut<HistoryRequest>,
 ) {
-    // Pose drags recorded by pose_with_mouse become undo entries.
+    // Pose drags recorded by gate_mouse_control become undo entries.
     for t in undo_in.0.drain(..) {
         let snap = Snapshot {
             selection: sb.selection.clone(),

@@ -34,6 +34,8 @@ pub struct MouseHandleControl {
     pub enabled: bool,
     #[reflect(ignore)]
     last_cursor: Option<Vec2>,
+    #[reflect(ignore)]
+    drag_start: Option<Transform>,
 }
 
 impl Default for MouseHandleControl {
@@ -46,6 +48,7 @@ impl Default for MouseHandleControl {
             arcball_radius: 0.35,
             enabled: true,
             last_cursor: None,
+            drag_start: None,
         }
     }
 }
@@ -63,9 +66,20 @@ impl MouseHandleControl {
         self
     }
 
+    /// Starts enabled or not (see [`Self::enabled`]).
+    pub fn with_enabled(mut self, enabled: bool) -> Self {
+        self.enabled = enabled;
+        self
+    }
+
     /// Whether a drag is in progress.
     pub fn is_dragging(&self) -> bool {
         self.last_cursor.is_some()
+    }
+
+    /// The handle's `Transform` when the current drag started (for undo histories).
+    pub fn drag_start(&self) -> Option<Transform> {
+        self.drag_start.filter(|_| self.is_dragging())
     }
 }
 
@@ -110,7 +124,8 @@ pub(crate) fn drive_mouse_handles(
             continue;
         }
         let Some(previous) = control.last_cursor.replace(cursor) else {
-            continue; // the drag starts here
+            control.drag_start = Some(*transform); // the drag starts here
+            continue;
         };
         if previous == cursor {
             continue;
