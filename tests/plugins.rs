@@ -806,3 +806,99 @@ fn the_arcball_turns_about_the_view_axes() {
         "{axis} {angle}"
     );
 }
+
+#[test]
+fn the_remote_turns_a_handle_one_to_one_in_camera_space_and_translates_only_while_grabbing() {
+    use bevy::time::TimeUpdateStrategy;
+    let mut app = app();
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_millis(
+        10,
+    )));
+    app.add_plugins(WiimoteControlPlugin);
+    // A camera turned 90° about Y (its right is world −Z): the remote's motion is mapped
+    // through the camera's frame, so this checks that mapping too.
+    let camera_rotation = Quat::from_rotation_y(std::f32::consts::FRAC_PI_2);
+    app.world_mut().spawn((
+        Camera3d::default(),
+        Transform::from_rotation(camera_rotation),
+    ));
+    let start = Quat::from_rotation_x(0.3);
+    let remote = app
+        .world_mut()
+        .spawn(Wiimote {
+            connection: ConnectionState::Connected,
+            orientation: start,
+            ..default()
+        })
+        .id();
+    let handle = app
+        .world_mut()
+        .spawn((Transform::default(), WiimoteHandleControl::default()))
+        .id();
+    let set = |app: &mut App, orientation: Quat, buttons: u16| {
+        let mut w = app.world_mut().get_mut::<Wiimote>(remote).unwrap();
+        w.orientation = orientation;
+        w.buttons = buttons;
+    };
+    app.update();
+    // Turning without B does nothing.
+    set(&mut app, Quat::from_rotation_y(0.5) * start, 0);
+    app.update();
+    assert_eq!(
+        app.world().get::<Transform>(handle).unwrap().rotation,
+        Quat::IDENTITY
+    );
+    // Grab, then turn the remote 40° about its world Y (relative to the grab).
+    set(&mut app, start, Buttons::B);
+    app.update();
+    let turn = Quat::from_rotation_y(40f32.to_radians());
+    set(&mut app, turn * start, Buttons::B);
+    app.update();
+    let got = app.world().get::<Transform>(handle).unwrap().rotation;
+    let want = camera_rotation * turn * camera_rotation.inverse();
+    let (axis, angle) = got.to_axis_angle();
+    assert!(
+        (angle.to_degrees() - 40.0).abs() < 0.4,
+        "turned {}° for a 40° turn of the remote",
+        angle.to_degrees()
+    );
+    assert!(got.angle_between(want) < 0.2f32.to_radians(), "axis {axis}");
+    // Released: the remote turns on, the handle keeps its pose (ratchet).
+    set(&mut app, Quat::from_rotation_y(1.2) * start, 0);
+    app.update();
+    assert!(
+        app.world()
+            .get::<Transform>(handle)
+            .unwrap()
+            .rotation
+            .angle_between(got)
+            < 1e-6
+    );
+    // D-pad right without B: no motion; with B: along the camera's right, speed × time.
+    set(&mut app, start, Buttons::RIGHT);
+    app.update();
+    assert_eq!(
+        app.world().get::<Transform>(handle).unwrap().translation,
+        Vec3::ZERO
+    );
+    set(&mut app, start, Buttons::RIGHT | Buttons::B);
+    for _ in 0..10 {
+        app.update();
+    }
+    let moved = app.world().get::<Transform>(handle).unwrap().translation;
+    let speed = WiimoteHandleControl::default().speed;
+    let expected = camera_rotation * Vec3::X * speed * 0.1;
+    assert!(
+        (moved - expected).length() < 0.15 * expected.length(),
+        "{moved} vs {expected}"
+    );
+    // Home ends the grab.
+    set(&mut app, start, Buttons::B | Buttons::HOME);
+    app.update();
+    assert!(
+        !app.world()
+            .get::<WiimoteHandleControl>(handle)
+            .unwrap()
+            .is_grabbing()
+    );
+}
