@@ -15,9 +15,10 @@ pub mod prelude {
     pub use crate::ecs::{
         ConnectionState, DeformConfig, DeformError, DeformFailed, DeformHandle, DeformPhase,
         DeformPlugin, DeformSolved, DeformStatus, DeformSystems, Deformable, DeformableFrom,
-        DeformableScene, FixedRegion, MouseControlPlugin, MouseHandleControl, WiiDeformPlugins,
-        Wiimote, WiimoteButtonChanged, WiimoteCalibration, WiimoteConnected, WiimoteControlPlugin,
-        WiimoteDisconnected, WiimoteEmulators, WiimoteFilter, WiimoteHandleControl, WiimoteLink,
+        DeformableScene, FixedRegion, GrabEnd, GrabMove, GrabPlugin, GrabStart, Grabbable,
+        MouseControlPlugin, MouseHandleControl, WiiDeformPlugins, Wiimote, WiimoteButtonChanged,
+        WiimoteCalibration, WiimoteConnected, WiimoteControlPlugin, WiimoteDisconnected,
+        WiimoteEmulators, WiimoteFilter, WiimoteHandleControl, WiimoteLink,
         WiimoteOrientationChanged, WiimotePlugin, WiimoteProblem, WiimoteProblems, WiimoteSettings,
         WiimoteSource, WiimoteSystems, mesh_from_triangles,
     };

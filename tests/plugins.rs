@@ -620,6 +620,66 @@ fn deformable_on_an_ancestor_applies_to_the_meshes_below_it() {
     );
 }
 
+/// A 3D camera with the values the renderer would compute for a 1280×720 window (headless
+/// tests have no renderer).
+fn spawn_camera(app: &mut App, transform: Transform) -> Entity {
+    let mut camera = Camera::default();
+    camera.computed.target_info = Some(bevy::camera::RenderTargetInfo {
+        physical_size: UVec2::new(1280, 720),
+        scale_factor: 1.0,
+    });
+    let mut perspective = PerspectiveProjection::default();
+    bevy::camera::CameraProjection::update(&mut perspective, 1280.0, 720.0);
+    camera.computed.clip_from_view =
+        bevy::camera::CameraProjection::get_clip_from_view(&perspective);
+    app.world_mut()
+        .spawn((
+            Camera3d::default(),
+            camera,
+            Projection::Perspective(perspective),
+            transform,
+            GlobalTransform::from(transform),
+        ))
+        .id()
+}
+
+/// Where a world point along the ray through `cursor` meets the plane through `at` facing the
+/// camera.
+fn under_cursor(app: &mut App, camera: Entity, at: Vec3, cursor: Vec2) -> Vec3 {
+    let (cam, tf) = {
+        let mut q = app.world_mut().query::<(&Camera, &GlobalTransform)>();
+        let (c, t) = q.get(app.world(), camera).unwrap();
+        (c.clone(), *t)
+    };
+    let ray = cam.viewport_to_world(&tf, cursor).unwrap();
+    let normal = *tf.forward();
+    ray.origin + *ray.direction * ((at - ray.origin).dot(normal) / ray.direction.dot(normal))
+}
+
+fn to_screen(app: &mut App, camera: Entity, at: Vec3) -> Vec2 {
+    let mut q = app.world_mut().query::<(&Camera, &GlobalTransform)>();
+    let (c, t) = q.get(app.world(), camera).unwrap();
+    c.world_to_viewport(t, at).unwrap()
+}
+
+/// Updates until the deformable has been idle (no new solve) for 20 frames.
+fn settle(app: &mut App, e: Entity) {
+    let deadline = Instant::now() + Duration::from_secs(30);
+    let mut idle_frames = 0;
+    while idle_frames < 20 {
+        assert!(Instant::now() < deadline, "never settled");
+        let before = app.world().get::<DeformStatus>(e).unwrap().solves;
+        app.update();
+        std::thread::sleep(Duration::from_millis(2));
+        let status = app.world().get::<DeformStatus>(e).unwrap();
+        idle_frames = if status.phase == DeformPhase::Idle && status.solves == before {
+            idle_frames + 1
+        } else {
+            0
+        };
+    }
+}
+
 fn cursor_to(app: &mut App, at: Vec2) {
     let mut windows = app
         .world_mut()
@@ -642,26 +702,10 @@ fn a_mouse_drag_moves_a_handle_on_a_scaled_rotated_mesh_with_the_cursor() {
     ));
     app.finish();
     app.cleanup();
-    // What the renderer computes for a 1280×720 window (no renderer here).
-    let mut camera_component = Camera::default();
-    camera_component.computed.target_info = Some(bevy::camera::RenderTargetInfo {
-        physical_size: UVec2::new(1280, 720),
-        scale_factor: 1.0,
-    });
-    let mut perspective = PerspectiveProjection::default();
-    bevy::camera::CameraProjection::update(&mut perspective, 1280.0, 720.0);
-    camera_component.computed.clip_from_view =
-        bevy::camera::CameraProjection::get_clip_from_view(&perspective);
-    let projection = Projection::Perspective(perspective);
-    let camera = app
-        .world_mut()
-        .spawn((
-            Camera3d::default(),
-            camera_component,
-            projection,
-            Transform::from_xyz(0.5, 1.0, 6.0).looking_at(Vec3::new(0.0, 1.0, 0.0), Vec3::Y),
-        ))
-        .id();
+    let camera = spawn_camera(
+        &mut app,
+        Transform::from_xyz(0.5, 1.0, 6.0).looking_at(Vec3::new(0.0, 1.0, 0.0), Vec3::Y),
+    );
     let (mesh, tri) = bar_mesh();
     let (fixed, handle_vertices) = regions(&tri);
     let bundle_source = mesh.clone();
@@ -704,12 +748,7 @@ fn a_mouse_drag_moves_a_handle_on_a_scaled_rotated_mesh_with_the_cursor() {
             .transform_point(local)
     };
     let start_world = world_of(&app, handle_transform.translation);
-    let (cam, cam_tf) = {
-        let mut q = app.world_mut().query::<(&Camera, &GlobalTransform)>();
-        let (c, t) = q.single(app.world()).unwrap();
-        (c.clone(), *t)
-    };
-    let start = cam.world_to_viewport(&cam_tf, start_world).unwrap();
+    let start = to_screen(&mut app, camera, start_world);
     let end = start + Vec2::new(60.0, -25.0);
     // Shift + press at the handle, drag in three steps, release.
     cursor_to(&mut app, start);
@@ -733,10 +772,7 @@ fn a_mouse_drag_moves_a_handle_on_a_scaled_rotated_mesh_with_the_cursor() {
         &app,
         app.world().get::<Transform>(handle).unwrap().translation,
     );
-    let ray = cam.viewport_to_world(&cam_tf, end).unwrap();
-    let normal = *cam_tf.forward();
-    let expected = ray.origin
-        + *ray.direction * ((start_world - ray.origin).dot(normal) / ray.direction.dot(normal));
+    let expected = under_cursor(&mut app, camera, start_world, end);
     let drag = expected - start_world;
     assert!(drag.length() > 0.1, "{drag}");
     assert!(
@@ -745,20 +781,7 @@ fn a_mouse_drag_moves_a_handle_on_a_scaled_rotated_mesh_with_the_cursor() {
     );
     // The solve moves the handle's vertices by the drag, in world space; the fixed end stays.
     // (Solves of the drag's intermediate frames may land first: wait until the latest did.)
-    let deadline = Instant::now() + Duration::from_secs(30);
-    let mut idle_frames = 0;
-    while idle_frames < 20 {
-        assert!(Instant::now() < deadline, "never settled");
-        let before = app.world().get::<DeformStatus>(e).unwrap().solves;
-        app.update();
-        std::thread::sleep(Duration::from_millis(2));
-        let status = app.world().get::<DeformStatus>(e).unwrap();
-        idle_frames = if status.phase == DeformPhase::Idle && status.solves == before {
-            idle_frames + 1
-        } else {
-            0
-        };
-    }
+    settle(&mut app, e);
     let got = positions(&app, e);
     let mesh_to_world = app.world().get::<GlobalTransform>(e).unwrap().affine();
     for &v in handle_vertices.iter().take(20) {
@@ -900,5 +923,108 @@ fn the_remote_turns_a_handle_one_to_one_in_camera_space_and_translates_only_whil
             .get::<WiimoteHandleControl>(handle)
             .unwrap()
             .is_grabbing()
+    );
+}
+
+#[test]
+fn grabbing_a_scaled_rotated_mesh_bends_it_under_the_pointer_and_keeps_the_pose() {
+    use bevy::picking::pointer::PointerId;
+    use bevy_wii_deform::ecs::GrabHandle;
+    let mut app = app();
+    app.add_plugins((DeformPlugin::default(), GrabPlugin));
+    let camera = spawn_camera(
+        &mut app,
+        Transform::from_xyz(0.0, 1.0, 7.0).looking_at(Vec3::new(0.0, 1.0, 0.0), Vec3::Y),
+    );
+    let (mesh, tri) = bar_mesh();
+    let h = app.world_mut().resource_mut::<Assets<Mesh>>().add(mesh);
+    let e = app
+        .world_mut()
+        .spawn((
+            Mesh3d(h),
+            Transform::from_xyz(0.2, 0.1, 0.0)
+                .with_rotation(Quat::from_rotation_z(-0.3))
+                .with_scale(Vec3::splat(2.0)),
+            Deformable {
+                max_iterations: Some(20),
+                tolerance: Some(0.0),
+                ..default()
+            },
+            // World units: the patch is the tip's cap, the region the upper half of the bar.
+            Grabbable {
+                radius: 0.15,
+                region_radius: 1.0,
+            },
+        ))
+        .id();
+    while app.world().get::<DeformStatus>(e).unwrap().vertices == 0 {
+        app.update();
+    }
+    let world = |app: &App, p: Vec3| {
+        app.world()
+            .get::<GlobalTransform>(e)
+            .unwrap()
+            .transform_point(p)
+    };
+    let top = (0..tri.positions.len())
+        .max_by(|&a, &b| tri.positions[a].y.total_cmp(&tri.positions[b].y))
+        .unwrap();
+    let bottom = (0..tri.positions.len())
+        .min_by(|&a, &b| tri.positions[a].y.total_cmp(&tri.positions[b].y))
+        .unwrap();
+    let grab = |app: &mut App, vertex: usize, pixels: Vec2| -> Vec3 {
+        let point = world(app, positions(app, e)[vertex]);
+        app.world_mut().write_message(GrabStart {
+            pointer: PointerId::Mouse,
+            entity: e,
+            point,
+            camera,
+        });
+        let from = to_screen(app, camera, point);
+        app.world_mut().write_message(GrabMove {
+            pointer: PointerId::Mouse,
+            from,
+            to: from + pixels,
+        });
+        settle(app, e);
+        app.world_mut().write_message(GrabEnd {
+            pointer: PointerId::Mouse,
+        });
+        settle(app, e);
+        under_cursor(app, camera, point, from + pixels) - point
+    };
+    let drag = grab(&mut app, top, Vec2::new(70.0, 30.0));
+    assert!(drag.length() > 0.2, "{drag}");
+    let handle = app.world().get::<GrabHandle>(e).expect("a grab handle").0;
+    let patch = app
+        .world()
+        .get::<DeformHandle>(handle)
+        .unwrap()
+        .vertices
+        .clone();
+    assert!(
+        patch.contains(&(top as u32)) && patch.len() < 40,
+        "{}",
+        patch.len()
+    );
+    let got = positions(&app, e);
+    for &v in &patch {
+        let moved = world(&app, got[v as usize]) - world(&app, tri.positions[v as usize].as_vec3());
+        assert!(
+            (moved - drag).length() < 0.02 * drag.length(),
+            "vertex {v}: {moved} vs {drag}"
+        );
+    }
+    // The far end is outside the region: exactly at rest.
+    let far = (got[bottom].as_dvec3() - tri.positions[bottom]).length();
+    assert!(far < 1e-6, "{far}");
+    // Released: the pose stays. A second grab, at the bottom, keeps the first bend.
+    let tip_after_first = world(&app, got[top]);
+    let second = grab(&mut app, bottom, Vec2::new(-30.0, 0.0));
+    assert!(second.length() > 0.05);
+    let tip_now = world(&app, positions(&app, e)[top]);
+    assert!(
+        (tip_now - tip_after_first).length() < 0.02 * drag.length(),
+        "the first bend was lost: tip at {tip_now}, was {tip_after_first}"
     );
 }

@@ -299,6 +299,13 @@ pub(crate) struct DeformState {
     attempted: bool,
 }
 
+impl DeformState {
+    /// The welded topology of the rest pose, once prepared.
+    pub(crate) fn topology(&self) -> Option<&Arc<Topology>> {
+        self.rest.as_ref().map(|r| &r.topology)
+    }
+}
+
 fn mesh_positions(mesh: &Mesh) -> Option<Vec<Vec3>> {
     match mesh.try_attribute(Mesh::ATTRIBUTE_POSITION).ok()? {
         VertexAttributeValues::Float32x3(v) => {

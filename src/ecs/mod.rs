@@ -10,6 +10,7 @@
 
 mod control;
 mod deform;
+mod grab;
 mod mouse;
 mod scene;
 mod wiimote;
@@ -22,6 +23,7 @@ pub use deform::{
     DeformConfig, DeformError, DeformFailed, DeformHandle, DeformPhase, DeformPlugin, DeformSolved,
     DeformStatus, DeformSystems, Deformable, FixedRegion, mesh_from_triangles,
 };
+pub use grab::{ActiveGrabs, GrabEnd, GrabHandle, GrabMove, GrabPlugin, GrabStart, Grabbable};
 pub use mouse::{MouseHandleControl, arcball_rotation};
 pub use scene::{DeformableFrom, DeformableScene};
 pub use wiimote::{

@@ -172,7 +172,7 @@ pub(crate) fn drive_mouse_handles(
 }
 
 /// World-space motion of a point at `at`'s depth that follows the cursor from `from` to `to`.
-fn view_plane_motion(
+pub(crate) fn view_plane_motion(
     camera: &Camera,
     camera_transform: &GlobalTransform,
     at: Vec3,

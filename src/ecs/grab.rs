@@ -1,0 +1,425 @@
+//! Pointer grab: press on a [`Grabbable`] deformable, drag, release — the surface under the
+//! pointer follows it, and the pose stays.
+//!
+//! A grab is driven by three messages — [`GrabStart`], [`GrabMove`], [`GrabEnd`] — which
+//! [`GrabPlugin`] writes from Bevy's picking events (`Pointer<Press>`, `Pointer<Drag>`,
+//! `Pointer<Release>`; add a picking backend such as `MeshPickingPlugin`). Other input (a Wii
+//! Remote cursor, VR controllers, tests) can write them directly.
+//!
+//! On a press, the grabbed patch is every vertex within [`Grabbable::radius`] of the hit
+//! *measured along the surface* (Dijkstra over the welded mesh, so a brush does not jump across
+//! a thin gap). With no [`FixedRegion`] on the mesh, the vertices within
+//! [`Grabbable::region_radius`] become the region of interest and everything beyond is held at
+//! rest: grabbing a 100k-vertex mesh solves a small local system. Dragging moves the patch in
+//! the camera's view plane, at its depth. On release the handle stays where it is, so the pose
+//! is kept; the next grab of the same mesh first makes the current pose the new rest pose, so
+//! bends accumulate. Radii are in world units (the mesh's scale is divided out).
+
+use std::collections::{BinaryHeap, HashMap};
+use std::sync::Arc;
+
+use bevy::picking::events::{Drag, Pointer, Press, Release};
+use bevy::picking::pointer::PointerId;
+use bevy::prelude::*;
+
+use super::deform::{DeformHandle, DeformState, DeformSystems, Deformable, FixedRegion};
+use super::mouse::view_plane_motion;
+use super::scene::DeformableFrom;
+use crate::deform::Topology;
+
+/// Makes a [`Deformable`] (or, on an ancestor, every deformable primitive below it) grabbable
+/// with the pointer.
+#[derive(Component, Debug, Clone, PartialEq, Reflect)]
+#[reflect(Component, Default)]
+pub struct Grabbable {
+    /// Radius of the grabbed patch along the surface, world units.
+    pub radius: f32,
+    /// Radius of the region that may move, along the surface, world units (used when the mesh
+    /// has no [`FixedRegion`]); beyond it the surface is held.
+    pub region_radius: f32,
+}
+
+impl Default for Grabbable {
+    fn default() -> Self {
+        Self {
+            radius: 0.08,
+            region_radius: 0.6,
+        }
+    }
+}
+
+/// Start grabbing `entity` (a deformable mesh primitive) at the world point `point`, seen
+/// from `camera`, for `pointer`.
+#[derive(Message, Debug, Clone, PartialEq)]
+pub struct GrabStart {
+    /// Which pointer grabs.
+    pub pointer: PointerId,
+    /// The mesh entity.
+    pub entity: Entity,
+    /// The grabbed point, world space.
+    pub point: Vec3,
+    /// The camera the pointer moves in.
+    pub camera: Entity,
+}
+
+/// The pointer of a grab moved from `from` to `to` (viewport coordinates of its camera).
+#[derive(Message, Debug, Clone, PartialEq)]
+pub struct GrabMove {
+    /// Which pointer.
+    pub pointer: PointerId,
+    /// Previous position.
+    pub from: Vec2,
+    /// New position.
+    pub to: Vec2,
+}
+
+/// The pointer released its grab (the pose stays).
+#[derive(Message, Debug, Clone, PartialEq)]
+pub struct GrabEnd {
+    /// Which pointer.
+    pub pointer: PointerId,
+}
+
+/// On a mesh: the handle entity its last grab created.
+#[derive(Component, Debug, Clone, Copy, PartialEq, Eq)]
+pub struct GrabHandle(pub Entity);
+
+/// Grabs in progress, by pointer.
+#[derive(Resource, Debug, Default)]
+pub struct ActiveGrabs(HashMap<PointerId, ActiveGrab>);
+
+impl ActiveGrabs {
+    /// The mesh a pointer is grabbing, if any.
+    pub fn mesh_of(&self, pointer: PointerId) -> Option<Entity> {
+        self.0.get(&pointer).map(|g| g.mesh)
+    }
+}
+
+#[derive(Debug)]
+struct ActiveGrab {
+    mesh: Entity,
+    camera: Entity,
+    /// The grabbed point in mesh space (kept until the rest pose is ready).
+    point: Vec3,
+    settings: Grabbable,
+    /// The handle, once placed.
+    handle: Option<Entity>,
+    /// Pointer motion received before the handle existed: (first from, latest to).
+    early_motion: Option<(Vec2, Vec2)>,
+}
+
+/// Adds pointer grabs (see the module docs). Requires [`super::DeformPlugin`]; add a picking
+/// backend for the pointer events.
+#[derive(Debug, Clone, Default)]
+pub struct GrabPlugin;
+
+impl Plugin for GrabPlugin {
+    fn build(&self, app: &mut App) {
+        app.register_type::<Grabbable>()
+            .init_resource::<ActiveGrabs>()
+            // Registered here too, so the plugin runs (idle) without a picking plugin.
+            .add_message::<Pointer<Press>>()
+            .add_message::<Pointer<Drag>>()
+            .add_message::<Pointer<Release>>()
+            .add_message::<GrabStart>()
+            .add_message::<GrabMove>()
+            .add_message::<GrabEnd>()
+            .add_systems(
+                Update,
+                (
+                    (presses_to_grabs, drags_to_grabs, releases_to_grabs),
+                    start_grabs,
+                    place_grabs,
+                    move_grabs,
+                    end_grabs,
+                )
+                    .chain()
+                    .before(DeformSystems::Request)
+                    .after(DeformSystems::Prepare),
+            );
+    }
+}
+
+/// A press on a grabbable deformable starts a grab.
+fn presses_to_grabs(
+    mut presses: MessageReader<Pointer<Press>>,
+    grabbable: Query<(), With<Grabbable>>,
+    from: Query<&DeformableFrom>,
+    deformables: Query<(), With<Deformable>>,
+    mut start: MessageWriter<GrabStart>,
+) {
+    for p in presses.read() {
+        let target = p.entity;
+        let is_grabbable =
+            grabbable.contains(target) || from.get(target).is_ok_and(|f| grabbable.contains(f.0));
+        if let (true, true, Some(point)) = (
+            is_grabbable,
+            deformables.contains(target),
+            p.event.hit.position,
+        ) {
+            start.write(GrabStart {
+                pointer: p.pointer_id,
+                entity: target,
+                point,
+                camera: p.event.hit.camera,
+            });
+        }
+    }
+}
+
+/// Pointer drags move grabs (messages of pointers that grab nothing are ignored later).
+fn drags_to_grabs(mut drags: MessageReader<Pointer<Drag>>, mut moves: MessageWriter<GrabMove>) {
+    for d in drags.read() {
+        let to = d.pointer_location.position;
+        moves.write(GrabMove {
+            pointer: d.pointer_id,
+            from: to - d.event.delta,
+            to,
+        });
+    }
+}
+
+/// Pointer releases end grabs.
+fn releases_to_grabs(
+    mut releases: MessageReader<Pointer<Release>>,
+    mut end: MessageWriter<GrabEnd>,
+) {
+    for r in releases.read() {
+        end.write(GrabEnd {
+            pointer: r.pointer_id,
+        });
+    }
+}
+
+/// What [`start_grabs`] reads of a grabbed mesh.
+type GrabbedMesh<'a> = (
+    &'a GlobalTransform,
+    Option<&'a GrabHandle>,
+    Option<&'a Grabbable>,
+    Option<&'a DeformableFrom>,
+);
+
+/// Registers new grabs; a mesh grabbed before first makes its current pose the rest pose.
+fn start_grabs(
+    mut commands: Commands,
+    mut starts: MessageReader<GrabStart>,
+    mut grabs: ResMut<ActiveGrabs>,
+    meshes: Query<GrabbedMesh>,
+    settings: Query<&Grabbable>,
+) {
+    for s in starts.read() {
+        let Ok((global, previous, own, from)) = meshes.get(s.entity) else {
+            continue;
+        };
+        if grabs.0.values().any(|g| g.mesh == s.entity) {
+            continue; // one pointer per mesh at a time
+        }
+        let Some(grabbable) = own
+            .cloned()
+            .or_else(|| from.and_then(|f| settings.get(f.0).ok().cloned()))
+        else {
+            continue;
+        };
+        // Radii to mesh units.
+        let scale = global.compute_transform().scale.abs();
+        let mean_scale = ((scale.x + scale.y + scale.z) / 3.0).max(1e-6);
+        let settings = Grabbable {
+            radius: grabbable.radius / mean_scale,
+            region_radius: grabbable.region_radius / mean_scale,
+        };
+        if let Some(GrabHandle(handle)) = previous {
+            // Bake: the deformed mesh becomes the new rest (prepared again in the background).
+            commands.entity(*handle).despawn();
+            commands
+                .entity(s.entity)
+                .remove::<(GrabHandle, DeformState)>();
+        }
+        let point = global.affine().inverse().transform_point3(s.point);
+        grabs.0.insert(
+            s.pointer,
+            ActiveGrab {
+                mesh: s.entity,
+                camera: s.camera,
+                point,
+                settings,
+                handle: None,
+                early_motion: None,
+            },
+        );
+    }
+}
+
+/// Places the handle of grabs whose mesh is ready: the geodesic patch and region.
+fn place_grabs(
+    mut commands: Commands,
+    mut grabs: ResMut<ActiveGrabs>,
+    mut meshes: Query<(&DeformState, &mut Deformable, Has<FixedRegion>)>,
+) {
+    for grab in grabs.0.values_mut().filter(|g| g.handle.is_none()) {
+        let Ok((state, mut deformable, has_fixed)) = meshes.get_mut(grab.mesh) else {
+            continue;
+        };
+        let Some(topology) = state.topology() else {
+            continue; // still (re)building the rest pose
+        };
+        let (patch, region) = geodesic_regions(topology, grab.point, &grab.settings);
+        if patch.is_empty() {
+            continue;
+        }
+        if !has_fixed {
+            let region = render_vertices(topology, &region);
+            if deformable.region_of_interest.as_ref() != Some(&region) {
+                deformable.region_of_interest = Some(region);
+            }
+        }
+        let handle = commands
+            .spawn((
+                DeformHandle {
+                    target: grab.mesh,
+                    vertices: render_vertices(topology, &patch),
+                    pivot: None,
+                },
+                Transform::IDENTITY,
+                Name::new("grab handle"),
+            ))
+            .id();
+        commands.entity(grab.mesh).insert(GrabHandle(handle));
+        grab.handle = Some(handle);
+    }
+}
+
+/// Moves grabbed handles in their camera's view plane.
+fn move_grabs(
+    mut moves: MessageReader<GrabMove>,
+    mut grabs: ResMut<ActiveGrabs>,
+    cameras: Query<(&Camera, &GlobalTransform)>,
+    spaces: Query<&GlobalTransform>,
+    mut handles: Query<(&DeformHandle, &mut Transform)>,
+) {
+    let mut pending: Vec<(PointerId, Vec2, Vec2)> =
+        moves.read().map(|m| (m.pointer, m.from, m.to)).collect();
+    // Motion that arrived before a handle existed is applied once it does.
+    for (pointer, grab) in grabs.0.iter_mut() {
+        if grab.handle.is_some()
+            && let Some((from, to)) = grab.early_motion.take()
+        {
+            pending.insert(0, (*pointer, from, to));
+        }
+    }
+    for (pointer, from, to) in pending {
+        let Some(grab) = grabs.0.get_mut(&pointer) else {
+            continue;
+        };
+        let Some(handle) = grab.handle else {
+            let first = grab.early_motion.map_or(from, |(f, _)| f);
+            grab.early_motion = Some((first, to));
+            continue;
+        };
+        let (Ok((camera, camera_transform)), Ok(space), Ok((h, mut transform))) = (
+            cameras.get(grab.camera),
+            spaces.get(grab.mesh),
+            handles.get_mut(handle),
+        ) else {
+            continue;
+        };
+        if h.pivot.is_none() {
+            // The plugin has not put the handle at its pivot yet: keep the motion for later.
+            grab.early_motion = Some((from, to));
+            continue;
+        }
+        let space = space.affine();
+        let at = space.transform_point3(transform.translation);
+        let delta = view_plane_motion(camera, camera_transform, at, from, to);
+        let local = space.inverse().transform_vector3(delta);
+        if local.is_finite() {
+            transform.translation += local;
+        }
+    }
+}
+
+fn end_grabs(mut ends: MessageReader<GrabEnd>, mut grabs: ResMut<ActiveGrabs>) {
+    for e in ends.read() {
+        grabs.0.remove(&e.pointer);
+    }
+}
+
+/// Welded vertices within `radius` (the patch) and within `region_radius` (the region) of the
+/// vertex nearest to `point`, by shortest paths along mesh edges.
+pub(crate) fn geodesic_regions(
+    topology: &Topology,
+    point: Vec3,
+    settings: &Grabbable,
+) -> (Vec<u32>, Vec<u32>) {
+    let positions = topology.positions();
+    let point = point.as_dvec3();
+    let Some(seed) = (0..positions.len()).min_by(|&a, &b| {
+        positions[a]
+            .distance_squared(point)
+            .total_cmp(&positions[b].distance_squared(point))
+    }) else {
+        return (Vec::new(), Vec::new());
+    };
+    let limit = settings.region_radius.max(settings.radius) as f64;
+    let distance = geodesic_distances(topology, seed, limit);
+    let within = |r: f32| -> Vec<u32> {
+        distance
+            .iter()
+            .filter(|(_, d)| **d <= r as f64)
+            .map(|(v, _)| *v)
+            .collect()
+    };
+    let mut patch = within(settings.radius);
+    if patch.is_empty() {
+        patch.push(seed as u32);
+    }
+    patch.sort_unstable();
+    let mut region = within(settings.region_radius.max(settings.radius));
+    region.sort_unstable();
+    (patch, region)
+}
+
+/// Dijkstra from `seed` over welded edges, up to `limit`.
+fn geodesic_distances(topology: &Topology, seed: usize, limit: f64) -> HashMap<u32, f64> {
+    #[derive(PartialEq)]
+    struct Item(f64, u32);
+    impl Eq for Item {}
+    impl PartialOrd for Item {
+        fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+            Some(self.cmp(other))
+        }
+    }
+    impl Ord for Item {
+        fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+            other.0.total_cmp(&self.0) // min-heap
+        }
+    }
+    let positions = topology.positions();
+    let mut best: HashMap<u32, f64> = HashMap::new();
+    let mut heap = BinaryHeap::new();
+    best.insert(seed as u32, 0.0);
+    heap.push(Item(0.0, seed as u32));
+    while let Some(Item(d, v)) = heap.pop() {
+        if d > best.get(&v).copied().unwrap_or(f64::MAX) {
+            continue;
+        }
+        for &w in topology.neighbors(v as usize) {
+            let nd = d + positions[v as usize].distance(positions[w as usize]);
+            if nd <= limit && nd < best.get(&w).copied().unwrap_or(f64::MAX) {
+                best.insert(w, nd);
+                heap.push(Item(nd, w));
+            }
+        }
+    }
+    best
+}
+
+/// Every render vertex whose welded vertex is in `welded` (sorted).
+fn render_vertices(topology: &Arc<Topology>, welded: &[u32]) -> Vec<u32> {
+    topology
+        .render_to_welded()
+        .iter()
+        .enumerate()
+        .filter(|(_, w)| welded.binary_search(w).is_ok())
+        .map(|(r, _)| r as u32)
+        .collect()
+}
