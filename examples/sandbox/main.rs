@@ -30,7 +30,7 @@ use bevy::time::Stopwatch;
 use bevy::window::{ExitCondition, FileDragAndDrop, PrimaryWindow};
 use bevy::winit::WinitPlugin;
 use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
-use bevy_wii_deform::deform::TriMesh;
+use bevy_wii_deform::deform::{TriMesh, synth};
 use bevy_wii_deform::prelude::*;
 use bevy_wii_deform::wiimote::protocol::Buttons;
 use bevy_wii_deform::wiimote::{DemoMotion, FnMotion, RemoteCommand, Still};
@@ -581,27 +581,14 @@ fn load_pending(
 /// A yellow cloud: one tiny octahedron per sampled target vertex, in a single mesh.
 fn point_cloud(points: &[DVec3], diagonal: f64) -> Mesh {
     let step = (points.len() / 3000).max(1);
-    let r = (diagonal * 0.004) as f32;
+    let r = diagonal * 0.004;
     let mut pos = Vec::new();
     let mut idx = Vec::new();
     for p in points.iter().step_by(step) {
-        let c = p.as_vec3();
+        let marker = synth::octahedron(*p, r);
         let base = pos.len() as u32;
-        for d in [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z] {
-            pos.push((c + d * r).to_array());
-        }
-        for [a, b, c] in [
-            [0, 2, 4],
-            [2, 1, 4],
-            [1, 3, 4],
-            [3, 0, 4],
-            [2, 0, 5],
-            [1, 2, 5],
-            [3, 1, 5],
-            [0, 3, 5],
-        ] {
-            idx.extend_from_slice(&[base + a, base + b, base + c]);
-        }
+        pos.extend(marker.positions.iter().map(|q| q.as_vec3().to_array()));
+        idx.extend(marker.triangles.iter().flatten().map(|i| base + i));
     }
     let normals: Vec<[f32; 3]> = vec![[0.0, 1.0, 0.0]; pos.len()];
     Mesh::new(

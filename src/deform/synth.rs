@@ -5,6 +5,35 @@ use glam::{DQuat, DVec3};
 use super::constraints::{Constraints, RigidTransform};
 use super::io::TriMesh;
 
+/// A closed octahedron (6 vertices, 8 outward-facing triangles) of circumradius `radius`
+/// centred at `centre`: vertices ±X, ±Y, ±Z in that order.
+pub fn octahedron(centre: DVec3, radius: f64) -> TriMesh {
+    let positions = [
+        DVec3::X,
+        DVec3::NEG_X,
+        DVec3::Y,
+        DVec3::NEG_Y,
+        DVec3::Z,
+        DVec3::NEG_Z,
+    ]
+    .map(|d| centre + d * radius)
+    .to_vec();
+    let triangles = vec![
+        [0, 2, 4],
+        [2, 1, 4],
+        [1, 3, 4],
+        [3, 0, 4],
+        [2, 0, 5],
+        [1, 2, 5],
+        [3, 1, 5],
+        [0, 3, 5],
+    ];
+    TriMesh {
+        positions,
+        triangles,
+    }
+}
+
 /// A closed cylinder ("bar") along +Y from `y = 0` to `y = length`, with `radial` vertices per
 /// ring, `rings` rings and one centre vertex per cap: `radial · rings + 2` vertices.
 pub fn bar(radial: u32, rings: u32, radius: f64, length: f64) -> TriMesh {

@@ -516,25 +516,8 @@ mod tests {
 
     /// An octahedron of radius `r` centred at `c`: a closed surface.
     fn octahedron(c: DVec3, r: f64) -> (Vec<DVec3>, Vec<[u32; 3]>) {
-        let p = vec![
-            c + DVec3::X * r,
-            c - DVec3::X * r,
-            c + DVec3::Y * r,
-            c - DVec3::Y * r,
-            c + DVec3::Z * r,
-            c - DVec3::Z * r,
-        ];
-        let t = vec![
-            [0, 2, 4],
-            [2, 1, 4],
-            [1, 3, 4],
-            [3, 0, 4],
-            [2, 0, 5],
-            [1, 2, 5],
-            [3, 1, 5],
-            [0, 3, 5],
-        ];
-        (p, t)
+        let m = crate::deform::synth::octahedron(c, r);
+        (m.positions, m.triangles)
     }
 
     /// Connected components of the welded adjacency.

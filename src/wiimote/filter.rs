@@ -14,10 +14,8 @@
 
 use std::collections::VecDeque;
 
+use super::vqf::VqfFilter;
 use glam::{DQuat, DVec3};
-use vqf_rs::VQF;
-
-use super::vqf::{STANDARD_GRAVITY, valid_period, vqf_orientation};
 
 /// Radians per degree.
 const RAD: f64 = std::f64::consts::PI / 180.0;
@@ -473,12 +471,10 @@ impl StillnessBias {
 /// between still periods; a shorter inclination time constant follows gravity more closely
 /// after the gyro's scale error has tilted the estimate during a fast swing.
 pub struct FusionFilter {
-    vqf: VQF,
+    vqf: VqfFilter,
     stillness: StillnessBias,
     /// Bias uncertainty handed to VQF after a still update, deg/s (0.3).
     pub still_bias_sigma_dps: f64,
-    reference: DQuat,
-    w: DVec3,
 }
 
 impl std::fmt::Debug for FusionFilter {
@@ -513,11 +509,9 @@ impl FusionFilter {
             ..Default::default()
         };
         Self {
-            vqf: VQF::new(valid_period(sample_period_s), None, None, Some(params)),
+            vqf: VqfFilter::new(sample_period_s, params),
             stillness: StillnessBias::default(),
             still_bias_sigma_dps: 0.3,
-            reference: DQuat::IDENTITY,
-            w: DVec3::ZERO,
         }
     }
 
@@ -532,34 +526,27 @@ impl OrientationFilter for FusionFilter {
         "ours"
     }
     fn update(&mut self, s: &ImuSample) {
-        let acc = s.accel_g * STANDARD_GRAVITY;
-        if !acc.is_finite() {
-            return;
-        }
+        // Our stillness detector sets the bias before VQF integrates the sample.
         if let Some(g) = s.gyro_dps.filter(|g| g.is_finite())
             && s.dt > 0.0
             && s.dt.is_finite()
+            && s.accel_g.is_finite()
+            && self.stillness.update(g, s)
         {
-            if self.stillness.update(g, s) {
-                let bias = self.stillness.bias_dps() * RAD;
-                self.vqf
-                    .set_bias_estimate(bias.to_array(), Some(self.still_bias_sigma_dps * RAD));
-            }
-            let g = g * RAD;
-            self.vqf.update_gyr_with_ts(g.to_array(), s.dt);
-            self.w = g - DVec3::from_array(self.vqf.bias_estimate().0);
+            self.vqf
+                .set_bias_dps(self.stillness.bias_dps(), self.still_bias_sigma_dps);
         }
-        self.vqf.update_acc(acc.to_array());
+        self.vqf.update(s);
     }
     fn orientation(&self) -> DQuat {
-        (self.reference.inverse() * vqf_orientation(&self.vqf)).normalize()
+        self.vqf.orientation()
     }
     fn angular_velocity(&self) -> DVec3 {
-        self.w
+        self.vqf.angular_velocity()
     }
     fn calibration(&self) -> Calibration {
         Calibration {
-            bias_dps: DVec3::from_array(self.vqf.bias_estimate().0) / RAD,
+            bias_dps: self.vqf.calibration().bias_dps,
             ..self.stillness.calibration()
         }
     }
@@ -567,7 +554,7 @@ impl OrientationFilter for FusionFilter {
         self.stillness.is_still()
     }
     fn recenter(&mut self) {
-        self.reference = vqf_orientation(&self.vqf);
+        self.vqf.recenter();
     }
     fn calibrate_now(&mut self) {
         self.stillness.restart();

@@ -21,10 +21,10 @@ use super::filter::{Calibration, CalibrationPhase, ImuSample, OrientationFilter}
 const DEG: f64 = std::f64::consts::PI / 180.0;
 
 /// Standard gravity, m/s² (VQF takes the accelerometer in m/s²).
-pub(super) const STANDARD_GRAVITY: f64 = 9.80665;
+const STANDARD_GRAVITY: f64 = 9.80665;
 
 /// `period` if it is a usable sampling period, else the Wii Remote's 10 ms.
-pub(super) fn valid_period(period: f64) -> f64 {
+fn valid_period(period: f64) -> f64 {
     if period.is_finite() && period > 0.0 {
         period
     } else {
@@ -33,7 +33,7 @@ pub(super) fn valid_period(period: f64) -> f64 {
 }
 
 /// VQF's 6-axis estimate as world←body (world Z up); identity if it is not a rotation.
-pub(super) fn vqf_orientation(vqf: &VQF) -> DQuat {
+fn vqf_orientation(vqf: &VQF) -> DQuat {
     let q = vqf.quat_6d();
     let q = DQuat::from_xyzw(q.1, q.2, q.3, q.0);
     let norm = q.length();
@@ -87,6 +87,12 @@ impl VqfFilter {
     /// The unreferenced estimate (world←body, world Z up), before recentring.
     fn absolute(&self) -> DQuat {
         vqf_orientation(&self.vqf)
+    }
+
+    /// Hands VQF a gyro bias estimate (deg/s) with its uncertainty (deg/s).
+    pub(super) fn set_bias_dps(&mut self, bias_dps: DVec3, sigma_dps: f64) {
+        self.vqf
+            .set_bias_estimate((bias_dps * DEG).to_array(), Some(sigma_dps * DEG));
     }
 
     fn bias_rad(&self) -> (DVec3, f64) {
