@@ -124,18 +124,23 @@ impl Plugin for GrabPlugin {
             .add_message::<GrabStart>()
             .add_message::<GrabMove>()
             .add_message::<GrabEnd>()
+            // New grabs before `Prepare` (a baked mesh starts re-preparing in the same frame);
+            // handles placed after it (the rest pose may have become ready this frame).
             .add_systems(
                 Update,
                 (
                     (presses_to_grabs, drags_to_grabs, releases_to_grabs),
                     start_grabs,
-                    place_grabs,
-                    move_grabs,
-                    end_grabs,
                 )
                     .chain()
-                    .before(DeformSystems::Request)
-                    .after(DeformSystems::Prepare),
+                    .before(DeformSystems::Prepare),
+            )
+            .add_systems(
+                Update,
+                (place_grabs, move_grabs, end_grabs)
+                    .chain()
+                    .after(DeformSystems::Prepare)
+                    .before(DeformSystems::Request),
             );
     }
 }
