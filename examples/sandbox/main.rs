@@ -120,6 +120,37 @@ struct Sandbox {
     export_path: String,
 }
 
+impl Sandbox {
+    /// No model, no tasks, mouse input, Paint mode.
+    fn empty() -> Self {
+        Self {
+            model_name: String::new(),
+            mesh: TriMesh::default(),
+            diagonal: 1.0,
+            mesh_entity: None,
+            handle_entity: None,
+            cloud_entity: None,
+            selection: Vec::new(),
+            tool: Tool::Fixed,
+            radius: 0.08,
+            mode: Mode::Paint,
+            input: InputMethod::Mouse,
+            undo: Vec::new(),
+            redo: Vec::new(),
+            stroke: false,
+            message: String::new(),
+            tasks: Vec::new(),
+            challenge: None,
+            results: Vec::new(),
+            pending_load: None,
+            pending_task: None,
+            show_results: false,
+            setup_path: "sandbox_setup.ron".into(),
+            export_path: "posed.glb".into(),
+        }
+    }
+}
+
 #[derive(Resource, Default)]
 struct OrbitCamera {
     yaw: f32,
@@ -219,33 +250,16 @@ fn main() -> AppExit {
         WiimotePlugin::default()
     };
     let mut sandbox = Sandbox {
-        model_name: String::new(),
-        mesh: TriMesh::default(),
-        diagonal: 1.0,
-        mesh_entity: None,
-        handle_entity: None,
-        cloud_entity: None,
-        selection: Vec::new(),
-        tool: Tool::Fixed,
-        radius: 0.08,
-        mode: Mode::Paint,
         input: if demo {
             InputMethod::Wiimote
         } else {
             InputMethod::Mouse
         },
-        undo: Vec::new(),
-        redo: Vec::new(),
-        stroke: false,
-        message: String::new(),
         tasks: tasks::Task::load_all("assets/tasks"),
-        challenge: None,
         results: tasks::read_results(RESULTS_CSV),
         pending_load: Some(model),
         pending_task: arg_value(&args, "--task"),
-        show_results: false,
-        setup_path: "sandbox_setup.ron".into(),
-        export_path: "posed.glb".into(),
+        ..Sandbox::empty()
     };
     if demo && sandbox.pending_task.is_none() {
         sandbox.pending_task = Some("mannequin_wave".into());
@@ -283,6 +297,7 @@ fn main() -> AppExit {
             brush_ray.run_if(not_over_ui),
             paint,
             gate_mouse_control,
+            record_drags,
             keyboard_shortcuts,
             demo_script,
         )
@@ -575,7 +590,7 @@ fn load_pending(
         }
     }
     info!("{}", sb.message);
-    sync_regions(&mut commands, &mut sb);
+    sync_regions(&mut commands, &mut sb, None);
 }
 
 /// A yellow cloud: one tiny octahedron per sampled target vertex, in a single mesh.
@@ -600,8 +615,9 @@ fn point_cloud(points: &[DVec3], diagonal: f64) -> Mesh {
     .with_inserted_indices(Indices::U32(idx))
 }
 
-/// Pushes the painted selection into FixedRegion / DeformHandle and the vertex colours.
-fn sync_regions(commands: &mut Commands, sb: &mut Sandbox) {
+/// Pushes the painted selection into FixedRegion / DeformHandle (a new handle, at `pose` or at
+/// rest).
+fn sync_regions(commands: &mut Commands, sb: &mut Sandbox, pose: Option<Transform>) {
     let Some(mesh_entity) = sb.mesh_entity else {
         return;
     };
@@ -628,7 +644,7 @@ fn sync_regions(commands: &mut Commands, sb: &mut Sandbox) {
                 vertices: handle,
                 pivot: Some(pivot),
             },
-            Transform::from_translation(pivot),
+            pose.unwrap_or(Transform::from_translation(pivot)),
             Name::new("handle"),
         ));
         if sb.input == InputMethod::Wiimote {
@@ -758,7 +774,7 @@ fn paint(
     };
     if buttons.just_released(MouseButton::Left) && sb.stroke {
         sb.stroke = false;
-        sync_regions(&mut commands, &mut sb);
+        sync_regions(&mut commands, &mut sb, None);
         return;
     }
     let Some(point) = hit.0 else { return };
@@ -796,16 +812,13 @@ fn paint(
 }
 
 /// Turns the library's [`MouseHandleControl`] on in Pose mode with mouse input (not when a
-/// drag would start over the panel), and turns each finished drag into an undo entry.
+/// drag would start over the panel).
 fn gate_mouse_control(
     sb: Res<Sandbox>,
     wants_pointer: Option<Res<bevy_egui::input::EguiWantsInput>>,
     mut controls: Query<&mut MouseHandleControl>,
-    mut drag_start: Local<Option<Transform>>,
-    mut undo_out: ResMut<UndoQueue>,
 ) {
     let Some(mut control) = sb.handle_entity.and_then(|h| controls.get_mut(h).ok()) else {
-        *drag_start = None;
         return;
     };
     let over_ui = wants_pointer.is_some_and(|w| w.wants_any_pointer_input());
@@ -815,7 +828,25 @@ fn gate_mouse_control(
     if control.enabled != enabled {
         control.enabled = enabled;
     }
-    match (control.drag_start(), drag_start.take()) {
+}
+
+/// Turns each finished mouse drag or Wii Remote grab into an undo entry (the pose at its
+/// start, as the controls recorded it: independent of system order).
+fn record_drags(
+    sb: Res<Sandbox>,
+    controls: Query<(Option<&MouseHandleControl>, Option<&WiimoteHandleControl>)>,
+    mut drag_start: Local<Option<Transform>>,
+    mut undo_out: ResMut<UndoQueue>,
+) {
+    let start = sb
+        .handle_entity
+        .and_then(|h| controls.get(h).ok())
+        .and_then(|(mouse, wii)| {
+            mouse
+                .and_then(MouseHandleControl::drag_start)
+                .or_else(|| wii.and_then(WiimoteHandleControl::grab_start))
+        });
+    match (start, drag_start.take()) {
         (Some(start), _) => *drag_start = Some(start),
         (None, Some(start)) => undo_out.0.push(start),
         (None, None) => {}
@@ -841,7 +872,7 @@ fn keyboard_shortcuts(
     mut undo_in: ResMut<UndoQueue>,
     mut history: ResMut<HistoryRequest>,
 ) {
-    // Pose drags recorded by gate_mouse_control become undo entries.
+    // Pose drags recorded by record_drags become undo entries.
     for t in undo_in.0.drain(..) {
         let snap = Snapshot {
             selection: sb.selection.clone(),
@@ -868,7 +899,7 @@ fn keyboard_shortcuts(
     let selection_changed = target.selection != sb.selection;
     sb.selection = target.selection;
     if selection_changed {
-        sync_regions(&mut commands, &mut sb);
+        sync_regions(&mut commands, &mut sb, Some(target.handle));
         if let Some(m) = sb.mesh_entity.and_then(|e| mesh_q.get(e).ok()) {
             update_colors(&sb, &mut meshes, m);
         }
@@ -1069,6 +1100,8 @@ fn ui_panel(
             .max_rect(ctx.viewport_rect()),
     );
     let mut regions_changed = false;
+    // A pose to put the new handle at (Load setup), instead of rest.
+    let mut restored_pose: Option<Transform> = None;
     egui::Panel::left("panel")
         .default_size(290.0)
         .show(&mut root, |ui| {
@@ -1114,20 +1147,16 @@ fn ui_panel(
                     ui.add(egui::Slider::new(&mut sb.radius, 0.01..=0.5).text("brush radius"));
                     ui.horizontal(|ui| {
                         if ui.button("Clear").clicked() {
-                            let snap = Snapshot {
-                                selection: sb.selection.clone(),
-                                handle: Transform::default(),
-                            };
+                            let snap = snapshot(&sb, &transforms);
                             sb.undo.push(snap);
+                            sb.redo.clear();
                             sb.selection.iter_mut().for_each(|s| *s = FREE);
                             regions_changed = true;
                         }
                         if ui.button("Invert fixed").clicked() {
-                            let snap = Snapshot {
-                                selection: sb.selection.clone(),
-                                handle: Transform::default(),
-                            };
+                            let snap = snapshot(&sb, &transforms);
                             sb.undo.push(snap);
+                            sb.redo.clear();
                             for s in sb.selection.iter_mut() {
                                 *s = match *s {
                                     FIXED => FREE,
@@ -1168,8 +1197,17 @@ fn ui_panel(
                     ui.selectable_value(&mut sb.input, InputMethod::Mouse, "Mouse (arcball)");
                     ui.selectable_value(&mut sb.input, InputMethod::Wiimote, "Wii Remote");
                 });
-                if sb.input != before {
-                    regions_changed = true;
+                if sb.input != before
+                    && let Some(h) = sb.handle_entity
+                {
+                    // Switch the handle's control in place: the pose stays.
+                    if sb.input == InputMethod::Wiimote {
+                        commands.entity(h).insert(
+                            WiimoteHandleControl::default().with_space(sb.mesh_entity.unwrap_or(h)),
+                        );
+                    } else {
+                        commands.entity(h).remove::<WiimoteHandleControl>();
+                    }
                 }
                 if sb.input == InputMethod::Wiimote {
                     let mut filter = wii_settings.filter;
@@ -1341,6 +1379,7 @@ fn ui_panel(
                                 } else if setup.selection.len() != sb.selection.len() {
                                     sb.message = "setup does not match this mesh".into();
                                 } else {
+                                    restored_pose = Some(setup.pose());
                                     sb.selection = setup.selection;
                                     regions_changed = true;
                                     sb.message = format!("loaded {}", sb.setup_path);
@@ -1353,7 +1392,7 @@ fn ui_panel(
             });
         });
     if regions_changed {
-        sync_regions(&mut commands, &mut sb);
+        sync_regions(&mut commands, &mut sb, restored_pose);
         if let Some(m) = sb.mesh_entity.and_then(|e| mesh_q.get(e).ok()) {
             update_colors(&sb, &mut meshes, m);
         }
@@ -1367,6 +1406,14 @@ struct Setup {
     selection: Vec<u8>,
     handle_translation: [f32; 3],
     handle_rotation: [f32; 4],
+}
+
+impl Setup {
+    /// The saved handle pose.
+    fn pose(&self) -> Transform {
+        Transform::from_translation(Vec3::from_array(self.handle_translation))
+            .with_rotation(Quat::from_array(self.handle_rotation).normalize())
+    }
 }
 
 fn save_setup(sb: &Sandbox, handle: Transform) -> Result<(), String> {
@@ -1477,4 +1524,52 @@ fn export_glb(mesh: &Mesh, path: &str) -> Result<(), String> {
         return Err("glTF round trip lost vertices".into());
     }
     std::fs::write(path, glb).map_err(|e| e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use bevy::ecs::world::CommandQueue;
+
+    #[test]
+    fn a_saved_setup_loads_back_with_its_selection_and_pose() {
+        let mut sb = Sandbox::empty();
+        sb.mesh = synth::bar(8, 10, 0.1, 1.0);
+        let n = sb.mesh.positions.len();
+        sb.selection = (0..n)
+            .map(|i| match i {
+                i if i < 8 => FIXED,
+                i if i >= n - 10 => HANDLE,
+                _ => FREE,
+            })
+            .collect();
+        let path = std::env::temp_dir().join(format!("sandbox-setup-{}.ron", std::process::id()));
+        sb.setup_path = path.display().to_string();
+        let mut world = World::new();
+        sb.mesh_entity = Some(world.spawn_empty().id());
+        let pose = Transform::from_xyz(0.1, 0.9, 0.2).with_rotation(Quat::from_rotation_z(0.4));
+        save_setup(&sb, pose).unwrap();
+        let saved = std::mem::take(&mut sb.selection);
+        let setup = load_setup(&sb.setup_path).unwrap();
+        let _ = std::fs::remove_file(&path);
+        assert_eq!(setup.selection, saved);
+        // Restored as the panel does: the selection, and a new handle at the saved pose.
+        sb.selection = setup.selection.clone();
+        let mut queue = CommandQueue::default();
+        let mut commands = Commands::new(&mut queue, &world);
+        sync_regions(&mut commands, &mut sb, Some(setup.pose()));
+        queue.apply(&mut world);
+        let handle = sb.handle_entity.expect("a handle");
+        let restored = world.get::<Transform>(handle).unwrap();
+        assert!(
+            restored.translation.distance(pose.translation) < 1e-6,
+            "{restored:?}"
+        );
+        assert!(
+            restored.rotation.angle_between(pose.rotation) < 1e-6,
+            "{restored:?}"
+        );
+        let fixed = world.get::<FixedRegion>(sb.mesh_entity.unwrap()).unwrap();
+        assert_eq!(fixed.0, (0..8).collect::<Vec<u32>>());
+    }
 }

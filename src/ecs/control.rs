@@ -41,6 +41,8 @@ pub struct WiimoteHandleControl {
 struct Grab {
     remote_at_grab: Quat,
     handle_rotation: Quat,
+    /// The handle's whole `Transform` when the grab started (for undo histories).
+    start: Transform,
 }
 
 impl Default for WiimoteHandleControl {
@@ -85,6 +87,11 @@ impl WiimoteHandleControl {
     pub fn is_grabbing(&self) -> bool {
         self.grab.is_some()
     }
+
+    /// The handle's `Transform` when the current grab started (for undo histories).
+    pub fn grab_start(&self) -> Option<Transform> {
+        self.grab.map(|g| g.start)
+    }
 }
 
 /// Applies remote motion to controlled handles.
@@ -126,6 +133,7 @@ pub fn drive_handles(
         let grab = *control.grab.get_or_insert(Grab {
             remote_at_grab: wii.orientation,
             handle_rotation: transform.rotation,
+            start: *transform,
         });
         let camera = control
             .camera
