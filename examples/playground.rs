@@ -142,6 +142,7 @@ fn unattended(
             pointer,
             from,
             to: from + Vec2::new(14.0, 6.0),
+            rotate: false,
         });
     }
     if *frame == frames {

@@ -11,7 +11,8 @@
 //! a thin gap). With no [`FixedRegion`] on the mesh, the vertices within
 //! [`Grabbable::region_radius`] become the region of interest and everything beyond is held at
 //! rest: grabbing a 100k-vertex mesh solves a small local system. Dragging moves the patch in
-//! the camera's view plane, at its depth. On release the handle stays where it is, so the pose
+//! the camera's view plane, at its depth; with Shift held it turns the patch instead (an
+//! arcball about its position on screen, all three axes). On release the handle stays where it is, so the pose
 //! is kept; the next grab of the same mesh first makes the current pose the new rest pose, so
 //! bends accumulate. Radii are in world units (the mesh's scale is divided out).
 
@@ -23,7 +24,7 @@ use bevy::picking::pointer::PointerId;
 use bevy::prelude::*;
 
 use super::deform::{DeformHandle, DeformState, DeformSystems, Deformable, FixedRegion};
-use super::mouse::view_plane_motion;
+use super::mouse::{arcball_rotation, turned_in_space, view_plane_motion};
 use super::scene::DeformableFrom;
 use crate::deform::Topology;
 
@@ -71,6 +72,9 @@ pub struct GrabMove {
     pub from: Vec2,
     /// New position.
     pub to: Vec2,
+    /// Turn the grabbed patch (an arcball about its position on screen) instead of moving it;
+    /// the picking glue sets this while Shift is held.
+    pub rotate: bool,
 }
 
 /// The pointer released its grab (the pose stays).
@@ -172,14 +176,21 @@ fn presses_to_grabs(
     }
 }
 
-/// Pointer drags move grabs (messages of pointers that grab nothing are ignored later).
-fn drags_to_grabs(mut drags: MessageReader<Pointer<Drag>>, mut moves: MessageWriter<GrabMove>) {
+/// Pointer drags move grabs, or turn them with Shift held (messages of pointers that grab
+/// nothing are ignored later).
+fn drags_to_grabs(
+    mut drags: MessageReader<Pointer<Drag>>,
+    keys: Option<Res<ButtonInput<KeyCode>>>,
+    mut moves: MessageWriter<GrabMove>,
+) {
+    let rotate = keys.is_some_and(|k| k.any_pressed([KeyCode::ShiftLeft, KeyCode::ShiftRight]));
     for d in drags.read() {
         let to = d.pointer_location.position;
         moves.write(GrabMove {
             pointer: d.pointer_id,
             from: to - d.event.delta,
             to,
+            rotate,
         });
     }
 }
@@ -301,17 +312,19 @@ fn move_grabs(
     spaces: Query<&GlobalTransform>,
     mut handles: Query<(&DeformHandle, &mut Transform)>,
 ) {
-    let mut pending: Vec<(PointerId, Vec2, Vec2)> =
-        moves.read().map(|m| (m.pointer, m.from, m.to)).collect();
+    let mut pending: Vec<(PointerId, Vec2, Vec2, bool)> = moves
+        .read()
+        .map(|m| (m.pointer, m.from, m.to, m.rotate))
+        .collect();
     // Motion that arrived before a handle existed is applied once it does.
     for (pointer, grab) in grabs.0.iter_mut() {
         if grab.handle.is_some()
             && let Some((from, to)) = grab.early_motion.take()
         {
-            pending.insert(0, (*pointer, from, to));
+            pending.insert(0, (*pointer, from, to, false));
         }
     }
-    for (pointer, from, to) in pending {
+    for (pointer, from, to, rotate) in pending {
         let Some(grab) = grabs.0.get_mut(&pointer) else {
             continue;
         };
@@ -334,6 +347,20 @@ fn move_grabs(
         }
         let space = space.affine();
         let at = space.transform_point3(transform.translation);
+        if rotate {
+            let (Ok(centre), Some(size)) = (
+                camera.world_to_viewport(camera_transform, at),
+                camera.logical_viewport_size(),
+            ) else {
+                continue;
+            };
+            let in_view = arcball_rotation(from, to, centre, 0.35 * size.min_element());
+            let rotation = turned_in_space(in_view, camera_transform, &space, transform.rotation);
+            if rotation.is_finite() {
+                transform.rotation = rotation;
+            }
+            continue;
+        }
         let delta = view_plane_motion(camera, camera_transform, at, from, to);
         let local = space.inverse().transform_vector3(delta);
         if local.is_finite() {

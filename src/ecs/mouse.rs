@@ -159,16 +159,27 @@ pub(crate) fn drive_mouse_handles(
         let radius = window.size().min_element() * control.arcball_radius;
         let (axis, angle) = arcball_rotation(previous, cursor, centre, radius).to_axis_angle();
         let in_view = Quat::from_axis_angle(axis, angle * control.rotation_gain);
-        let camera_rotation = camera_transform.compute_transform().rotation;
-        let in_world = camera_rotation * in_view * camera_rotation.inverse();
-        // The rotation about a world axis, seen in the handle's space (its rotation part).
-        let space_rotation = Quat::from_mat3a(&space.matrix3).normalize();
-        let in_space = space_rotation.inverse() * in_world * space_rotation;
-        let rotation = (in_space * transform.rotation).normalize();
+        let rotation = turned_in_space(in_view, camera_transform, &space, transform.rotation);
         if rotation.is_finite() {
             transform.rotation = rotation;
         }
     }
+}
+
+/// `rotation` (a handle's, in the space `space` maps to world) turned by `in_view`, a rotation
+/// expressed in the camera's view frame.
+pub(crate) fn turned_in_space(
+    in_view: Quat,
+    camera_transform: &GlobalTransform,
+    space: &bevy::math::Affine3A,
+    rotation: Quat,
+) -> Quat {
+    let camera_rotation = camera_transform.compute_transform().rotation;
+    let in_world = camera_rotation * in_view * camera_rotation.inverse();
+    // The rotation about a world axis, seen in the handle's space (its rotation part).
+    let space_rotation = Quat::from_mat3a(&space.matrix3).normalize();
+    let in_space = space_rotation.inverse() * in_world * space_rotation;
+    (in_space * rotation).normalize()
 }
 
 /// World-space motion of a point at `at`'s depth that follows the cursor from `from` to `to`.
