@@ -163,7 +163,8 @@ pub fn add_outer(acc: &mut DMat3, w: f64, deformed: DVec3, rest: DVec3) {
 mod tests {
     use super::*;
 
-    fn lcg(seed: &mut u64) -> f64 {
+    /// Uniform in [−1, 1) from a 64-bit LCG (shared with `svd_reference`).
+    pub(super) fn lcg(seed: &mut u64) -> f64 {
         *seed = seed
             .wrapping_mul(6364136223846793005)
             .wrapping_add(1442695040888963407);
@@ -235,14 +236,8 @@ mod tests {
 /// tie of 1e-9): tie-breaking in degenerate cells.
 #[cfg(test)]
 mod svd_reference {
+    use super::tests::lcg;
     use super::*;
-
-    fn lcg(seed: &mut u64) -> f64 {
-        *seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((*seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
-    }
 
     fn random_rotation(seed: &mut u64) -> DMat3 {
         let axis = DVec3::new(lcg(seed), lcg(seed), lcg(seed)).normalize();
