@@ -1140,3 +1140,127 @@ fn two_pointers_grab_two_meshes_at_once_one_moving_one_turning() {
         .fold(0.0, f64::max);
     assert!(turned > 1e-3, "{turned}");
 }
+
+#[test]
+fn normals_and_tangents_turn_with_the_surface_and_two_handles_move_one_mesh() {
+    let mut app = app();
+    app.add_plugins(DeformPlugin::default());
+    let tri = synth::bar(12, 30, 0.1, 1.0);
+    // Rest normals and tangents (tangent along +Y, handedness −1 kept through the solve).
+    let mut mesh = mesh_from_triangles(&tri.positions, &tri.triangles);
+    let tangents: Vec<[f32; 4]> = vec![[0.0, 1.0, 0.0, -1.0]; tri.positions.len()];
+    mesh.insert_attribute(Mesh::ATTRIBUTE_TANGENT, tangents);
+    let rest_normals = match mesh.attribute(Mesh::ATTRIBUTE_NORMAL).unwrap() {
+        VertexAttributeValues::Float32x3(n) => n.clone(),
+        _ => unreachable!(),
+    };
+    // Fixed middle, a handle at each end.
+    let (lo, hi) = tri
+        .positions
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(lo, hi), p| {
+            (lo.min(p.y), hi.max(p.y))
+        });
+    let band = |a: f64, b: f64| -> Vec<u32> {
+        (0..tri.positions.len() as u32)
+            .filter(|&i| {
+                (lo + a * (hi - lo)..=lo + b * (hi - lo)).contains(&tri.positions[i as usize].y)
+            })
+            .collect()
+    };
+    let (bottom, middle, top) = (band(0.0, 0.08), band(0.4, 0.6), band(0.92, 1.0));
+    let bundle_source = mesh.clone();
+    let h = app.world_mut().resource_mut::<Assets<Mesh>>().add(mesh);
+    let e = app
+        .world_mut()
+        .spawn((
+            Mesh3d(h),
+            Deformable {
+                max_iterations: Some(40),
+                tolerance: Some(0.0),
+                ..default()
+            },
+            FixedRegion(middle),
+        ))
+        .id();
+    let top_handle = app
+        .world_mut()
+        .spawn(DeformHandle::bundle(&bundle_source, e, top.clone()))
+        .id();
+    let bottom_handle = app
+        .world_mut()
+        .spawn(DeformHandle::bundle(&bundle_source, e, bottom.clone()))
+        .id();
+    assert_eq!(run_until_messages(&mut app, 1).0.len(), 1);
+    let turn = Quat::from_rotation_z(0.5);
+    {
+        let mut t = app.world_mut().get_mut::<Transform>(top_handle).unwrap();
+        t.rotation = turn;
+        t.translation.x += 0.1;
+    }
+    app.world_mut()
+        .get_mut::<Transform>(bottom_handle)
+        .unwrap()
+        .translation
+        .x -= 0.15;
+    settle(&mut app, e);
+    let got = positions(&app, e);
+    // Both handles' vertices are on their targets.
+    let pivot = |v: &[u32]| {
+        v.iter()
+            .map(|&i| tri.positions[i as usize].as_vec3())
+            .sum::<Vec3>()
+            / v.len() as f32
+    };
+    let (pt, pb) = (pivot(&top), pivot(&bottom));
+    for &v in &top {
+        let want = pt + Vec3::X * 0.1 + turn * (tri.positions[v as usize].as_vec3() - pt);
+        assert!(got[v as usize].distance(want) < 1e-4, "top {v}");
+    }
+    for &v in &bottom {
+        let want = tri.positions[v as usize].as_vec3() - Vec3::X * 0.15;
+        assert!(got[v as usize].distance(want) < 1e-4, "bottom {v}");
+    }
+    // Normals and tangents of the turned end turned with it; the middle's stayed.
+    let handle = app.world().get::<Mesh3d>(e).unwrap().0.clone();
+    let meshes = app.world().resource::<Assets<Mesh>>();
+    let mesh = meshes.get(&handle).unwrap();
+    let (
+        Some(VertexAttributeValues::Float32x3(normals)),
+        Some(VertexAttributeValues::Float32x4(tangents)),
+    ) = (
+        mesh.attribute(Mesh::ATTRIBUTE_NORMAL),
+        mesh.attribute(Mesh::ATTRIBUTE_TANGENT),
+    )
+    else {
+        panic!("normals and tangents kept");
+    };
+    // (Cells whose whole one-ring is in the handle turn exactly with it: the band's inner ring.)
+    let inner = |v: &&u32| {
+        let y = tri.positions[**v as usize].y;
+        y > lo + 0.95 * (hi - lo) && y < hi - 1e-9
+    };
+    let checked = top.iter().filter(inner).count();
+    assert!(checked >= 12, "{checked}");
+    for &v in top.iter().filter(inner) {
+        let n = Vec3::from_array(normals[v as usize]);
+        let want = turn * Vec3::from_array(rest_normals[v as usize]);
+        assert!(
+            n.angle_between(want) < 3f32.to_radians(),
+            "normal {v}: {n} vs {want}"
+        );
+        let t = Vec4::from_array(tangents[v as usize]);
+        assert!(
+            t.truncate().angle_between(turn * Vec3::Y) < 3f32.to_radians(),
+            "tangent {v}: {t}"
+        );
+        assert_eq!(t.w, -1.0);
+    }
+    for v in band(0.47, 0.53) {
+        let n = Vec3::from_array(normals[v as usize]);
+        assert!(
+            n.angle_between(Vec3::from_array(rest_normals[v as usize])) < 1e-3,
+            "middle {v}"
+        );
+    }
+}
