@@ -1212,7 +1212,7 @@ fn normals_and_tangents_turn_with_the_surface_and_two_handles_move_one_mesh() {
             .sum::<Vec3>()
             / v.len() as f32
     };
-    let (pt, pb) = (pivot(&top), pivot(&bottom));
+    let pt = pivot(&top);
     for &v in &top {
         let want = pt + Vec3::X * 0.1 + turn * (tri.positions[v as usize].as_vec3() - pt);
         assert!(got[v as usize].distance(want) < 1e-4, "top {v}");
