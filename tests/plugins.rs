@@ -4,8 +4,10 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use bevy::mesh::VertexAttributeValues;
+use bevy::picking::pointer::PointerId;
 use bevy::prelude::*;
 use bevy_wii_deform::deform::{self, synth};
+use bevy_wii_deform::ecs::GrabHandle;
 use bevy_wii_deform::prelude::*;
 use bevy_wii_deform::wiimote::protocol::Buttons;
 use bevy_wii_deform::wiimote::{ConstantRate, Still};
@@ -926,16 +928,20 @@ fn the_remote_turns_a_handle_one_to_one_in_camera_space_and_translates_only_whil
     );
 }
 
-#[test]
-fn grabbing_a_scaled_rotated_mesh_bends_it_under_the_pointer_and_keeps_the_pose() {
-    use bevy::picking::pointer::PointerId;
-    use bevy_wii_deform::ecs::GrabHandle;
+/// A headless app with deformation and grabs, and a camera at `eye` looking at `target`.
+fn grab_app(eye: Vec3, target: Vec3) -> (App, Entity) {
     let mut app = app();
     app.add_plugins((DeformPlugin::default(), GrabPlugin));
     let camera = spawn_camera(
         &mut app,
-        Transform::from_xyz(0.0, 1.0, 7.0).looking_at(Vec3::new(0.0, 1.0, 0.0), Vec3::Y),
+        Transform::from_translation(eye).looking_at(target, Vec3::Y),
     );
+    (app, camera)
+}
+
+#[test]
+fn grabbing_a_scaled_rotated_mesh_bends_it_under_the_pointer_and_keeps_the_pose() {
+    let (mut app, camera) = grab_app(Vec3::new(0.0, 1.0, 7.0), Vec3::new(0.0, 1.0, 0.0));
     let (mesh, tri) = bar_mesh();
     let h = app.world_mut().resource_mut::<Assets<Mesh>>().add(mesh);
     let e = app
@@ -1032,14 +1038,7 @@ fn grabbing_a_scaled_rotated_mesh_bends_it_under_the_pointer_and_keeps_the_pose(
 
 #[test]
 fn two_pointers_grab_two_meshes_at_once_one_moving_one_turning() {
-    use bevy::picking::pointer::PointerId;
-    use bevy_wii_deform::ecs::GrabHandle;
-    let mut app = app();
-    app.add_plugins((DeformPlugin::default(), GrabPlugin));
-    let camera = spawn_camera(
-        &mut app,
-        Transform::from_xyz(0.0, 0.6, 5.0).looking_at(Vec3::new(0.0, 0.6, 0.0), Vec3::Y),
-    );
+    let (mut app, camera) = grab_app(Vec3::new(0.0, 0.6, 5.0), Vec3::new(0.0, 0.6, 0.0));
     let (_, tri) = bar_mesh();
     let mut spawn = |x: f32| {
         let (mesh, _) = bar_mesh();
