@@ -1,0 +1,173 @@
+//! Interaction benchmark of the deformation core: how long a new constraint set takes to its
+//! first pose, and how many iterations a pose needs to settle after a drag is released.
+//!
+//! ```text
+//! cargo run --release --example arap_interaction -- --json
+//! ```
+//! Meshes: a 5k-vertex bar, the armadillo (26k) and the armadillo midpoint-subdivided (104k),
+//! from `../shared/meshes` when present.
+//! * `set_change_first_pose_ms`: the topology is built; the handle set changes (bottom → side
+//!   slab held, top → other side moved), then precompute and one warm-started iteration from
+//!   the current pose. Median of 5.
+//! * `settle_iterations`: a handle is dragged for 60 frames (bend to 0.6 rad and 15 % of the
+//!   diagonal, 2 warm iterations per frame), then released (held at its last target). Counted
+//!   are the further iterations until the energy is within 1 % of the converged value and no
+//!   vertex is farther than 5e-4 × the diagonal from the converged pose (converged = 3000
+//!   iterations). `plain` and `anderson` (depth 3, history per solve call); `best` is what the
+//!   plugin uses (plain).
+//!
+//! The last stdout line is `{"meshes": [{"name", "vertices", "set_change_first_pose_ms",
+//! "settle_iterations": {"plain", "anderson", "best"}}]}`.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use bevy_wii_deform::deform::*;
+use glam::DVec3;
+
+const NEVER: &dyn Fn() -> bool = &|| false;
+
+fn options(iterations: u32, anderson_depth: usize) -> SolveOptions {
+    SolveOptions {
+        max_iterations: iterations,
+        tolerance: 0.0,
+        anderson_depth,
+    }
+}
+
+/// Precompute for a changed handle set + one warm iteration, median ms of 5.
+fn set_change_ms(topology: &Arc<Topology>, start: &Solution) -> f64 {
+    let positions = topology.positions();
+    let (fixed, handle) = synth::slab_regions(positions, 0, 0.15, 0.15);
+    let mut c = Constraints::with_handle(fixed, handle, RigidTransform::IDENTITY);
+    c.handles[0].transform.translation = DVec3::Y * 0.05 * topology.bounding_diagonal();
+    let mut ms: Vec<f64> = (0..5)
+        .map(|_| {
+            let t0 = Instant::now();
+            let solver = ArapSolver::precompute(topology.clone(), &c, SolverSettings::default())
+                .expect("precompute");
+            let s = solver.solve(&c, &options(1, 0), InitialGuess::Warm(start), NEVER);
+            assert!(s.is_ok());
+            t0.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    ms.sort_by(f64::total_cmp);
+    ms[2]
+}
+
+/// Iterations after release until within 1 % energy and 5e-4 × diagonal of converged.
+fn settle_iterations(topology: &Arc<Topology>, anderson_depth: usize) -> u32 {
+    let diagonal = topology.bounding_diagonal();
+    let bend = |f: f64| {
+        synth::bend_problem(
+            topology.positions(),
+            0.6 * f,
+            DVec3::new(0.15 * diagonal * f, 0.0, 0.0),
+        )
+    };
+    let c0 = bend(0.0);
+    let solver = ArapSolver::precompute(topology.clone(), &c0, SolverSettings::default())
+        .expect("precompute");
+    let mut pose = solver
+        .solve(&c0, &options(2, 0), InitialGuess::Laplacian, NEVER)
+        .expect("solve");
+    let mut c = c0;
+    for frame in 1..=60 {
+        c = bend(frame as f64 / 60.0);
+        pose = solver
+            .solve(
+                &c,
+                &options(2, anderson_depth),
+                InitialGuess::Warm(&pose),
+                NEVER,
+            )
+            .expect("solve");
+    }
+    let converged = solver
+        .solve(&c, &options(3000, 0), InitialGuess::Warm(&pose), NEVER)
+        .expect("solve");
+    let e_star = arap_energy(topology, &converged.positions);
+    let settled = |k: u32| {
+        if k == 0 {
+            return close(
+                topology,
+                &pose.positions,
+                &converged.positions,
+                e_star,
+                diagonal,
+            );
+        }
+        let s = solver
+            .solve(
+                &c,
+                &options(k, anderson_depth),
+                InitialGuess::Warm(&pose),
+                NEVER,
+            )
+            .expect("solve");
+        close(
+            topology,
+            &s.positions,
+            &converged.positions,
+            e_star,
+            diagonal,
+        )
+    };
+    // Exponential search, then bisection (the criterion tightens as iterations go on).
+    let mut hi = 1;
+    while !settled(hi) {
+        hi *= 2;
+        if hi > 2048 {
+            return hi;
+        }
+    }
+    let mut lo = hi / 2;
+    while hi - lo > 1 {
+        let mid = (lo + hi) / 2;
+        if settled(mid) { hi = mid } else { lo = mid }
+    }
+    if settled(lo) { lo } else { hi }
+}
+
+fn close(topology: &Topology, x: &[DVec3], star: &[DVec3], e_star: f64, diagonal: f64) -> bool {
+    let e = arap_energy(topology, x);
+    let worst = x
+        .iter()
+        .zip(star)
+        .map(|(a, b)| a.distance(*b))
+        .fold(0.0, f64::max);
+    e <= 1.01 * e_star && worst <= 5e-4 * diagonal
+}
+
+fn main() {
+    let json = std::env::args().any(|a| a == "--json");
+    let mut meshes = vec![("bar_5k".to_string(), synth::bar_with_vertices(5_000))];
+    match TriMesh::read("../shared/meshes/armadillo.off") {
+        Ok(arm) => {
+            meshes.push(("armadillo_26k".into(), arm.clone()));
+            meshes.push(("armadillo_x4_104k".into(), synth::subdivide_midpoint(&arm)));
+        }
+        Err(_) => eprintln!("SKIPPED armadillo: ../shared/meshes/armadillo.off not found"),
+    }
+    let mut rows = Vec::new();
+    for (name, mesh) in meshes {
+        let topology = Arc::new(Topology::new(&mesh.positions, &mesh.triangles).expect("mesh"));
+        let rest = Solution::rest(&topology);
+        let first_pose = set_change_ms(&topology, &rest);
+        let plain = settle_iterations(&topology, 0);
+        let anderson = settle_iterations(&topology, 3);
+        eprintln!(
+            "{name}: {} vertices, set change → first pose {first_pose:.1} ms, settle: plain {plain}, anderson {anderson}",
+            topology.vertex_count()
+        );
+        rows.push(serde_json::json!({
+            "name": name,
+            "vertices": topology.vertex_count(),
+            "set_change_first_pose_ms": first_pose,
+            "settle_iterations": {"plain": plain, "anderson": anderson, "best": plain},
+        }));
+    }
+    if json {
+        println!("{}", serde_json::json!({ "meshes": rows }));
+    }
+}
