@@ -63,7 +63,8 @@ fn run_until_messages(app: &mut App, n: usize) -> (Vec<DeformSolved>, Vec<Deform
                 .resource_mut::<Messages<DeformFailed>>()
                 .drain(),
         );
-        std::thread::sleep(Duration::from_millis(1));
+        // The solves run on the task pool: give its threads the core, without sleeping.
+        std::thread::yield_now();
     }
     (ok, bad)
 }
@@ -164,10 +165,7 @@ fn a_burst_of_moves_ends_on_the_latest() {
         app.update();
     }
     // Let everything land.
-    for _ in 0..200 {
-        app.update();
-        std::thread::sleep(Duration::from_millis(2));
-    }
+    settle(&mut app, e);
     let status = app.world().get::<DeformStatus>(e).unwrap().clone();
     assert!(status.solves >= 2);
     // The final mesh corresponds to the final rotation: the handle centroid turned by 0.6 rad.
@@ -664,7 +662,7 @@ fn to_screen(app: &mut App, camera: Entity, at: Vec3) -> Vec2 {
     c.world_to_viewport(t, at).unwrap()
 }
 
-/// Updates until the deformable has been idle (no new solve) for 20 frames.
+/// Updates until the deformable has been idle (no solve in flight, none landed) for 20 frames.
 fn settle(app: &mut App, e: Entity) {
     let deadline = Instant::now() + Duration::from_secs(30);
     let mut idle_frames = 0;
@@ -672,7 +670,7 @@ fn settle(app: &mut App, e: Entity) {
         assert!(Instant::now() < deadline, "never settled");
         let before = app.world().get::<DeformStatus>(e).unwrap().solves;
         app.update();
-        std::thread::sleep(Duration::from_millis(2));
+        std::thread::yield_now();
         let status = app.world().get::<DeformStatus>(e).unwrap();
         idle_frames = if status.phase == DeformPhase::Idle && status.solves == before {
             idle_frames + 1
