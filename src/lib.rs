@@ -3,6 +3,7 @@
 
 pub mod deform;
 pub mod ecs;
+pub mod pose;
 pub mod wiimote;
 
 /// Everything most apps need: the plugins, their components, messages and settings, and the

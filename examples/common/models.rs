@@ -13,7 +13,7 @@ pub fn generate(name: &str) -> Option<TriMesh> {
     Some(match name {
         "bar" => synth::bar(40, 100, 0.1, 1.2),
         "cactus" => cactus(),
-        "mannequin" => mannequin(),
+        "mannequin" => synth::mannequin(100),
         _ => return None,
     })
 }
@@ -50,57 +50,4 @@ fn cactus() -> TriMesh {
         union(&[trunk, left, right, pot], 0.06)
     };
     synth::implicit_surface(&f, v(-0.6, -0.35, -0.35), v(0.5, 1.8, 0.35), 100)
-}
-
-fn mannequin() -> TriMesh {
-    let v = DVec3::new;
-    let f = |p: DVec3| {
-        let mut parts = vec![
-            (p - v(0.0, 1.66, 0.0)).length() - 0.12,
-            synth::capsule(p, v(0.0, 1.45, 0.0), v(0.0, 1.56, 0.0), 0.06),
-            synth::capsule(p, v(0.0, 1.0, 0.0), v(0.0, 1.36, 0.0), 0.16),
-            synth::capsule(p, v(-0.09, 0.92, 0.0), v(0.09, 0.92, 0.0), 0.13),
-        ];
-        for s in [-1.0, 1.0] {
-            parts.push(synth::capsule(
-                p,
-                v(0.0, 1.4, 0.0),
-                v(s * 0.2, 1.4, 0.0),
-                0.07,
-            ));
-            parts.push(synth::capsule(
-                p,
-                v(s * 0.22, 1.4, 0.0),
-                v(s * 0.42, 1.14, 0.0),
-                0.055,
-            ));
-            parts.push(synth::capsule(
-                p,
-                v(s * 0.42, 1.14, 0.0),
-                v(s * 0.56, 0.9, 0.05),
-                0.045,
-            ));
-            parts.push((p - v(s * 0.58, 0.86, 0.06)).length() - 0.055);
-            parts.push(synth::capsule(
-                p,
-                v(s * 0.1, 0.85, 0.0),
-                v(s * 0.12, 0.48, 0.0),
-                0.075,
-            ));
-            parts.push(synth::capsule(
-                p,
-                v(s * 0.12, 0.48, 0.0),
-                v(s * 0.13, 0.1, 0.0),
-                0.06,
-            ));
-            parts.push(synth::capsule(
-                p,
-                v(s * 0.13, 0.05, 0.0),
-                v(s * 0.13, 0.05, 0.13),
-                0.05,
-            ));
-        }
-        union(&parts, 0.035)
-    };
-    synth::implicit_surface(&f, v(-0.75, -0.05, -0.22), v(0.75, 1.82, 0.25), 100)
 }

@@ -329,10 +329,86 @@ pub fn implicit_surface(f: &dyn Fn(DVec3) -> f64, lo: DVec3, hi: DVec3, cells: u
     }
 }
 
+/// The sandbox's humanoid "mannequin": a smooth union of capsules and spheres, 1.8 units tall
+/// (feet at y ≈ 0, arms hanging forward), meshed with [`implicit_surface`] on `cells` cells
+/// along its width (100 cells ≈ 25k vertices; vertex count grows with `cells²`). The
+/// skeleton of `pose::synth_rig::mannequin_rig` follows the same capsules.
+pub fn mannequin(cells: u32) -> TriMesh {
+    let f = |p: DVec3| {
+        let parts: Vec<f64> = MANNEQUIN_PARTS
+            .iter()
+            .flat_map(|&(a, b, r)| {
+                let mirrored = (DVec3::new(-a.x, a.y, a.z), DVec3::new(-b.x, b.y, b.z));
+                let one = capsule(p, a, b, r);
+                let off_centre = a.x >= 0.0 && b.x >= 0.0 && (a.x > 0.0 || b.x > 0.0);
+                let other = off_centre.then(|| capsule(p, mirrored.0, mirrored.1, r));
+                std::iter::once(one).chain(other)
+            })
+            .collect();
+        parts
+            .into_iter()
+            .reduce(|a, b| smooth_min(a, b, 0.035))
+            .unwrap_or(f64::MAX)
+    };
+    implicit_surface(
+        &f,
+        DVec3::new(-0.75, -0.05, -0.22),
+        DVec3::new(0.75, 1.82, 0.25),
+        cells,
+    )
+}
+
+/// The mannequin's capsules `(a, b, radius)`; parts off the centre line are mirrored in x.
+const MANNEQUIN_PARTS: [(DVec3, DVec3, f64); 11] = [
+    (DVec3::new(0.0, 1.66, 0.0), DVec3::new(0.0, 1.66, 0.0), 0.12),
+    (DVec3::new(0.0, 1.45, 0.0), DVec3::new(0.0, 1.56, 0.0), 0.06),
+    (DVec3::new(0.0, 1.0, 0.0), DVec3::new(0.0, 1.36, 0.0), 0.16),
+    (
+        DVec3::new(-0.09, 0.92, 0.0),
+        DVec3::new(0.09, 0.92, 0.0),
+        0.13,
+    ),
+    (DVec3::new(0.0, 1.4, 0.0), DVec3::new(0.2, 1.4, 0.0), 0.07),
+    (
+        DVec3::new(0.22, 1.4, 0.0),
+        DVec3::new(0.42, 1.14, 0.0),
+        0.055,
+    ),
+    (
+        DVec3::new(0.42, 1.14, 0.0),
+        DVec3::new(0.56, 0.9, 0.05),
+        0.045,
+    ),
+    (
+        DVec3::new(0.58, 0.86, 0.06),
+        DVec3::new(0.58, 0.86, 0.06),
+        0.055,
+    ),
+    (
+        DVec3::new(0.1, 0.85, 0.0),
+        DVec3::new(0.12, 0.48, 0.0),
+        0.075,
+    ),
+    (
+        DVec3::new(0.12, 0.48, 0.0),
+        DVec3::new(0.13, 0.1, 0.0),
+        0.06,
+    ),
+    (
+        DVec3::new(0.13, 0.05, 0.0),
+        DVec3::new(0.13, 0.05, 0.13),
+        0.05,
+    ),
+];
+
 /// Signed distance to a capsule from `a` to `b` with radius `r`.
 pub fn capsule(p: DVec3, a: DVec3, b: DVec3, r: f64) -> f64 {
     let ab = b - a;
-    let t = ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0);
+    let t = if ab.length_squared() > 0.0 {
+        ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0)
+    } else {
+        0.0 // a sphere
+    };
     (p - (a + ab * t)).length() - r
 }
 

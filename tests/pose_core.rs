@@ -1,0 +1,544 @@
+//! The skinning-space pose solver on generated rigs: skinning, recovery of known poses,
+//! monotone energy, rigid bones, degenerate skins, pose files and clips.
+
+use std::sync::Arc;
+
+use bevy_wii_deform::deform::{Handle, RigidTransform};
+use bevy_wii_deform::pose::synth_rig::{SyntheticRig, bar_rig, mannequin_rig};
+use bevy_wii_deform::pose::*;
+use glam::{DAffine3, DQuat, DVec3, Vec3};
+
+fn model_of(rig: &SyntheticRig) -> Arc<SkinnedModel> {
+    Arc::new(
+        SkinnedModel::new(
+            rig.skeleton.clone(),
+            &rig.mesh,
+            &rig.rest,
+            ModelSettings::default(),
+        )
+        .unwrap(),
+    )
+}
+
+/// The bar rig posed by forward kinematics: joint 1 bent 35° about z, joint 2 25° about x.
+fn known_pose(rig: &SyntheticRig) -> SkeletonPose {
+    let mut pose = rig.rest.clone();
+    pose.local[1].rotation = DQuat::from_rotation_z(35f64.to_radians());
+    pose.local[2].rotation = DQuat::from_rotation_x(25f64.to_radians());
+    pose
+}
+
+fn motion_of(m: &DAffine3) -> RigidTransform {
+    RigidTransform::new(DQuat::from_mat3(&m.matrix3), m.translation, DVec3::ZERO)
+}
+
+/// Constraints for the bar: bottom fixed, the rigid middles of bones 1 and 2 as handles.
+fn bar_constraints(rig: &SyntheticRig, model: &SkinnedModel) -> PoseConstraints {
+    PoseConstraints {
+        fixed_vertices: rig.vertices_where(model, |p| p.y < 0.2),
+        handles: vec![
+            Handle {
+                vertices: rig.vertices_where(model, |p| p.y > 0.43 && p.y < 0.57),
+                transform: RigidTransform::IDENTITY,
+            },
+            Handle {
+                vertices: rig.vertices_where(model, |p| p.y > 0.8),
+                transform: RigidTransform::IDENTITY,
+            },
+        ],
+        ..Default::default()
+    }
+}
+
+fn angle_deg(a: DQuat, b: DQuat) -> f64 {
+    a.angle_between(b).to_degrees()
+}
+
+#[test]
+fn rest_pose_skins_to_the_bind_positions() {
+    let rig = bar_rig(3, 12, 30);
+    let model = model_of(&rig);
+    let skinned = model.skin_render(&rig.rest);
+    for (p, q) in skinned.iter().zip(&rig.mesh.positions) {
+        assert!(p.distance(q.as_dvec3()) < 1e-12, "{p} vs {q}");
+    }
+}
+
+#[test]
+fn two_bone_skinning_matches_a_hand_computation() {
+    // Joint 0 at the origin, joint 1 at (0, 1, 0); bind pose = identity orientations.
+    let joints = vec![
+        Joint {
+            name: "a".into(),
+            parent: None,
+            parent_frame: DAffine3::IDENTITY,
+            inverse_bind: DAffine3::IDENTITY,
+        },
+        Joint {
+            name: "b".into(),
+            parent: Some(0),
+            parent_frame: DAffine3::IDENTITY,
+            inverse_bind: DAffine3::from_translation(-DVec3::Y),
+        },
+    ];
+    let skeleton = Skeleton::new(joints).unwrap();
+    let mut pose = SkeletonPose {
+        local: vec![
+            JointTransform::IDENTITY,
+            JointTransform {
+                translation: DVec3::Y,
+                ..JointTransform::IDENTITY
+            },
+        ],
+    };
+    // Bend joint b by 90° about z: a point at (0, 2, 0) bound to b goes to (−1, 1, 0).
+    pose.local[1].rotation = DQuat::from_rotation_z(std::f64::consts::FRAC_PI_2);
+    let m = skeleton.skinning_matrices(&pose);
+    let points = [
+        DVec3::new(0.0, 2.0, 0.0),
+        DVec3::new(0.5, 1.0, 0.0),
+        DVec3::new(0.0, 0.5, 0.0),
+    ];
+    let influences: Vec<VertexInfluences> = vec![
+        [(1, 1.0), (0, 0.0), (0, 0.0), (0, 0.0)],
+        [(0, 0.5), (1, 0.5), (0, 0.0), (0, 0.0)],
+        [(0, 1.0), (0, 0.0), (0, 0.0), (0, 0.0)],
+    ];
+    let out = skin_positions(&m, &points, &influences);
+    // By hand: b maps (x, y) ↦ (0, 1) + Rz90 (x, y − 1) = (1 − y, 1 + x)… with Rz90 (u, v) = (−v, u).
+    let by_b = |p: DVec3| DVec3::new(-(p.y - 1.0), 1.0 + p.x, p.z);
+    let expected = [
+        by_b(points[0]),
+        0.5 * points[1] + 0.5 * by_b(points[1]),
+        points[2],
+    ];
+    for (o, e) in out.iter().zip(expected) {
+        assert!(o.distance(e) < 1e-12, "{o} vs {e}");
+    }
+    assert!(out[0].distance(DVec3::new(-1.0, 1.0, 0.0)) < 1e-12);
+}
+
+#[test]
+fn a_forward_kinematics_pose_is_recovered_from_its_handle_targets() {
+    let rig = bar_rig(3, 16, 60);
+    let model = model_of(&rig);
+    let truth = known_pose(&rig);
+    let m = rig.skeleton.skinning_matrices(&truth);
+    let mut constraints = bar_constraints(&rig, &model);
+    let solver = PoseSolver::new(
+        model.clone(),
+        &constraints,
+        &rig.rest,
+        PoseSolverSettings::default(),
+    )
+    .unwrap();
+    constraints.handles[0].transform = motion_of(&m[1]);
+    constraints.handles[1].transform = motion_of(&m[2]);
+    let options = PoseSolveOptions {
+        max_iterations: 60,
+        tolerance: 1e-12,
+    };
+    let solved = solver
+        .solve(&constraints, &options, &rig.rest, None, &|| false)
+        .unwrap();
+    for j in 0..3 {
+        let err = angle_deg(solved.pose.local[j].rotation, truth.local[j].rotation);
+        assert!(
+            err < 1.0,
+            "joint {j} is {err:.3}° off ({} iterations)",
+            solved.stats.iterations
+        );
+    }
+    let (e_solved, e_truth) = (
+        model.full_arap_energy(&solved.pose),
+        model.full_arap_energy(&truth),
+    );
+    assert!(
+        (e_solved - e_truth).abs() <= 0.05 * e_truth + 1e-9,
+        "energy {e_solved} vs the true pose's {e_truth}"
+    );
+    // The energy never rises (up to the roundoff of the reduced objective, ~1e-12 of the
+    // starting energy).
+    let e = &solved.stats.energies;
+    let slack = 1e-11 * solved.stats.initial_energy;
+    assert!(e.windows(2).all(|w| w[1] <= w[0] + slack), "{e:?}");
+    assert!(e[0] <= solved.stats.initial_energy + slack);
+    assert!(
+        e.last().unwrap() < &(0.01 * solved.stats.initial_energy),
+        "{e:?}"
+    );
+}
+
+#[test]
+fn bones_keep_their_lengths_and_the_pose_stays_finite() {
+    let rig = bar_rig(4, 12, 40);
+    let model = model_of(&rig);
+    let mut constraints = PoseConstraints {
+        fixed_vertices: rig.vertices_where(&model, |p| p.y < 0.1),
+        handles: vec![Handle {
+            vertices: rig.vertices_where(&model, |p| p.y > 0.9),
+            transform: RigidTransform::IDENTITY,
+        }],
+        ..Default::default()
+    };
+    let solver = PoseSolver::new(
+        model.clone(),
+        &constraints,
+        &rig.rest,
+        PoseSolverSettings::default(),
+    )
+    .unwrap();
+    // An unreachable target (pulls the bar 50 % longer): the skeleton cannot stretch.
+    constraints.handles[0].transform.translation = DVec3::new(0.4, 0.5, 0.0);
+    let solved = solver
+        .solve(
+            &constraints,
+            &PoseSolveOptions::default(),
+            &rig.rest,
+            None,
+            &|| false,
+        )
+        .unwrap();
+    assert!(max_bone_length_error(&rig.skeleton, &rig.rest, &solved.pose) < 1e-12);
+    let skinned = model.skin_render(&solved.pose);
+    assert!(skinned.iter().all(|p| p.is_finite()));
+    // The top moved toward the target, sideways.
+    let top = rig.skeleton.global_transforms(&solved.pose)[3].translation;
+    assert!(top.x > 0.1, "top joint at {top}");
+    // NaN targets are rejected with a typed error.
+    constraints.handles[0].transform.translation = DVec3::NAN;
+    let err = solver.solve(
+        &constraints,
+        &PoseSolveOptions::default(),
+        &solved.pose,
+        None,
+        &|| false,
+    );
+    assert_eq!(err, Err(PoseError::NonFiniteTarget));
+}
+
+#[test]
+fn pinned_joints_stay_and_a_joint_handle_reaches_its_target() {
+    let rig = bar_rig(3, 12, 40);
+    let model = model_of(&rig);
+    let mut constraints = PoseConstraints {
+        fixed_joints: vec![0],
+        joint_handles: vec![JointHandle {
+            joint: 2,
+            transform: RigidTransform::IDENTITY,
+        }],
+        ..Default::default()
+    };
+    let solver = PoseSolver::new(
+        model.clone(),
+        &constraints,
+        &rig.rest,
+        PoseSolverSettings::default(),
+    )
+    .unwrap();
+    let rest_globals = rig.skeleton.global_transforms(&rig.rest);
+    // Move joint 2 (at y = 2/3) to where a 30° bend of joint 1 puts it.
+    let truth = {
+        let mut p = rig.rest.clone();
+        p.local[1].rotation = DQuat::from_rotation_z(30f64.to_radians());
+        p
+    };
+    let target = rig.skeleton.global_transforms(&truth)[2];
+    constraints.joint_handles[0].transform = RigidTransform::new(
+        DQuat::from_mat3(&target.matrix3),
+        target.translation - rest_globals[2].translation,
+        rest_globals[2].translation,
+    );
+    let options = PoseSolveOptions {
+        max_iterations: 40,
+        tolerance: 1e-12,
+    };
+    let solved = solver
+        .solve(&constraints, &options, &rig.rest, None, &|| false)
+        .unwrap();
+    let g = rig.skeleton.global_transforms(&solved.pose);
+    assert!(
+        g[0].translation.distance(rest_globals[0].translation) < 1e-3,
+        "pinned root moved to {}",
+        g[0].translation
+    );
+    assert!(angle_deg(DQuat::from_mat3(&g[0].matrix3), DQuat::IDENTITY) < 0.5);
+    assert!(
+        g[2].translation.distance(target.translation) < 1e-2,
+        "{} vs {}",
+        g[2].translation,
+        target.translation
+    );
+    assert!(angle_deg(solved.pose.local[1].rotation, truth.local[1].rotation) < 1.0);
+}
+
+#[test]
+fn a_warm_start_continues_where_the_last_solve_stopped() {
+    let rig = bar_rig(3, 12, 40);
+    let model = model_of(&rig);
+    let truth = known_pose(&rig);
+    let m = rig.skeleton.skinning_matrices(&truth);
+    let mut constraints = bar_constraints(&rig, &model);
+    let solver = PoseSolver::new(
+        model.clone(),
+        &constraints,
+        &rig.rest,
+        PoseSolverSettings::default(),
+    )
+    .unwrap();
+    constraints.handles[0].transform = motion_of(&m[1]);
+    constraints.handles[1].transform = motion_of(&m[2]);
+    let three = PoseSolveOptions {
+        max_iterations: 3,
+        tolerance: 0.0,
+    };
+    let first = solver
+        .solve(&constraints, &three, &rig.rest, None, &|| false)
+        .unwrap();
+    let second = solver
+        .solve(
+            &constraints,
+            &three,
+            &first.pose,
+            Some(&first.cluster_rotations),
+            &|| false,
+        )
+        .unwrap();
+    assert!(second.stats.energies[0] <= *first.stats.energies.last().unwrap() * (1.0 + 1e-12));
+    assert!(second.stats.energies.last().unwrap() < first.stats.energies.last().unwrap());
+    // Cancellation stops before the first iteration and says so.
+    let cancelled = solver
+        .solve(&constraints, &three, &first.pose, None, &|| true)
+        .unwrap();
+    assert!(cancelled.stats.cancelled && cancelled.stats.iterations == 0);
+    assert_eq!(cancelled.pose, first.pose);
+}
+
+#[test]
+fn degenerate_skins_get_typed_errors_or_the_documented_normalisation() {
+    let rig = bar_rig(2, 8, 10);
+    let build = |mesh: &SkinnedMesh| {
+        SkinnedModel::new(
+            rig.skeleton.clone(),
+            mesh,
+            &rig.rest,
+            ModelSettings::default(),
+        )
+    };
+    let mut zero = rig.mesh.clone();
+    zero.joint_weights[5] = [0.0; 4];
+    assert!(matches!(
+        build(&zero),
+        Err(PoseError::UnweightedVertex { vertex: 5 })
+    ));
+    let mut nan = rig.mesh.clone();
+    nan.joint_weights[3][0] = f32::NAN;
+    assert!(matches!(
+        build(&nan),
+        Err(PoseError::InvalidWeight { vertex: 3 })
+    ));
+    let mut out_of_range = rig.mesh.clone();
+    out_of_range.joint_indices[7] = [9, 0, 0, 0];
+    out_of_range.joint_weights[7] = [1.0, 0.0, 0.0, 0.0];
+    assert!(matches!(
+        build(&out_of_range),
+        Err(PoseError::JointIndexOutOfRange {
+            vertex: 7,
+            joint: 9,
+            ..
+        })
+    ));
+    let mut short = rig.mesh.clone();
+    short.joint_weights.pop();
+    assert!(matches!(
+        build(&short),
+        Err(PoseError::AttributeLength { .. })
+    ));
+    // An out-of-range joint with weight 0 is ignored; weights summing to 3 are normalised.
+    let mut scaled = rig.mesh.clone();
+    for (w, j) in scaled
+        .joint_weights
+        .iter_mut()
+        .zip(&mut scaled.joint_indices)
+    {
+        for (k, x) in w.iter_mut().enumerate() {
+            if *x == 0.0 {
+                j[k] = 500;
+            }
+            *x *= 3.0;
+        }
+    }
+    let model = build(&scaled).unwrap();
+    let mut pose = rig.rest.clone();
+    pose.local[1].rotation = DQuat::from_rotation_x(0.7);
+    let reference = model_of(&rig).skin_render(&pose);
+    for (a, b) in model.skin_render(&pose).iter().zip(&reference) {
+        assert!(a.distance(*b) < 1e-6);
+    }
+    // A NaN pose is refused before it reaches the solver.
+    let mut bad = rig.rest.clone();
+    bad.local[0].translation.x = f64::NAN;
+    assert!(matches!(
+        SkinnedModel::new(
+            rig.skeleton.clone(),
+            &rig.mesh,
+            &bad,
+            ModelSettings::default()
+        ),
+        Err(PoseError::NonFiniteJoint { joint: 0 })
+    ));
+}
+
+#[test]
+fn seams_are_welded_like_the_static_solver() {
+    // Split every vertex of the bar per face: the welded model has the bar's vertex count.
+    let rig = bar_rig(2, 8, 10);
+    let mut split = SkinnedMesh::default();
+    for &i in &rig.mesh.indices {
+        split.positions.push(rig.mesh.positions[i as usize]);
+        split.joint_indices.push(rig.mesh.joint_indices[i as usize]);
+        split.joint_weights.push(rig.mesh.joint_weights[i as usize]);
+        split.indices.push(split.indices.len() as u32);
+    }
+    let model = SkinnedModel::new(
+        rig.skeleton.clone(),
+        &split,
+        &rig.rest,
+        ModelSettings::default(),
+    )
+    .unwrap();
+    assert_eq!(model.topology().vertex_count(), rig.mesh.positions.len());
+}
+
+#[test]
+fn the_mannequin_rig_clusters_and_solves() {
+    let rig = mannequin_rig(40);
+    let model = model_of(&rig);
+    assert!(
+        model.cluster_count() > 50 && model.cluster_count() <= 100,
+        "{}",
+        model.cluster_count()
+    );
+    let hand = rig.skeleton.find("wrist_l").unwrap();
+    let mut constraints = PoseConstraints {
+        fixed_joints: vec![
+            rig.skeleton.find("ankle_l").unwrap(),
+            rig.skeleton.find("ankle_r").unwrap(),
+        ],
+        joint_handles: vec![JointHandle {
+            joint: hand,
+            transform: RigidTransform::IDENTITY,
+        }],
+        ..Default::default()
+    };
+    let solver = PoseSolver::new(
+        model.clone(),
+        &constraints,
+        &rig.rest,
+        PoseSolverSettings::default(),
+    )
+    .unwrap();
+    constraints.joint_handles[0].transform.translation = DVec3::new(0.1, 0.4, 0.1);
+    let options = PoseSolveOptions {
+        max_iterations: 30,
+        tolerance: 1e-9,
+    };
+    let solved = solver
+        .solve(&constraints, &options, &rig.rest, None, &|| false)
+        .unwrap();
+    let before = rig.skeleton.global_transforms(&rig.rest)[hand].translation;
+    let after = rig.skeleton.global_transforms(&solved.pose)[hand].translation;
+    assert!(
+        after.distance(before + DVec3::new(0.1, 0.4, 0.1)) < 0.02,
+        "hand at {after}, wanted {}",
+        before + DVec3::new(0.1, 0.4, 0.1)
+    );
+    assert!(max_bone_length_error(&rig.skeleton, &rig.rest, &solved.pose) < 1e-9);
+    let _ = Vec3::ZERO;
+}
+
+#[test]
+fn a_pose_file_round_trips_through_ron() {
+    let rig = bar_rig(3, 8, 12);
+    let pose = known_pose(&rig);
+    let text = PoseFile::from_pose(&rig.skeleton, &pose).to_ron().unwrap();
+    assert!(text.contains("bone1"));
+    let back = PoseFile::from_ron(&text)
+        .unwrap()
+        .apply(&rig.skeleton, &rig.rest)
+        .unwrap();
+    for (a, b) in back.local.iter().zip(&pose.local) {
+        assert!(a.translation.distance(b.translation) < 1e-12);
+        assert!(angle_deg(a.rotation, b.rotation) < 1e-9);
+    }
+    assert!(matches!(
+        PoseFile::from_ron("not ron ("),
+        Err(PoseFileError::Parse(_))
+    ));
+    let stranger =
+        PoseFile::from_ron("(joints: {\"nobody\": (translation: (0,0,0), rotation: (0,0,0,1))})")
+            .unwrap();
+    assert_eq!(
+        stranger.apply(&rig.skeleton, &rig.rest),
+        Err(PoseFileError::NoMatchingJoint)
+    );
+}
+
+#[test]
+fn a_one_keyframe_clip_holds_the_pose_by_node_path() {
+    let rig = bar_rig(3, 8, 12);
+    let pose = known_pose(&rig);
+    let tracks: Vec<(Vec<String>, JointTransform)> = (0..3)
+        .map(|j| {
+            let path: Vec<String> = std::iter::once("character".to_string())
+                .chain((0..=j).map(|k| format!("bone{k}")))
+                .collect();
+            (path, pose.local[j])
+        })
+        .collect();
+    let glb = write_gltf_pose_clip("pose", &tracks).unwrap();
+    let (document, buffers, _) = gltf::import_slice(&glb).unwrap();
+    let animation = document.animations().next().expect("one clip");
+    assert_eq!(animation.name(), Some("pose"));
+    let mut seen = 0;
+    for channel in animation.channels() {
+        let node = channel.target().node();
+        let reader = channel.reader(|b| Some(&buffers[b.index()]));
+        let j: usize = node
+            .name()
+            .unwrap()
+            .trim_start_matches("bone")
+            .parse()
+            .unwrap();
+        if let Some(gltf::animation::util::ReadOutputs::Rotations(r)) = reader.read_outputs() {
+            let q = r.into_f32().next().unwrap();
+            let q = DQuat::from_array(q.map(|v| v as f64));
+            assert!(
+                angle_deg(q, pose.local[j].rotation) < 0.01,
+                "joint {j}: {q} vs {}",
+                pose.local[j].rotation
+            );
+            seen += 1;
+        }
+    }
+    assert_eq!(seen, 3);
+    // The node path: character / bone0 / bone1 / bone2.
+    let scene = document.default_scene().unwrap();
+    let top = scene.nodes().next().unwrap();
+    assert_eq!(top.name(), Some("character"));
+    let b2 = top
+        .children()
+        .next()
+        .unwrap()
+        .children()
+        .next()
+        .unwrap()
+        .children()
+        .next()
+        .unwrap();
+    assert_eq!(b2.name(), Some("bone2"));
+    assert_eq!(
+        write_gltf_pose_clip("x", &[(vec![], JointTransform::IDENTITY)]),
+        Err(PoseFileError::EmptyPath)
+    );
+}
