@@ -183,6 +183,29 @@ impl Skeleton {
         }
     }
 
+    /// The bind pose: local transforms under which every skinning matrix is the identity, so
+    /// the mesh skins to its bind-pose positions (the pose the inverse bind matrices were
+    /// taken in).
+    pub fn bind_pose(&self) -> SkeletonPose {
+        let globals: Vec<DAffine3> = self.joints.iter().map(|j| j.inverse_bind.inverse()).collect();
+        let local = self
+            .joints
+            .iter()
+            .enumerate()
+            .map(|(k, joint)| {
+                let parent = joint.parent.map_or(joint.parent_frame, |p| globals[p]);
+                let (scale, rotation, translation) =
+                    (parent.inverse() * globals[k]).to_scale_rotation_translation();
+                JointTransform {
+                    translation,
+                    rotation: rotation.normalize(),
+                    scale,
+                }
+            })
+            .collect();
+        SkeletonPose { local }
+    }
+
     /// World (skeleton-space) transform of every joint: forward kinematics.
     pub fn global_transforms(&self, pose: &SkeletonPose) -> Vec<DAffine3> {
         let mut out: Vec<DAffine3> = Vec::with_capacity(self.joints.len());
