@@ -139,7 +139,9 @@ fn a_forward_kinematics_pose_is_recovered_from_its_handle_targets() {
         tolerance: 1e-12,
     };
     let solved = solver
-        .solve(&constraints, &options, &rig.rest, None, &|| false)
+        .solve(&constraints, &options, PoseStart::Pose(&rig.rest), &|| {
+            false
+        })
         .unwrap();
     for j in 0..3 {
         let err = angle_deg(solved.pose.local[j].rotation, truth.local[j].rotation);
@@ -194,8 +196,7 @@ fn bones_keep_their_lengths_and_the_pose_stays_finite() {
         .solve(
             &constraints,
             &PoseSolveOptions::default(),
-            &rig.rest,
-            None,
+            PoseStart::Pose(&rig.rest),
             &|| false,
         )
         .unwrap();
@@ -210,8 +211,7 @@ fn bones_keep_their_lengths_and_the_pose_stays_finite() {
     let err = solver.solve(
         &constraints,
         &PoseSolveOptions::default(),
-        &solved.pose,
-        None,
+        PoseStart::Pose(&solved.pose),
         &|| false,
     );
     assert_eq!(err, Err(PoseError::NonFiniteTarget));
@@ -254,7 +254,9 @@ fn pinned_joints_stay_and_a_joint_handle_reaches_its_target() {
         tolerance: 1e-12,
     };
     let solved = solver
-        .solve(&constraints, &options, &rig.rest, None, &|| false)
+        .solve(&constraints, &options, PoseStart::Pose(&rig.rest), &|| {
+            false
+        })
         .unwrap();
     let g = rig.skeleton.global_transforms(&solved.pose);
     assert!(
@@ -293,22 +295,16 @@ fn a_warm_start_continues_where_the_last_solve_stopped() {
         tolerance: 0.0,
     };
     let first = solver
-        .solve(&constraints, &three, &rig.rest, None, &|| false)
+        .solve(&constraints, &three, PoseStart::Pose(&rig.rest), &|| false)
         .unwrap();
     let second = solver
-        .solve(
-            &constraints,
-            &three,
-            &first.pose,
-            Some(&first.cluster_rotations),
-            &|| false,
-        )
+        .solve(&constraints, &three, PoseStart::Warm(&first), &|| false)
         .unwrap();
     assert!(second.stats.energies[0] <= *first.stats.energies.last().unwrap() * (1.0 + 1e-12));
     assert!(second.stats.energies.last().unwrap() < first.stats.energies.last().unwrap());
     // Cancellation stops before the first iteration and says so.
     let cancelled = solver
-        .solve(&constraints, &three, &first.pose, None, &|| true)
+        .solve(&constraints, &three, PoseStart::Warm(&first), &|| true)
         .unwrap();
     assert!(cancelled.stats.cancelled && cancelled.stats.iterations == 0);
     assert_eq!(cancelled.pose, first.pose);
@@ -444,7 +440,9 @@ fn the_mannequin_rig_clusters_and_solves() {
         tolerance: 1e-9,
     };
     let solved = solver
-        .solve(&constraints, &options, &rig.rest, None, &|| false)
+        .solve(&constraints, &options, PoseStart::Pose(&rig.rest), &|| {
+            false
+        })
         .unwrap();
     let before = rig.skeleton.global_transforms(&rig.rest)[hand].translation;
     let after = rig.skeleton.global_transforms(&solved.pose)[hand].translation;

@@ -31,7 +31,7 @@
 //! let solver = PoseSolver::new(model.clone(), &constraints, &rig.rest,
 //!     PoseSolverSettings::default()).unwrap();
 //! constraints.handles[0].transform.translation = DVec3::new(0.3, -0.05, 0.0);
-//! let solved = solver.solve(&constraints, &PoseSolveOptions::default(), &rig.rest, None, &|| false)
+//! let solved = solver.solve(&constraints, &PoseSolveOptions::default(), PoseStart::Pose(&rig.rest), &|| false)
 //!     .unwrap();
 //! // Bones keep their lengths: the result is a skeleton pose.
 //! assert!(max_bone_length_error(model.skeleton(), &rig.rest, &solved.pose) < 1e-9);
@@ -50,7 +50,7 @@ pub use skeleton::{
 };
 pub use solver::{
     JointHandle, PoseConstraints, PoseSolution, PoseSolveOptions, PoseSolveStats, PoseSolver,
-    PoseSolverSettings,
+    PoseSolverSettings, PoseStart,
 };
 
 use crate::deform::MeshError;

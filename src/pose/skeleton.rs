@@ -187,7 +187,11 @@ impl Skeleton {
     /// the mesh skins to its bind-pose positions (the pose the inverse bind matrices were
     /// taken in).
     pub fn bind_pose(&self) -> SkeletonPose {
-        let globals: Vec<DAffine3> = self.joints.iter().map(|j| j.inverse_bind.inverse()).collect();
+        let globals: Vec<DAffine3> = self
+            .joints
+            .iter()
+            .map(|j| j.inverse_bind.inverse())
+            .collect();
         let local = self
             .joints
             .iter()

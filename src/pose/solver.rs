@@ -3,12 +3,12 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use glam::{DAffine3, DMat3, DQuat, DVec3, DVec4};
+use glam::{DAffine3, DMat3, DMat4, DQuat, DVec3, DVec4};
 
 use super::PoseError;
 use super::model::{SkinnedModel, add_outer4x3, mat3_from_rows};
 use super::skeleton::{JointTransform, SkeletonPose};
-use crate::deform::{Handle, RigidTransform, best_rotation_exact};
+use crate::deform::{Handle, RigidTransform, best_rotation_exact, fit_rotation_warm};
 
 /// A joint driven to a rigid motion of where it was in the reference pose.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -105,6 +105,12 @@ pub struct PoseSolveStats {
     pub initial_energy: f64,
     /// Normalised objective after each iteration; never rises.
     pub energies: Vec<f64>,
+    /// Global steps that raised the energy and were retried with more damping.
+    pub rejected_steps: u32,
+    /// Seconds fitting cluster rotations.
+    pub local_s: f64,
+    /// Seconds in the bone steps (Gauss–Newton systems, damped solves, trial poses).
+    pub global_s: f64,
     /// Total seconds.
     pub total_s: f64,
     /// The cancel callback stopped the iterations early (the result is the last completed
@@ -119,9 +125,25 @@ pub struct PoseSolution {
     pub pose: SkeletonPose,
     /// Best-fit rotation of each cluster (warm-start data).
     pub cluster_rotations: Vec<DQuat>,
+    /// The Levenberg–Marquardt damping the solve ended with (warm-start data).
+    pub damping: f64,
     /// Statistics.
     pub stats: PoseSolveStats,
 }
+
+/// Where a pose solve starts.
+#[derive(Debug, Clone, Copy)]
+pub enum PoseStart<'a> {
+    /// From this pose (the character's current pose, or the reference pose); cluster
+    /// rotations are fitted to it.
+    Pose(&'a SkeletonPose),
+    /// From a previous solution: its pose, cluster rotations and step damping (use for every
+    /// frame of a drag).
+    Warm(&'a PoseSolution),
+}
+
+/// Levenberg–Marquardt damping of a cold start (relative to the Hessian's diagonal).
+const INITIAL_DAMPING: f64 = 1e-4;
 
 /// A vertex set's precomputed sums for a rigid target: `Σ M_iᵀ p_iᵀ`, `Σ M_iᵀ`, `Σ p_i`,
 /// `Σ ‖p_i‖²` with `p_i` the reference positions.
@@ -153,6 +175,8 @@ pub struct PoseSolver {
     q: Vec<f64>,
     /// Which 4 × 4 blocks of `q` are non-zero.
     block_nonzero: Vec<bool>,
+    /// The non-zero 4 × 4 blocks `(k, l, Q_kl)`.
+    q_blocks: Vec<(usize, usize, DMat4)>,
     handle_sums: Vec<SetSums>,
     fixed_b: Vec<f64>,
     fixed_c: f64,
@@ -282,15 +306,26 @@ impl PoseSolver {
                 }
             }
         }
-        let block_nonzero = (0..joints * joints)
+        let block_nonzero: Vec<bool> = (0..joints * joints)
             .map(|b| {
                 let (k, l) = (b / joints, b % joints);
                 (0..4).any(|r| (0..4).any(|c| q[(4 * k + r) * dim + 4 * l + c] != 0.0))
             })
             .collect();
+        let q_blocks = (0..joints * joints)
+            .filter(|&b| block_nonzero[b])
+            .map(|b| {
+                let (k, l) = (b / joints, b % joints);
+                let m = DMat4::from_cols_array_2d(&std::array::from_fn(|c| {
+                    std::array::from_fn(|r| q[(4 * k + r) * dim + 4 * l + c])
+                }));
+                (k, l, m)
+            })
+            .collect();
         Ok(Self {
             model,
             constraints: constraints.clone(),
+            q_blocks,
             reference_globals,
             q,
             block_nonzero,
@@ -320,15 +355,12 @@ impl PoseSolver {
         self.constraints.same_sets(constraints)
     }
 
-    /// Solves for the pose from `start` (the last solution for a warm start, or the pose the
-    /// character is in) and the cluster rotations of a previous solution (`None`: fitted
-    /// from `start`). `cancel` is polled between iterations.
+    /// Solves for the pose from `start`. `cancel` is polled between iterations.
     pub fn solve(
         &self,
         constraints: &PoseConstraints,
         options: &PoseSolveOptions,
-        start: &SkeletonPose,
-        warm_rotations: Option<&[DQuat]>,
+        start: PoseStart<'_>,
         cancel: &dyn Fn() -> bool,
     ) -> Result<PoseSolution, PoseError> {
         let started = Instant::now();
@@ -345,11 +377,17 @@ impl PoseSolver {
             return Err(PoseError::NonFiniteTarget);
         }
         let skeleton = self.model.skeleton();
-        skeleton.check_pose(start)?;
         let clusters = self.model.cluster_count();
-        let mut rotations: Vec<DQuat> = match warm_rotations {
-            Some(r) if r.len() == clusters => r.to_vec(),
-            _ => vec![DQuat::IDENTITY; clusters],
+        let (start, warm) = match start {
+            PoseStart::Pose(p) => (p, None),
+            PoseStart::Warm(s) => (&s.pose, Some(s)),
+        };
+        skeleton.check_pose(start)?;
+        let (mut rotations, mut damping, mut exact) = match warm {
+            Some(w) if w.cluster_rotations.len() == clusters => {
+                (w.cluster_rotations.clone(), w.damping, false)
+            }
+            _ => (vec![DQuat::IDENTITY; clusters], INITIAL_DAMPING, true),
         };
         let (b_pen, c_pen) = self.penalty_terms(constraints);
         let c0 = self.model.c0.max(1e-300);
@@ -364,7 +402,11 @@ impl PoseSolver {
                 stats.cancelled = true;
                 break;
             }
-            self.local_step(&x, &mut rotations);
+            let t = Instant::now();
+            self.local_step(&x, &mut rotations, exact);
+            exact = false;
+            stats.local_s += t.elapsed().as_secs_f64();
+            let t = Instant::now();
             b.copy_from_slice(&b_pen);
             self.add_rotation_terms(&rotations, &mut b);
             let constant = self.model.c0 + c_pen;
@@ -373,20 +415,24 @@ impl PoseSolver {
                 stats.initial_energy = f0 / c0;
                 last = f0;
             }
-            let step = self.gauss_newton_step(&x, &b, &globals);
+            // Levenberg–Marquardt: damp the Gauss–Newton step until it lowers the energy.
+            let (h, g) = self.gauss_newton_system(&x, &b, &globals);
             let mut accepted = None;
-            let mut t = 1.0;
-            for _ in 0..12 {
-                let candidate = retract(&pose, &globals, &step, t, self);
+            for _ in 0..16 {
+                let step = solve_damped(&h, &g, damping);
+                let candidate = retract(&pose, &globals, &step, 1.0, self);
                 let cg = skeleton.global_transforms(&candidate);
                 let cx = self.model.stack(&skinning(&cg, skeleton));
                 let f = self.objective(&cx, &b, constant);
                 if f.is_finite() && f <= f0 {
                     accepted = Some((candidate, cg, cx, f));
+                    damping = (damping / 3.0).max(1e-9);
                     break;
                 }
-                t *= 0.5;
+                stats.rejected_steps += 1;
+                damping *= 8.0;
             }
+            stats.global_s += t.elapsed().as_secs_f64();
             let f = match accepted {
                 Some((candidate, cg, cx, f)) => {
                     pose = candidate;
@@ -411,6 +457,7 @@ impl PoseSolver {
         Ok(PoseSolution {
             pose,
             cluster_rotations: rotations,
+            damping,
             stats,
         })
     }
@@ -463,8 +510,10 @@ impl PoseSolver {
         (b, c)
     }
 
-    /// Fits each cluster's rotation to the current skinning matrices: `A_c = Xᵀ K_c`.
-    fn local_step(&self, x: &[f64], rotations: &mut [DQuat]) {
+    /// Fits each cluster's rotation to the current skinning matrices: `A_c = Xᵀ K_c`;
+    /// exactly (Horn) or by Newton steps from the previous rotation, which is kept if the fit
+    /// is not better (so the energy cannot rise).
+    fn local_step(&self, x: &[f64], rotations: &mut [DQuat], exact: bool) {
         let dim = x.len() / 3;
         for (c, r) in rotations.iter_mut().enumerate() {
             let k = &self.model.k[c * dim * 3..][..dim * 3];
@@ -481,7 +530,22 @@ impl PoseSolver {
                     }
                 }
             }
-            *r = best_rotation_exact(&mat3_from_rows(&a));
+            let a = mat3_from_rows(&a);
+            if exact {
+                *r = best_rotation_exact(&a);
+            } else {
+                let fitted = fit_rotation_warm(&a, *r, 4, 1e-10);
+                let score = |q: DQuat| {
+                    (DMat3::from_quat(q).transpose() * a)
+                        .to_cols_array()
+                        .iter()
+                        .step_by(4)
+                        .sum::<f64>()
+                };
+                if score(fitted) >= score(*r) {
+                    *r = fitted;
+                }
+            }
         }
     }
 
@@ -540,12 +604,16 @@ impl PoseSolver {
         f.max(0.0)
     }
 
-    /// One Gauss–Newton step on the bone parameters (rotation increments, root
-    /// translations), as a vector of per-parameter 3-vectors.
-    fn gauss_newton_step(&self, x: &[f64], b: &[f64], globals: &[DAffine3]) -> Vec<DVec3> {
+    /// The Gauss–Newton model of the objective in the bone parameters (rotation increments,
+    /// root translations; 3 numbers each): `f(θ) ≈ f + gᵀθ + ½ θᵀHθ`, as `(H, g)`.
+    fn gauss_newton_system(
+        &self,
+        x: &[f64],
+        b: &[f64],
+        globals: &[DAffine3],
+    ) -> (Vec<f64>, Vec<f64>) {
         let skeleton = self.model.skeleton();
         let joints = skeleton.len();
-        let dim = 4 * joints;
         let params = parameters(self);
         // S̄_k rows (4 × 4 homogeneous) from X.
         let s_bar: Vec<[[f64; 4]; 4]> = (0..joints)
@@ -596,47 +664,20 @@ impl PoseSolver {
         }
         // Hessian blocks M_kl[g][h] = tr(G_g N_kl G_hᵀ), N_kl = S̄_k Q_kl S̄_lᵀ, summed over
         // subtrees: Z[a][b] = Σ_{k∈sub(a), l∈sub(b)} M_kl.
-        let mut z = vec![[[0.0; 6]; 6]; joints * joints];
-        for k in 0..joints {
-            for l in 0..joints {
-                if !self.block_nonzero[k * joints + l] {
-                    continue;
-                }
-                let mut qs = [[0.0; 4]; 4]; // Q_kl S̄_lᵀ
-                for (r, row) in qs.iter_mut().enumerate() {
-                    for (c, v) in row.iter_mut().enumerate() {
-                        *v = (0..4)
-                            .map(|m| self.q[(4 * k + r) * dim + 4 * l + m] * s_bar[l][c][m])
-                            .sum();
-                    }
-                }
-                let mut nkl = [[0.0; 4]; 4];
-                for (r, row) in nkl.iter_mut().enumerate() {
-                    for (c, v) in row.iter_mut().enumerate() {
-                        *v = (0..4).map(|m| s_bar[k][r][m] * qs[m][c]).sum();
-                    }
-                }
-                let m = &mut z[k * joints + l];
-                for (gi, gg) in GENERATORS.iter().enumerate() {
-                    for (hi, gh) in GENERATORS.iter().enumerate() {
-                        let mut t = 0.0;
-                        for &(i, p, a) in gg.iter() {
-                            for &(i2, q, bq) in gh.iter() {
-                                if i == i2 {
-                                    t += a * bq * nkl[p][q];
-                                }
-                            }
-                        }
-                        m[gi][hi] += t;
-                    }
-                }
-            }
+        let s_mat: Vec<DMat4> = s_bar
+            .iter()
+            .map(|s| DMat4::from_cols_array_2d(s).transpose())
+            .collect();
+        let mut z = vec![TwistBlock::ZERO; joints * joints];
+        for &(k, l, ref q_kl) in &self.q_blocks {
+            let n = s_mat[k] * *q_kl * s_mat[l].transpose();
+            z[k * joints + l] = TwistBlock::of(&n);
         }
         for l in (0..joints).rev() {
             if let Some(p) = skeleton.joints()[l].parent {
                 for k in 0..joints {
                     let v = z[k * joints + l];
-                    add6(&mut z[k * joints + p], &v);
+                    z[k * joints + p].add(&v);
                 }
             }
         }
@@ -644,63 +685,52 @@ impl PoseSolver {
             if let Some(p) = skeleton.joints()[k].parent {
                 for l in 0..joints {
                     let v = z[k * joints + l];
-                    add6(&mut z[p * joints + l], &v);
+                    z[p * joints + l].add(&v);
                 }
             }
         }
         // Parameter maps A (6 × 3): rotation about o: [I; [o]×]; root translation: [0; I].
-        let maps: Vec<[[f64; 3]; 6]> = params
-            .iter()
-            .map(|&(j, kind)| {
-                let mut a = [[0.0; 3]; 6];
-                match kind {
-                    ParamKind::Rotation => {
-                        let o = globals[j].translation;
-                        for (i, row) in a.iter_mut().enumerate().take(3) {
-                            row[i] = 1.0;
-                        }
-                        // v = o × δ: rows 3..6 = [o]×
-                        a[3] = [0.0, -o.z, o.y];
-                        a[4] = [o.z, 0.0, -o.x];
-                        a[5] = [-o.y, o.x, 0.0];
-                    }
-                    ParamKind::Translation => {
-                        for i in 0..3 {
-                            a[3 + i][i] = 1.0;
-                        }
-                    }
-                }
-                a
-            })
-            .collect();
         let np = params.len() * 3;
         let mut h = vec![0.0; np * np];
         let mut g = vec![0.0; np];
-        for (pa, &(ja, _)) in params.iter().enumerate() {
-            for r in 0..3 {
-                g[pa * 3 + r] = (0..6).map(|s| maps[pa][s][r] * gsum[ja][s]).sum();
-            }
-            for (pb, &(jb, _)) in params.iter().enumerate() {
-                let zab = &z[ja * joints + jb];
-                // A_aᵀ Z A_b
-                let mut za = [[0.0; 3]; 6];
-                for s in 0..6 {
-                    for c in 0..3 {
-                        za[s][c] = (0..6).map(|t| zab[s][t] * maps[pb][t][c]).sum();
-                    }
-                }
+        let cross = |j: usize, kind: ParamKind| match kind {
+            ParamKind::Rotation => Some(skew(globals[j].translation)),
+            ParamKind::Translation => None,
+        };
+        let maps: Vec<Option<DMat3>> = params.iter().map(|&(j, kind)| cross(j, kind)).collect();
+        for (pa, &(ja, kind_a)) in params.iter().enumerate() {
+            let (gw, gv) = (
+                DVec3::new(gsum[ja][0], gsum[ja][1], gsum[ja][2]),
+                DVec3::new(gsum[ja][3], gsum[ja][4], gsum[ja][5]),
+            );
+            // A_aᵀ g = g_ω + [o]×ᵀ g_v (rotation) or g_v (translation).
+            let ga = match (kind_a, maps[pa]) {
+                (ParamKind::Rotation, Some(o)) => gw + o.transpose() * gv,
+                _ => gv,
+            };
+            g[pa * 3..pa * 3 + 3].copy_from_slice(&ga.to_array());
+            // H is symmetric: fill the upper triangle of blocks and mirror it.
+            for (pb, &(jb, _)) in params.iter().enumerate().skip(pa) {
+                let TwistBlock { ww, wv, vw, vv } = z[ja * joints + jb];
+                // Z A_b = [Z_ωω + Z_ωv Ob ; Z_vω + Z_vv Ob] (rotation) or [Z_ωv; Z_vv].
+                let (top, bottom) = match maps[pb] {
+                    Some(ob) => (ww + wv * ob, vw + vv * ob),
+                    None => (wv, vv),
+                };
+                let hab = match maps[pa] {
+                    Some(oa) => top + oa.transpose() * bottom,
+                    None => bottom,
+                };
                 for r in 0..3 {
                     for c in 0..3 {
-                        h[(pa * 3 + r) * np + pb * 3 + c] =
-                            2.0 * (0..6).map(|s| maps[pa][s][r] * za[s][c]).sum::<f64>();
+                        let v = 2.0 * hab.col(c)[r];
+                        h[(pa * 3 + r) * np + pb * 3 + c] = v;
+                        h[(pb * 3 + c) * np + pa * 3 + r] = v;
                     }
                 }
             }
         }
-        let delta = solve_damped(&mut h, &g, np);
-        (0..params.len())
-            .map(|p| DVec3::new(delta[3 * p], delta[3 * p + 1], delta[3 * p + 2]))
-            .collect()
+        (h, g)
     }
 }
 
@@ -774,11 +804,52 @@ fn skinning(globals: &[DAffine3], skeleton: &super::Skeleton) -> Vec<DAffine3> {
         .collect()
 }
 
-fn add6(a: &mut [[f64; 6]; 6], b: &[[f64; 6]; 6]) {
-    for (ra, rb) in a.iter_mut().zip(b) {
-        for (x, y) in ra.iter_mut().zip(rb) {
-            *x += y;
+/// The cross-product matrix `[o]×` (`[o]× v = o × v`).
+fn skew(o: DVec3) -> DMat3 {
+    DMat3::from_cols(
+        DVec3::new(0.0, o.z, -o.y),
+        DVec3::new(-o.z, 0.0, o.x),
+        DVec3::new(o.y, -o.x, 0.0),
+    )
+}
+
+/// The 6 × 6 quadratic form `M[g][h] = tr(G_g N G_hᵀ)` of the twist generators (ω then v)
+/// for a 4 × 4 `N`, as four 3 × 3 blocks. With `N = [[N₃, n], [mᵀ, n₃₃]]` it is, in closed
+/// form, `M_ωω = tr(N₃) I − N₃ᵀ`, `M_ωv = [n]×`, `M_vω = −[m]×`, `M_vv = n₃₃ I`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct TwistBlock {
+    ww: DMat3,
+    wv: DMat3,
+    vw: DMat3,
+    vv: DMat3,
+}
+
+impl TwistBlock {
+    const ZERO: Self = Self {
+        ww: DMat3::ZERO,
+        wv: DMat3::ZERO,
+        vw: DMat3::ZERO,
+        vv: DMat3::ZERO,
+    };
+
+    fn of(n: &DMat4) -> Self {
+        let n3 = DMat3::from_mat4(*n);
+        let col = n.w_axis.truncate();
+        let row = DVec3::new(n.x_axis.w, n.y_axis.w, n.z_axis.w);
+        let trace = n3.x_axis.x + n3.y_axis.y + n3.z_axis.z;
+        Self {
+            ww: DMat3::from_diagonal(DVec3::splat(trace)) - n3.transpose(),
+            wv: skew(col),
+            vw: -skew(row),
+            vv: DMat3::from_diagonal(DVec3::splat(n.w_axis.w)),
         }
+    }
+
+    fn add(&mut self, o: &Self) {
+        self.ww += o.ww;
+        self.wv += o.wv;
+        self.vw += o.vw;
+        self.vv += o.vv;
     }
 }
 
@@ -813,43 +884,49 @@ fn set_target(s: &SetSums, motion: &RigidTransform, weight: f64, b: &mut [f64]) 
     weight * (s.pp + 2.0 * c.dot(r * s.p) + s.count * c.length_squared())
 }
 
-/// Solves `(H + μ I) x = −g` by Cholesky, raising `μ` until `H + μ I` is positive definite.
-fn solve_damped(h: &mut [f64], g: &[f64], n: usize) -> Vec<f64> {
+/// Solves `(H + μ·diag(H) + ε I) x = −g` (Marquardt's scaling, so rotations and
+/// translations of any scale are damped alike) by Cholesky, returned as per-parameter
+/// 3-vectors; raises the damping until the matrix factors. All zeros if it never does.
+fn solve_damped(h: &[f64], g: &[f64], mu: f64) -> Vec<DVec3> {
+    let n = g.len();
     let scale = (0..n)
         .map(|i| h[i * n + i])
         .fold(0.0f64, f64::max)
         .max(1e-300);
-    let mut mu = 1e-9 * scale;
-    let original = h.to_vec();
+    let mut a = vec![0.0; n * n];
+    let mut mu = mu;
     for _ in 0..12 {
-        h.copy_from_slice(&original);
+        a.copy_from_slice(h);
         for i in 0..n {
-            h[i * n + i] += mu;
+            a[i * n + i] += mu * h[i * n + i] + 1e-12 * scale;
         }
-        if cholesky_in_place(h, n) {
+        if cholesky_in_place(&mut a, n) {
             let mut x: Vec<f64> = g.iter().map(|v| -v).collect();
             // L y = b, Lᵀ x = y
             for i in 0..n {
                 let mut s = x[i];
                 for k in 0..i {
-                    s -= h[i * n + k] * x[k];
+                    s -= a[i * n + k] * x[k];
                 }
-                x[i] = s / h[i * n + i];
+                x[i] = s / a[i * n + i];
             }
             for i in (0..n).rev() {
                 let mut s = x[i];
                 for k in i + 1..n {
-                    s -= h[k * n + i] * x[k];
+                    s -= a[k * n + i] * x[k];
                 }
-                x[i] = s / h[i * n + i];
+                x[i] = s / a[i * n + i];
             }
             if x.iter().all(|v| v.is_finite()) {
-                return x;
+                return x
+                    .chunks_exact(3)
+                    .map(|c| DVec3::new(c[0], c[1], c[2]))
+                    .collect();
             }
         }
-        mu *= 100.0;
+        mu = mu.max(1e-9) * 100.0;
     }
-    vec![0.0; n]
+    vec![DVec3::ZERO; n / 3]
 }
 
 /// Lower Cholesky factor in place (row-major, lower triangle); false if not positive definite.
@@ -873,4 +950,44 @@ fn cholesky_in_place(a: &mut [f64], n: usize) -> bool {
         }
     }
     true
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The closed form of [`TwistBlock`] equals `tr(G_g N G_hᵀ)` computed from the
+    /// generators.
+    #[test]
+    fn twist_block_closed_form_matches_the_generators() {
+        let n = DMat4::from_cols_array(&std::array::from_fn(|i| ((i * 7 + 3) % 11) as f64 - 4.5));
+        let at = |p: usize, q: usize| n.col(q)[p];
+        let block = TwistBlock::of(&n);
+        let get = |g: usize, h: usize| {
+            let m = match (g < 3, h < 3) {
+                (true, true) => block.ww,
+                (true, false) => block.wv,
+                (false, true) => block.vw,
+                (false, false) => block.vv,
+            };
+            m.col(h % 3)[g % 3]
+        };
+        for (g, gg) in GENERATORS.iter().enumerate() {
+            for (h, gh) in GENERATORS.iter().enumerate() {
+                let mut direct = 0.0;
+                for &(i, p, a) in gg.iter() {
+                    for &(i2, q, b) in gh.iter() {
+                        if i == i2 {
+                            direct += a * b * at(p, q);
+                        }
+                    }
+                }
+                assert!(
+                    (direct - get(g, h)).abs() < 1e-12,
+                    "({g}, {h}): {direct} vs {}",
+                    get(g, h)
+                );
+            }
+        }
+    }
 }

@@ -1,0 +1,246 @@
+//! Benchmark of the skinning-space pose solver (`pose`): precompute, warm solves during a
+//! drag, and the quality of the converged pose against the full-mesh ARAP solver.
+//!
+//! ```text
+//! cargo run --release --example character_bench -- [--model PATH | --cells N] [--json]
+//! ```
+//! Without `--model`: the generated mannequin auto-rigged to 16 joints, meshed on `--cells`
+//! cells (default 200 ≈ 100k vertices; 110 ≈ 30k). With `--model`: the first skinned mesh of
+//! a rigged glTF (e.g. `../shared/models/Fox.glb`).
+//!
+//! Constraints (vertex sets, so the full-mesh solver gets exactly the same problem): the
+//! lowest 6 % of the model's height is fixed (the feet); the handle is the vertices near one
+//! end (the mannequin's left hand; for a glTF model the 4 % of vertices farthest along +z,
+//! the Fox's head); its target turns 25° and moves 8 % of the bounding diagonal. Both start
+//! in the bind pose.
+//! * `precompute_ms`: `SkinnedModel::new` (weld, clusters, reduced matrices) + `PoseSolver::new`.
+//! * `ms_per_solve`, `ms_per_iteration`: a 30-frame drag to the target, 3 warm-started
+//!   iterations per frame; median solve.
+//! * `energy_subspace`: full-mesh normalised ARAP energy (`arap_energy`) of the skinned mesh
+//!   after converging (300 iterations) at the target; `energy_full_arap`: the same energy for
+//!   the full-mesh solver (`ArapSolver`, same welded mesh and constraints, 400 iterations).
+//! * `max_bone_length_error`: largest bone length change / bounding diagonal.
+//! * `handle_error`: mean distance of the handle vertices from their targets / diagonal.
+//!
+//! The last stdout line is the JSON object.
+
+#[path = "common/rigged_gltf.rs"]
+mod rigged_gltf;
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Instant;
+
+use bevy_wii_deform::deform::{
+    ArapSolver, Constraints, Handle, InitialGuess, RigidTransform, SolveOptions, SolverSettings,
+    arap_energy,
+};
+use bevy_wii_deform::pose::synth_rig::mannequin_rig;
+use bevy_wii_deform::pose::*;
+use glam::{DQuat, DVec3};
+
+struct Args {
+    model: Option<PathBuf>,
+    cells: u32,
+    json: bool,
+}
+
+fn args() -> Args {
+    let mut out = Args {
+        model: None,
+        cells: 200,
+        json: false,
+    };
+    let mut it = std::env::args().skip(1);
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--model" => out.model = it.next().map(PathBuf::from),
+            "--cells" => out.cells = it.next().and_then(|c| c.parse().ok()).unwrap_or(out.cells),
+            "--json" => out.json = true,
+            other => eprintln!("ignoring unknown argument {other}"),
+        }
+    }
+    out
+}
+
+fn main() {
+    let args = args();
+    let (name, skeleton, mesh) = match &args.model {
+        Some(path) => match rigged_gltf::load(path) {
+            Ok(rig) => (path.display().to_string(), rig.skeleton, rig.mesh),
+            Err(e) => {
+                eprintln!("cannot read {}: {e}", path.display());
+                std::process::exit(2);
+            }
+        },
+        None => {
+            let rig = mannequin_rig(args.cells);
+            (
+                format!("mannequin_rig({})", args.cells),
+                rig.skeleton,
+                rig.mesh,
+            )
+        }
+    };
+    let bind = skeleton.bind_pose();
+    let t0 = Instant::now();
+    let model = Arc::new(
+        SkinnedModel::new(skeleton.clone(), &mesh, &bind, ModelSettings::default()).expect("model"),
+    );
+    let model_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let rest = model.topology().positions().to_vec();
+    let diagonal = model.topology().bounding_diagonal();
+    let (lo, hi) = rest.iter().fold((DVec3::MAX, DVec3::MIN), |(lo, hi), p| {
+        (lo.min(*p), hi.max(*p))
+    });
+    let fixed: Vec<u32> = (0..rest.len() as u32)
+        .filter(|&i| rest[i as usize].y < lo.y + 0.06 * (hi.y - lo.y))
+        .collect();
+    let handle: Vec<u32> = if args.model.is_none() {
+        let hand = DVec3::new(0.58, 0.86, 0.06) * model.rest_scale();
+        (0..rest.len() as u32)
+            .filter(|&i| rest[i as usize].distance(hand) < 0.1)
+            .collect()
+    } else {
+        let mut by_z: Vec<u32> = (0..rest.len() as u32)
+            .filter(|i| !fixed.contains(i))
+            .collect();
+        by_z.sort_by(|&a, &b| rest[b as usize].z.total_cmp(&rest[a as usize].z));
+        by_z.truncate((rest.len() / 25).max(1));
+        by_z.sort_unstable();
+        by_z
+    };
+    let pivot = handle.iter().map(|&i| rest[i as usize]).sum::<DVec3>() / handle.len() as f64;
+    let target = RigidTransform::new(
+        DQuat::from_rotation_z(25f64.to_radians()),
+        DVec3::new(0.06, 0.05, 0.02) * diagonal,
+        pivot,
+    );
+    let mut constraints = PoseConstraints {
+        fixed_vertices: fixed.clone(),
+        handles: vec![Handle {
+            vertices: handle.clone(),
+            transform: RigidTransform::IDENTITY,
+        }],
+        ..Default::default()
+    };
+    let t1 = Instant::now();
+    let solver = PoseSolver::new(
+        model.clone(),
+        &constraints,
+        &bind,
+        PoseSolverSettings::default(),
+    )
+    .expect("solver");
+    let precompute_ms = model_ms + t1.elapsed().as_secs_f64() * 1e3;
+
+    // A 30-frame drag, 3 warm iterations per frame.
+    let frames = 30;
+    let three = PoseSolveOptions {
+        max_iterations: 3,
+        tolerance: 0.0,
+    };
+    let mut last: Option<PoseSolution> = None;
+    let mut solve_ms = Vec::new();
+    let mut iterations = 0;
+    for f in 1..=frames {
+        let s = f as f64 / frames as f64;
+        constraints.handles[0].transform = RigidTransform::new(
+            DQuat::IDENTITY.slerp(target.rotation, s),
+            target.translation * s,
+            pivot,
+        );
+        let t = Instant::now();
+        let start = last
+            .as_ref()
+            .map_or(PoseStart::Pose(&bind), PoseStart::Warm);
+        let solved = solver
+            .solve(&constraints, &three, start, &|| false)
+            .expect("solve");
+        solve_ms.push(t.elapsed().as_secs_f64() * 1e3);
+        iterations += solved.stats.iterations;
+        last = Some(solved);
+    }
+    let total_ms: f64 = solve_ms.iter().sum();
+    solve_ms.sort_by(f64::total_cmp);
+    let ms_per_solve = solve_ms[solve_ms.len() / 2];
+    let ms_per_iteration = total_ms / iterations.max(1) as f64;
+
+    let converged = solver
+        .solve(
+            &constraints,
+            &PoseSolveOptions {
+                max_iterations: 300,
+                tolerance: 1e-12,
+            },
+            PoseStart::Warm(last.as_ref().expect("30 frames")),
+            &|| false,
+        )
+        .expect("converge");
+    let energy_subspace = model.full_arap_energy(&converged.pose);
+    if std::env::var("BENCH_DEBUG").is_ok() {
+        let e = &converged.stats.energies;
+        let w = &last.as_ref().unwrap().stats;
+        eprintln!(
+            "last drag solve: local {:.3} ms global {:.3} ms rejected {}",
+            w.local_s * 1e3,
+            w.global_s * 1e3,
+            w.rejected_steps
+        );
+        eprintln!(
+            "converge energies: first {:?} … last {:?}",
+            &e[..e.len().min(8)],
+            &e[e.len().saturating_sub(4)..]
+        );
+    }
+    let skinned = model.skin_welded(&converged.pose);
+    let handle_error = handle
+        .iter()
+        .map(|&i| skinned[i as usize].distance(target.apply(rest[i as usize])))
+        .sum::<f64>()
+        / handle.len() as f64
+        / diagonal;
+    let bone_error = max_bone_length_error(model.skeleton(), &bind, &converged.pose) / diagonal;
+
+    let full = Constraints {
+        fixed,
+        handles: vec![Handle {
+            vertices: handle,
+            transform: target,
+        }],
+        targets: Vec::new(),
+    };
+    let full_solver =
+        ArapSolver::precompute(model.topology().clone(), &full, SolverSettings::default())
+            .expect("full precompute");
+    let full_solution = full_solver
+        .solve(
+            &full,
+            &SolveOptions {
+                max_iterations: 400,
+                tolerance: 1e-9,
+                anderson_depth: 0,
+            },
+            InitialGuess::Laplacian,
+            &|| false,
+        )
+        .expect("full solve");
+    let energy_full = arap_energy(model.topology(), &full_solution.positions);
+
+    if !args.json {
+        println!(
+            "{name}: {} render vertices, {} joints, {} clusters; precompute {precompute_ms:.0} ms; {ms_per_solve:.3} ms/solve; energy {energy_subspace:.5} (full-mesh ARAP {energy_full:.5})",
+            mesh.positions.len(),
+            model.skeleton().len(),
+            model.cluster_count()
+        );
+    }
+    println!(
+        "{{\"model\": \"{name}\", \"render_vertices\": {}, \"welded_vertices\": {}, \"joints\": {}, \"clusters\": {}, \"precompute_ms\": {precompute_ms:.1}, \"ms_per_iteration\": {ms_per_iteration:.4}, \"ms_per_solve\": {ms_per_solve:.4}, \"energy_subspace\": {energy_subspace:.6}, \"energy_full_arap\": {energy_full:.6}, \"max_bone_length_error\": {bone_error:.3e}, \"handle_error\": {handle_error:.3e}, \"converge_iterations\": {}}}",
+        mesh.positions.len(),
+        model.topology().vertex_count(),
+        model.skeleton().len(),
+        model.cluster_count(),
+        converged.stats.iterations
+    );
+}
