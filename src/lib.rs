@@ -17,11 +17,13 @@ pub mod prelude {
         ConnectionState, DeformConfig, DeformError, DeformFailed, DeformHandle, DeformPhase,
         DeformPlugin, DeformSolved, DeformStatus, DeformSystems, Deformable, DeformableFrom,
         DeformableScene, FixedRegion, GrabEnd, GrabMove, GrabPlugin, GrabStart, Grabbable,
-        MouseControlPlugin, MouseHandleControl, WiiDeformPlugins, Wiimote, WiimoteButtonChanged,
-        WiimoteCalibration, WiimoteConnected, WiimoteControlPlugin, WiimoteDisconnected,
-        WiimoteEmulators, WiimoteFilter, WiimoteHandleControl, WiimoteLink,
-        WiimoteOrientationChanged, WiimotePlugin, WiimoteProblem, WiimoteProblems, WiimoteSettings,
-        WiimoteSource, WiimoteSystems, mesh_from_triangles,
+        MouseControlPlugin, MouseHandleControl, PinnedJoints, PoseFailed, PoseJointHandle,
+        PosePlugin, PoseSolved, PoseStatus, Poseable, PoseableError, PosedSkeleton,
+        WiiDeformPlugins, Wiimote, WiimoteButtonChanged, WiimoteCalibration, WiimoteConnected,
+        WiimoteControlPlugin, WiimoteDisconnected, WiimoteEmulators, WiimoteFilter,
+        WiimoteHandleControl, WiimoteLink, WiimoteOrientationChanged, WiimotePlugin,
+        WiimoteProblem, WiimoteProblems, WiimoteSettings, WiimoteSource, WiimoteSystems,
+        mesh_from_triangles,
     };
     pub use crate::wiimote::{EmulatorConfig, EmulatorControls, FilterKind, RemoteProblem};
 }

@@ -6,8 +6,11 @@
 //! | [`DeformPlugin`] | ARAP on [`Deformable`] meshes moved by [`DeformHandle`]s, solved in the `AsyncComputeTaskPool`, written back to the mesh asset | [`DeformSystems`] (`Update`: Prepare → Request → Poll → Writeback) |
 //! | [`WiimotePlugin`] | one entity per remote with a [`Wiimote`] component, messages, [`WiimoteHandleControl`] | [`WiimoteSystems`] (`PreUpdate`: Receive; `Update`: Control, before `DeformSystems::Request`) |
 //!
-//! [`WiiDeformPlugins`] adds both.
+//! | [`PosePlugin`] | posing rigged characters ([`Poseable`]): skinning-space ARAP solved for a skeleton pose, written to the joints | [`PoseSystems`] (`Update`: Prepare → Request → Poll after `DeformSystems::Request`; `PostUpdate`: Apply after `AnimationSystems`) |
+//!
+//! [`WiiDeformPlugins`] adds them all.
 
+mod character;
 mod control;
 mod deform;
 mod grab;
@@ -18,6 +21,10 @@ mod wiimote;
 use bevy::app::PluginGroupBuilder;
 use bevy::prelude::*;
 
+pub use character::{
+    PinnedJoints, PoseFailed, PoseJointHandle, PosePlugin, PoseSolved, PoseStatus, PoseSystems,
+    Poseable, PoseableError, PosedSkeleton,
+};
 pub use control::WiimoteHandleControl;
 pub use deform::{
     DeformConfig, DeformError, DeformFailed, DeformHandle, DeformPhase, DeformPlugin, DeformSolved,
@@ -64,7 +71,7 @@ impl Plugin for MouseControlPlugin {
     }
 }
 
-/// Every plugin: [`DeformPlugin`], [`WiimotePlugin`], [`WiimoteControlPlugin`] and
+/// Every plugin: [`DeformPlugin`], [`PosePlugin`], [`WiimotePlugin`], [`WiimoteControlPlugin`] and
 /// [`MouseControlPlugin`].
 #[derive(Debug, Clone, Default)]
 pub struct WiiDeformPlugins {
@@ -78,6 +85,7 @@ impl PluginGroup for WiiDeformPlugins {
     fn build(self) -> PluginGroupBuilder {
         PluginGroupBuilder::start::<Self>()
             .add(self.deform)
+            .add(PosePlugin)
             .add(self.wiimote)
             .add(WiimoteControlPlugin)
             .add(MouseControlPlugin)

@@ -1,0 +1,203 @@
+//! Posing rigged glTF characters in the ECS: [`Poseable`] on a character, handles that move
+//! vertex sets ([`crate::ecs::DeformHandle`]) or joints ([`PoseJointHandle`]), pins
+//! ([`PinnedJoints`]), and the solved skeleton pose written to the joint entities'
+//! `Transform`s. The math is [`crate::pose`]; this is the glue.
+//!
+//! # Spaces
+//! A character's handles live in **world space** (a skinned mesh is drawn where its joints
+//! put it, whatever its own transform): a `DeformHandle` aimed at a character has its pivot
+//! at the world centroid of its vertices, and its `Transform` is a world transform. Drive it
+//! with [`crate::ecs::MouseHandleControl`] / [`crate::ecs::WiimoteHandleControl`] with
+//! `space: None`, exactly like a static mesh's handle.
+//!
+//! Handle targets are relative to the pose the character was in when the constraint *set*
+//! last changed (a handle or pin added or removed): the plugin then rebases every handle to
+//! that pose — its pivot moves to where its vertices (or joint) are, its `Transform` to the
+//! pivot — so nothing jumps when a second handle is grabbed mid-pose.
+//!
+//! # Animation
+//! The solved pose is kept in [`PosedSkeleton::pose`] and written to the joints in
+//! `PostUpdate`, after `AnimationSystems` and before transform propagation:
+//! * **Posing a paused clip**: pause the `AnimationPlayer` (or stop it), then pose; the
+//!   pose starts from whatever the clip left on the joints.
+//! * **Override on top of a playing clip**: with [`Poseable::hold_pose`] (the default) the
+//!   pose is written every frame after the animation systems, so it wins over the clip on
+//!   every joint; with `hold_pose: false` it is written only when it changes and the playing
+//!   clip takes the joints back on the next frame.
+//!
+//! Set [`PosedSkeleton::pose`] yourself (e.g. from a [`crate::pose::PoseFile`]) to load a
+//! pose; the next solve starts from it.
+
+mod plugin;
+
+use std::sync::Arc;
+
+use bevy::prelude::*;
+
+use crate::pose::{PoseError, PoseFile, SkeletonPose, SkinnedModel};
+
+pub use plugin::{PosePlugin, PoseSystems};
+
+/// Makes a rigged character poseable. Put it on the glTF scene root (`WorldAssetRoot`), any
+/// ancestor of the skinned mesh, or the skinned mesh entity itself; the plugin finds the
+/// skinned primitives (`SkinnedMesh`) below it and their joints. Primitives sharing the
+/// first primitive's joint list form one model (their render vertices numbered one after the
+/// other, in hierarchy order); other skins below are ignored.
+#[derive(Component, Debug, Clone, Reflect, PartialEq)]
+#[reflect(Component, Default)]
+#[require(PoseStatus)]
+pub struct Poseable {
+    /// Iterations per solve (warm-started solves need few).
+    pub max_iterations: u32,
+    /// Relative energy decrease below which a solve stops early.
+    pub tolerance: f32,
+    /// Rotation clusters (k-means in weight space).
+    pub clusters: u32,
+    /// Write the pose to the joints every frame (overrides a playing clip), or only when it
+    /// changes.
+    pub hold_pose: bool,
+}
+
+impl Default for Poseable {
+    fn default() -> Self {
+        Self {
+            max_iterations: 4,
+            tolerance: 1e-5,
+            clusters: 100,
+            hold_pose: true,
+        }
+    }
+}
+
+/// Joints (entities) of a [`Poseable`] character kept where they are: the feet planted.
+#[derive(Component, Debug, Clone, Default, Reflect, PartialEq)]
+#[reflect(Component, Default)]
+pub struct PinnedJoints(pub Vec<Entity>);
+
+/// A handle that moves a joint (grab the hand joint). Its `Transform` is the joint's target
+/// world transform; at rest it is the joint's world transform (filled in by the plugin with
+/// [`PoseJointHandle::rest`] when `rest` is `None`).
+#[derive(Component, Debug, Clone, Reflect, PartialEq)]
+#[reflect(Component)]
+pub struct PoseJointHandle {
+    /// The [`Poseable`] character.
+    pub target: Entity,
+    /// The joint entity.
+    pub joint: Entity,
+    /// The joint's world transform when the handle was (re)based.
+    pub rest: Option<Transform>,
+}
+
+impl PoseJointHandle {
+    /// A handle on `joint` of `target`, rebased by the plugin.
+    pub fn new(target: Entity, joint: Entity) -> Self {
+        Self {
+            target,
+            joint,
+            rest: None,
+        }
+    }
+}
+
+/// Where a poseable character stands; readable by UIs.
+#[derive(Component, Debug, Clone, Default, Reflect)]
+#[reflect(Component, Default)]
+pub struct PoseStatus {
+    /// What the background worker is doing (shared with static meshes).
+    pub phase: crate::ecs::DeformPhase,
+    /// Joints of the skeleton (0 until prepared).
+    pub joints: usize,
+    /// Welded vertices of the model.
+    pub vertices: usize,
+    /// Iterations of the last solve.
+    pub iterations: u32,
+    /// Normalised objective after the last solve.
+    pub energy: f64,
+    /// Milliseconds of the last solve (including the constraint precompute when sets changed).
+    pub solve_ms: f64,
+    /// Completed solves so far.
+    pub solves: u64,
+    /// Last error.
+    #[reflect(ignore)]
+    pub error: Option<PoseableError>,
+}
+
+/// Why a character could not be made poseable or posed (in [`PoseFailed`] and
+/// [`PoseStatus::error`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PoseableError {
+    /// No `SkinnedMesh` at or below the entity (after its scene spawned).
+    #[error("no skinned mesh at or below this entity: Poseable needs a rigged character")]
+    NoSkinnedMesh,
+    /// The mesh lacks CPU-side positions, joint indices or weights in Bevy's formats.
+    #[error("the skinned mesh lacks CPU-side {0}")]
+    MissingAttribute(&'static str),
+    /// The mesh is not an indexed or plain triangle list.
+    #[error("the skinned mesh is not a triangle list")]
+    NotTriangleList,
+    /// The skin, skeleton or a solve was rejected.
+    #[error(transparent)]
+    Pose(#[from] PoseError),
+    /// A joint entity of the skin does not exist or has no `Transform`.
+    #[error("joint entity {0} of the skin is missing")]
+    MissingJoint(Entity),
+}
+
+/// A solve finished and its pose was stored (and written to the joints).
+#[derive(Message, Debug, Clone, PartialEq)]
+pub struct PoseSolved {
+    /// The [`Poseable`] entity.
+    pub entity: Entity,
+    /// Iterations done.
+    pub iterations: u32,
+    /// Normalised objective.
+    pub energy: f64,
+    /// Milliseconds.
+    pub solve_ms: f64,
+}
+
+/// Preparing or solving a character failed; the last good pose is kept.
+#[derive(Message, Debug, Clone, PartialEq)]
+pub struct PoseFailed {
+    /// The [`Poseable`] entity.
+    pub entity: Entity,
+    /// Why.
+    pub error: PoseableError,
+}
+
+/// Inserted by the plugin on a prepared [`Poseable`]: the model, its joints and the pose it
+/// holds. Read it to save the pose or to pick on what is on screen; write `pose` to load one.
+#[derive(Component, Debug, Clone)]
+pub struct PosedSkeleton {
+    /// The prepared model (skeleton in joint order of [`PosedSkeleton::joints`]).
+    pub model: Arc<SkinnedModel>,
+    /// Joint entities, indexed like the model's skeleton.
+    pub joints: Vec<Entity>,
+    /// The skinned primitive entities and the first (combined) render vertex of each.
+    pub primitives: Vec<(Entity, u32)>,
+    /// The pose written to the joints (local transforms).
+    pub pose: SkeletonPose,
+}
+
+impl PosedSkeleton {
+    /// World positions of every render vertex in the current pose (CPU linear-blend
+    /// skinning): ray-cast these to pick the posed character (Bevy 0.19's mesh ray cast uses
+    /// the bind pose of skinned meshes).
+    pub fn skinned_positions(&self) -> Vec<Vec3> {
+        self.model
+            .skin_render(&self.pose)
+            .iter()
+            .map(|p| p.as_vec3())
+            .collect()
+    }
+
+    /// The current pose as a [`PoseFile`] (joint name → local transform).
+    pub fn pose_file(&self) -> PoseFile {
+        PoseFile::from_pose(self.model.skeleton(), &self.pose)
+    }
+
+    /// Index of a joint entity in the skeleton.
+    pub fn joint_index(&self, joint: Entity) -> Option<usize> {
+        self.joints.iter().position(|&j| j == joint)
+    }
+}

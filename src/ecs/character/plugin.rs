@@ -1,0 +1,659 @@
+//! Systems of the character plugin: find the skin, build the model in the background, solve
+//! on handle changes (latest wins), write the pose to the joints after animation.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use bevy::app::AnimationSystems;
+use bevy::mesh::VertexAttributeValues;
+use bevy::mesh::skinning::{SkinnedMesh as BevySkin, SkinnedMeshInverseBindposes};
+use bevy::prelude::*;
+use bevy::tasks::futures::check_ready;
+use bevy::tasks::{AsyncComputeTaskPool, Task};
+use bevy::transform::TransformSystems;
+use bevy::world_serialization::WorldAssetRoot;
+use glam::{DAffine3, DVec3};
+
+use super::{
+    PinnedJoints, PoseFailed, PoseJointHandle, PoseSolved, PoseStatus, Poseable, PoseableError,
+    PosedSkeleton,
+};
+use crate::deform::{Handle as CoreHandle, RigidTransform};
+use crate::ecs::scene::{SceneSpawned, mark_scene_spawned};
+use crate::ecs::{DeformHandle, DeformPhase, DeformSystems};
+use crate::pose::{
+    Joint, JointHandle, JointTransform, ModelSettings, PoseConstraints, PoseSolution,
+    PoseSolveOptions, PoseSolver, PoseSolverSettings, PoseStart, Skeleton, SkeletonPose,
+    SkinnedMesh, SkinnedModel,
+};
+
+/// Phases of the character systems. Prepare, Request and Poll run in `Update` (Request after
+/// [`DeformSystems::Request`], so handle controls ordered before that set are seen the same
+/// frame); Apply runs in `PostUpdate` after `AnimationSystems`, before transform propagation.
+#[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum PoseSystems {
+    /// Find skins, build models.
+    Prepare,
+    /// Start solves when handles or pins changed.
+    Request,
+    /// Collect finished solves.
+    Poll,
+    /// Write the pose to the joint `Transform`s.
+    Apply,
+}
+
+/// Adds posing of rigged characters ([`Poseable`]).
+#[derive(Debug, Clone, Default)]
+pub struct PosePlugin;
+
+impl Plugin for PosePlugin {
+    fn build(&self, app: &mut App) {
+        app.register_type::<Poseable>()
+            .register_type::<PinnedJoints>()
+            .register_type::<PoseJointHandle>()
+            .register_type::<PoseStatus>()
+            .add_message::<PoseSolved>()
+            .add_message::<PoseFailed>()
+            .add_observer(mark_scene_spawned)
+            .configure_sets(
+                Update,
+                (
+                    PoseSystems::Prepare,
+                    PoseSystems::Request,
+                    PoseSystems::Poll,
+                )
+                    .chain()
+                    .after(DeformSystems::Request),
+            )
+            .configure_sets(
+                PostUpdate,
+                PoseSystems::Apply
+                    .after(AnimationSystems)
+                    .before(TransformSystems::Propagate),
+            )
+            .add_systems(
+                Update,
+                (
+                    (find_skins, finish_models)
+                        .chain()
+                        .in_set(PoseSystems::Prepare),
+                    request_pose_solves.in_set(PoseSystems::Request),
+                    poll_pose_solves.in_set(PoseSystems::Poll),
+                ),
+            )
+            .add_systems(PostUpdate, apply_poses.in_set(PoseSystems::Apply));
+    }
+}
+
+/// Which handles and pins a solver was built for.
+#[derive(Debug, Clone, PartialEq, Default)]
+struct SetKey {
+    handles: Vec<(Entity, Vec<u32>)>,
+    joint_handles: Vec<(Entity, Entity)>,
+    pins: Vec<Entity>,
+}
+
+type SolveResult = Result<(Arc<PoseSolver>, PoseSolution, f64), PoseableError>;
+
+/// Internal per-character state.
+#[derive(Component)]
+pub(crate) struct PoseState {
+    building: Option<Task<Result<SkinnedModel, PoseableError>>>,
+    joints: Vec<Entity>,
+    primitives: Vec<(Entity, u32)>,
+    key: Option<SetKey>,
+    reference: Option<SkeletonPose>,
+    solver: Option<Arc<PoseSolver>>,
+    last: Option<Arc<PoseSolution>>,
+    task: Option<Task<SolveResult>>,
+    requested: Arc<AtomicU64>,
+    pending: Option<PoseConstraints>,
+}
+
+fn fail(
+    entity: Entity,
+    error: PoseableError,
+    status: &mut PoseStatus,
+    failed: &mut MessageWriter<PoseFailed>,
+) {
+    warn!("Poseable {entity}: {error}");
+    status.phase = DeformPhase::Failed;
+    status.error = Some(error.clone());
+    failed.write(PoseFailed { entity, error });
+}
+
+fn affine(t: &GlobalTransform) -> DAffine3 {
+    let a = t.affine();
+    DAffine3::from_mat3_translation(
+        glam::Mat3::from(a.matrix3).as_dmat3(),
+        Vec3::from(a.translation).as_dvec3(),
+    )
+}
+
+fn joint_transform(t: &Transform) -> JointTransform {
+    JointTransform {
+        translation: t.translation.as_dvec3(),
+        rotation: t.rotation.as_dquat().normalize(),
+        scale: t.scale.as_dvec3(),
+    }
+}
+
+/// Reads positions, indices and skin attributes of one primitive.
+fn skinned_mesh_of(mesh: &Mesh) -> Result<SkinnedMesh, PoseableError> {
+    if mesh.primitive_topology() != bevy::mesh::PrimitiveTopology::TriangleList {
+        return Err(PoseableError::NotTriangleList);
+    }
+    let positions = match mesh.try_attribute(Mesh::ATTRIBUTE_POSITION) {
+        Ok(VertexAttributeValues::Float32x3(v)) => {
+            v.iter().map(|p| Vec3::from_array(*p)).collect::<Vec<_>>()
+        }
+        _ => return Err(PoseableError::MissingAttribute("Float32x3 positions")),
+    };
+    let joint_indices = match mesh.try_attribute(Mesh::ATTRIBUTE_JOINT_INDEX) {
+        Ok(VertexAttributeValues::Uint16x4(v)) => v.clone(),
+        _ => return Err(PoseableError::MissingAttribute("Uint16x4 joint indices")),
+    };
+    let joint_weights = match mesh.try_attribute(Mesh::ATTRIBUTE_JOINT_WEIGHT) {
+        Ok(VertexAttributeValues::Float32x4(v)) => v.clone(),
+        _ => return Err(PoseableError::MissingAttribute("Float32x4 joint weights")),
+    };
+    let indices = match mesh.try_indices() {
+        Ok(i) => i.iter().map(|x| x as u32).collect(),
+        Err(_) => (0..positions.len() as u32).collect(),
+    };
+    Ok(SkinnedMesh {
+        positions,
+        indices,
+        joint_indices,
+        joint_weights,
+    })
+}
+
+/// Finds the skinned primitives and joints of new [`Poseable`]s and starts building their
+/// models in the background.
+#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+fn find_skins(
+    mut commands: Commands,
+    mut new: Query<
+        (
+            Entity,
+            &Poseable,
+            &mut PoseStatus,
+            Has<WorldAssetRoot>,
+            Has<SceneSpawned>,
+        ),
+        Without<PoseState>,
+    >,
+    children: Query<&Children>,
+    skins: Query<(&BevySkin, &Mesh3d)>,
+    meshes: Res<Assets<Mesh>>,
+    bindposes: Res<Assets<SkinnedMeshInverseBindposes>>,
+    joints: Query<(&Transform, Option<&ChildOf>, Option<&Name>)>,
+    globals: Query<&GlobalTransform>,
+    mut failed: MessageWriter<PoseFailed>,
+) {
+    for (entity, poseable, mut status, is_scene, spawned) in &mut new {
+        if status.phase == DeformPhase::Failed {
+            continue;
+        }
+        let primitives: Vec<Entity> = std::iter::once(entity)
+            .chain(children.iter_descendants(entity))
+            .filter(|e| skins.contains(*e))
+            .collect();
+        let Some(&first) = primitives.first() else {
+            let has_children = children.get(entity).is_ok_and(|c| !c.is_empty());
+            if (is_scene && !spawned) || (!is_scene && !has_children) {
+                continue; // not spawned yet
+            }
+            fail(
+                entity,
+                PoseableError::NoSkinnedMesh,
+                &mut status,
+                &mut failed,
+            );
+            continue;
+        };
+        let (skin, _) = skins.get(first).expect("filtered");
+        let Some(ibp) = bindposes.get(&skin.inverse_bindposes) else {
+            continue; // loading
+        };
+        let members: Vec<Entity> = primitives
+            .iter()
+            .copied()
+            .filter(|&p| skins.get(p).is_ok_and(|(s, _)| s.joints == skin.joints))
+            .collect();
+        let mut mesh = SkinnedMesh::default();
+        let mut offsets = Vec::new();
+        let mut result: Result<(), PoseableError> = Ok(());
+        for &p in &members {
+            let (_, mesh3d) = skins.get(p).expect("filtered");
+            let Some(asset) = meshes.get(&mesh3d.0) else {
+                result = Err(PoseableError::MissingAttribute(
+                    "mesh asset (still loading)",
+                ));
+                break;
+            };
+            match skinned_mesh_of(asset) {
+                Ok(part) => {
+                    let base = mesh.positions.len() as u32;
+                    offsets.push((p, base));
+                    mesh.indices.extend(part.indices.iter().map(|i| i + base));
+                    mesh.positions.extend(part.positions);
+                    mesh.joint_indices.extend(part.joint_indices);
+                    mesh.joint_weights.extend(part.joint_weights);
+                }
+                Err(e) => {
+                    result = Err(e);
+                    break;
+                }
+            }
+        }
+        match result {
+            Err(PoseableError::MissingAttribute("mesh asset (still loading)")) => continue,
+            Err(e) => {
+                fail(entity, e, &mut status, &mut failed);
+                continue;
+            }
+            Ok(()) => {}
+        }
+        // The skeleton: parents are the nearest joint ancestors; a root's parent frame is its
+        // parent entity's world transform.
+        let mut list = Vec::with_capacity(skin.joints.len());
+        let mut reference = Vec::with_capacity(skin.joints.len());
+        let mut missing = None;
+        for (k, &j) in skin.joints.iter().enumerate() {
+            let Ok((transform, child_of, name)) = joints.get(j) else {
+                missing = Some(j);
+                break;
+            };
+            let mut up = child_of.map(|c| c.parent());
+            let mut parent = None;
+            while let Some(p) = up {
+                if let Some(index) = skin.joints.iter().position(|&x| x == p) {
+                    parent = Some(index);
+                    break;
+                }
+                up = joints
+                    .get(p)
+                    .ok()
+                    .and_then(|(_, c, _)| c.map(|c| c.parent()));
+            }
+            let parent_frame = match (parent, child_of) {
+                (None, Some(c)) => globals
+                    .get(c.parent())
+                    .map(affine)
+                    .unwrap_or(DAffine3::IDENTITY),
+                _ => DAffine3::IDENTITY,
+            };
+            let inverse_bind = ibp
+                .get(k)
+                .map(|m| DAffine3::from_mat4(m.as_dmat4()))
+                .unwrap_or(DAffine3::IDENTITY);
+            list.push(Joint {
+                name: name.map_or_else(|| format!("joint{k}"), |n| n.as_str().to_string()),
+                parent,
+                parent_frame,
+                inverse_bind,
+            });
+            reference.push(joint_transform(transform));
+        }
+        if let Some(j) = missing {
+            fail(
+                entity,
+                PoseableError::MissingJoint(j),
+                &mut status,
+                &mut failed,
+            );
+            continue;
+        }
+        let sorted = Skeleton::sorted(list);
+        let (skeleton, order) = match sorted {
+            Ok(s) => s,
+            Err(e) => {
+                fail(entity, e.into(), &mut status, &mut failed);
+                continue;
+            }
+        };
+        let mut new_index = vec![u16::MAX; order.len()];
+        for (new, &old) in order.iter().enumerate() {
+            new_index[old] = new as u16;
+        }
+        for ji in &mut mesh.joint_indices {
+            *ji = ji.map(|j| new_index.get(j as usize).copied().unwrap_or(u16::MAX));
+        }
+        let reference = SkeletonPose {
+            local: order.iter().map(|&old| reference[old]).collect(),
+        };
+        let settings = ModelSettings {
+            clusters: poseable.clusters.max(1) as usize,
+            ..Default::default()
+        };
+        let task = AsyncComputeTaskPool::get()
+            .spawn(async move { Ok(SkinnedModel::new(skeleton, &mesh, &reference, settings)?) });
+        status.phase = DeformPhase::BuildingTopology;
+        commands.entity(entity).insert(PoseState {
+            building: Some(task),
+            joints: order.iter().map(|&old| skin.joints[old]).collect(),
+            primitives: offsets,
+            key: None,
+            reference: None,
+            solver: None,
+            last: None,
+            task: None,
+            requested: Arc::new(AtomicU64::new(0)),
+            pending: None,
+        });
+    }
+}
+
+/// Collects built models; inserts [`PosedSkeleton`] with the joints' current pose.
+fn finish_models(
+    mut commands: Commands,
+    mut building: Query<(Entity, &mut PoseState, &mut PoseStatus)>,
+    joints: Query<&Transform>,
+    mut failed: MessageWriter<PoseFailed>,
+) {
+    for (entity, mut state, mut status) in &mut building {
+        let Some(task) = state.building.as_mut() else {
+            continue;
+        };
+        let Some(result) = check_ready(task) else {
+            continue;
+        };
+        state.building = None;
+        match result {
+            Ok(model) => {
+                let pose = SkeletonPose {
+                    local: state
+                        .joints
+                        .iter()
+                        .map(|&j| joints.get(j).map(joint_transform).unwrap_or_default())
+                        .collect(),
+                };
+                status.phase = DeformPhase::Idle;
+                status.joints = model.skeleton().len();
+                status.vertices = model.topology().vertex_count();
+                commands.entity(entity).insert(PosedSkeleton {
+                    model: Arc::new(model),
+                    joints: state.joints.clone(),
+                    primitives: state.primitives.clone(),
+                    pose,
+                });
+            }
+            Err(e) => fail(entity, e, &mut status, &mut failed),
+        }
+    }
+}
+
+/// Rebases the handles of a character to `reference`: vertex handles' pivots to the world
+/// centroid of their skinned vertices, joint handles' rests to the joint's world transform;
+/// each `Transform` to its rest.
+fn rebase(
+    posed: &PosedSkeleton,
+    reference: &SkeletonPose,
+    handles: &mut [(Entity, Mut<DeformHandle>, Mut<Transform>)],
+    joint_handles: &mut [(Entity, Mut<PoseJointHandle>, Mut<Transform>)],
+) {
+    let model = &posed.model;
+    let skinned = model.skin_render(reference);
+    for (_, h, t) in handles.iter_mut() {
+        let pts: Vec<DVec3> = h
+            .vertices
+            .iter()
+            .filter_map(|&v| skinned.get(v as usize).copied())
+            .collect();
+        let c = if pts.is_empty() {
+            DVec3::ZERO
+        } else {
+            pts.iter().sum::<DVec3>() / pts.len() as f64
+        };
+        h.pivot = Some(c.as_vec3());
+        **t = Transform::from_translation(c.as_vec3());
+    }
+    let globals = model.skeleton().global_transforms(reference);
+    for (_, h, t) in joint_handles.iter_mut() {
+        let Some(j) = posed.joint_index(h.joint) else {
+            continue;
+        };
+        let (_, rotation, translation) = globals[j].to_scale_rotation_translation();
+        let rest = Transform::from_translation(translation.as_vec3())
+            .with_rotation(rotation.as_quat().normalize());
+        h.rest = Some(rest);
+        **t = rest;
+    }
+}
+
+/// Starts a solve when a character's handles, pins or pose changed (latest wins).
+#[allow(clippy::type_complexity)]
+fn request_pose_solves(
+    mut characters: Query<(
+        Entity,
+        &Poseable,
+        Ref<PosedSkeleton>,
+        Option<Ref<PinnedJoints>>,
+        &mut PoseState,
+        &mut PoseStatus,
+    )>,
+    mut handles: Query<(Entity, &mut DeformHandle, &mut Transform), Without<PoseJointHandle>>,
+    mut joint_handles: Query<(Entity, &mut PoseJointHandle, &mut Transform), Without<DeformHandle>>,
+) {
+    for (entity, poseable, posed, pins, mut state, mut status) in &mut characters {
+        let mut mine: Vec<(Entity, Mut<DeformHandle>, Mut<Transform>)> = handles
+            .iter_mut()
+            .filter(|(_, h, _)| h.target == entity)
+            .collect();
+        let mut mine_j: Vec<(Entity, Mut<PoseJointHandle>, Mut<Transform>)> = joint_handles
+            .iter_mut()
+            .filter(|(_, h, _)| h.target == entity)
+            .collect();
+        mine.sort_by_key(|(e, _, _)| *e);
+        mine_j.sort_by_key(|(e, _, _)| *e);
+        let key = SetKey {
+            handles: mine
+                .iter()
+                .map(|(e, h, _)| (*e, h.vertices.clone()))
+                .collect(),
+            joint_handles: mine_j.iter().map(|(e, h, _)| (*e, h.joint)).collect(),
+            pins: pins.as_ref().map(|p| p.0.clone()).unwrap_or_default(),
+        };
+        if mine.is_empty() && mine_j.is_empty() {
+            state.bypass_change_detection().key = None;
+            continue; // nothing drives the pose
+        }
+        let set_changed = state.key.as_ref() != Some(&key)
+            || mine.iter().any(|(_, h, _)| h.pivot.is_none())
+            || mine_j.iter().any(|(_, h, _)| h.rest.is_none());
+        if set_changed {
+            let reference = posed.pose.clone();
+            rebase(&posed, &reference, &mut mine, &mut mine_j);
+            let state = state.bypass_change_detection();
+            state.key = Some(key);
+            state.reference = Some(reference);
+            state.solver = None;
+            state.last = None;
+            continue; // the rebased Transforms trigger the solve next frame
+        }
+        let changed = mine.iter().any(|(_, _, t)| t.is_changed())
+            || mine_j.iter().any(|(_, _, t)| t.is_changed())
+            || pins.as_ref().is_some_and(|p| p.is_changed());
+        if !changed && state.pending.is_none() {
+            continue;
+        }
+        let to_index = |e: &Entity| posed.joint_index(*e);
+        let fixed_joints: Vec<usize> = pins
+            .as_ref()
+            .map(|p| p.0.iter().filter_map(to_index).collect())
+            .unwrap_or_default();
+        let model = &posed.model;
+        let constraints = PoseConstraints {
+            handles: mine
+                .iter()
+                .map(|(_, h, t)| CoreHandle {
+                    vertices: model.topology().welded_set(&h.vertices),
+                    transform: h.rigid_transform(t),
+                })
+                .collect(),
+            fixed_vertices: Vec::new(),
+            fixed_joints,
+            joint_handles: mine_j
+                .iter()
+                .filter_map(|(_, h, t)| {
+                    let joint = posed.joint_index(h.joint)?;
+                    let rest = h.rest?;
+                    let rotation = (t.rotation * rest.rotation.inverse())
+                        .as_dquat()
+                        .normalize();
+                    let transform = RigidTransform::new(
+                        rotation,
+                        (t.translation - rest.translation).as_dvec3(),
+                        rest.translation.as_dvec3(),
+                    );
+                    Some(JointHandle { joint, transform })
+                })
+                .collect(),
+        };
+        let state = state.bypass_change_detection();
+        state.pending = Some(constraints);
+        state.requested.fetch_add(1, Ordering::Relaxed);
+        if state.task.is_none() {
+            spawn_pose_solve(state, &posed, poseable, &mut status);
+        }
+    }
+}
+
+fn spawn_pose_solve(
+    state: &mut PoseState,
+    posed: &PosedSkeleton,
+    poseable: &Poseable,
+    status: &mut PoseStatus,
+) {
+    let Some(constraints) = state.pending.take() else {
+        return;
+    };
+    let Some(reference) = state.reference.clone() else {
+        return;
+    };
+    let model = posed.model.clone();
+    let reuse = state.solver.clone().filter(|s| s.accepts(&constraints));
+    let warm = if reuse.is_some() {
+        state.last.clone()
+    } else {
+        None
+    };
+    let current = posed.pose.clone();
+    let options = PoseSolveOptions {
+        max_iterations: poseable.max_iterations.max(1),
+        tolerance: poseable.tolerance.max(0.0) as f64,
+    };
+    let generation = state.requested.load(Ordering::Relaxed);
+    let requested = state.requested.clone();
+    status.phase = DeformPhase::Solving;
+    state.task = Some(AsyncComputeTaskPool::get().spawn(async move {
+        let t0 = std::time::Instant::now();
+        let solver = match reuse {
+            Some(s) => s,
+            None => Arc::new(PoseSolver::new(
+                model,
+                &constraints,
+                &reference,
+                PoseSolverSettings::default(),
+            )?),
+        };
+        let start = warm
+            .as_deref()
+            .map_or(PoseStart::Pose(&current), PoseStart::Warm);
+        let calls = std::cell::Cell::new(0u32);
+        let cancel = || {
+            calls.set(calls.get() + 1);
+            calls.get() > 1 && requested.load(Ordering::Relaxed) != generation
+        };
+        let solution = solver.solve(&constraints, &options, start, &cancel)?;
+        Ok((solver, solution, t0.elapsed().as_secs_f64() * 1e3))
+    }));
+}
+
+/// Stores finished solves in [`PosedSkeleton::pose`]; starts the pending one.
+fn poll_pose_solves(
+    mut characters: Query<(
+        Entity,
+        &Poseable,
+        &mut PosedSkeleton,
+        &mut PoseState,
+        &mut PoseStatus,
+    )>,
+    mut solved: MessageWriter<PoseSolved>,
+    mut failed: MessageWriter<PoseFailed>,
+) {
+    for (entity, poseable, mut posed, mut state, mut status) in &mut characters {
+        let state = state.bypass_change_detection();
+        let Some(task) = state.task.as_mut() else {
+            continue;
+        };
+        let Some(result) = check_ready(task) else {
+            continue;
+        };
+        state.task = None;
+        match result {
+            Ok((solver, solution, ms)) => {
+                status.iterations = solution.stats.iterations;
+                status.energy = solution
+                    .stats
+                    .energies
+                    .last()
+                    .copied()
+                    .unwrap_or(solution.stats.initial_energy);
+                status.solve_ms = ms;
+                status.solves += 1;
+                status.error = None;
+                status.phase = DeformPhase::Idle;
+                posed.pose = solution.pose.clone();
+                state.solver = Some(solver);
+                state.last = Some(Arc::new(solution));
+                solved.write(PoseSolved {
+                    entity,
+                    iterations: status.iterations,
+                    energy: status.energy,
+                    solve_ms: ms,
+                });
+            }
+            Err(error) => {
+                // The last good pose is kept.
+                warn!("Poseable {entity}: {error}");
+                status.error = Some(error.clone());
+                status.phase = DeformPhase::Idle;
+                failed.write(PoseFailed { entity, error });
+            }
+        }
+        if state.pending.is_some() {
+            spawn_pose_solve(state, &posed, poseable, &mut status);
+        }
+    }
+}
+
+/// Writes each character's pose to its joints (every frame with `hold_pose`, else when it
+/// changed).
+fn apply_poses(
+    characters: Query<(&Poseable, Ref<PosedSkeleton>)>,
+    mut joints: Query<&mut Transform>,
+) {
+    for (poseable, posed) in &characters {
+        if !poseable.hold_pose && !posed.is_changed() {
+            continue;
+        }
+        for (&j, t) in posed.joints.iter().zip(&posed.pose.local) {
+            if !t.is_valid() {
+                continue;
+            }
+            if let Ok(mut transform) = joints.get_mut(j) {
+                let new = Transform {
+                    translation: t.translation.as_vec3(),
+                    rotation: t.rotation.as_quat().normalize(),
+                    scale: t.scale.as_vec3(),
+                };
+                if *transform != new {
+                    *transform = new;
+                }
+            }
+        }
+    }
+}
