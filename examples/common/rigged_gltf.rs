@@ -6,7 +6,7 @@
 use std::path::Path;
 
 use bevy_wii_deform::pose::{Joint, Skeleton, SkinnedMesh};
-use glam::{DAffine3, DMat4, Mat4, Vec3};
+use glam::{DAffine3, Mat4, Vec3};
 
 /// A character read from a glTF file.
 pub struct RiggedGltf {
@@ -28,9 +28,7 @@ pub fn load(path: &Path) -> Result<RiggedGltf, String> {
     let local: Vec<DAffine3> = document
         .nodes()
         .map(|n| {
-            DAffine3::from_mat4(DMat4::from(
-                Mat4::from_cols_array_2d(&n.transform().matrix()).as_dmat4(),
-            ))
+            DAffine3::from_mat4(Mat4::from_cols_array_2d(&n.transform().matrix()).as_dmat4())
         })
         .collect();
     let global = |mut i: usize| {

@@ -185,9 +185,9 @@ pub fn write_gltf_pose_clip(
         }
         for depth in 1..=path.len() {
             let key = path[..depth].to_vec();
-            if !node_of.contains_key(&key) {
+            if let std::collections::btree_map::Entry::Vacant(slot) = node_of.entry(key) {
                 let index = children.len() as u32;
-                node_of.insert(key, index);
+                slot.insert(index);
                 children.push(Vec::new());
                 transforms.push(None);
                 if depth == 1 {
@@ -331,7 +331,7 @@ pub fn write_gltf_pose_clip(
         }
     }
     root.animations.push(animation);
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     root.buffers.push(json::Buffer {
@@ -344,7 +344,7 @@ pub fn write_gltf_pose_clip(
     root.asset.generator = Some("bevy_wii_deform".into());
     let mut text =
         json::serialize::to_vec(&root).map_err(|e| PoseFileError::Serialize(e.to_string()))?;
-    while text.len() % 4 != 0 {
+    while !text.len().is_multiple_of(4) {
         text.push(b' ');
     }
     let total = 12 + 8 + text.len() + 8 + bin.len();

@@ -857,8 +857,8 @@ impl TwistBlock {
 fn affine_rows(a: &DAffine3) -> [[f64; 4]; 4] {
     let mut m = [[0.0; 4]; 4];
     for (r, row) in m.iter_mut().enumerate().take(3) {
-        for c in 0..3 {
-            row[c] = a.matrix3.col(c)[r];
+        for (c, v) in row.iter_mut().enumerate().take(3) {
+            *v = a.matrix3.col(c)[r];
         }
         row[3] = a.translation[r];
     }
@@ -936,7 +936,7 @@ fn cholesky_in_place(a: &mut [f64], n: usize) -> bool {
         for k in 0..j {
             d -= a[j * n + k] * a[j * n + k];
         }
-        if !(d > 0.0) {
+        if d.is_nan() || d <= 0.0 {
             return false;
         }
         let d = d.sqrt();
