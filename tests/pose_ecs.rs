@@ -307,3 +307,241 @@ fn an_entity_without_a_skin_gets_a_typed_error() {
         Some(PoseableError::NoSkinnedMesh)
     );
 }
+
+/// The Fox through Bevy's own glTF loader: `Poseable` on the scene root finds the skin and
+/// 24 joints; a handle on the head's vertices moves them, the feet joints pinned stay.
+#[test]
+fn the_fox_from_bevys_gltf_loader_is_poseable() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/models");
+    if !dir.join("Fox.glb").exists() {
+        eprintln!("SKIPPED: ../shared/models/Fox.glb is not present");
+        return;
+    }
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        bevy::asset::AssetPlugin {
+            file_path: dir.display().to_string(),
+            // The saved clip is written to a temporary directory outside the asset folder.
+            unapproved_path_mode: bevy::asset::UnapprovedPathMode::Allow,
+            ..default()
+        },
+        bevy::mesh::MeshPlugin,
+        bevy::transform::TransformPlugin,
+        bevy::image::ImagePlugin::default(),
+        bevy::world_serialization::WorldSerializationPlugin,
+        bevy::animation::AnimationPlugin,
+        bevy::gltf::GltfPlugin::default(),
+        PosePlugin,
+    ));
+    app.init_asset::<StandardMaterial>();
+    // The glTF loader is registered in `Plugin::finish` (which `App::run` calls).
+    app.finish();
+    app.cleanup();
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_millis(
+        16,
+    )));
+    // Materials (and so textures) are not needed to pose; the test app has no renderer.
+    let scene = app
+        .world()
+        .resource::<AssetServer>()
+        .load_builder()
+        .with_settings(|s: &mut bevy::gltf::GltfLoaderSettings| {
+            s.load_materials = bevy::asset::RenderAssetUsages::empty();
+            s.load_cameras = false;
+            s.load_lights = false;
+        })
+        .load(GltfAssetLabel::Scene(0).from_asset("Fox.glb"));
+    let root = app
+        .world_mut()
+        .spawn((
+            bevy::world_serialization::WorldAssetRoot(scene),
+            Poseable::default(),
+        ))
+        .id();
+    update_until(&mut app, "the Fox's model", |a| {
+        a.world().get::<PosedSkeleton>(root).is_some()
+            || a.world()
+                .get::<PoseStatus>(root)
+                .is_some_and(|s| s.error.is_some())
+    });
+    assert_eq!(app.world().get::<PoseStatus>(root).unwrap().error, None);
+    let posed = app.world().get::<PosedSkeleton>(root).unwrap().clone();
+    assert_eq!(posed.joints.len(), 24);
+    let names: Vec<String> = posed
+        .model
+        .skeleton()
+        .joints()
+        .iter()
+        .map(|j| j.name.clone())
+        .collect();
+    let feet: Vec<Entity> = names
+        .iter()
+        .enumerate()
+        .filter(|(_, n)| n.contains("Foot") || n.contains("foot"))
+        .map(|(k, _)| posed.joints[k])
+        .collect();
+    assert!(!feet.is_empty(), "no foot joints among {names:?}");
+    app.world_mut()
+        .entity_mut(root)
+        .insert(PinnedJoints(feet.clone()));
+    // The render vertices as drawn now (CPU skinning of the current pose), and the head: the
+    // vertices farthest along the body's forward axis (+z of the Fox's bind pose).
+    let drawn = posed.skinned_positions();
+    let size = posed.model.topology().bounding_diagonal() as f32;
+    let mut order: Vec<u32> = (0..drawn.len() as u32).collect();
+    order.sort_by(|&a, &b| drawn[b as usize].y.total_cmp(&drawn[a as usize].y));
+    let head: Vec<u32> = order[..drawn.len() / 30].to_vec();
+    let handle = app
+        .world_mut()
+        .spawn((
+            DeformHandle {
+                target: root,
+                vertices: head.clone(),
+                pivot: None,
+            },
+            Transform::IDENTITY,
+        ))
+        .id();
+    update_until(&mut app, "the pivot", |a| {
+        a.world()
+            .get::<DeformHandle>(handle)
+            .unwrap()
+            .pivot
+            .is_some()
+    });
+    let feet_before: Vec<Transform> = feet
+        .iter()
+        .map(|&f| *app.world().get::<Transform>(f).unwrap())
+        .collect();
+    let reference = app
+        .world()
+        .get::<PosedSkeleton>(root)
+        .unwrap()
+        .skinned_positions();
+    let shift = Vec3::new(0.04, 0.03, 0.0) * size;
+    let pivot = app
+        .world()
+        .get::<DeformHandle>(handle)
+        .unwrap()
+        .pivot
+        .unwrap();
+    app.world_mut()
+        .get_mut::<Transform>(handle)
+        .unwrap()
+        .translation = pivot + shift;
+    for _ in 0..30 {
+        let before = solves(&app, root);
+        app.world_mut()
+            .get_mut::<Transform>(handle)
+            .unwrap()
+            .set_changed();
+        update_until(&mut app, "a solve", |a| solves(a, root) > before);
+    }
+    app.update();
+    let posed = app.world().get::<PosedSkeleton>(root).unwrap().clone();
+    let now = posed.skinned_positions();
+    let mean_error = head
+        .iter()
+        .map(|&i| (now[i as usize] - (reference[i as usize] + shift)).length())
+        .sum::<f32>()
+        / head.len() as f32;
+    assert!(
+        mean_error < 0.01 * size,
+        "head vertices {mean_error} from target (size {size})"
+    );
+    for (f, before) in feet.iter().zip(&feet_before) {
+        let after = app.world().get::<Transform>(*f).unwrap();
+        assert!(after.translation.distance(before.translation) < 1e-3 * size);
+    }
+
+    // Save the pose as a RON pose file and as a one-keyframe glTF clip; play the clip back
+    // through Bevy's loader on the same Fox, and load the RON file back.
+    let world = app.world();
+    let tracks = posed.clip_tracks(|e| {
+        (
+            world.get::<Name>(e).map(|n| n.as_str().to_string()),
+            world.get::<ChildOf>(e).map(|c| c.parent()),
+            world.get::<AnimationPlayer>(e).is_some(),
+        )
+    });
+    let glb = bevy_wii_deform::pose::write_gltf_pose_clip("pose", &tracks).unwrap();
+    let ron = posed.pose_file().to_ron().unwrap();
+    let out = std::env::temp_dir().join(format!("pose_ecs_{}", std::process::id()));
+    std::fs::create_dir_all(&out).unwrap();
+    std::fs::write(out.join("pose.glb"), glb).unwrap();
+    // Let go: no handles, and stop holding the pose so the clip drives the joints.
+    app.world_mut().despawn(handle);
+    app.world_mut()
+        .entity_mut(root)
+        .remove::<(Poseable, PosedSkeleton)>();
+    let rest = posed.model.skeleton().bind_pose();
+    let player = {
+        let w = app.world_mut();
+        let mut q = w.query_filtered::<Entity, With<AnimationPlayer>>();
+        q.iter(w).next().expect("the Fox has an AnimationPlayer")
+    };
+    // Knock the joints out of the pose, then play the saved clip.
+    for &j in &posed.joints {
+        app.world_mut().get_mut::<Transform>(j).unwrap().rotation = Quat::IDENTITY;
+    }
+    let clip: Handle<AnimationClip> = app.world().resource::<AssetServer>().load(
+        GltfAssetLabel::Animation(0)
+            .from_asset(bevy::asset::AssetPath::from_path_buf(out.join("pose.glb"))),
+    );
+    update_until(&mut app, "the saved clip", |a| {
+        a.world()
+            .resource::<Assets<AnimationClip>>()
+            .get(&clip)
+            .is_some()
+    });
+    // Every joint of the Fox has a curve in the saved clip (same name paths).
+    {
+        let w = app.world();
+        let c = w.resource::<Assets<AnimationClip>>().get(&clip).unwrap();
+        let hits = posed
+            .joints
+            .iter()
+            .filter(|&&j| {
+                w.get::<bevy::animation::AnimationTargetId>(j)
+                    .is_some_and(|id| c.curves().contains_key(id))
+            })
+            .count();
+        assert_eq!(hits, posed.joints.len());
+    }
+    let (graph, node) = AnimationGraph::from_clip(clip);
+    let graph = app
+        .world_mut()
+        .resource_mut::<Assets<AnimationGraph>>()
+        .add(graph);
+    app.world_mut()
+        .entity_mut(player)
+        .insert(AnimationGraphHandle(graph));
+    app.world_mut()
+        .get_mut::<AnimationPlayer>(player)
+        .unwrap()
+        .stop_all()
+        .play(node);
+    for _ in 0..5 {
+        app.update();
+    }
+    for (&j, t) in posed.joints.iter().zip(&posed.pose.local) {
+        let now = app.world().get::<Transform>(j).unwrap();
+        let (a, b) = (now.rotation, t.rotation.as_quat());
+        let b = if a.dot(b) < 0.0 { -b } else { b };
+        assert!(
+            (a - b).length() < 1e-5,
+            "joint {j}: clip gives {:?}, pose was {:?}",
+            now.rotation,
+            t.rotation
+        );
+    }
+    let back = bevy_wii_deform::pose::PoseFile::from_ron(&ron)
+        .unwrap()
+        .apply(posed.model.skeleton(), &rest)
+        .unwrap();
+    for (a, b) in back.local.iter().zip(&posed.pose.local) {
+        assert!(a.rotation.angle_between(b.rotation) < 1e-9);
+    }
+    let _ = std::fs::remove_dir_all(out);
+}

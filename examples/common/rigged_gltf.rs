@@ -27,9 +27,7 @@ pub fn load(path: &Path) -> Result<RiggedGltf, String> {
     }
     let local: Vec<DAffine3> = document
         .nodes()
-        .map(|n| {
-            DAffine3::from_mat4(Mat4::from_cols_array_2d(&n.transform().matrix()).as_dmat4())
-        })
+        .map(|n| DAffine3::from_mat4(Mat4::from_cols_array_2d(&n.transform().matrix()).as_dmat4()))
         .collect();
     let global = |mut i: usize| {
         let mut m = local[i];

@@ -196,6 +196,34 @@ impl PosedSkeleton {
         PoseFile::from_pose(self.model.skeleton(), &self.pose)
     }
 
+    /// The pose as tracks for [`crate::pose::write_gltf_pose_clip`]: per joint, the names
+    /// from the animation root (the entity with the `AnimationPlayer`, included) down to the
+    /// joint — the path Bevy's glTF loader keys clips by — and its local transform.
+    /// `node(e)` gives an entity's name, its parent, and whether it is the animation root
+    /// (e.g. from `Name`, `ChildOf` and `Has<AnimationPlayer>`); without a root the path
+    /// runs up to the first unnamed ancestor.
+    pub fn clip_tracks(
+        &self,
+        node: impl Fn(Entity) -> (Option<String>, Option<Entity>, bool),
+    ) -> Vec<(Vec<String>, crate::pose::JointTransform)> {
+        self.joints
+            .iter()
+            .zip(&self.pose.local)
+            .map(|(&joint, t)| {
+                let mut path = Vec::new();
+                let mut at = Some(joint);
+                while let Some(e) = at {
+                    let (name, parent, is_root) = node(e);
+                    let Some(name) = name else { break };
+                    path.push(name);
+                    at = if is_root { None } else { parent };
+                }
+                path.reverse();
+                (path, *t)
+            })
+            .collect()
+    }
+
     /// Index of a joint entity in the skeleton.
     pub fn joint_index(&self, joint: Entity) -> Option<usize> {
         self.joints.iter().position(|&j| j == joint)
