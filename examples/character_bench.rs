@@ -182,9 +182,10 @@ fn main() {
         let e = &converged.stats.energies;
         let w = &last.as_ref().unwrap().stats;
         eprintln!(
-            "last drag solve: local {:.3} ms global {:.3} ms rejected {}",
+            "last drag solve: local {:.3} ms global {:.3} ms (systems {:.3} ms) rejected {}",
             w.local_s * 1e3,
             w.global_s * 1e3,
+            w.system_s * 1e3,
             w.rejected_steps
         );
         eprintln!(

@@ -467,7 +467,7 @@ fn a_pose_file_round_trips_through_ron() {
         .unwrap();
     for (a, b) in back.local.iter().zip(&pose.local) {
         assert!(a.translation.distance(b.translation) < 1e-12);
-        assert!(angle_deg(a.rotation, b.rotation) < 1e-9);
+        assert!((a.rotation - b.rotation).length() < 1e-12);
     }
     assert!(matches!(
         PoseFile::from_ron("not ron ("),

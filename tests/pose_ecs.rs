@@ -541,7 +541,13 @@ fn the_fox_from_bevys_gltf_loader_is_poseable() {
         .apply(posed.model.skeleton(), &rest)
         .unwrap();
     for (a, b) in back.local.iter().zip(&posed.pose.local) {
-        assert!(a.rotation.angle_between(b.rotation) < 1e-9);
+        assert!(
+            (a.rotation - b.rotation).length() < 1e-12,
+            "{} vs {}",
+            a.rotation,
+            b.rotation
+        );
+        assert!((a.translation - b.translation).length() < 1e-12);
     }
     let _ = std::fs::remove_dir_all(out);
 }

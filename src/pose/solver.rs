@@ -105,12 +105,14 @@ pub struct PoseSolveStats {
     pub initial_energy: f64,
     /// Normalised objective after each iteration; never rises.
     pub energies: Vec<f64>,
-    /// Global steps that raised the energy and were retried with more damping.
+    /// Trial bone steps that raised the energy (and were shortened or re-damped).
     pub rejected_steps: u32,
     /// Seconds fitting cluster rotations.
     pub local_s: f64,
     /// Seconds in the bone steps (Gauss–Newton systems, damped solves, trial poses).
     pub global_s: f64,
+    /// Of `global_s`, seconds building the Gauss–Newton systems.
+    pub system_s: f64,
     /// Total seconds.
     pub total_s: f64,
     /// The cancel callback stopped the iterations early (the result is the last completed
@@ -177,6 +179,8 @@ pub struct PoseSolver {
     block_nonzero: Vec<bool>,
     /// The non-zero 4 × 4 blocks `(k, l, Q_kl)`.
     q_blocks: Vec<(usize, usize, DMat4)>,
+    /// The bone parameters solved for.
+    params: Vec<(usize, ParamKind)>,
     handle_sums: Vec<SetSums>,
     fixed_b: Vec<f64>,
     fixed_c: f64,
@@ -322,7 +326,9 @@ impl PoseSolver {
                 (k, l, m)
             })
             .collect();
+        let params = parameters_for(skeleton, &block_nonzero);
         Ok(Self {
+            params,
             model,
             constraints: constraints.clone(),
             q_blocks,
@@ -417,20 +423,29 @@ impl PoseSolver {
             }
             // Levenberg–Marquardt: damp the Gauss–Newton step until it lowers the energy.
             let (h, g) = self.gauss_newton_system(&x, &b, &globals);
+            stats.system_s += t.elapsed().as_secs_f64();
             let mut accepted = None;
-            for _ in 0..16 {
+            // A rejected step is first shortened along its direction (cheap: no new
+            // factorization), then re-solved with more damping.
+            'trials: for _ in 0..12 {
                 let step = solve_damped(&h, &g, damping);
-                let candidate = retract(&pose, &globals, &step, 1.0, self);
-                let cg = skeleton.global_transforms(&candidate);
-                let cx = self.model.stack(&skinning(&cg, skeleton));
-                let f = self.objective(&cx, &b, constant);
-                if f.is_finite() && f <= f0 {
-                    accepted = Some((candidate, cg, cx, f));
-                    damping = (damping / 3.0).max(1e-9);
-                    break;
+                for (k, length) in [1.0, 0.5].into_iter().enumerate() {
+                    let candidate = retract(&pose, &globals, &step, length, self);
+                    let cg = skeleton.global_transforms(&candidate);
+                    let cx = self.model.stack(&skinning(&cg, skeleton));
+                    let f = self.objective(&cx, &b, constant);
+                    if f.is_finite() && f <= f0 {
+                        accepted = Some((candidate, cg, cx, f));
+                        damping = if k == 0 {
+                            (damping / 2.0).max(1e-9)
+                        } else {
+                            damping * 2.0
+                        };
+                        break 'trials;
+                    }
+                    stats.rejected_steps += 1;
                 }
-                stats.rejected_steps += 1;
-                damping *= 8.0;
+                damping *= 4.0;
             }
             stats.global_s += t.elapsed().as_secs_f64();
             let f = match accepted {
@@ -614,7 +629,7 @@ impl PoseSolver {
     ) -> (Vec<f64>, Vec<f64>) {
         let skeleton = self.model.skeleton();
         let joints = skeleton.len();
-        let params = parameters(self);
+        let params = &self.params;
         // S̄_k rows (4 × 4 homogeneous) from X.
         let s_bar: Vec<[[f64; 4]; 4]> = (0..joints)
             .map(|k| {
@@ -751,15 +766,24 @@ enum ParamKind {
     Translation,
 }
 
-/// The bone parameters: a rotation per joint, a translation per root.
-fn parameters(solver: &PoseSolver) -> Vec<(usize, ParamKind)> {
-    let skeleton = solver.model.skeleton();
-    let mut out: Vec<(usize, ParamKind)> = (0..skeleton.len())
+/// The bone parameters: a rotation per joint, a translation per root — only for joints whose
+/// subtree moves something (a weighted vertex or a constrained joint); the others would be
+/// zero rows of the system.
+fn parameters_for(skeleton: &super::Skeleton, block_nonzero: &[bool]) -> Vec<(usize, ParamKind)> {
+    let n = skeleton.len();
+    let mut active: Vec<bool> = (0..n).map(|j| block_nonzero[j * n + j]).collect();
+    for j in (0..n).rev() {
+        if let Some(p) = skeleton.joints()[j].parent {
+            active[p] |= active[j];
+        }
+    }
+    let mut out: Vec<(usize, ParamKind)> = (0..n)
+        .filter(|&j| active[j])
         .map(|j| (j, ParamKind::Rotation))
         .collect();
     out.extend(
-        (0..skeleton.len())
-            .filter(|&j| skeleton.joints()[j].parent.is_none())
+        (0..n)
+            .filter(|&j| active[j] && skeleton.joints()[j].parent.is_none())
             .map(|j| (j, ParamKind::Translation)),
     );
     out
@@ -776,7 +800,7 @@ fn retract(
 ) -> SkeletonPose {
     let skeleton = solver.model.skeleton();
     let mut out = pose.clone();
-    for (p, &(j, kind)) in parameters(solver).iter().enumerate() {
+    for (p, &(j, kind)) in solver.params.iter().enumerate() {
         let d = step[p] * t;
         let local: &mut JointTransform = &mut out.local[j];
         match kind {
