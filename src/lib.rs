@@ -18,7 +18,7 @@ pub mod prelude {
         DeformPlugin, DeformSolved, DeformStatus, DeformSystems, Deformable, DeformableFrom,
         DeformableScene, FixedRegion, GrabEnd, GrabMove, GrabPlugin, GrabStart, Grabbable,
         MouseControlPlugin, MouseHandleControl, PinnedJoints, PoseFailed, PoseJointHandle,
-        PosePlugin, PoseSolved, PoseStatus, Poseable, PoseableError, PosedSkeleton,
+        PosePlugin, PoseSolved, PoseStatus, PoseSystems, Poseable, PoseableError, PosedSkeleton,
         WiiDeformPlugins, Wiimote, WiimoteButtonChanged, WiimoteCalibration, WiimoteConnected,
         WiimoteControlPlugin, WiimoteDisconnected, WiimoteEmulators, WiimoteFilter,
         WiimoteHandleControl, WiimoteLink, WiimoteOrientationChanged, WiimotePlugin,

@@ -47,9 +47,11 @@ pub use plugin::{PosePlugin, PoseSystems};
 #[reflect(Component, Default)]
 #[require(PoseStatus)]
 pub struct Poseable {
-    /// Iterations per solve (warm-started solves need few).
+    /// Iterations per solve (warm-started solves need few). A solve that uses them all is
+    /// followed by another with the same targets, so a released pose keeps settling until
+    /// an iteration improves it by less than `tolerance`.
     pub max_iterations: u32,
-    /// Relative energy decrease below which a solve stops early.
+    /// Relative energy decrease below which a solve stops early (and the pose is settled).
     pub tolerance: f32,
     /// Rotation clusters (k-means in weight space).
     pub clusters: u32,

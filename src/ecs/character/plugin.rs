@@ -108,6 +108,8 @@ pub(crate) struct PoseState {
     task: Option<Task<SolveResult>>,
     requested: Arc<AtomicU64>,
     pending: Option<PoseConstraints>,
+    /// The constraints of the running solve (re-queued while the pose is still settling).
+    running: Option<PoseConstraints>,
 }
 
 fn fail(
@@ -342,6 +344,7 @@ fn find_skins(
             task: None,
             requested: Arc::new(AtomicU64::new(0)),
             pending: None,
+            running: None,
         });
     }
 }
@@ -533,6 +536,7 @@ fn spawn_pose_solve(
     let Some(reference) = state.reference.clone() else {
         return;
     };
+    state.running = Some(constraints.clone());
     let model = posed.model.clone();
     let reuse = state.solver.clone().filter(|s| s.accepts(&constraints));
     let warm = if reuse.is_some() {
@@ -595,6 +599,13 @@ fn poll_pose_solves(
         state.task = None;
         match result {
             Ok((solver, solution, ms)) => {
+                // Not converged (every iteration used, still improving): keep settling with
+                // the same targets until the tolerance stops it.
+                let settling = !solution.stats.cancelled
+                    && solution.stats.iterations >= poseable.max_iterations.max(1);
+                if settling && state.pending.is_none() {
+                    state.pending = state.running.take();
+                }
                 status.iterations = solution.stats.iterations;
                 status.energy = solution
                     .stats
@@ -605,7 +616,11 @@ fn poll_pose_solves(
                 status.solve_ms = ms;
                 status.solves += 1;
                 status.error = None;
-                status.phase = DeformPhase::Idle;
+                status.phase = if state.pending.is_some() {
+                    DeformPhase::Solving
+                } else {
+                    DeformPhase::Idle
+                };
                 posed.pose = solution.pose.clone();
                 state.solver = Some(solver);
                 state.last = Some(Arc::new(solution));

@@ -1,0 +1,57 @@
+//! The help line and the solver's status.
+
+use bevy::prelude::*;
+use bevy_wii_deform::prelude::*;
+
+use crate::files::LastMessage;
+use crate::scene::Character;
+
+/// A text overlay: keys, solver status, the last save/load message, the asset's credits.
+pub struct HudPlugin;
+
+impl Plugin for HudPlugin {
+    fn build(&self, app: &mut App) {
+        app.add_systems(Startup, spawn_hud)
+            .add_systems(Update, update_hud);
+    }
+}
+
+#[derive(Component)]
+struct Hud;
+
+fn spawn_hud(mut commands: Commands) {
+    commands.spawn((
+        Text::new("loading..."),
+        TextFont {
+            font_size: FontSize::Px(15.0),
+            ..default()
+        },
+        Node {
+            position_type: PositionType::Absolute,
+            top: px(10),
+            left: px(10),
+            ..default()
+        },
+        Hud,
+    ));
+}
+
+fn update_hud(
+    mut text: Single<&mut Text, With<Hud>>,
+    character: Query<(&PoseStatus, Option<&PinnedJoints>), With<Character>>,
+    message: Res<LastMessage>,
+) {
+    let Some((status, pins)) = character.iter().next() else {
+        return;
+    };
+    let pinned = pins.map_or(0, |p| p.0.len());
+    let line = format!(
+        "drag the character to pose it | F feet pins ({pinned} pinned) | S save | L load | R reset\n\
+         {} joints, {} vertices | last solve {} iterations, {:.2} ms | {}\n\
+         Fox: PixelMannen (CC0), rigging/animation @tomkranis (CC-BY 4.0)",
+        status.joints, status.vertices, status.iterations, status.solve_ms, message.0
+    );
+    if text.0 != line {
+        text.0 = line;
+    }
+}

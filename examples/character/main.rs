@@ -1,0 +1,84 @@
+//! Pose a rigged glTF character with the mouse: the Fox (or any rigged glTF given by path),
+//! loaded through Bevy's glTF loader and made poseable with one component.
+//!
+//! ```text
+//! cargo run --release --example character [-- PATH.glb] [--screenshot PATH --frames N]
+//! ```
+//! * **Left-drag on the character**: grabs the vertices around the point under the cursor
+//!   (on the *posed* mesh: picking ray-casts the CPU-skinned positions) and drags them in the
+//!   view plane; the skeleton follows, As-Rigid-As-Possible. Release: the pose stays.
+//! * **F**: pin / unpin the feet (joints whose name contains "foot"; pinned at start).
+//! * **S** / **L**: save the pose (RON + a one-keyframe glTF clip) to `poses/` / load the RON.
+//! * **R**: back to the pose the character was loaded in.
+//!
+//! The app is four plugins, one per job: [`scene::ScenePlugin`] (camera, light, the
+//! character), [`grab::CharacterGrabPlugin`], [`files::PoseFilesPlugin`] and
+//! [`hud::HudPlugin`]; [`unattended::UnattendedPlugin`] scripts a grab for screenshots.
+//!
+//! Fox: model by PixelMannen (CC0), rigging and animation by @tomkranis (CC-BY 4.0), from the
+//! glTF Sample Assets.
+
+mod files;
+mod grab;
+mod hud;
+mod scene;
+mod unattended;
+
+use bevy::prelude::*;
+use bevy_wii_deform::prelude::*;
+
+/// Command-line options.
+#[derive(Resource, Debug, Clone)]
+pub struct Args {
+    /// The glTF file (relative to the project's parent directory, or absolute).
+    pub model: String,
+    /// `--screenshot PATH`: script a grab, save frame `frames`, exit.
+    pub screenshot: Option<String>,
+    /// Frames before the screenshot.
+    pub frames: u32,
+}
+
+impl Args {
+    fn parse() -> Self {
+        let args: Vec<String> = std::env::args().skip(1).collect();
+        let value = |name: &str| {
+            args.iter()
+                .position(|a| a == name)
+                .and_then(|i| args.get(i + 1))
+                .cloned()
+        };
+        let model = args
+            .iter()
+            .find(|a| a.ends_with(".glb") || a.ends_with(".gltf"))
+            .cloned()
+            .unwrap_or_else(|| "shared/models/Fox.glb".into());
+        Self {
+            model,
+            screenshot: value("--screenshot"),
+            frames: value("--frames")
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(120),
+        }
+    }
+}
+
+fn main() {
+    let args = Args::parse();
+    App::new()
+        .add_plugins(DefaultPlugins.set(AssetPlugin {
+            // The shared models live beside the project, not in its assets folder.
+            file_path: "..".into(),
+            unapproved_path_mode: bevy::asset::UnapprovedPathMode::Allow,
+            ..default()
+        }))
+        .add_plugins(PosePlugin)
+        .insert_resource(args)
+        .add_plugins((
+            scene::ScenePlugin,
+            grab::CharacterGrabPlugin,
+            files::PoseFilesPlugin,
+            hud::HudPlugin,
+            unattended::UnattendedPlugin,
+        ))
+        .run();
+}

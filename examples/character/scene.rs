@@ -1,0 +1,91 @@
+//! Camera, light, ground, and the character: a glTF scene with `Poseable` on its root.
+
+use bevy::prelude::*;
+use bevy_wii_deform::prelude::*;
+
+use crate::Args;
+
+/// Spawns the stage and the character; pins the feet once the skeleton is known.
+pub struct ScenePlugin;
+
+impl Plugin for ScenePlugin {
+    fn build(&self, app: &mut App) {
+        app.add_systems(Startup, setup)
+            .add_systems(Update, (frame_camera, pin_feet_once));
+    }
+}
+
+/// The poseable character (the scene root).
+#[derive(Component)]
+pub struct Character;
+
+fn setup(
+    mut commands: Commands,
+    mut meshes: ResMut<Assets<Mesh>>,
+    mut materials: ResMut<Assets<StandardMaterial>>,
+    assets: Res<AssetServer>,
+    args: Res<Args>,
+) {
+    commands.spawn((
+        Camera3d::default(),
+        Transform::from_xyz(0.0, 1.0, 4.0).looking_at(Vec3::ZERO, Vec3::Y),
+    ));
+    commands.spawn((
+        DirectionalLight {
+            shadow_maps_enabled: true,
+            illuminance: 8000.0,
+            ..default()
+        },
+        Transform::from_xyz(2.0, 4.0, 3.0).looking_at(Vec3::ZERO, Vec3::Y),
+    ));
+    commands.spawn((
+        Mesh3d(meshes.add(Plane3d::default().mesh().size(1000.0, 1000.0))),
+        MeshMaterial3d(materials.add(Color::srgb(0.3, 0.35, 0.3))),
+    ));
+    let scene = assets.load(GltfAssetLabel::Scene(0).from_asset(args.model.clone()));
+    commands.spawn((WorldAssetRoot(scene), Poseable::default(), Character));
+}
+
+/// Frames the camera on the character once its skinned positions are known.
+fn frame_camera(
+    character: Query<&PosedSkeleton, (With<Character>, Added<PosedSkeleton>)>,
+    mut camera: Single<&mut Transform, With<Camera3d>>,
+) {
+    for posed in &character {
+        let points = posed.skinned_positions();
+        let (lo, hi) = points.iter().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| {
+            (lo.min(*p), hi.max(*p))
+        });
+        let centre = (lo + hi) / 2.0;
+        let size = (hi - lo).length();
+        **camera = Transform::from_translation(
+            centre + Vec3::new(0.9, 0.45, 0.9).normalize() * size * 1.3,
+        )
+        .looking_at(centre, Vec3::Y);
+    }
+}
+
+/// Joints whose name contains "foot" (any case).
+pub fn feet(posed: &PosedSkeleton) -> Vec<Entity> {
+    posed
+        .model
+        .skeleton()
+        .joints()
+        .iter()
+        .zip(&posed.joints)
+        .filter(|(j, _)| j.name.to_lowercase().contains("foot"))
+        .map(|(_, &e)| e)
+        .collect()
+}
+
+/// A character whose skeleton was just prepared.
+type NewCharacter = (With<Character>, Added<PosedSkeleton>);
+
+fn pin_feet_once(
+    mut commands: Commands,
+    character: Query<(Entity, &PosedSkeleton), NewCharacter>,
+) {
+    for (entity, posed) in &character {
+        commands.entity(entity).insert(PinnedJoints(feet(posed)));
+    }
+}

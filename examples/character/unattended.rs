@@ -1,0 +1,79 @@
+//! `--screenshot PATH --frames N`: once the character is ready, grabs the highest point of the
+//! head region and drags it sideways and up over 30 frames, saves frame N, exits.
+
+use bevy::prelude::*;
+use bevy::render::view::screenshot::{Screenshot, save_to_disk};
+use bevy_wii_deform::prelude::*;
+
+use crate::Args;
+use crate::grab::{Grab, grab_at};
+use crate::scene::Character;
+
+/// Scripted grab and screenshot.
+pub struct UnattendedPlugin;
+
+impl Plugin for UnattendedPlugin {
+    fn build(&self, app: &mut App) {
+        app.add_systems(Update, script.before(PoseSystems::Request));
+    }
+}
+
+#[derive(Default)]
+struct Script {
+    frame: u32,
+    start: Option<u32>,
+    grabbed: Option<(Entity, Vec3)>,
+}
+
+fn script(
+    mut commands: Commands,
+    mut state: Local<Script>,
+    args: Res<Args>,
+    mut grab: ResMut<Grab>,
+    character: Query<(Entity, &PosedSkeleton), With<Character>>,
+    mut handles: Query<(&DeformHandle, &mut Transform)>,
+    mut exit: MessageWriter<AppExit>,
+) {
+    let Some(path) = args.screenshot.clone() else {
+        return;
+    };
+    state.frame += 1;
+    let frame = state.frame;
+    let Some((entity, posed)) = character.iter().next() else {
+        return;
+    };
+    let start = *state.start.get_or_insert(frame + 10);
+    if frame == start {
+        // The topmost point of the posed mesh (the Fox's ear tips).
+        let points = posed.skinned_positions();
+        let top = points
+            .iter()
+            .copied()
+            .max_by(|a, b| a.y.total_cmp(&b.y))
+            .unwrap_or(Vec3::ZERO);
+        let size = posed.model.topology().bounding_diagonal() as f32;
+        let hit = top - Vec3::Y * 0.05 * size;
+        let handle = grab_at(&mut commands, entity, posed, hit);
+        state.grabbed = Some((handle, Vec3::new(-0.05, 0.12, 0.14) * size));
+        grab.active = None;
+    }
+    if let Some((handle, shift)) = state.grabbed
+        && frame > start
+        && let Ok((h, mut transform)) = handles.get_mut(handle)
+        && let Some(pivot) = h.pivot
+    {
+        let s = ((frame - start) as f32 / 30.0).min(1.0);
+        let target = pivot + shift * s;
+        if transform.translation != target {
+            transform.translation = target;
+        }
+    }
+    if frame == start.max(args.frames) {
+        commands
+            .spawn(Screenshot::primary_window())
+            .observe(save_to_disk(path));
+    }
+    if frame == start.max(args.frames) + 15 {
+        exit.write(AppExit::Success);
+    }
+}
