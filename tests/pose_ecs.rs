@@ -551,3 +551,94 @@ fn the_fox_from_bevys_gltf_loader_is_poseable() {
     }
     let _ = std::fs::remove_dir_all(out);
 }
+
+/// The Wii Remote drives a character handle exactly like a static one: holding B and turning
+/// the remote 30° about the vertical turns the grabbed top of the bar 1:1 (the top joint
+/// follows to within 1°; a gain of 0.9 would be 3° off), the pinned root stays.
+#[test]
+fn the_wii_remote_turns_a_character_handle_one_to_one() {
+    use bevy_wii_deform::wiimote::protocol::Buttons;
+    let mut app = app();
+    app.add_plugins(WiimoteControlPlugin);
+    app.world_mut()
+        .spawn((Camera3d::default(), Transform::default()));
+    let rig = bar_rig(3, 12, 40);
+    let (root, joints, _) = spawn_rig(&mut app, &rig, Vec3::ZERO);
+    app.world_mut().entity_mut(root).insert((
+        Poseable {
+            max_iterations: 8,
+            ..default()
+        },
+        PinnedJoints(vec![joints[0]]),
+    ));
+    update_until(&mut app, "the model", |a| {
+        a.world().get::<PosedSkeleton>(root).is_some()
+    });
+    let top: Vec<u32> = (0..rig.mesh.positions.len() as u32)
+        .filter(|&i| rig.mesh.positions[i as usize].y > 0.8)
+        .collect();
+    let handle = app
+        .world_mut()
+        .spawn((
+            DeformHandle {
+                target: root,
+                vertices: top,
+                pivot: None,
+            },
+            Transform::IDENTITY,
+            WiimoteHandleControl::default(),
+        ))
+        .id();
+    update_until(&mut app, "the pivot", |a| {
+        a.world()
+            .get::<DeformHandle>(handle)
+            .unwrap()
+            .pivot
+            .is_some()
+    });
+    let remote = app
+        .world_mut()
+        .spawn(Wiimote {
+            connection: ConnectionState::Connected,
+            ..default()
+        })
+        .id();
+    let set = |app: &mut App, orientation: Quat, buttons: u16| {
+        let mut w = app.world_mut().get_mut::<Wiimote>(remote).unwrap();
+        w.orientation = orientation;
+        w.buttons = buttons;
+    };
+    set(&mut app, Quat::IDENTITY, Buttons::B);
+    app.update();
+    let turn = Quat::from_rotation_y(30f32.to_radians());
+    set(&mut app, turn, Buttons::B);
+    app.update();
+    set(&mut app, turn, 0); // release B: the handle keeps its pose
+    for _ in 0..20 {
+        let before = solves(&app, root);
+        app.world_mut()
+            .get_mut::<Transform>(handle)
+            .unwrap()
+            .set_changed();
+        update_until(&mut app, "a solve", |a| solves(a, root) > before);
+    }
+    app.update();
+    let handle_rotation = app.world().get::<Transform>(handle).unwrap().rotation;
+    assert!(
+        (handle_rotation.angle_between(turn)).to_degrees() < 0.5,
+        "handle turned to {handle_rotation:?}"
+    );
+    let posed = app.world().get::<PosedSkeleton>(root).unwrap().clone();
+    let globals = posed
+        .model
+        .skeleton()
+        .global_transforms(&pose_of(&app, &joints));
+    let (_, top_rotation, _) = globals[2].to_scale_rotation_translation();
+    let error = top_rotation.as_quat().angle_between(turn).to_degrees();
+    assert!(
+        error < 1.0,
+        "the top joint is {error:.2}° from the remote's 30° turn"
+    );
+    let root_rotation = app.world().get::<Transform>(joints[0]).unwrap().rotation;
+    assert!(root_rotation.angle_between(Quat::IDENTITY) < 0.01);
+}
