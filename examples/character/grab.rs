@@ -194,3 +194,31 @@ fn show_handles(
         }
     }
 }
+
+/// With `--remote`: a handle on the head (the topmost region) driven by the Wii Remote.
+pub struct RemoteHeadPlugin;
+
+impl Plugin for RemoteHeadPlugin {
+    fn build(&self, app: &mut App) {
+        app.add_systems(Update, spawn_remote_handle.before(PoseSystems::Request));
+    }
+}
+
+fn spawn_remote_handle(
+    mut commands: Commands,
+    character: Query<(Entity, &PosedSkeleton), (With<Character>, Added<PosedSkeleton>)>,
+) {
+    for (entity, posed) in &character {
+        let points = posed.skinned_positions();
+        let top = points
+            .iter()
+            .copied()
+            .max_by(|a, b| a.y.total_cmp(&b.y))
+            .unwrap_or(Vec3::ZERO);
+        let handle = grab_at(&mut commands, entity, posed, top);
+        // World space (`space: None`), as every character handle.
+        commands
+            .entity(handle)
+            .insert(WiimoteHandleControl::default());
+    }
+}

@@ -10,6 +10,9 @@
 //! * **F**: pin / unpin the feet (joints whose name contains "foot"; pinned at start).
 //! * **S** / **L**: save the pose (RON + a one-keyframe glTF clip) to `poses/` / load the RON.
 //! * **R**: back to the pose the character was loaded in.
+//! * **`--remote`**: a Wii Remote (MotionPlus) drives a handle on the head: hold B and turn
+//!   the remote to turn the head 1:1, D-pad to move it (`--remote emulated` for the built-in
+//!   emulator).
 //!
 //! The app is four plugins, one per job: [`scene::ScenePlugin`] (camera, light, the
 //! character), [`grab::CharacterGrabPlugin`], [`files::PoseFilesPlugin`] and
@@ -36,6 +39,8 @@ pub struct Args {
     pub screenshot: Option<String>,
     /// Frames before the screenshot.
     pub frames: u32,
+    /// `--remote [emulated]`: drive a head handle with a Wii Remote.
+    pub remote: Option<WiimotePlugin>,
 }
 
 impl Args {
@@ -58,27 +63,37 @@ impl Args {
             frames: value("--frames")
                 .and_then(|v| v.parse().ok())
                 .unwrap_or(120),
+            remote: args.iter().any(|a| a == "--remote").then(|| {
+                if value("--remote").as_deref() == Some("emulated") {
+                    WiimotePlugin::emulated()
+                } else {
+                    WiimotePlugin::default()
+                }
+            }),
         }
     }
 }
 
 fn main() {
     let args = Args::parse();
-    App::new()
-        .add_plugins(DefaultPlugins.set(AssetPlugin {
-            // The shared models live beside the project, not in its assets folder.
-            file_path: "..".into(),
-            unapproved_path_mode: bevy::asset::UnapprovedPathMode::Allow,
-            ..default()
-        }))
-        .add_plugins(PosePlugin)
-        .insert_resource(args)
-        .add_plugins((
-            scene::ScenePlugin,
-            grab::CharacterGrabPlugin,
-            files::PoseFilesPlugin,
-            hud::HudPlugin,
-            unattended::UnattendedPlugin,
-        ))
-        .run();
+    let mut app = App::new();
+    if let Some(remote) = args.remote.clone() {
+        app.add_plugins((remote, WiimoteControlPlugin, grab::RemoteHeadPlugin));
+    }
+    app.add_plugins(DefaultPlugins.set(AssetPlugin {
+        // The shared models live beside the project, not in its assets folder.
+        file_path: "..".into(),
+        unapproved_path_mode: bevy::asset::UnapprovedPathMode::Allow,
+        ..default()
+    }))
+    .add_plugins(PosePlugin)
+    .insert_resource(args)
+    .add_plugins((
+        scene::ScenePlugin,
+        grab::CharacterGrabPlugin,
+        files::PoseFilesPlugin,
+        hud::HudPlugin,
+        unattended::UnattendedPlugin,
+    ))
+    .run();
 }
