@@ -642,3 +642,23 @@ fn the_wii_remote_turns_a_character_handle_one_to_one() {
     let root_rotation = app.world().get::<Transform>(joints[0]).unwrap().rotation;
     assert!(root_rotation.angle_between(Quat::IDENTITY) < 0.01);
 }
+
+/// `Poseable` on the skinned mesh entity itself (not an ancestor) works the same way.
+#[test]
+fn poseable_on_the_skinned_mesh_entity_finds_its_joints() {
+    let mut app = app();
+    let rig = bar_rig(3, 12, 20);
+    let (_, joints, mesh) = spawn_rig(&mut app, &rig, Vec3::ZERO);
+    app.world_mut().entity_mut(mesh).insert(Poseable::default());
+    update_until(&mut app, "the model", |a| {
+        a.world().get::<PosedSkeleton>(mesh).is_some()
+    });
+    let posed = app.world().get::<PosedSkeleton>(mesh).unwrap();
+    assert_eq!(posed.joints, joints);
+    assert_eq!(posed.primitives, vec![(mesh, 0)]);
+    // At rest the CPU skin is the bind pose.
+    let skinned = posed.skinned_positions();
+    for (a, b) in skinned.iter().zip(&rig.mesh.positions) {
+        assert!(a.distance(*b) < 1e-5);
+    }
+}
