@@ -143,6 +143,7 @@ fn main() {
     let mut last: Option<PoseSolution> = None;
     let mut solve_ms = Vec::new();
     let mut iterations = 0;
+    let mut rejected = 0;
     for f in 1..=frames {
         let s = f as f64 / frames as f64;
         constraints.handles[0].transform = RigidTransform::new(
@@ -159,6 +160,7 @@ fn main() {
             .expect("solve");
         solve_ms.push(t.elapsed().as_secs_f64() * 1e3);
         iterations += solved.stats.iterations;
+        rejected += solved.stats.rejected_steps;
         last = Some(solved);
     }
     let total_ms: f64 = solve_ms.iter().sum();
@@ -188,6 +190,7 @@ fn main() {
             w.system_s * 1e3,
             w.rejected_steps
         );
+        eprintln!("drag: {iterations} iterations, {rejected} rejected trial steps, final drag energy {:?}", last.as_ref().unwrap().stats.energies.last());
         eprintln!(
             "converge energies: first {:?} … last {:?}",
             &e[..e.len().min(8)],
