@@ -190,7 +190,10 @@ fn main() {
             w.system_s * 1e3,
             w.rejected_steps
         );
-        eprintln!("drag: {iterations} iterations, {rejected} rejected trial steps, final drag energy {:?}", last.as_ref().unwrap().stats.energies.last());
+        eprintln!(
+            "drag: {iterations} iterations, {rejected} rejected trial steps, final drag energy {:?}",
+            last.as_ref().unwrap().stats.energies.last()
+        );
         eprintln!(
             "converge energies: first {:?} … last {:?}",
             &e[..e.len().min(8)],

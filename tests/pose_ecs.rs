@@ -662,3 +662,61 @@ fn poseable_on_the_skinned_mesh_entity_finds_its_joints() {
         assert!(a.distance(*b) < 1e-5);
     }
 }
+
+/// A grab starts from what is on screen: a pose an animation left on the joints (here set
+/// directly, as a paused clip would) is the reference, not the pose held before.
+#[test]
+fn a_grab_starts_from_the_pose_on_screen() {
+    let mut app = app();
+    let rig = bar_rig(3, 12, 20);
+    let (root, joints, _) = spawn_rig(&mut app, &rig, Vec3::ZERO);
+    app.world_mut().entity_mut(root).insert(Poseable {
+        hold_pose: false,
+        ..default()
+    });
+    update_until(&mut app, "the model", |a| {
+        a.world().get::<PosedSkeleton>(root).is_some()
+    });
+    // "The clip" bends joint 1 by 45° about x.
+    let bend = Quat::from_rotation_x(45f32.to_radians());
+    app.world_mut()
+        .get_mut::<Transform>(joints[1])
+        .unwrap()
+        .rotation = bend;
+    app.update();
+    let top: Vec<u32> = (0..rig.mesh.positions.len() as u32)
+        .filter(|&i| rig.mesh.positions[i as usize].y > 0.9)
+        .collect();
+    let handle = app
+        .world_mut()
+        .spawn((
+            DeformHandle {
+                target: root,
+                vertices: top,
+                pivot: None,
+            },
+            Transform::IDENTITY,
+        ))
+        .id();
+    update_until(&mut app, "the pivot", |a| {
+        a.world()
+            .get::<DeformHandle>(handle)
+            .unwrap()
+            .pivot
+            .is_some()
+    });
+    let pivot = app
+        .world()
+        .get::<DeformHandle>(handle)
+        .unwrap()
+        .pivot
+        .unwrap();
+    // The bent top's centroid: joint 1 at y = 1/3, the top ~0.62 above it, turned 45° about x.
+    let expected = Vec3::new(0.0, 1.0 / 3.0, 0.0) + bend * Vec3::new(0.0, 0.97 - 1.0 / 3.0, 0.0);
+    assert!(
+        (pivot - expected).length() < 0.03,
+        "pivot {pivot}, expected about {expected}"
+    );
+    let held = &app.world().get::<PosedSkeleton>(root).unwrap().pose;
+    assert!(held.local[1].rotation.as_quat().angle_between(bend) < 1e-4);
+}

@@ -432,15 +432,16 @@ fn request_pose_solves(
     mut characters: Query<(
         Entity,
         &Poseable,
-        Ref<PosedSkeleton>,
+        &mut PosedSkeleton,
         Option<Ref<PinnedJoints>>,
         &mut PoseState,
         &mut PoseStatus,
     )>,
     mut handles: Query<(Entity, &mut DeformHandle, &mut Transform), Without<PoseJointHandle>>,
     mut joint_handles: Query<(Entity, &mut PoseJointHandle, &mut Transform), Without<DeformHandle>>,
+    joints: Query<&Transform, (Without<DeformHandle>, Without<PoseJointHandle>)>,
 ) {
-    for (entity, poseable, posed, pins, mut state, mut status) in &mut characters {
+    for (entity, poseable, mut posed, pins, mut state, mut status) in &mut characters {
         let mut mine: Vec<(Entity, Mut<DeformHandle>, Mut<Transform>)> = handles
             .iter_mut()
             .filter(|(_, h, _)| h.target == entity)
@@ -467,6 +468,22 @@ fn request_pose_solves(
             || mine.iter().any(|(_, h, _)| h.pivot.is_none())
             || mine_j.iter().any(|(_, h, _)| h.rest.is_none());
         if set_changed {
+            // The reference is what is on screen: the joints as they are now (the held pose,
+            // or whatever a playing or paused clip left on them).
+            let on_screen = SkeletonPose {
+                local: posed
+                    .joints
+                    .iter()
+                    .zip(&posed.pose.local)
+                    .map(|(&j, held)| {
+                        let now = joints.get(j).map(joint_transform).ok();
+                        now.filter(JointTransform::is_valid).unwrap_or(*held)
+                    })
+                    .collect(),
+            };
+            if on_screen != posed.pose {
+                posed.pose = on_screen;
+            }
             let reference = posed.pose.clone();
             rebase(&posed, &reference, &mut mine, &mut mine_j);
             let state = state.bypass_change_detection();
