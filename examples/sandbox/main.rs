@@ -1491,24 +1491,8 @@ fn export_glb(mesh: &Mesh, path: &str) -> Result<(), String> {
             {"bufferView": 2, "componentType": 5125, "count": indices.len(), "type": "SCALAR"}
         ]
     });
-    let mut json = serde_json::to_vec(&json).map_err(|e| e.to_string())?;
-    while json.len() % 4 != 0 {
-        json.push(b' ');
-    }
-    while bin.len() % 4 != 0 {
-        bin.push(0);
-    }
-    let total = 12 + 8 + json.len() + 8 + bin.len();
-    let mut glb = Vec::with_capacity(total);
-    glb.extend_from_slice(b"glTF");
-    glb.extend_from_slice(&2u32.to_le_bytes());
-    glb.extend_from_slice(&(total as u32).to_le_bytes());
-    glb.extend_from_slice(&(json.len() as u32).to_le_bytes());
-    glb.extend_from_slice(b"JSON");
-    glb.extend_from_slice(&json);
-    glb.extend_from_slice(&(bin.len() as u32).to_le_bytes());
-    glb.extend_from_slice(b"BIN\0");
-    glb.extend_from_slice(&bin);
+    let json = serde_json::to_vec(&json).map_err(|e| e.to_string())?;
+    let glb = bevy_wii_deform::deform::glb_container(json, bin);
     let (doc, buffers, _) = gltf::import_slice(&glb).map_err(|e| format!("invalid glTF: {e}"))?;
     let count = doc
         .meshes()

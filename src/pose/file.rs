@@ -342,21 +342,7 @@ pub fn write_gltf_pose_clip(
         extras: Default::default(),
     });
     root.asset.generator = Some("bevy_wii_deform".into());
-    let mut text =
+    let text =
         json::serialize::to_vec(&root).map_err(|e| PoseFileError::Serialize(e.to_string()))?;
-    while !text.len().is_multiple_of(4) {
-        text.push(b' ');
-    }
-    let total = 12 + 8 + text.len() + 8 + bin.len();
-    let mut glb = Vec::with_capacity(total);
-    glb.extend_from_slice(b"glTF");
-    glb.extend_from_slice(&2u32.to_le_bytes());
-    glb.extend_from_slice(&(total as u32).to_le_bytes());
-    glb.extend_from_slice(&(text.len() as u32).to_le_bytes());
-    glb.extend_from_slice(b"JSON");
-    glb.extend_from_slice(&text);
-    glb.extend_from_slice(&(bin.len() as u32).to_le_bytes());
-    glb.extend_from_slice(b"BIN\0");
-    glb.extend_from_slice(&bin);
-    Ok(glb)
+    Ok(crate::deform::glb_container(text, bin))
 }
