@@ -717,6 +717,24 @@ fn a_grab_starts_from_the_pose_on_screen() {
         (pivot - expected).length() < 0.03,
         "pivot {pivot}, expected about {expected}"
     );
-    let held = &app.world().get::<PosedSkeleton>(root).unwrap().pose;
-    assert!(held.local[1].rotation.as_quat().angle_between(bend) < 1e-4);
+    let posed = app.world().get::<PosedSkeleton>(root).unwrap();
+    assert!(posed.pose.local[1].rotation.as_quat().angle_between(bend) < 1e-4);
+    // Picking hits the bent bar where it is drawn, not where its bind pose is: a ray down
+    // through the bent top hits it; a ray down the bind pose's axis above y = 0.5 misses.
+    let down = |x: f32, z: f32| Ray3d::new(Vec3::new(x, 3.0, z), Dir3::NEG_Y);
+    let bent_top = Vec3::new(0.0, 1.0 / 3.0, 0.0) + bend * Vec3::new(0.0, 0.5, 0.0);
+    let (hit, _) = posed
+        .ray_cast(down(bent_top.x, bent_top.z))
+        .expect("the bent top is hit");
+    assert!(
+        (hit - bent_top).xz().length() < 1e-4 && hit.y > bent_top.y,
+        "hit {hit}"
+    );
+    let (hit, _) = posed
+        .ray_cast(down(0.0, 0.0))
+        .expect("the bottom of the bar is still there");
+    assert!(
+        hit.y < 0.5,
+        "the ray down the rest axis hit at {hit}, above the bend"
+    );
 }

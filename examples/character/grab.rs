@@ -1,5 +1,5 @@
-//! Mouse grab on the posed character: ray-cast the CPU-skinned triangles (Bevy's mesh ray
-//! cast sees the bind pose of skinned meshes), take the vertices around the hit as a
+//! Mouse grab on the posed character: `PosedSkeleton::ray_cast` (the CPU-skinned triangles;
+//! Bevy's mesh ray cast sees the bind pose of skinned meshes), take the vertices around the hit as a
 //! `DeformHandle`, drag it in the view plane, let go on release; F toggles the feet pins.
 
 use bevy::prelude::*;
@@ -32,29 +32,6 @@ impl Plugin for CharacterGrabPlugin {
 pub struct Grab {
     /// The handle entity, the hit point and the camera-facing plane's normal.
     pub active: Option<(Entity, Vec3, Vec3)>,
-}
-
-/// Nearest hit of `ray` with the triangles (Möller–Trumbore).
-pub fn ray_hit(ray: Ray3d, positions: &[Vec3], indices: &[u32]) -> Option<Vec3> {
-    let mut best: Option<f32> = None;
-    for t in indices.chunks_exact(3) {
-        let [a, b, c] = [t[0], t[1], t[2]].map(|i| positions[i as usize]);
-        let (e1, e2) = (b - a, c - a);
-        let p = ray.direction.cross(e2);
-        let det = e1.dot(p);
-        if det.abs() < 1e-12 {
-            continue;
-        }
-        let s = ray.origin - a;
-        let u = s.dot(p) / det;
-        let q = s.cross(e1);
-        let v = ray.direction.dot(q) / det;
-        let dist = e2.dot(q) / det;
-        if u >= 0.0 && v >= 0.0 && u + v <= 1.0 && dist > 0.0 && best.is_none_or(|b| dist < b) {
-            best = Some(dist);
-        }
-    }
-    best.map(|d| ray.get_point(d))
 }
 
 /// Grabs the vertices within `RADIUS` of a point on the posed character.
@@ -101,28 +78,11 @@ fn start_grab(
         return;
     };
     for (entity, posed) in &character {
-        let positions = posed.skinned_positions();
-        let render_indices = render_indices(posed);
-        if let Some(hit) = ray_hit(ray, &positions, &render_indices) {
+        if let Some((hit, _)) = posed.ray_cast(ray) {
             let handle = grab_at(&mut commands, entity, posed, hit);
             grab.active = Some((handle, hit, camera.1.forward().as_vec3()));
         }
     }
-}
-
-/// The character's triangles in render indices (welded triangles mapped back to a render
-/// copy of each vertex are enough for picking).
-pub fn render_indices(posed: &PosedSkeleton) -> Vec<u32> {
-    let topology = posed.model.topology();
-    let mut first = vec![u32::MAX; topology.vertex_count()];
-    for (r, &w) in topology.render_to_welded().iter().enumerate().rev() {
-        first[w as usize] = r as u32;
-    }
-    topology
-        .triangles()
-        .iter()
-        .flat_map(|t| t.map(|w| first[w as usize]))
-        .collect()
 }
 
 fn drag(

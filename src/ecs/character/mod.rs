@@ -226,6 +226,38 @@ impl PosedSkeleton {
             .collect()
     }
 
+    /// The nearest hit of a world-space ray with the posed character (CPU-skinned triangles):
+    /// what a click picks, where Bevy 0.19's mesh ray cast would test the bind pose of a
+    /// skinned mesh. Returns the hit point and its distance along `ray`.
+    pub fn ray_cast(&self, ray: Ray3d) -> Option<(Vec3, f32)> {
+        let topology = self.model.topology();
+        let skinned = self.model.skin_welded(&self.pose);
+        let mut best: Option<f32> = None;
+        for t in topology.triangles() {
+            let [a, b, c] = t.map(|i| skinned[i as usize].as_vec3());
+            let (e1, e2) = (b - a, c - a);
+            let p = ray.direction.cross(e2);
+            let det = e1.dot(p);
+            if det.abs() <= f32::EPSILON * e1.length_squared().max(e2.length_squared()) {
+                continue; // parallel or degenerate
+            }
+            let s = ray.origin - a;
+            let u = s.dot(p) / det;
+            let q = s.cross(e1);
+            let v = ray.direction.dot(q) / det;
+            let distance = e2.dot(q) / det;
+            if u >= 0.0
+                && v >= 0.0
+                && u + v <= 1.0
+                && distance > 0.0
+                && best.is_none_or(|d| distance < d)
+            {
+                best = Some(distance);
+            }
+        }
+        best.map(|d| (ray.get_point(d), d))
+    }
+
     /// Index of a joint entity in the skeleton.
     pub fn joint_index(&self, joint: Entity) -> Option<usize> {
         self.joints.iter().position(|&j| j == joint)
