@@ -247,6 +247,30 @@ impl TriMesh {
     }
 }
 
+/// Frames a glTF JSON document and its binary buffer as a binary glTF (`.glb`, glTF 2.0 §4.4):
+/// the 12-byte header, a JSON chunk padded with spaces and a BIN chunk padded with zeros to
+/// 4-byte boundaries.
+pub fn glb_container(mut json: Vec<u8>, mut bin: Vec<u8>) -> Vec<u8> {
+    while !json.len().is_multiple_of(4) {
+        json.push(b' ');
+    }
+    while !bin.len().is_multiple_of(4) {
+        bin.push(0);
+    }
+    let total = 12 + 8 + json.len() + 8 + bin.len();
+    let mut glb = Vec::with_capacity(total);
+    glb.extend_from_slice(b"glTF");
+    glb.extend_from_slice(&2u32.to_le_bytes());
+    glb.extend_from_slice(&(total as u32).to_le_bytes());
+    glb.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    glb.extend_from_slice(b"JSON");
+    glb.extend_from_slice(&json);
+    glb.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+    glb.extend_from_slice(b"BIN\0");
+    glb.extend_from_slice(&bin);
+    glb
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -288,28 +312,4 @@ mod tests {
         assert!(TriMesh::parse_obj("v 0 0 0\nf 1 2 3\n").is_err());
         assert!(TriMesh::parse_obj("").is_err());
     }
-}
-
-/// Frames a glTF JSON document and its binary buffer as a binary glTF (`.glb`, glTF 2.0 §4.4):
-/// the 12-byte header, a JSON chunk padded with spaces and a BIN chunk padded with zeros to
-/// 4-byte boundaries.
-pub fn glb_container(mut json: Vec<u8>, mut bin: Vec<u8>) -> Vec<u8> {
-    while !json.len().is_multiple_of(4) {
-        json.push(b' ');
-    }
-    while !bin.len().is_multiple_of(4) {
-        bin.push(0);
-    }
-    let total = 12 + 8 + json.len() + 8 + bin.len();
-    let mut glb = Vec::with_capacity(total);
-    glb.extend_from_slice(b"glTF");
-    glb.extend_from_slice(&2u32.to_le_bytes());
-    glb.extend_from_slice(&(total as u32).to_le_bytes());
-    glb.extend_from_slice(&(json.len() as u32).to_le_bytes());
-    glb.extend_from_slice(b"JSON");
-    glb.extend_from_slice(&json);
-    glb.extend_from_slice(&(bin.len() as u32).to_le_bytes());
-    glb.extend_from_slice(b"BIN\0");
-    glb.extend_from_slice(&bin);
-    glb
 }
