@@ -6,7 +6,7 @@ use bevy::prelude::*;
 use bevy::window::PrimaryWindow;
 use bevy_wii_deform::prelude::*;
 
-use crate::scene::{Character, feet};
+use crate::scene::{Character, NewCharacter, feet};
 
 /// Grab radius as a fraction of the character's size.
 const RADIUS: f32 = 0.08;
@@ -166,7 +166,7 @@ impl Plugin for RemoteHeadPlugin {
 
 fn spawn_remote_handle(
     mut commands: Commands,
-    character: Query<(Entity, &PosedSkeleton), (With<Character>, Added<PosedSkeleton>)>,
+    character: Query<(Entity, &PosedSkeleton), NewCharacter>,
 ) {
     for (entity, posed) in &character {
         let points = posed.skinned_positions();

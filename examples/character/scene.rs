@@ -79,7 +79,7 @@ pub fn feet(posed: &PosedSkeleton) -> Vec<Entity> {
 }
 
 /// A character whose skeleton was just prepared.
-type NewCharacter = (With<Character>, Added<PosedSkeleton>);
+pub type NewCharacter = (With<Character>, Added<PosedSkeleton>);
 
 fn pin_feet_once(mut commands: Commands, character: Query<(Entity, &PosedSkeleton), NewCharacter>) {
     for (entity, posed) in &character {
