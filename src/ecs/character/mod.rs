@@ -40,7 +40,9 @@ pub use plugin::{PosePlugin, PoseSystems};
 
 /// Makes a rigged character poseable. Put it on the glTF scene root (`WorldAssetRoot`), any
 /// ancestor of the skinned mesh, or the skinned mesh entity itself; the plugin finds the
-/// skinned primitives (`SkinnedMesh`) below it and their joints. Primitives sharing the
+/// skinned primitives (`SkinnedMesh`) below it and their joints (a scene root once its
+/// instance has spawned; any other entity at once — nothing skinned there is a
+/// [`PoseableError::NoSkinnedMesh`]). Primitives sharing the
 /// first primitive's joint list form one model (their render vertices numbered one after the
 /// other, in hierarchy order); other skins below are ignored.
 #[derive(Component, Debug, Clone, Reflect, PartialEq)]

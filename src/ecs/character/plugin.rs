@@ -203,9 +203,10 @@ fn find_skins(
             .filter(|e| skins.contains(*e))
             .collect();
         let Some(&first) = primitives.first() else {
-            let has_children = children.get(entity).is_ok_and(|c| !c.is_empty());
-            if (is_scene && !spawned) || (!is_scene && !has_children) {
-                continue; // not spawned yet
+            // A scene root waits for its instance; any other entity must have its skinned
+            // mesh at or below it when `Poseable` is added (as for `Deformable`).
+            if is_scene && !spawned {
+                continue;
             }
             fail(
                 entity,
