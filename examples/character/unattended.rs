@@ -54,7 +54,7 @@ fn script(
         let size = posed.model.topology().bounding_diagonal() as f32;
         let hit = top - Vec3::Y * 0.05 * size;
         let handle = grab_at(&mut commands, entity, posed, hit);
-        state.grabbed = Some((handle, Vec3::new(-0.05, 0.12, 0.14) * size));
+        state.grabbed = Some((handle, Vec3::new(0.03, 0.07, 0.02) * size));
         grab.active = None;
     }
     if let Some((handle, shift)) = state.grabbed

@@ -63,8 +63,10 @@ pub struct PoseSolverSettings {
     /// Constraints are soft (a skeleton cannot always reach every target); at the default a
     /// reachable target is met to ~1e-4 of the model size.
     pub constraint_stiffness: f64,
-    /// Stiffness of a joint constraint, in vertex constraints (a pinned joint weighs as much
-    /// as this many pinned vertices).
+    /// Stiffness of a joint constraint, in vertex constraints: a pinned joint weighs as much
+    /// as this many pinned vertices, with its orientation measured at the model's size
+    /// (points one bounding diagonal from the joint), so a pin holds against a handle pulling
+    /// on a long lever.
     pub joint_stiffness: f64,
 }
 
@@ -72,7 +74,7 @@ impl Default for PoseSolverSettings {
     fn default() -> Self {
         Self {
             constraint_stiffness: 1e4,
-            joint_stiffness: 200.0,
+            joint_stiffness: 1000.0,
         }
     }
 }
@@ -237,7 +239,7 @@ impl PoseSolver {
         let reference_globals = skeleton.global_transforms(reference);
         let vertex_weight = settings.constraint_stiffness * model.mean_degree.max(1e-12);
         let joint_weight = vertex_weight * settings.joint_stiffness;
-        let length_scale = 0.1 * model.topology().bounding_diagonal().max(1e-12);
+        let length_scale = model.topology().bounding_diagonal().max(1e-12);
         let mut q = model.q.clone();
         let sums = |vertices: &[u32], q: &mut [f64]| {
             let mut s = SetSums {

@@ -1,0 +1,70 @@
+//! Helpers shared by the integration tests.
+#![allow(dead_code)] // each test crate uses some of them
+
+use bevy::asset::RenderAssetUsages;
+use bevy::mesh::skinning::{SkinnedMesh as BevySkin, SkinnedMeshInverseBindposes};
+use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
+use bevy::prelude::*;
+use bevy_wii_deform::pose::synth_rig::SyntheticRig;
+
+/// Spawns the rig as a character entity (root) with a joint chain and a skinned mesh child,
+/// placed at `offset`. Returns (root, joints, mesh entity).
+pub fn spawn_rig(app: &mut App, rig: &SyntheticRig, offset: Vec3) -> (Entity, Vec<Entity>, Entity) {
+    let mut mesh = Mesh::new(
+        PrimitiveTopology::TriangleList,
+        RenderAssetUsages::default(),
+    );
+    mesh.insert_attribute(
+        Mesh::ATTRIBUTE_POSITION,
+        rig.mesh
+            .positions
+            .iter()
+            .map(|p| p.to_array())
+            .collect::<Vec<_>>(),
+    );
+    mesh.insert_attribute(
+        Mesh::ATTRIBUTE_JOINT_INDEX,
+        VertexAttributeValues::Uint16x4(rig.mesh.joint_indices.clone()),
+    );
+    mesh.insert_attribute(Mesh::ATTRIBUTE_JOINT_WEIGHT, rig.mesh.joint_weights.clone());
+    mesh.insert_indices(Indices::U32(rig.mesh.indices.clone()));
+    let world = app.world_mut();
+    let mesh = world.resource_mut::<Assets<Mesh>>().add(mesh);
+    let ibp: Vec<Mat4> = rig
+        .skeleton
+        .joints()
+        .iter()
+        .map(|j| Mat4::from(j.inverse_bind.as_affine3a()))
+        .collect();
+    let ibp = world
+        .resource_mut::<Assets<SkinnedMeshInverseBindposes>>()
+        .add(SkinnedMeshInverseBindposes::from(ibp));
+    let root = world
+        .spawn((Transform::from_translation(offset), Name::new("character")))
+        .id();
+    let mut joints = Vec::new();
+    for (k, joint) in rig.skeleton.joints().iter().enumerate() {
+        let t = rig.rest.local[k];
+        let parent = joint.parent.map_or(root, |p| joints[p]);
+        let e = world
+            .spawn((
+                Transform::from_translation(t.translation.as_vec3()),
+                Name::new(joint.name.clone()),
+                ChildOf(parent),
+            ))
+            .id();
+        joints.push(e);
+    }
+    let skinned = world
+        .spawn((
+            Mesh3d(mesh),
+            BevySkin {
+                inverse_bindposes: ibp,
+                joints: joints.clone(),
+            },
+            Transform::default(),
+            ChildOf(root),
+        ))
+        .id();
+    (root, joints, skinned)
+}
