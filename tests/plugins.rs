@@ -1294,12 +1294,9 @@ fn a_mouse_drag_moves_a_character_handle_with_the_cursor() {
         },
         PinnedJoints(vec![joints[0]]),
     ));
-    let deadline = Instant::now() + Duration::from_secs(30);
-    while app.world().get::<PosedSkeleton>(root).is_none() {
-        assert!(Instant::now() < deadline, "no model");
-        app.update();
-        std::thread::yield_now();
-    }
+    common::update_until(&mut app, "the model", |a| {
+        a.world().get::<PosedSkeleton>(root).is_some()
+    });
     let top: Vec<u32> = (0..rig.mesh.positions.len() as u32)
         .filter(|&i| rig.mesh.positions[i as usize].y > 0.8)
         .collect();
@@ -1315,16 +1312,13 @@ fn a_mouse_drag_moves_a_character_handle_with_the_cursor() {
             MouseHandleControl::default().with_camera(camera),
         ))
         .id();
-    while app
-        .world()
-        .get::<DeformHandle>(handle)
-        .unwrap()
-        .pivot
-        .is_none()
-    {
-        assert!(Instant::now() < deadline, "no pivot");
-        app.update();
-    }
+    common::update_until(&mut app, "the pivot", |a| {
+        a.world()
+            .get::<DeformHandle>(handle)
+            .unwrap()
+            .pivot
+            .is_some()
+    });
     app.update();
     let pivot = app
         .world()

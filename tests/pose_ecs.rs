@@ -2,7 +2,7 @@
 //! mesh, inverse bind poses), posed by a vertex handle with the root pinned; and the Fox
 //! (`../shared/models/Fox.glb`) through Bevy's glTF loader.
 
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
@@ -11,7 +11,7 @@ use bevy_wii_deform::pose::{JointTransform, SkeletonPose};
 use bevy_wii_deform::prelude::*;
 
 mod common;
-use common::spawn_rig;
+use common::{drive_solves, spawn_rig, update_until};
 
 fn app() -> App {
     let mut app = App::new();
@@ -42,20 +42,6 @@ fn pose_of(app: &App, joints: &[Entity]) -> SkeletonPose {
             })
             .collect(),
     }
-}
-
-/// Updates until `done` holds, with a generous deadline for the background tasks.
-fn update_until(app: &mut App, what: &str, done: impl Fn(&mut App) -> bool) {
-    let deadline = Instant::now() + Duration::from_secs(60);
-    while !done(app) {
-        assert!(Instant::now() < deadline, "timed out waiting for {what}");
-        app.update();
-        std::thread::yield_now();
-    }
-}
-
-fn solves(app: &App, e: Entity) -> u64 {
-    app.world().get::<PoseStatus>(e).map_or(0, |s| s.solves)
 }
 
 #[test]
@@ -114,14 +100,7 @@ fn a_vertex_handle_poses_the_skeleton_and_the_pinned_root_stays() {
         .get_mut::<Transform>(handle)
         .unwrap()
         .translation = pivot + target_shift;
-    for _ in 0..40 {
-        let before = solves(&app, root);
-        app.world_mut()
-            .get_mut::<Transform>(handle)
-            .unwrap()
-            .set_changed();
-        update_until(&mut app, "a solve", |a| solves(a, root) > before);
-    }
+    drive_solves(&mut app, root, handle, 40);
     app.update(); // PostUpdate writes the pose
     let posed = app.world().get::<PosedSkeleton>(root).unwrap().clone();
     let pose = pose_of(&app, &joints);
@@ -189,14 +168,7 @@ fn a_joint_handle_moves_its_joint_and_nan_never_reaches_a_joint() {
     let target = Vec3::new(0.0, 1.0 / 3.0, 0.0) + bend * Vec3::new(0.0, 1.0 / 3.0, 0.0);
     *app.world_mut().get_mut::<Transform>(handle).unwrap() =
         Transform::from_translation(target).with_rotation(bend);
-    for _ in 0..20 {
-        let before = solves(&app, root);
-        app.world_mut()
-            .get_mut::<Transform>(handle)
-            .unwrap()
-            .set_changed();
-        update_until(&mut app, "a solve", |a| solves(a, root) > before);
-    }
+    drive_solves(&mut app, root, handle, 20);
     app.update();
     let j1 = *app.world().get::<Transform>(joints[1]).unwrap();
     assert!(
@@ -368,14 +340,7 @@ fn the_fox_from_bevys_gltf_loader_is_poseable() {
         .get_mut::<Transform>(handle)
         .unwrap()
         .translation = pivot + shift;
-    for _ in 0..30 {
-        let before = solves(&app, root);
-        app.world_mut()
-            .get_mut::<Transform>(handle)
-            .unwrap()
-            .set_changed();
-        update_until(&mut app, "a solve", |a| solves(a, root) > before);
-    }
+    drive_solves(&mut app, root, handle, 30);
     app.update();
     let posed = app.world().get::<PosedSkeleton>(root).unwrap().clone();
     let now = posed.skinned_positions();
@@ -552,14 +517,7 @@ fn the_wii_remote_turns_a_character_handle_one_to_one() {
     set(&mut app, turn, Buttons::B);
     app.update();
     set(&mut app, turn, 0); // release B: the handle keeps its pose
-    for _ in 0..20 {
-        let before = solves(&app, root);
-        app.world_mut()
-            .get_mut::<Transform>(handle)
-            .unwrap()
-            .set_changed();
-        update_until(&mut app, "a solve", |a| solves(a, root) > before);
-    }
+    drive_solves(&mut app, root, handle, 20);
     app.update();
     let handle_rotation = app.world().get::<Transform>(handle).unwrap().rotation;
     assert!(

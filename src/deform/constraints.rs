@@ -105,6 +105,16 @@ pub enum ConstraintError {
     },
 }
 
+/// True when `a` and `b` have the same length and equal `key`s in the same order (the sets
+/// of two constraint lists match, whatever their values).
+pub(crate) fn same_keys<T, K: PartialEq + ?Sized>(
+    a: &[T],
+    b: &[T],
+    key: impl Fn(&T) -> &K,
+) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| key(x) == key(y))
+}
+
 /// Role of a vertex in a constraint set.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Role {
@@ -183,18 +193,8 @@ impl Constraints {
     /// factorization built for one serves the other.
     pub fn same_sets(&self, other: &Self) -> bool {
         self.fixed == other.fixed
-            && self.handles.len() == other.handles.len()
-            && self
-                .handles
-                .iter()
-                .zip(&other.handles)
-                .all(|(a, b)| a.vertices == b.vertices)
-            && self.targets.len() == other.targets.len()
-            && self
-                .targets
-                .iter()
-                .zip(&other.targets)
-                .all(|(a, b)| a.0 == b.0)
+            && same_keys(&self.handles, &other.handles, |h| &h.vertices)
+            && same_keys(&self.targets, &other.targets, |t| &t.0)
     }
 
     /// Validates the constraints against a mesh with `n` vertices and returns each vertex'

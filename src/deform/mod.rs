@@ -22,7 +22,7 @@
 //! ```
 
 mod anderson;
-mod constraints;
+pub(crate) mod constraints;
 mod energy;
 mod factor;
 mod io;

@@ -8,6 +8,7 @@ use glam::{DAffine3, DMat3, DMat4, DQuat, DVec3, DVec4};
 use super::PoseError;
 use super::model::{SkinnedModel, add_outer4x3, mat3_from_rows};
 use super::skeleton::{JointTransform, SkeletonPose};
+use crate::deform::constraints::same_keys;
 use crate::deform::{Handle, RigidTransform, best_rotation_exact, fit_rotation_warm};
 
 /// A joint driven to a rigid motion of where it was in the reference pose.
@@ -41,18 +42,8 @@ impl PoseConstraints {
     fn same_sets(&self, other: &PoseConstraints) -> bool {
         self.fixed_vertices == other.fixed_vertices
             && self.fixed_joints == other.fixed_joints
-            && self.handles.len() == other.handles.len()
-            && self
-                .handles
-                .iter()
-                .zip(&other.handles)
-                .all(|(a, b)| a.vertices == b.vertices)
-            && self.joint_handles.len() == other.joint_handles.len()
-            && self
-                .joint_handles
-                .iter()
-                .zip(&other.joint_handles)
-                .all(|(a, b)| a.joint == b.joint)
+            && same_keys(&self.handles, &other.handles, |h| &h.vertices)
+            && same_keys(&self.joint_handles, &other.joint_handles, |h| &h.joint)
     }
 }
 

@@ -4,8 +4,11 @@
 use bevy::asset::RenderAssetUsages;
 use bevy::mesh::skinning::{SkinnedMesh as BevySkin, SkinnedMeshInverseBindposes};
 use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
+use std::time::{Duration, Instant};
+
 use bevy::prelude::*;
 use bevy_wii_deform::pose::synth_rig::SyntheticRig;
+use bevy_wii_deform::prelude::PoseStatus;
 
 /// Spawns the rig as a character entity (root) with a joint chain and a skinned mesh child,
 /// placed at `offset`. Returns (root, joints, mesh entity).
@@ -67,4 +70,31 @@ pub fn spawn_rig(app: &mut App, rig: &SyntheticRig, offset: Vec3) -> (Entity, Ve
         ))
         .id();
     (root, joints, skinned)
+}
+
+/// Updates until `done` holds, with a generous deadline for the background tasks.
+pub fn update_until(app: &mut App, what: &str, done: impl Fn(&mut App) -> bool) {
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while !done(app) {
+        assert!(Instant::now() < deadline, "timed out waiting for {what}");
+        app.update();
+        std::thread::yield_now();
+    }
+}
+
+pub fn solves(app: &App, e: Entity) -> u64 {
+    app.world().get::<PoseStatus>(e).map_or(0, |s| s.solves)
+}
+
+/// Marks `handle`'s `Transform` changed `n` times, each time updating until one more solve of
+/// `character` landed (a drag held still: the pose converges, with warm starts).
+pub fn drive_solves(app: &mut App, character: Entity, handle: Entity, n: u32) {
+    for _ in 0..n {
+        let before = solves(app, character);
+        app.world_mut()
+            .get_mut::<Transform>(handle)
+            .unwrap()
+            .set_changed();
+        update_until(app, "a solve", |a| solves(a, character) > before);
+    }
 }

@@ -225,17 +225,18 @@ fn find_skins(
             .copied()
             .filter(|&p| skins.get(p).is_ok_and(|(s, _)| s.joints == skin.joints))
             .collect();
+        let loaded = members
+            .iter()
+            .all(|&p| skins.get(p).is_ok_and(|(_, m)| meshes.contains(&m.0)));
+        if !loaded {
+            continue; // a mesh asset is still loading
+        }
         let mut mesh = SkinnedMesh::default();
         let mut offsets = Vec::new();
         let mut result: Result<(), PoseableError> = Ok(());
         for &p in &members {
             let (_, mesh3d) = skins.get(p).expect("filtered");
-            let Some(asset) = meshes.get(&mesh3d.0) else {
-                result = Err(PoseableError::MissingAttribute(
-                    "mesh asset (still loading)",
-                ));
-                break;
-            };
+            let asset = meshes.get(&mesh3d.0).expect("checked loaded above");
             match skinned_mesh_of(asset) {
                 Ok(part) => {
                     let base = mesh.positions.len() as u32;
@@ -251,13 +252,9 @@ fn find_skins(
                 }
             }
         }
-        match result {
-            Err(PoseableError::MissingAttribute("mesh asset (still loading)")) => continue,
-            Err(e) => {
-                fail(entity, e, &mut status, &mut failed);
-                continue;
-            }
-            Ok(()) => {}
+        if let Err(e) = result {
+            fail(entity, e, &mut status, &mut failed);
+            continue;
         }
         // The skeleton: parents are the nearest joint ancestors; a root's parent frame is its
         // parent entity's world transform.
