@@ -1,8 +1,61 @@
-//! The orbit camera and the cursor ray.
+//! The stage: camera, light and the orbit controls; the cursor ray.
 
-use super::*;
+use bevy::input::mouse::{AccumulatedMouseMotion, AccumulatedMouseScroll};
+use bevy::prelude::*;
+use bevy::window::PrimaryWindow;
 
-pub(super) fn orbit_camera(
+use crate::SandboxSet;
+
+/// Camera, light, and orbiting with the right/middle mouse buttons and the wheel.
+pub struct StagePlugin {
+    /// `--demo` looks straight at the model, so the remote's roll maps onto the task's axis.
+    pub demo: bool,
+}
+
+impl Plugin for StagePlugin {
+    fn build(&self, app: &mut App) {
+        let (yaw, pitch) = if self.demo { (0.0, 0.05) } else { (0.3, 0.15) };
+        app.insert_resource(OrbitCamera {
+            yaw,
+            pitch,
+            distance: 3.0,
+            focus: Vec3::new(0.0, 0.8, 0.0),
+        })
+        .insert_resource(ClearColor(BACKGROUND))
+        .add_systems(Startup, setup_stage)
+        .add_systems(Update, orbit_camera.in_set(SandboxSet::Edit));
+    }
+}
+
+/// The background colour (the challenge turns it green when done).
+pub const BACKGROUND: Color = Color::srgb(0.12, 0.13, 0.16);
+
+/// Where the orbit camera looks from.
+#[derive(Resource, Default)]
+pub struct OrbitCamera {
+    pub yaw: f32,
+    pub pitch: f32,
+    pub distance: f32,
+    pub focus: Vec3,
+}
+
+fn setup_stage(mut commands: Commands) {
+    commands.spawn((Camera3d::default(), Transform::from_xyz(0.0, 1.0, 3.0)));
+    commands.spawn((
+        DirectionalLight {
+            illuminance: 9000.0,
+            shadow_maps_enabled: false,
+            ..default()
+        },
+        Transform::from_xyz(2.0, 4.0, 3.0).looking_at(Vec3::ZERO, Vec3::Y),
+    ));
+    commands.insert_resource(GlobalAmbientLight {
+        brightness: 400.0,
+        ..default()
+    });
+}
+
+fn orbit_camera(
     mut orbit: ResMut<OrbitCamera>,
     buttons: Res<ButtonInput<MouseButton>>,
     motion: Res<AccumulatedMouseMotion>,
@@ -32,12 +85,20 @@ pub(super) fn orbit_camera(
     }
 }
 
-pub(super) fn cursor_ray(
+/// The ray under the cursor, from the first camera.
+pub fn cursor_ray(
     window: &Query<&Window, With<PrimaryWindow>>,
     camera: &Query<(&Camera, &GlobalTransform)>,
-) -> Option<(Ray3d, Vec2)> {
+) -> Option<Ray3d> {
     let window = window.single().ok()?;
     let cursor = window.cursor_position()?;
     let (cam, tf) = camera.iter().next()?;
-    Some((cam.viewport_to_world(tf, cursor).ok()?, cursor))
+    cam.viewport_to_world(tf, cursor).ok()
+}
+
+/// True unless the pointer is over the egui panel.
+pub fn not_over_ui(world: &World) -> bool {
+    world
+        .get_resource::<bevy_egui::input::EguiWantsInput>()
+        .is_none_or(|w| !w.wants_any_pointer_input())
 }

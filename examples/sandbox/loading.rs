@@ -1,9 +1,181 @@
-//! Loading models in the background: built-in names, OBJ/OFF, glTF/GLB.
+//! Loading models without freezing the app: built-in names and OBJ/OFF files are read in the
+//! background; glTF/GLB scenes go through Bevy's asset loader, and once the scene has spawned
+//! its mesh primitives are merged into one editable mesh *with their node transforms*. Then
+//! the model is normalised (and a challenge's target pose solved) in the background, and
+//! spawned.
 
-use super::*;
+use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
+use bevy::prelude::*;
+use bevy::tasks::{AsyncComputeTaskPool, Task, futures::check_ready};
+use bevy::window::FileDragAndDrop;
+use bevy::world_serialization::{WorldAssetRoot, WorldInstanceReady};
+use bevy_wii_deform::deform::TriMesh;
+use bevy_wii_deform::prelude::*;
+use glam::{DAffine3, DVec3};
 
-/// Loads a built-in model by name or a mesh file (OBJ/OFF via our reader, glTF/GLB via gltf).
-pub(super) fn load_model(name: &str) -> Result<TriMesh, String> {
+use crate::challenge::{ChallengeSetup, TaskList, TaskTarget};
+use crate::history::History;
+use crate::selection::{FIXED, FREE, HANDLE, RegionsChanged, Selection, selection_colors};
+use crate::{Model, SandboxSet, StatusLine, models, tasks};
+
+/// Loads and spawns models; see the module docs.
+pub struct LoadingPlugin;
+
+impl Plugin for LoadingPlugin {
+    fn build(&self, app: &mut App) {
+        app.add_message::<LoadModel>()
+            .add_message::<StartTask>()
+            .init_resource::<Loading>()
+            .add_observer(merge_spawned_scene)
+            .add_systems(
+                Update,
+                (
+                    queue_requests,
+                    start_loading,
+                    watch_scene_load,
+                    finish_loading,
+                )
+                    .chain()
+                    .in_set(SandboxSet::Load),
+            );
+    }
+}
+
+/// Load a model: a built-in name, or a path to an OBJ, OFF, glTF or GLB file.
+#[derive(Message, Debug, Clone)]
+pub struct LoadModel(pub String);
+
+/// Start a challenge task by key or name (loads its model).
+#[derive(Message, Debug, Clone)]
+pub struct StartTask(pub String);
+
+/// What to load next, and what is loading.
+#[derive(Resource, Default)]
+struct Loading {
+    /// The newest request not started yet (later requests replace it).
+    queued: Option<Request>,
+    /// The load in progress (one at a time).
+    job: Option<Job>,
+}
+
+#[derive(Clone)]
+struct Request {
+    name: String,
+    task: Option<(String, tasks::Task)>,
+}
+
+enum Job {
+    /// A glTF scene spawning (hidden) under this root.
+    Scene(Entity),
+    /// Reading, normalising and solving the target in the background.
+    Prepare(Task<Result<Loaded, String>>),
+}
+
+/// A model (and challenge target) prepared off the main thread.
+struct Loaded {
+    name: String,
+    mesh: TriMesh,
+    task: Option<(String, tasks::Task)>,
+    target: Option<Result<Vec<DVec3>, String>>,
+}
+
+/// On a glTF scene root spawned by the loader: what it is loaded for.
+#[derive(Component)]
+struct SceneImport(Request);
+
+fn queue_requests(
+    mut loads: MessageReader<LoadModel>,
+    mut starts: MessageReader<StartTask>,
+    mut drops: MessageReader<FileDragAndDrop>,
+    tasks: Res<TaskList>,
+    mut loading: ResMut<Loading>,
+    mut status: ResMut<StatusLine>,
+) {
+    let dropped = drops.read().filter_map(|d| match d {
+        FileDragAndDrop::DroppedFile { path_buf, .. } => {
+            Some(path_buf.to_string_lossy().into_owned())
+        }
+        _ => None,
+    });
+    for name in loads.read().map(|l| l.0.clone()).chain(dropped) {
+        loading.queued = Some(Request { name, task: None });
+    }
+    // A task wins over a plain model load in the same frame (it names its own model).
+    for StartTask(key) in starts.read() {
+        match tasks.find(key) {
+            Some((key, task)) => {
+                loading.queued = Some(Request {
+                    name: task.model.clone(),
+                    task: Some((key, task)),
+                })
+            }
+            None => status.set(format!("unknown task {key:?}")),
+        }
+    }
+}
+
+fn is_gltf(name: &str) -> bool {
+    let lower = name.to_ascii_lowercase();
+    lower.ends_with(".gltf") || lower.ends_with(".glb")
+}
+
+fn start_loading(
+    mut commands: Commands,
+    mut loading: ResMut<Loading>,
+    assets: Res<AssetServer>,
+    mut status: ResMut<StatusLine>,
+) {
+    if loading.job.is_some() {
+        return; // one load at a time; the newest request waits its turn
+    }
+    let Some(request) = loading.queued.take() else {
+        return;
+    };
+    status.set(format!("loading {}…", request.name));
+    if is_gltf(&request.name) {
+        // Bevy resolves relative paths against its assets folder; a user means the working
+        // directory.
+        let path = std::fs::canonicalize(&request.name)
+            .map(|p| p.to_string_lossy().into_owned())
+            .unwrap_or_else(|_| request.name.clone());
+        let scene = assets.load(GltfAssetLabel::Scene(0).from_asset(path));
+        let root = commands
+            .spawn((
+                WorldAssetRoot(scene),
+                Visibility::Hidden,
+                SceneImport(request),
+            ))
+            .id();
+        loading.job = Some(Job::Scene(root));
+    } else {
+        let name = request.name.clone();
+        let read = move || read_model(&name);
+        loading.job = Some(Job::Prepare(prepare(request, read)));
+    }
+}
+
+/// Normalises the mesh and solves the challenge target in the background.
+fn prepare(
+    request: Request,
+    read: impl FnOnce() -> Result<TriMesh, String> + Send + 'static,
+) -> Task<Result<Loaded, String>> {
+    AsyncComputeTaskPool::get().spawn(async move {
+        let mut mesh = read()?;
+        if !models::MODELS.contains(&request.name.as_str()) {
+            mesh = normalise(mesh);
+        }
+        let target = request.task.as_ref().map(|(_, t)| t.target_pose(&mesh));
+        Ok(Loaded {
+            name: request.name,
+            mesh,
+            task: request.task,
+            target,
+        })
+    })
+}
+
+/// Reads a built-in model by name or an OBJ/OFF file.
+fn read_model(name: &str) -> Result<TriMesh, String> {
     if models::MODELS.contains(&name) {
         // Shipped in assets/models (written by `make_assets`); regenerated if missing.
         if let Ok(m) = TriMesh::read(format!("assets/models/{name}.obj")) {
@@ -11,46 +183,131 @@ pub(super) fn load_model(name: &str) -> Result<TriMesh, String> {
         }
         return models::generate(name).ok_or_else(|| format!("unknown model {name}"));
     }
-    let lower = name.to_ascii_lowercase();
-    if lower.ends_with(".gltf") || lower.ends_with(".glb") {
-        let (doc, buffers, _) = gltf::import(name).map_err(|e| format!("{name}: {e}"))?;
-        let mut out = TriMesh::default();
-        for mesh in doc.meshes() {
-            for prim in mesh.primitives() {
-                let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
-                let Some(pos) = reader.read_positions() else {
-                    continue;
-                };
-                let base = out.positions.len() as u32;
-                out.positions
-                    .extend(pos.map(|p| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)));
-                let n = out.positions.len() as u32 - base;
-                let idx: Vec<u32> = match reader.read_indices() {
-                    Some(i) => i.into_u32().collect(),
-                    None => (0..n).collect(),
-                };
-                for t in idx.chunks_exact(3) {
-                    if t.iter().all(|&i| i < n) {
-                        out.triangles.push([base + t[0], base + t[1], base + t[2]]);
-                    }
-                }
-            }
-        }
-        if out.positions.is_empty() {
-            return Err(format!("{name}: no triangle meshes"));
-        }
-        return Ok(out);
-    }
     TriMesh::read(name).map_err(|e| format!("{name}: {e}"))
 }
 
-/// Normalises a model to stand on y = 0 with height ~1.8 (imported meshes vary wildly).
-pub(super) fn normalise(mut m: TriMesh) -> TriMesh {
-    let (mut lo, mut hi) = (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN));
-    for p in &m.positions {
-        lo = lo.min(*p);
-        hi = hi.max(*p);
+/// A glTF that failed to load ends the job with its error.
+fn watch_scene_load(
+    mut commands: Commands,
+    mut loading: ResMut<Loading>,
+    assets: Res<AssetServer>,
+    roots: Query<(&WorldAssetRoot, &SceneImport)>,
+    mut status: ResMut<StatusLine>,
+) {
+    let Some(Job::Scene(root)) = loading.job else {
+        return;
+    };
+    let Ok((scene, import)) = roots.get(root) else {
+        return;
+    };
+    if let Some(bevy::asset::LoadState::Failed(e)) = assets.get_load_state(&scene.0) {
+        status.set(format!("{}: {e}", import.0.name));
+        commands.entity(root).despawn();
+        loading.job = None;
     }
+}
+
+/// Once a glTF scene has spawned: merges its triangle primitives (node transforms applied)
+/// into one mesh and starts preparing it.
+fn merge_spawned_scene(
+    ready: On<WorldInstanceReady>,
+    mut commands: Commands,
+    imports: Query<&SceneImport>,
+    nodes: Query<(Option<&Transform>, Option<&Mesh3d>, Option<&Children>)>,
+    meshes: Res<Assets<Mesh>>,
+    mut loading: ResMut<Loading>,
+) {
+    let Ok(import) = imports.get(ready.entity) else {
+        return;
+    };
+    let request = import.0.clone();
+    let mut merged = TriMesh::default();
+    let mut skipped = 0;
+    if let Ok((_, _, Some(children))) = nodes.get(ready.entity) {
+        for &child in children {
+            merge_below(
+                child,
+                DAffine3::IDENTITY,
+                &nodes,
+                &meshes,
+                &mut merged,
+                &mut skipped,
+            );
+        }
+    }
+    commands.entity(ready.entity).despawn();
+    let name = request.name.clone();
+    let read = move || match (merged.positions.is_empty(), skipped) {
+        (true, 0) => Err(format!("{name}: no meshes in the scene")),
+        (true, _) => Err(format!(
+            "{name}: {skipped} primitive(s), none a triangle list with positions"
+        )),
+        (false, _) => Ok(merged),
+    };
+    loading.job = Some(Job::Prepare(prepare(request, read)));
+}
+
+/// Appends the triangle primitives at and below `entity`; `parent` is the transform from the
+/// parent's space to the scene root's.
+fn merge_below(
+    entity: Entity,
+    parent: DAffine3,
+    nodes: &Query<(Option<&Transform>, Option<&Mesh3d>, Option<&Children>)>,
+    meshes: &Assets<Mesh>,
+    out: &mut TriMesh,
+    skipped: &mut usize,
+) {
+    let Ok((transform, mesh, children)) = nodes.get(entity) else {
+        return;
+    };
+    let local = transform.map_or(DAffine3::IDENTITY, |t| {
+        let a = t.compute_affine();
+        DAffine3::from_mat4(Mat4::from(a).as_dmat4())
+    });
+    let to_root = parent * local;
+    if let Some(mesh) = mesh {
+        match meshes.get(&mesh.0).and_then(triangles_of) {
+            Some((positions, triangles)) => {
+                let base = out.positions.len() as u32;
+                out.positions
+                    .extend(positions.iter().map(|p| to_root.transform_point3(*p)));
+                out.triangles
+                    .extend(triangles.iter().map(|t| t.map(|i| base + i)));
+            }
+            None => *skipped += 1,
+        }
+    }
+    for &child in children.into_iter().flatten() {
+        merge_below(child, to_root, nodes, meshes, out, skipped);
+    }
+}
+
+/// Positions and triangles of a triangle-list mesh with CPU-side positions.
+fn triangles_of(mesh: &Mesh) -> Option<(Vec<DVec3>, Vec<[u32; 3]>)> {
+    if mesh.primitive_topology() != PrimitiveTopology::TriangleList {
+        return None;
+    }
+    let Some(VertexAttributeValues::Float32x3(p)) = mesh.attribute(Mesh::ATTRIBUTE_POSITION) else {
+        return None;
+    };
+    let n = p.len() as u32;
+    let indices: Vec<u32> = match mesh.indices() {
+        Some(Indices::U16(i)) => i.iter().map(|&i| i as u32).collect(),
+        Some(Indices::U32(i)) => i.clone(),
+        None => (0..n).collect(),
+    };
+    let triangles = indices
+        .chunks_exact(3)
+        .filter(|t| t.iter().all(|&i| i < n))
+        .map(|t| [t[0], t[1], t[2]])
+        .collect();
+    let positions = p.iter().map(|q| Vec3::from_array(*q).as_dvec3()).collect();
+    Some((positions, triangles))
+}
+
+/// Normalises a model to stand on y = 0 with height ~1.8 (imported meshes vary wildly).
+fn normalise(mut m: TriMesh) -> TriMesh {
+    let (lo, hi) = m.bounds();
     let size = (hi - lo).max_element().max(1e-9);
     let s = 1.8 / size;
     let centre = DVec3::new((lo.x + hi.x) / 2.0, lo.y, (lo.z + hi.z) / 2.0);
@@ -60,190 +317,87 @@ pub(super) fn normalise(mut m: TriMesh) -> TriMesh {
     m
 }
 
-pub(super) fn selection_colors(sel: &[u8]) -> Vec<[f32; 4]> {
-    sel.iter()
-        .map(|s| match *s {
-            FIXED => [0.25, 0.45, 0.95, 1.0],
-            HANDLE => [0.95, 0.35, 0.25, 1.0],
-            _ => [0.85, 0.82, 0.78, 1.0],
-        })
-        .collect()
-}
-
-#[allow(clippy::too_many_arguments)]
-/// A model (and challenge target) prepared off the main thread.
-pub(super) struct Loaded {
-    pub(super) name: String,
-    pub(super) mesh: TriMesh,
-    pub(super) task: Option<(String, tasks::Task)>,
-    pub(super) target: Option<Result<Vec<DVec3>, String>>,
-}
-
-/// The background load in progress (file parsing, model generation, challenge target solve),
-/// so the UI never freezes.
-#[derive(Resource, Default)]
-pub(super) struct Loading(pub(super) Option<bevy::tasks::Task<Result<Loaded, String>>>);
-
-pub(super) fn start_loading(mut sb: ResMut<Sandbox>, mut loading: ResMut<Loading>) {
-    if loading.0.is_some() {
-        return; // one load at a time; later requests wait their turn
-    }
-    let task = sb.pending_task.take().and_then(|t| {
-        let found = sb
-            .tasks
-            .iter()
-            .find(|(k, task)| *k == t || task.name == t)
-            .cloned();
-        if found.is_none() {
-            sb.message = format!("unknown task {t:?}");
-        }
-        found
-    });
-    if let Some((_, task)) = &task {
-        sb.pending_load = Some(task.model.clone());
-    }
-    let Some(name) = sb.pending_load.take() else {
-        return;
-    };
-    sb.message = format!("loading {name}…");
-    loading.0 = Some(bevy::tasks::AsyncComputeTaskPool::get().spawn(async move {
-        let mesh = match load_model(&name) {
-            Ok(m) if models::MODELS.contains(&name.as_str()) => m,
-            Ok(m) => normalise(m),
-            Err(e) => return Err(e),
-        };
-        let target = task.as_ref().map(|(_, t)| t.target_pose(&mesh));
-        Ok(Loaded {
-            name,
-            mesh,
-            task,
-            target,
-        })
-    }));
-}
-
-pub(super) fn load_pending(
+/// Spawns a prepared model in place of the old one, with the task's regions painted.
+fn finish_loading(
     mut commands: Commands,
-    mut sb: ResMut<Sandbox>,
     mut loading: ResMut<Loading>,
-    mut meshes: ResMut<Assets<Mesh>>,
-    mut materials: ResMut<Assets<StandardMaterial>>,
-    mut orbit: ResMut<OrbitCamera>,
-    mut clear: ResMut<ClearColor>,
+    mut model: ResMut<Model>,
+    mut parts: LoadTargets,
+    mut status: ResMut<StatusLine>,
+    mut regions: MessageWriter<RegionsChanged>,
+    mut challenge: MessageWriter<ChallengeSetup>,
 ) {
-    let Some(job) = loading.0.as_mut() else {
+    let Some(Job::Prepare(job)) = loading.job.as_mut() else {
         return;
     };
-    let Some(result) = bevy::tasks::futures::check_ready(job) else {
+    let Some(result) = check_ready(job) else {
         return;
     };
-    loading.0 = None;
-    let Loaded {
-        name,
-        mesh,
-        task,
-        target,
-    } = match result {
+    loading.job = None;
+    let loaded = match result {
         Ok(l) => l,
-        Err(e) => {
-            sb.message = e;
-            return;
-        }
+        Err(e) => return status.set(e),
     };
-    for e in [
-        sb.mesh_entity.take(),
-        sb.handle_entity.take(),
-        sb.cloud_entity.take(),
-    ]
-    .into_iter()
-    .flatten()
+    for e in [model.entity.take(), model.handle.take()]
+        .into_iter()
+        .flatten()
     {
         commands.entity(e).despawn();
     }
-    let mut bevy_mesh = mesh_from_triangles(&mesh.positions, &mesh.triangles);
-    let n = mesh.positions.len();
-    let mut selection = vec![FREE; n];
-    if let Some((_, task)) = &task {
-        for v in task.fixed.resolve(&mesh.positions) {
-            selection[v as usize] = FIXED;
+    let n = loaded.mesh.positions.len();
+    let mut labels = vec![FREE; n];
+    if let Some((_, task)) = &loaded.task {
+        for v in task.fixed.resolve(&loaded.mesh.positions) {
+            labels[v as usize] = FIXED;
         }
-        for v in task.handle.resolve(&mesh.positions) {
-            selection[v as usize] = HANDLE;
+        for v in task.handle.resolve(&loaded.mesh.positions) {
+            labels[v as usize] = HANDLE;
         }
     }
-    bevy_mesh.insert_attribute(Mesh::ATTRIBUTE_COLOR, selection_colors(&selection));
-    let handle = meshes.add(bevy_mesh);
-    let material = materials.add(StandardMaterial {
+    let mut bevy_mesh = mesh_from_triangles(&loaded.mesh.positions, &loaded.mesh.triangles);
+    bevy_mesh.insert_attribute(Mesh::ATTRIBUTE_COLOR, selection_colors(&labels));
+    let material = parts.materials.add(StandardMaterial {
         base_color: Color::WHITE,
         perceptual_roughness: 0.6,
         ..default()
     });
     let entity = commands
         .spawn((
-            Mesh3d(handle),
+            Mesh3d(parts.meshes.add(bevy_mesh)),
             MeshMaterial3d(material),
             Deformable::default(),
             FixedRegion::default(),
             Transform::default(),
-            Name::new(name.clone()),
+            Name::new(loaded.name.clone()),
         ))
         .id();
-    let (mut lo, mut hi) = (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN));
-    for p in &mesh.positions {
-        lo = lo.min(*p);
-        hi = hi.max(*p);
-    }
-    sb.diagonal = (hi - lo).length();
-    orbit.focus = ((lo + hi) / 2.0).as_vec3();
-    orbit.distance = (sb.diagonal as f32) * 1.6;
-    sb.model_name = name.clone();
-    sb.mesh_entity = Some(entity);
-    sb.selection = selection;
-    sb.undo.clear();
-    sb.redo.clear();
-    sb.challenge = None;
-    clear.0 = BACKGROUND;
-    sb.message = format!(
-        "loaded {name}: {n} vertices, {} triangles",
-        mesh.triangles.len()
-    );
-    sb.mesh = mesh;
-    if let (Some((key, task)), Some(target)) = (task, target) {
-        match target {
-            Ok(target) => {
-                let cloud = point_cloud(&target, sb.diagonal);
-                let cloud_mesh = meshes.add(cloud);
-                let yellow = materials.add(StandardMaterial {
-                    base_color: Color::srgb(1.0, 0.9, 0.1),
-                    unlit: true,
-                    ..default()
-                });
-                sb.cloud_entity = Some(
-                    commands
-                        .spawn((Mesh3d(cloud_mesh), MeshMaterial3d(yellow), Pickable::IGNORE))
-                        .id(),
-                );
-                sb.message = format!("challenge: {} — match the yellow points", task.name);
-                let start_error = target
-                    .iter()
-                    .zip(&sb.mesh.positions)
-                    .map(|(t, r)| t.distance(*r))
-                    .sum::<f64>()
-                    / target.len().max(1) as f64;
-                sb.challenge = Some(Challenge {
-                    key,
-                    task,
-                    target,
-                    start_error,
-                    watch: Stopwatch::new(),
-                    done: None,
-                    progress: 0.0,
-                });
-                sb.mode = Mode::Pose;
-            }
-            Err(e) => sb.message = e,
-        }
-    }
-    info!("{}", sb.message);
-    sync_regions(&mut commands, &mut sb, None);
+    let (lo, hi) = loaded.mesh.bounds();
+    model.diagonal = (hi - lo).length();
+    parts.orbit.focus = ((lo + hi) / 2.0).as_vec3();
+    parts.orbit.distance = (model.diagonal as f32) * 1.6;
+    model.name = loaded.name.clone();
+    model.entity = Some(entity);
+    parts.selection.labels = labels;
+    parts.history.clear();
+    status.set(format!(
+        "loaded {}: {n} vertices, {} triangles",
+        loaded.name,
+        loaded.mesh.triangles.len()
+    ));
+    model.mesh = loaded.mesh;
+    let task = loaded.task.zip(loaded.target);
+    challenge.write(ChallengeSetup(
+        task.map(|((key, task), target)| TaskTarget { key, task, target }),
+    ));
+    regions.write(RegionsChanged { pose: None });
+}
+
+/// What `finish_loading` resets or fills besides the model.
+#[derive(bevy::ecs::system::SystemParam)]
+struct LoadTargets<'w> {
+    meshes: ResMut<'w, Assets<Mesh>>,
+    materials: ResMut<'w, Assets<StandardMaterial>>,
+    orbit: ResMut<'w, crate::camera::OrbitCamera>,
+    selection: ResMut<'w, Selection>,
+    history: ResMut<'w, History>,
 }

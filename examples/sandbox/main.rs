@@ -2,7 +2,7 @@
 //! Remote — and a challenge mode that replays the paper's user study as a game.
 //!
 //! ```text
-//! cargo run --release --example sandbox [-- MODEL|PATH.obj|PATH.gltf|PATH.glb]
+//! cargo run --release --example sandbox [-- MODEL|PATH.obj|PATH.off|PATH.gltf|PATH.glb]
 //!     [--task NAME] [--demo] [--emulate] [--screenshot PATH --frames N] [--windowless]
 //! ```
 //! Mouse: right-drag orbits, wheel zooms, middle-drag pans. In *Paint* mode left-drag paints
@@ -10,77 +10,79 @@
 //! moves it in the view plane. Wiimote: hold B and turn the remote (1:1), D-pad/+/− move,
 //! Home recentres. Ctrl+Z / Ctrl+Y undo and redo.
 //!
-//! Where things are: `main.rs` — app wiring, state, scene and region sync; `loading.rs` —
-//! models in the background; `camera.rs` — orbit camera; `editing.rs` — painting, undo,
-//! shortcuts; `scripted.rs` — demo, challenge timer, unattended frames; `ui.rs` — the egui
-//! panel; `files.rs` — setup files and GLB export; `tasks.rs` — the study's tasks.
+//! The app is a set of plugins, one per job, talking through resources, messages and states:
+//!
+//! | module | plugin | job |
+//! |---|---|---|
+//! | `camera.rs` | [`StagePlugin`] | camera, light, orbit controls |
+//! | `loading.rs` | [`LoadingPlugin`] | built-in models, OBJ/OFF, glTF scenes through Bevy's loader |
+//! | `selection.rs` | [`SelectionPlugin`] | painting regions; regions → `FixedRegion` + handle |
+//! | `history.rs` | [`HistoryPlugin`] | undo/redo of paint strokes and pose drags |
+//! | `posing.rs` | [`PosingPlugin`] | which control (mouse or remote) drives the handle |
+//! | `challenge.rs` | [`ChallengePlugin`] | target clouds, timer, results table |
+//! | `files.rs` | [`FilesPlugin`] | setup save/load (RON), posed-mesh export (GLB) |
+//! | `ui.rs` | [`PanelPlugin`] | the egui panel: shows state, writes requests |
+//! | `scripted.rs` | [`UnattendedPlugin`] | `--demo`, `--screenshot`, `--windowless` runs |
+//!
+//! Modes are Bevy [`States`]: [`EditMode`] (paint or pose), [`InputMethod`] (mouse or Wii
+//! Remote) and `ChallengeState` (off, running, done).
 
 mod camera;
-mod editing;
+mod challenge;
 mod files;
+mod history;
 mod loading;
 #[path = "../common/models.rs"]
 mod models;
+mod posing;
 mod scripted;
+mod selection;
 mod tasks;
 mod ui;
 
-use camera::*;
-use editing::*;
-use files::*;
-use loading::*;
-use scripted::*;
-use ui::*;
-
 use std::time::Duration;
 
-use bevy::asset::RenderAssetUsages;
-use bevy::camera::RenderTarget;
-use bevy::input::mouse::{AccumulatedMouseMotion, AccumulatedMouseScroll};
-use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
-use bevy::picking::mesh_picking::ray_cast::{MeshRayCast, MeshRayCastSettings, RayCastVisibility};
 use bevy::prelude::*;
 use bevy::render::RenderPlugin;
-use bevy::render::render_resource::TextureFormat;
 use bevy::render::settings::WgpuSettings;
-use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured, save_to_disk};
-use bevy::time::Stopwatch;
-use bevy::window::{ExitCondition, FileDragAndDrop, PrimaryWindow};
+use bevy::window::ExitCondition;
 use bevy::winit::WinitPlugin;
-use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
-use bevy_wii_deform::deform::{TriMesh, synth};
+use bevy_egui::EguiPlugin;
+use bevy_wii_deform::deform::TriMesh;
 use bevy_wii_deform::prelude::*;
-use bevy_wii_deform::wiimote::protocol::Buttons;
-use bevy_wii_deform::wiimote::{DemoMotion, FnMotion, RemoteCommand, Still};
-use glam::DVec3;
 
-const RESULTS_CSV: &str = "challenge_results.csv";
-/// Done when the mean vertex distance to the target is below this fraction of the mean
-/// distance between the rest pose and the target (i.e. 85% of the way there).
-const CLOSE_ENOUGH: f64 = 0.15;
-const BACKGROUND: Color = Color::srgb(0.12, 0.13, 0.16);
-const SUCCESS: Color = Color::srgb(0.10, 0.35, 0.16);
+use camera::StagePlugin;
+use challenge::ChallengePlugin;
+use files::FilesPlugin;
+use history::HistoryPlugin;
+use loading::{LoadModel, LoadingPlugin, StartTask};
+use posing::PosingPlugin;
+use scripted::{Unattended, UnattendedPlugin};
+use selection::SelectionPlugin;
+use ui::PanelPlugin;
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Tool {
-    Fixed,
-    Handle,
-    Erase,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Mode {
+/// Painting regions or posing the handle.
+#[derive(States, Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+enum EditMode {
+    /// Left-drag paints with the brush.
+    #[default]
     Paint,
+    /// Left-drag (or the remote) moves the handle.
     Pose,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// What drives the handle in Pose mode.
+#[derive(States, Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 enum InputMethod {
+    /// The library's `MouseHandleControl` (arcball).
+    #[default]
     Mouse,
+    /// The library's `WiimoteHandleControl`.
     Wiimote,
 }
 
 impl InputMethod {
+    /// The name used in the results table.
     fn name(self) -> &'static str {
         match self {
             InputMethod::Mouse => "mouse",
@@ -89,107 +91,60 @@ impl InputMethod {
     }
 }
 
-const FREE: u8 = 0;
-const FIXED: u8 = 1;
-const HANDLE: u8 = 2;
-
-#[derive(Clone, PartialEq)]
-struct Snapshot {
-    selection: Vec<u8>,
-    handle: Transform,
-}
-
-struct Challenge {
-    key: String,
-    task: tasks::Task,
-    target: Vec<DVec3>,
-    /// Mean distance rest → target.
-    start_error: f64,
-    watch: Stopwatch,
-    done: Option<f64>,
-    /// 0 at rest, 1 on target.
-    progress: f64,
-}
-
+/// The model being edited: its rest mesh and the entities that show and pose it.
 #[derive(Resource)]
-struct Sandbox {
-    model_name: String,
+struct Model {
+    name: String,
     mesh: TriMesh,
     diagonal: f64,
-    mesh_entity: Option<Entity>,
-    handle_entity: Option<Entity>,
-    cloud_entity: Option<Entity>,
-    selection: Vec<u8>,
-    tool: Tool,
-    radius: f32,
-    mode: Mode,
-    input: InputMethod,
-    undo: Vec<Snapshot>,
-    redo: Vec<Snapshot>,
-    stroke: bool,
-    message: String,
-    tasks: Vec<(String, tasks::Task)>,
-    challenge: Option<Challenge>,
-    results: Vec<tasks::ResultRow>,
-    pending_load: Option<String>,
-    pending_task: Option<String>,
-    show_results: bool,
-    setup_path: String,
-    export_path: String,
+    entity: Option<Entity>,
+    handle: Option<Entity>,
 }
 
-impl Sandbox {
-    /// No model, no tasks, mouse input, Paint mode.
-    fn empty() -> Self {
+impl Default for Model {
+    fn default() -> Self {
         Self {
-            model_name: String::new(),
+            name: String::new(),
             mesh: TriMesh::default(),
             diagonal: 1.0,
-            mesh_entity: None,
-            handle_entity: None,
-            cloud_entity: None,
-            selection: Vec::new(),
-            tool: Tool::Fixed,
-            radius: 0.08,
-            mode: Mode::Paint,
-            input: InputMethod::Mouse,
-            undo: Vec::new(),
-            redo: Vec::new(),
-            stroke: false,
-            message: String::new(),
-            tasks: Vec::new(),
-            challenge: None,
-            results: Vec::new(),
-            pending_load: None,
-            pending_task: None,
-            show_results: false,
-            setup_path: "sandbox_setup.ron".into(),
-            export_path: "posed.glb".into(),
+            entity: None,
+            handle: None,
         }
     }
 }
 
+/// The one-line status shown at the top of the panel (and logged).
 #[derive(Resource, Default)]
-struct OrbitCamera {
-    yaw: f32,
-    pitch: f32,
-    distance: f32,
-    focus: Vec3,
+struct StatusLine(String);
+
+impl StatusLine {
+    /// Shows and logs a message.
+    fn set(&mut self, message: impl Into<String>) {
+        self.0 = message.into();
+        info!("{}", self.0);
+    }
 }
 
-#[derive(Resource)]
-struct Unattended {
-    screenshot: Option<String>,
-    frames: u32,
-    frame: u32,
+/// The order of the sandbox's work in a frame, all before the deformation requests.
+#[derive(SystemSet, Debug, Clone, PartialEq, Eq, Hash)]
+enum SandboxSet {
+    /// Finishing loads, file drops.
+    Load,
+    /// Camera, painting, history, scripted input.
+    Edit,
+    /// Painted regions pushed into `FixedRegion` and the handle.
+    Regions,
+}
+
+/// Command-line options.
+struct Args {
+    model: String,
+    task: Option<String>,
     demo: bool,
+    emulate: bool,
     windowless: bool,
-    check_not_blank: bool,
-    requested: bool,
+    unattended: Unattended,
 }
-
-#[derive(Resource, Clone)]
-struct RenderTargetImage(Handle<Image>);
 
 fn arg_value(args: &[String], name: &str) -> Option<String> {
     args.iter()
@@ -198,38 +153,53 @@ fn arg_value(args: &[String], name: &str) -> Option<String> {
         .cloned()
 }
 
-fn main() -> AppExit {
-    let args: Vec<String> = std::env::args().collect();
-    let windowless = args.iter().any(|a| a == "--windowless");
-    let demo = args.iter().any(|a| a == "--demo");
-    let emulate = demo || args.iter().any(|a| a == "--emulate") || windowless;
-    let model = args
-        .iter()
-        .skip(1)
-        .find(|a| {
-            !a.starts_with("--")
-                && !args
-                    .iter()
-                    .any(|b| b.starts_with("--") && arg_value(&args, b).as_ref() == Some(*a))
-        })
-        .cloned()
-        .unwrap_or_else(|| "mannequin".into());
-    let unattended = Unattended {
-        screenshot: arg_value(&args, "--screenshot"),
-        frames: arg_value(&args, "--frames")
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(30),
-        frame: 0,
-        demo,
-        windowless,
-        check_not_blank: args.iter().any(|a| a == "--check-not-blank"),
-        requested: false,
-    };
+impl Args {
+    fn parse() -> Self {
+        let args: Vec<String> = std::env::args().collect();
+        let flag = |name: &str| args.iter().any(|a| a == name);
+        let windowless = flag("--windowless");
+        let demo = flag("--demo");
+        let is_value = |a: &String| {
+            args.iter()
+                .any(|b| b.starts_with("--") && arg_value(&args, b).as_ref() == Some(a))
+        };
+        let model = args
+            .iter()
+            .skip(1)
+            .find(|a| !a.starts_with("--") && !is_value(a))
+            .cloned()
+            .unwrap_or_else(|| "mannequin".into());
+        let task = arg_value(&args, "--task").or_else(|| demo.then(|| "mannequin_wave".into()));
+        Self {
+            model,
+            task,
+            demo,
+            emulate: demo || windowless || flag("--emulate"),
+            windowless,
+            unattended: Unattended {
+                screenshot: arg_value(&args, "--screenshot"),
+                frames: arg_value(&args, "--frames")
+                    .and_then(|v| v.parse().ok())
+                    .unwrap_or(30),
+                demo,
+                windowless,
+                check_not_blank: flag("--check-not-blank"),
+                ..default()
+            },
+        }
+    }
+}
 
-    let mut app = App::new();
+/// Bevy's default plugins: with a window, or rendering into an image (`--windowless`).
+fn add_bevy(app: &mut App, windowless: bool) {
     let render = RenderPlugin {
         synchronous_pipeline_compilation: true,
         render_creation: WgpuSettings::default().into(),
+        ..default()
+    };
+    // Models may be loaded from anywhere (dropped files, `../shared/models`).
+    let assets = AssetPlugin {
+        unapproved_path_mode: bevy::asset::UnapprovedPathMode::Allow,
         ..default()
     };
     if windowless {
@@ -241,6 +211,7 @@ fn main() -> AppExit {
                     ..default()
                 })
                 .set(render)
+                .set(assets)
                 .disable::<WinitPlugin>(),
         )
         .add_plugins(bevy::app::ScheduleRunnerPlugin::run_loop(
@@ -257,191 +228,56 @@ fn main() -> AppExit {
                     }),
                     ..default()
                 })
-                .set(render),
+                .set(render)
+                .set(assets),
         )
-        .add_plugins(EguiPlugin::default())
-        .add_systems(EguiPrimaryContextPass, ui_panel);
+        .add_plugins((EguiPlugin::default(), PanelPlugin));
     }
-    let wiimote = if emulate {
+}
+
+fn main() -> AppExit {
+    let args = Args::parse();
+    let mut app = App::new();
+    add_bevy(&mut app, args.windowless);
+    let wiimote = if args.emulate {
         WiimotePlugin::emulated()
     } else {
         WiimotePlugin::default()
     };
-    let mut sandbox = Sandbox {
-        input: if demo {
-            InputMethod::Wiimote
-        } else {
-            InputMethod::Mouse
-        },
-        tasks: tasks::Task::load_all("assets/tasks"),
-        results: tasks::read_results(RESULTS_CSV),
-        pending_load: Some(model),
-        pending_task: arg_value(&args, "--task"),
-        ..Sandbox::empty()
-    };
-    if demo && sandbox.pending_task.is_none() {
-        sandbox.pending_task = Some("mannequin_wave".into());
-    }
     app.add_plugins((
         DeformPlugin::default(),
         wiimote,
         WiimoteControlPlugin,
         MouseControlPlugin,
+        MeshPickingPlugin,
     ))
-    .add_plugins(MeshPickingPlugin)
-    .insert_resource(ClearColor(BACKGROUND))
-    .insert_resource(sandbox)
-    .insert_resource(unattended)
-    .init_resource::<UndoQueue>()
-    .init_resource::<BrushHit>()
-    .init_resource::<Loading>()
-    .init_resource::<HistoryRequest>()
-    .insert_resource(OrbitCamera {
-        // The demo looks straight at the model so the remote's roll maps onto the task's
-        // rotation axis; interactive sessions start with a three-quarter view.
-        yaw: if demo { 0.0 } else { 0.3 },
-        pitch: if demo { 0.05 } else { 0.15 },
-        distance: 3.0,
-        focus: Vec3::new(0.0, 0.8, 0.0),
+    .init_state::<EditMode>()
+    .insert_state(if args.demo {
+        InputMethod::Wiimote
+    } else {
+        InputMethod::Mouse
     })
-    .add_systems(Startup, setup_scene)
-    .add_systems(
+    .init_resource::<Model>()
+    .init_resource::<StatusLine>()
+    .configure_sets(
         Update,
-        (
-            start_loading,
-            load_pending,
-            file_drop,
-            orbit_camera,
-            brush_ray.run_if(not_over_ui),
-            paint,
-            gate_mouse_control,
-            record_drags,
-            keyboard_shortcuts,
-            demo_script,
-        )
+        (SandboxSet::Load, SandboxSet::Edit, SandboxSet::Regions)
             .chain()
             .before(DeformSystems::Request),
     )
-    .add_systems(
-        Update,
-        (challenge_progress, unattended_frames).after(DeformSystems::Writeback),
-    )
-    .run()
-}
-
-fn not_over_ui(world: &World) -> bool {
-    world
-        .get_resource::<bevy_egui::input::EguiWantsInput>()
-        .is_none_or(|w| !w.wants_any_pointer_input())
-}
-
-fn setup_scene(
-    mut commands: Commands,
-    mut images: ResMut<Assets<Image>>,
-    unattended: Res<Unattended>,
-) {
-    let mut camera = commands.spawn((Camera3d::default(), Transform::from_xyz(0.0, 1.0, 3.0)));
-    if unattended.windowless {
-        let target = images.add(Image::new_target_texture(
-            800,
-            600,
-            TextureFormat::Rgba8UnormSrgb,
-            None,
-        ));
-        camera.insert(RenderTarget::Image(target.clone().into()));
-        commands.insert_resource(RenderTargetImage(target));
-    }
-    commands.spawn((
-        DirectionalLight {
-            illuminance: 9000.0,
-            shadow_maps_enabled: false,
-            ..default()
-        },
-        Transform::from_xyz(2.0, 4.0, 3.0).looking_at(Vec3::ZERO, Vec3::Y),
+    .add_plugins((
+        StagePlugin { demo: args.demo },
+        LoadingPlugin,
+        SelectionPlugin,
+        HistoryPlugin,
+        PosingPlugin,
+        ChallengePlugin,
+        FilesPlugin,
+        UnattendedPlugin(args.unattended),
     ));
-    commands.insert_resource(GlobalAmbientLight {
-        brightness: 400.0,
-        ..default()
-    });
-}
-
-/// A yellow cloud: one tiny octahedron per sampled target vertex, in a single mesh.
-fn point_cloud(points: &[DVec3], diagonal: f64) -> Mesh {
-    let step = (points.len() / 3000).max(1);
-    let r = diagonal * 0.004;
-    let mut pos = Vec::new();
-    let mut idx = Vec::new();
-    for p in points.iter().step_by(step) {
-        let marker = synth::octahedron(*p, r);
-        let base = pos.len() as u32;
-        pos.extend(marker.positions.iter().map(|q| q.as_vec3().to_array()));
-        idx.extend(marker.triangles.iter().flatten().map(|i| base + i));
+    app.world_mut().write_message(LoadModel(args.model));
+    if let Some(task) = args.task {
+        app.world_mut().write_message(StartTask(task));
     }
-    let normals: Vec<[f32; 3]> = vec![[0.0, 1.0, 0.0]; pos.len()];
-    Mesh::new(
-        PrimitiveTopology::TriangleList,
-        RenderAssetUsages::default(),
-    )
-    .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, pos)
-    .with_inserted_attribute(Mesh::ATTRIBUTE_NORMAL, normals)
-    .with_inserted_indices(Indices::U32(idx))
-}
-
-/// Pushes the painted selection into FixedRegion / DeformHandle (a new handle, at `pose` or at
-/// rest).
-fn sync_regions(commands: &mut Commands, sb: &mut Sandbox, pose: Option<Transform>) {
-    let Some(mesh_entity) = sb.mesh_entity else {
-        return;
-    };
-    let fixed: Vec<u32> = (0..sb.selection.len() as u32)
-        .filter(|&i| sb.selection[i as usize] == FIXED)
-        .collect();
-    let handle: Vec<u32> = (0..sb.selection.len() as u32)
-        .filter(|&i| sb.selection[i as usize] == HANDLE)
-        .collect();
-    commands.entity(mesh_entity).insert(FixedRegion(fixed));
-    if let Some(h) = sb.handle_entity.take() {
-        commands.entity(h).despawn();
-    }
-    if !handle.is_empty() {
-        let pivot = handle
-            .iter()
-            .map(|&i| sb.mesh.positions[i as usize])
-            .sum::<DVec3>()
-            / handle.len() as f64;
-        let pivot = pivot.as_vec3();
-        let mut e = commands.spawn((
-            DeformHandle {
-                target: mesh_entity,
-                vertices: handle,
-                pivot: Some(pivot),
-            },
-            pose.unwrap_or(Transform::from_translation(pivot)),
-            Name::new("handle"),
-        ));
-        if sb.input == InputMethod::Wiimote {
-            e.insert(WiimoteHandleControl::default().with_space(mesh_entity));
-        }
-        // The paper's mouse baseline (the library's arcball); enabled in Pose mode only.
-        e.insert(
-            MouseHandleControl::default()
-                .with_space(mesh_entity)
-                .with_enabled(false),
-        );
-        sb.handle_entity = Some(e.id());
-    }
-}
-
-fn update_colors(sb: &Sandbox, meshes: &mut Assets<Mesh>, mesh3d: &Mesh3d) {
-    if let Some(mut m) = meshes.get_mut(&mesh3d.0) {
-        m.insert_attribute(Mesh::ATTRIBUTE_COLOR, selection_colors(&sb.selection));
-    }
-}
-
-fn file_drop(mut drops: MessageReader<FileDragAndDrop>, mut sb: ResMut<Sandbox>) {
-    for d in drops.read() {
-        if let FileDragAndDrop::DroppedFile { path_buf, .. } = d {
-            sb.pending_load = Some(path_buf.to_string_lossy().into_owned());
-        }
-    }
+    app.run()
 }

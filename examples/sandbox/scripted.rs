@@ -1,11 +1,76 @@
-//! Scripted runs: the `--demo` wave, the challenge timer and `--windowless`/`--screenshot` frames.
+//! Unattended runs: the `--demo` wave, `--screenshot PATH --frames N` and `--windowless`
+//! (rendering into an image, for CI's render check).
 
-use super::*;
+use std::time::Duration;
+
+use bevy::camera::RenderTarget;
+use bevy::prelude::*;
+use bevy::render::render_resource::TextureFormat;
+use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured, save_to_disk};
+use bevy_wii_deform::prelude::*;
+use bevy_wii_deform::wiimote::FnMotion;
+use bevy_wii_deform::wiimote::protocol::Buttons;
+use glam::DVec3;
+
+use crate::SandboxSet;
+use crate::challenge::Challenge;
+
+/// Scripted input and frame capture, from the command line.
+pub struct UnattendedPlugin(pub Unattended);
+
+impl Plugin for UnattendedPlugin {
+    fn build(&self, app: &mut App) {
+        app.insert_resource(self.0.clone())
+            .add_systems(PostStartup, render_to_image)
+            .add_systems(Update, demo_script.in_set(SandboxSet::Edit))
+            .add_systems(Update, unattended_frames.after(DeformSystems::Writeback));
+    }
+}
+
+/// What the command line asked for.
+#[derive(Resource, Clone, Default)]
+pub struct Unattended {
+    pub screenshot: Option<String>,
+    pub frames: u32,
+    pub frame: u32,
+    pub demo: bool,
+    pub windowless: bool,
+    pub check_not_blank: bool,
+    pub requested: bool,
+}
+
+/// The image the camera renders into with `--windowless`.
+#[derive(Resource, Clone)]
+struct RenderTargetImage(Handle<Image>);
+
+/// `--windowless`: the camera renders into an image.
+fn render_to_image(
+    mut commands: Commands,
+    mut images: ResMut<Assets<Image>>,
+    unattended: Res<Unattended>,
+    camera: Query<Entity, With<Camera3d>>,
+) {
+    if !unattended.windowless {
+        return;
+    }
+    let target = images.add(Image::new_target_texture(
+        800,
+        600,
+        TextureFormat::Rgba8UnormSrgb,
+        None,
+    ));
+    for camera in &camera {
+        commands
+            .entity(camera)
+            .insert(RenderTarget::Image(target.clone().into()));
+    }
+    commands.insert_resource(RenderTargetImage(target));
+}
 
 /// `--demo`: once the emulated remote is calibrated it grabs (B), rolls 120° about its
 /// pointing axis over 3 s and moves the handle up and right with the D-pad — the mannequin
 /// waves.
-pub(super) fn demo_script(
+fn demo_script(
     unattended: Res<Unattended>,
     time: Res<Time>,
     emulators: Option<Res<WiimoteEmulators>>,
@@ -45,70 +110,12 @@ pub(super) fn demo_script(
     emu.set_buttons(Buttons(b));
 }
 
-pub(super) fn challenge_progress(
-    mut sb: ResMut<Sandbox>,
-    time: Res<Time>,
-    mut clear: ResMut<ClearColor>,
-    meshes: Res<Assets<Mesh>>,
-    mesh_q: Query<&Mesh3d>,
-) {
-    let input = sb.input;
-    let diagonal = sb.diagonal;
-    let Some(mesh_entity) = sb.mesh_entity else {
-        return;
-    };
-    let Some(ch) = sb.challenge.as_mut() else {
-        return;
-    };
-    if ch.done.is_some() {
-        return;
-    }
-    ch.watch.tick(time.delta());
-    let Some(VertexAttributeValues::Float32x3(current)) = mesh_q
-        .get(mesh_entity)
-        .ok()
-        .and_then(|m| meshes.get(&m.0))
-        .and_then(|m| m.attribute(Mesh::ATTRIBUTE_POSITION))
-    else {
-        return;
-    };
-    if current.len() != ch.target.len() {
-        return;
-    }
-    let mean = current
-        .iter()
-        .zip(&ch.target)
-        .map(|(c, t)| Vec3::from_array(*c).as_dvec3().distance(*t))
-        .sum::<f64>()
-        / current.len() as f64;
-    ch.progress = 1.0 - mean / ch.start_error.max(1e-12);
-    if mean < CLOSE_ENOUGH * ch.start_error + 1e-4 * diagonal {
-        let secs = ch.watch.elapsed_secs_f64();
-        ch.done = Some(secs);
-        clear.0 = SUCCESS;
-        let row = tasks::ResultRow {
-            task: ch.key.clone(),
-            input: input.name().into(),
-            seconds: secs,
-        };
-        let msg = match tasks::append_result(RESULTS_CSV, &row) {
-            Ok(()) => format!(
-                "done in {secs:.1} s with the {} — saved to {RESULTS_CSV}",
-                input.name()
-            ),
-            Err(e) => format!("done in {secs:.1} s (could not save: {e})"),
-        };
-        sb.results.push(row);
-        sb.message = msg;
-    }
-}
-
-pub(super) fn unattended_frames(
+fn unattended_frames(
     mut commands: Commands,
     mut u: ResMut<Unattended>,
     target: Option<Res<RenderTargetImage>>,
     statuses: Query<&DeformStatus>,
-    sb: Res<Sandbox>,
+    challenge: Option<Res<Challenge>>,
     mut exit: MessageWriter<AppExit>,
 ) {
     u.frame += 1;
@@ -125,7 +132,7 @@ pub(super) fn unattended_frames(
         return;
     }
     u.requested = true;
-    if let Some(ch) = &sb.challenge {
+    if let Some(ch) = &challenge {
         info!(
             "challenge {}: {:.0}% of the way{}",
             ch.key,

@@ -13,6 +13,21 @@ pub struct TriMesh {
     pub triangles: Vec<[u32; 3]>,
 }
 
+impl TriMesh {
+    /// Corners `(lo, hi)` of the mesh's axis-aligned bounding box (`lo > hi` when empty).
+    pub fn bounds(&self) -> (DVec3, DVec3) {
+        bounding_box(&self.positions)
+    }
+}
+
+/// Corners `(lo, hi)` of the axis-aligned bounding box of `points` (`lo > hi` when empty).
+pub fn bounding_box(points: &[DVec3]) -> (DVec3, DVec3) {
+    points.iter().fold(
+        (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    )
+}
+
 /// A mesh file could not be read.
 #[derive(Debug, thiserror::Error)]
 pub enum MeshIoError {

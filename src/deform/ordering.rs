@@ -11,6 +11,8 @@ use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::SymbolicSparseColMatRef;
 use faer::sparse::linalg::amd;
 use glam::DVec3;
+
+use super::io::bounding_box;
 use rayon::prelude::*;
 
 /// Pieces at most this big are never cut.
@@ -57,14 +59,6 @@ fn spread_bits(x: u64) -> u64 {
     x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
     x = (x | x << 2) & 0x1249_2492_4924_9249;
     x
-}
-
-/// Corners `(lo, hi)` of the bounding box of `coords`.
-fn bounding_box(coords: &[DVec3]) -> (DVec3, DVec3) {
-    coords.iter().fold(
-        (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
-        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-    )
 }
 
 /// The longest of the three sides `extent` of a box.
