@@ -16,12 +16,12 @@ pub mod prelude {
     pub use crate::ecs::{
         ConnectionState, DeformConfig, DeformError, DeformFailed, DeformHandle, DeformPhase,
         DeformPlugin, DeformSolved, DeformStatus, DeformSystems, Deformable, DeformableFrom,
-        DeformableScene, FixedRegion, GrabEnd, GrabMove, GrabPlugin, GrabStart, Grabbable,
-        MouseControlPlugin, MouseHandleControl, PinnedJoints, PoseFailed, PoseJointHandle,
-        PosePlugin, PoseSolved, PoseStatus, PoseSystems, Poseable, PoseableError, PosedSkeleton,
-        WiiDeformPlugins, Wiimote, WiimoteButtonChanged, WiimoteCalibration, WiimoteConnected,
-        WiimoteControlPlugin, WiimoteDisconnected, WiimoteEmulators, WiimoteFilter,
-        WiimoteHandleControl, WiimoteLink, WiimoteOrientationChanged, WiimotePlugin,
+        DeformableScene, FixedRegion, GrabEnd, GrabMove, GrabPlugin, GrabStart, GrabTwist,
+        Grabbable, MouseControlPlugin, MouseHandleControl, PinnedJoints, PoseFailed,
+        PoseJointHandle, PosePlugin, PoseSolved, PoseStatus, PoseSystems, Poseable, PoseableError,
+        PosedSkeleton, WiiDeformPlugins, Wiimote, WiimoteButtonChanged, WiimoteCalibration,
+        WiimoteConnected, WiimoteControlPlugin, WiimoteDisconnected, WiimoteEmulators,
+        WiimoteFilter, WiimoteHandleControl, WiimoteLink, WiimoteOrientationChanged, WiimotePlugin,
         WiimoteProblem, WiimoteProblems, WiimoteSettings, WiimoteSource, WiimoteSystems,
         mesh_from_triangles,
     };

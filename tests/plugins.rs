@@ -7,7 +7,7 @@ use bevy::mesh::VertexAttributeValues;
 use bevy::picking::pointer::PointerId;
 use bevy::prelude::*;
 use bevy_wii_deform::deform::{self, synth};
-use bevy_wii_deform::ecs::GrabHandle;
+use bevy_wii_deform::ecs::{ActiveGrabs, GrabHandle};
 use bevy_wii_deform::prelude::*;
 use bevy_wii_deform::wiimote::protocol::Buttons;
 use bevy_wii_deform::wiimote::{ConstantRate, Still};
@@ -1372,4 +1372,187 @@ fn a_mouse_drag_moves_a_character_handle_with_the_cursor() {
         "the pinned root turned {}°",
         root_rotation.angle_between(Quat::IDENTITY).to_degrees()
     );
+}
+
+/// A pointer press at `at` (viewport pixels) on the primary window, or a move/scroll/release.
+fn pointer(app: &mut App, at: Vec2, action: bevy::picking::pointer::PointerAction) {
+    let window = app
+        .world_mut()
+        .query_filtered::<Entity, With<bevy::window::PrimaryWindow>>()
+        .single(app.world())
+        .unwrap();
+    let target = bevy::camera::RenderTarget::Window(bevy::window::WindowRef::Primary)
+        .normalize(Some(window))
+        .unwrap();
+    let location = bevy::picking::pointer::Location {
+        target,
+        position: at,
+    };
+    app.world_mut()
+        .write_message(bevy::picking::pointer::PointerInput::new(
+            PointerId::Mouse,
+            location,
+            action,
+        ));
+}
+
+/// `GrabPlugin` grabs a *posed* character from the raw pointer input (Bevy's picking sees only
+/// the bind pose of skinned meshes): the press picks the CPU-skinned surface, motion drags the
+/// patch in the view plane, the wheel twists it about the view axis, release ends the grab and
+/// the pose stays; a second press where only the posed surface is hits it.
+#[test]
+fn the_pointer_grabs_a_posed_character_drags_twists_and_releases() {
+    use bevy::picking::pointer::{PointerAction, PointerButton};
+    let mut app = app();
+    app.add_plugins((
+        bevy::window::WindowPlugin::default(),
+        bevy::input::InputPlugin,
+        bevy::camera::CameraPlugin,
+        DeformPlugin::default(),
+        PosePlugin,
+        GrabPlugin,
+    ));
+    app.insert_resource(bevy::time::TimeUpdateStrategy::ManualDuration(
+        Duration::from_millis(16),
+    ));
+    app.finish();
+    app.cleanup();
+    let camera = spawn_camera(
+        &mut app,
+        Transform::from_xyz(0.0, 0.6, 4.0).looking_at(Vec3::new(0.0, 0.5, 0.0), Vec3::Y),
+    );
+    let rig = bevy_wii_deform::pose::synth_rig::bar_rig(3, 12, 30);
+    let (root, joints, _) = common::spawn_rig(&mut app, &rig, Vec3::ZERO);
+    app.world_mut().entity_mut(root).insert((
+        Poseable {
+            max_iterations: 8,
+            ..default()
+        },
+        PinnedJoints(vec![joints[0]]),
+        Grabbable {
+            radius: 0.12,
+            region_radius: 1.0,
+        },
+    ));
+    common::update_until(&mut app, "the model", |a| {
+        a.world().get::<PosedSkeleton>(root).is_some()
+    });
+    let tip = Vec3::new(0.0, 0.98, 0.1); // on the bar's front face, near the top
+    let start = to_screen(&mut app, camera, tip);
+    pointer(
+        &mut app,
+        start,
+        PointerAction::Press(PointerButton::Primary),
+    );
+    common::update_until(&mut app, "the grab handle", |a| {
+        a.world()
+            .get::<GrabHandle>(root)
+            .and_then(|h| a.world().get::<DeformHandle>(h.0))
+            .is_some_and(|h| h.pivot.is_some())
+    });
+    let handle = app.world().get::<GrabHandle>(root).unwrap().0;
+    let patch = app.world().get::<DeformHandle>(handle).unwrap().clone();
+    let pivot = patch.pivot.unwrap();
+    // The patch is the surface around the hit, measured along it: the top, not the bottom.
+    assert!(!patch.vertices.is_empty() && patch.vertices.len() < 150);
+    for &v in &patch.vertices {
+        let p = rig.mesh.positions[v as usize];
+        assert!(
+            p.distance(tip) < 0.125,
+            "vertex {v} at {p} is not near {tip}"
+        );
+    }
+    // Drag 80 px to the right in four moves: the handle stays under the cursor.
+    let end = start + Vec2::new(80.0, 0.0);
+    for k in 1..=4 {
+        pointer(
+            &mut app,
+            start + (end - start) * k as f32 / 4.0,
+            PointerAction::Move {
+                delta: (end - start) / 4.0,
+            },
+        );
+        app.update();
+    }
+    // The patch moves with the cursor at its own depth.
+    let drag =
+        under_cursor(&mut app, camera, pivot, end) - under_cursor(&mut app, camera, pivot, start);
+    let expected = pivot + drag;
+    let moved = app.world().get::<Transform>(handle).unwrap().translation;
+    assert!(drag.length() > 0.1, "{drag}");
+    assert!(
+        (moved - expected).length() < 0.02 * drag.length(),
+        "handle at {moved}, cursor ray at {expected}"
+    );
+    // Three wheel lines: 30° counter-clockwise on screen (about the camera's back axis).
+    let before = app.world().get::<Transform>(handle).unwrap().rotation;
+    pointer(
+        &mut app,
+        end,
+        PointerAction::Scroll {
+            unit: bevy::input::mouse::MouseScrollUnit::Line,
+            x: 0.0,
+            y: 3.0,
+            phase: bevy::input::touch::TouchPhase::Moved,
+        },
+    );
+    app.update();
+    let after = app.world().get::<Transform>(handle).unwrap().rotation;
+    let back = app.world().get::<GlobalTransform>(camera).unwrap().back();
+    let expected_turn = Quat::from_axis_angle(*back, 30f32.to_radians());
+    let error = (after * before.inverse()).angle_between(expected_turn);
+    assert!(
+        error < 0.2f32.to_radians(),
+        "twist off by {}°",
+        error.to_degrees()
+    );
+    pointer(
+        &mut app,
+        end,
+        PointerAction::Release(PointerButton::Primary),
+    );
+    app.update();
+    assert_eq!(
+        app.world()
+            .resource::<ActiveGrabs>()
+            .mesh_of(PointerId::Mouse),
+        None
+    );
+    // The pose settles and stays: the top has followed the drag.
+    common::drive_solves(&mut app, root, handle, 30);
+    let posed = app.world().get::<PosedSkeleton>(root).unwrap().clone();
+    let skinned = posed.skinned_positions();
+    let centroid = patch
+        .vertices
+        .iter()
+        .map(|&i| skinned[i as usize])
+        .sum::<Vec3>()
+        / patch.vertices.len() as f32;
+    assert!(
+        (centroid - pivot).dot(drag.normalize()) > 0.6 * drag.length(),
+        "the grabbed top moved {}",
+        centroid - pivot
+    );
+    // Press where the posed top is now (the bind pose is not there): the character is hit.
+    let posed_tip = to_screen(&mut app, camera, centroid);
+    let bind_hit = posed
+        .model
+        .topology()
+        .positions()
+        .iter()
+        .any(|p| (to_screen(&mut app, camera, p.as_vec3()) - posed_tip).length() < 4.0);
+    assert!(
+        !bind_hit,
+        "the test needs a press where only the posed surface is"
+    );
+    pointer(
+        &mut app,
+        posed_tip,
+        PointerAction::Press(PointerButton::Primary),
+    );
+    common::update_until(&mut app, "the second grab", |a| {
+        a.world()
+            .get::<GrabHandle>(root)
+            .is_some_and(|h| h.0 != handle)
+    });
 }

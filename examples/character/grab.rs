@@ -1,9 +1,8 @@
-//! Mouse grab on the posed character: `PosedSkeleton::ray_cast` (the CPU-skinned triangles;
-//! Bevy's mesh ray cast sees the bind pose of skinned meshes), take the vertices around the hit as a
-//! `DeformHandle`, drag it in the view plane, let go on release; F toggles the feet pins.
+//! Mouse grab on the posed character through the library's `GrabPlugin` (it ray-casts the
+//! CPU-skinned triangles: Bevy's mesh ray cast sees the bind pose of skinned meshes); F toggles
+//! the feet pins; with `--remote`, a Wii Remote drives a handle on the head.
 
 use bevy::prelude::*;
-use bevy::window::PrimaryWindow;
 use bevy_wii_deform::prelude::*;
 
 use crate::scene::{Character, NewCharacter, feet};
@@ -11,30 +10,36 @@ use crate::scene::{Character, NewCharacter, feet};
 /// Grab radius as a fraction of the character's size.
 const RADIUS: f32 = 0.08;
 
-/// Press on the character to grab, drag to pose, release to keep the pose.
+/// Press on the character to grab, drag to pose (Shift turns, the wheel twists), release to
+/// keep the pose — the library's `GrabPlugin`; F toggles the feet pins.
 pub struct CharacterGrabPlugin;
 
 impl Plugin for CharacterGrabPlugin {
     fn build(&self, app: &mut App) {
-        app.init_resource::<Grab>()
+        app.add_plugins(GrabPlugin)
             .add_systems(
                 Update,
-                (start_grab, drag, release, toggle_pins)
-                    .chain()
-                    .before(PoseSystems::Request),
+                (make_grabbable, toggle_pins).before(PoseSystems::Request),
             )
             .add_systems(Update, show_handles);
     }
 }
 
-/// The grab in progress.
-#[derive(Resource, Default)]
-pub struct Grab {
-    /// The handle entity, the hit point and the camera-facing plane's normal.
-    pub active: Option<(Entity, Vec3, Vec3)>,
+/// Grabbable once the character's size is known: radii in world units.
+fn make_grabbable(
+    mut commands: Commands,
+    character: Query<(Entity, &PosedSkeleton), NewCharacter>,
+) {
+    for (entity, posed) in &character {
+        let size = posed.model.topology().bounding_diagonal() as f32;
+        commands.entity(entity).insert(Grabbable {
+            radius: RADIUS * size,
+            region_radius: size,
+        });
+    }
 }
 
-/// Grabs the vertices within `RADIUS` of a point on the posed character.
+/// Grabs the vertices within `RADIUS` of a point on the posed character (scripted grabs).
 pub fn grab_at(
     commands: &mut Commands,
     character: Entity,
@@ -56,66 +61,6 @@ pub fn grab_at(
             Transform::IDENTITY,
         ))
         .id()
-}
-
-fn cursor_ray(window: &Window, camera: (&Camera, &GlobalTransform)) -> Option<Ray3d> {
-    let cursor = window.cursor_position()?;
-    camera.0.viewport_to_world(camera.1, cursor).ok()
-}
-
-fn start_grab(
-    mut commands: Commands,
-    mut grab: ResMut<Grab>,
-    buttons: Res<ButtonInput<MouseButton>>,
-    window: Single<&Window, With<PrimaryWindow>>,
-    camera: Single<(&Camera, &GlobalTransform)>,
-    character: Query<(Entity, &PosedSkeleton), With<Character>>,
-) {
-    if !buttons.just_pressed(MouseButton::Left) || grab.active.is_some() {
-        return;
-    }
-    let Some(ray) = cursor_ray(&window, (camera.0, camera.1)) else {
-        return;
-    };
-    for (entity, posed) in &character {
-        if let Some((hit, _)) = posed.ray_cast(ray) {
-            let handle = grab_at(&mut commands, entity, posed, hit);
-            grab.active = Some((handle, hit, camera.1.forward().as_vec3()));
-        }
-    }
-}
-
-fn drag(
-    grab: Res<Grab>,
-    window: Single<&Window, With<PrimaryWindow>>,
-    camera: Single<(&Camera, &GlobalTransform)>,
-    mut handles: Query<(&DeformHandle, &mut Transform)>,
-) {
-    let Some((handle, hit, normal)) = grab.active else {
-        return;
-    };
-    let Some(ray) = cursor_ray(&window, (camera.0, camera.1)) else {
-        return;
-    };
-    let Ok((h, mut transform)) = handles.get_mut(handle) else {
-        return;
-    };
-    let Some(pivot) = h.pivot else { return }; // rebased next frame
-    let Some(d) = ray.intersect_plane(hit, InfinitePlane3d::new(normal)) else {
-        return;
-    };
-    let target = pivot + (ray.get_point(d) - hit);
-    if transform.translation != target {
-        transform.translation = target;
-    }
-}
-
-fn release(mut commands: Commands, mut grab: ResMut<Grab>, buttons: Res<ButtonInput<MouseButton>>) {
-    if buttons.just_released(MouseButton::Left)
-        && let Some((handle, _, _)) = grab.active.take()
-    {
-        commands.entity(handle).despawn();
-    }
 }
 
 fn toggle_pins(

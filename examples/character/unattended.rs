@@ -6,7 +6,7 @@ use bevy::render::view::screenshot::{Screenshot, save_to_disk};
 use bevy_wii_deform::prelude::*;
 
 use crate::Args;
-use crate::grab::{Grab, grab_at};
+use crate::grab::grab_at;
 use crate::scene::Character;
 
 /// Scripted grab and screenshot.
@@ -29,7 +29,6 @@ fn script(
     mut commands: Commands,
     mut state: Local<Script>,
     args: Res<Args>,
-    mut grab: ResMut<Grab>,
     character: Query<(Entity, &PosedSkeleton), With<Character>>,
     mut handles: Query<(&DeformHandle, &mut Transform)>,
     mut exit: MessageWriter<AppExit>,
@@ -55,7 +54,6 @@ fn script(
         let hit = top - Vec3::Y * 0.05 * size;
         let handle = grab_at(&mut commands, entity, posed, hit);
         state.grabbed = Some((handle, Vec3::new(0.03, 0.07, 0.02) * size));
-        grab.active = None;
     }
     if let Some((handle, shift)) = state.grabbed
         && frame > start

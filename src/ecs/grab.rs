@@ -1,10 +1,11 @@
 //! Pointer grab: press on a [`Grabbable`] deformable, drag, release — the surface under the
 //! pointer follows it, and the pose stays.
 //!
-//! A grab is driven by three messages — [`GrabStart`], [`GrabMove`], [`GrabEnd`] — which
-//! [`GrabPlugin`] writes from Bevy's picking events (`Pointer<Press>`, `Pointer<Drag>`,
-//! `Pointer<Release>`; add a picking backend such as `MeshPickingPlugin`). Other input (a Wii
-//! Remote cursor, VR controllers, tests) can write them directly.
+//! A grab is driven by messages — [`GrabStart`], [`GrabMove`], [`GrabTwist`], [`GrabEnd`] —
+//! which [`GrabPlugin`] writes from Bevy's picking: presses from `Pointer<Press>` hits (add a
+//! picking backend such as `MeshPickingPlugin`), motion, wheel and release from the raw
+//! `PointerInput`. Other input (a Wii Remote cursor, VR controllers, tests) can write them
+//! directly.
 //!
 //! On a press, the grabbed patch is every vertex within [`Grabbable::radius`] of the hit
 //! *measured along the surface* (Dijkstra over the welded mesh, so a brush does not jump across
@@ -14,15 +15,26 @@
 //! the camera's view plane, at its depth; with Shift held it turns the patch instead (an
 //! arcball about its position on screen, all three axes). On release the handle stays where it is, so the pose
 //! is kept; the next grab of the same mesh first makes the current pose the new rest pose, so
-//! bends accumulate. Radii are in world units (the mesh's scale is divided out).
+//! bends accumulate. Radii are in world units (the mesh's scale is divided out). The wheel
+//! turns a held patch about the camera's view axis ([`GrabTwist`]).
+//!
+//! **Characters.** [`Grabbable`] on a [`Poseable`](super::Poseable) character (the entity that
+//! gets the [`PosedSkeleton`]) grabs the *posed* surface: a press ray-casts the CPU-skinned
+//! triangles (Bevy's mesh picking tests the bind pose of skinned meshes), the patch is found
+//! along the welded surface the same way, and the handle is an ordinary world-space
+//! [`DeformHandle`] aimed at the character, so dragging solves a skeleton pose. Of a static mesh
+//! and a character under the same press, the nearer one is grabbed.
 
 use std::collections::{BinaryHeap, HashMap};
 use std::sync::Arc;
 
-use bevy::picking::events::{Drag, Pointer, Press, Release};
-use bevy::picking::pointer::PointerId;
+use bevy::camera::RenderTarget;
+use bevy::picking::events::{Pointer, Press};
+use bevy::picking::pointer::{PointerAction, PointerButton, PointerId, PointerInput};
 use bevy::prelude::*;
+use bevy::window::PrimaryWindow;
 
+use super::character::PosedSkeleton;
 use super::deform::{DeformHandle, DeformState, DeformSystems, Deformable, FixedRegion};
 use super::mouse::{arcball_rotation, turned_in_space, view_plane_motion};
 use super::scene::DeformableFrom;
@@ -77,6 +89,16 @@ pub struct GrabMove {
     pub rotate: bool,
 }
 
+/// Turn a grab's patch about its camera's view axis by `radians` (counter-clockwise as seen
+/// from the camera); the picking glue writes it from the mouse wheel.
+#[derive(Message, Debug, Clone, PartialEq)]
+pub struct GrabTwist {
+    /// Which pointer.
+    pub pointer: PointerId,
+    /// The angle, radians.
+    pub radians: f32,
+}
+
 /// The pointer released its grab (the pose stays).
 #[derive(Message, Debug, Clone, PartialEq)]
 pub struct GrabEnd {
@@ -110,6 +132,8 @@ struct ActiveGrab {
     handle: Option<Entity>,
     /// Pointer motion received before the handle existed: (first from, latest to).
     early_motion: Option<(Vec2, Vec2)>,
+    /// A posed character: the point and the handle are in world space.
+    character: bool,
 }
 
 /// Adds pointer grabs (see the module docs). Requires [`super::DeformPlugin`]; add a picking
@@ -123,25 +147,22 @@ impl Plugin for GrabPlugin {
             .init_resource::<ActiveGrabs>()
             // Registered here too, so the plugin runs (idle) without a picking plugin.
             .add_message::<Pointer<Press>>()
-            .add_message::<Pointer<Drag>>()
-            .add_message::<Pointer<Release>>()
             .add_message::<GrabStart>()
+            .add_message::<PointerInput>()
             .add_message::<GrabMove>()
+            .add_message::<GrabTwist>()
             .add_message::<GrabEnd>()
             // New grabs before `Prepare` (a baked mesh starts re-preparing in the same frame);
             // handles placed after it (the rest pose may have become ready this frame).
             .add_systems(
                 Update,
-                (
-                    (presses_to_grabs, drags_to_grabs, releases_to_grabs),
-                    start_grabs,
-                )
+                ((presses_to_grabs, pointer_inputs_to_grabs), start_grabs)
                     .chain()
                     .before(DeformSystems::Prepare),
             )
             .add_systems(
                 Update,
-                (place_grabs, move_grabs, end_grabs)
+                (place_grabs, move_grabs, twist_grabs, end_grabs)
                     .chain()
                     .after(DeformSystems::Prepare)
                     .before(DeformSystems::Request),
@@ -149,14 +170,24 @@ impl Plugin for GrabPlugin {
     }
 }
 
-/// A press on a grabbable deformable starts a grab.
+/// A press on a grabbable deformable or posed character starts a grab (the nearer of the
+/// two when both are under the pointer).
 fn presses_to_grabs(
     mut presses: MessageReader<Pointer<Press>>,
+    mut inputs: MessageReader<PointerInput>,
     grabbable: Query<(), With<Grabbable>>,
     from: Query<&DeformableFrom>,
     deformables: Query<(), With<Deformable>>,
+    characters: CharacterTargets,
     mut start: MessageWriter<GrabStart>,
 ) {
+    let mut nearest: HashMap<PointerId, (f32, GrabStart)> = HashMap::new();
+    let mut offer = |depth: f32, grab: GrabStart| {
+        let better = nearest.get(&grab.pointer).is_none_or(|(d, _)| depth < *d);
+        if better {
+            nearest.insert(grab.pointer, (depth, grab));
+        }
+    };
     for p in presses.read() {
         let target = p.entity;
         let is_grabbable =
@@ -166,45 +197,123 @@ fn presses_to_grabs(
             deformables.contains(target),
             p.event.hit.position,
         ) {
-            start.write(GrabStart {
+            let grab = GrabStart {
                 pointer: p.pointer_id,
                 entity: target,
                 point,
                 camera: p.event.hit.camera,
-            });
+            };
+            offer(p.event.hit.depth, grab);
         }
     }
+    for input in inputs.read() {
+        if matches!(input.action, PointerAction::Press(PointerButton::Primary))
+            && let Some((depth, grab)) = characters.hit(input)
+        {
+            offer(depth, grab);
+        }
+    }
+    start.write_batch(nearest.into_values().map(|(_, grab)| grab));
 }
 
-/// Pointer drags move grabs, or turn them with Shift held (messages of pointers that grab
-/// nothing are ignored later).
-fn drags_to_grabs(
-    mut drags: MessageReader<Pointer<Drag>>,
+/// Grabbable posed characters and the cameras a pointer may look through.
+#[derive(bevy::ecs::system::SystemParam)]
+struct CharacterTargets<'w, 's> {
+    characters: Query<'w, 's, (Entity, &'static PosedSkeleton), With<Grabbable>>,
+    cameras: Query<
+        'w,
+        's,
+        (
+            Entity,
+            &'static Camera,
+            &'static RenderTarget,
+            &'static GlobalTransform,
+        ),
+    >,
+    primary_window: Query<'w, 's, Entity, With<PrimaryWindow>>,
+}
+
+impl CharacterTargets<'_, '_> {
+    /// The nearest posed character under a pointer press, as a grab and its depth.
+    fn hit(&self, input: &PointerInput) -> Option<(f32, GrabStart)> {
+        if self.characters.is_empty() {
+            return None;
+        }
+        let location = &input.location;
+        let (camera, cam, cam_transform) = self
+            .cameras
+            .iter()
+            .filter(|(_, c, target, _)| {
+                c.is_active && location.is_in_viewport(c, target, &self.primary_window)
+            })
+            .max_by_key(|(_, c, _, _)| c.order)
+            .map(|(e, c, _, t)| (e, c, t))?;
+        let ray = cam
+            .viewport_to_world(cam_transform, location.position)
+            .ok()?;
+        self.characters
+            .iter()
+            .filter_map(|(entity, posed)| {
+                let (point, distance) = posed.ray_cast(ray)?;
+                Some((
+                    distance,
+                    GrabStart {
+                        pointer: input.pointer_id,
+                        entity,
+                        point,
+                        camera,
+                    },
+                ))
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+    }
+}
+
+/// Pointer motion moves grabs (turns them with Shift held), the wheel twists them, a primary
+/// release ends them. Read from the raw pointer input rather than picking's `Pointer<Drag>` /
+/// `Pointer<Release>`, which need a hit under the pointer: a grabbed character has none (Bevy
+/// picks its bind pose), and a release off the mesh must end the grab too. Messages for
+/// pointers that grab nothing are ignored later.
+fn pointer_inputs_to_grabs(
+    mut inputs: MessageReader<PointerInput>,
     keys: Option<Res<ButtonInput<KeyCode>>>,
     mut moves: MessageWriter<GrabMove>,
+    mut twists: MessageWriter<GrabTwist>,
+    mut ends: MessageWriter<GrabEnd>,
 ) {
     let rotate = keys.is_some_and(|k| k.any_pressed([KeyCode::ShiftLeft, KeyCode::ShiftRight]));
-    for d in drags.read() {
-        let to = d.pointer_location.position;
-        moves.write(GrabMove {
-            pointer: d.pointer_id,
-            from: to - d.event.delta,
-            to,
-            rotate,
-        });
+    let mut motion = Vec::new();
+    for input in inputs.read() {
+        let pointer = input.pointer_id;
+        match input.action {
+            PointerAction::Move { delta } => {
+                let to = input.location.position;
+                motion.push(GrabMove {
+                    pointer,
+                    from: to - delta,
+                    to,
+                    rotate,
+                });
+            }
+            // Motion before a press in the same frame is not part of the grab it starts.
+            PointerAction::Press(PointerButton::Primary) => motion.retain(|m| m.pointer != pointer),
+            PointerAction::Scroll { unit, y, .. } => {
+                let per_step = match unit {
+                    bevy::input::mouse::MouseScrollUnit::Line => 10f32.to_radians(),
+                    bevy::input::mouse::MouseScrollUnit::Pixel => 0.5f32.to_radians(),
+                };
+                twists.write(GrabTwist {
+                    pointer,
+                    radians: y * per_step,
+                });
+            }
+            PointerAction::Release(PointerButton::Primary) | PointerAction::Cancel => {
+                ends.write(GrabEnd { pointer });
+            }
+            _ => {}
+        }
     }
-}
-
-/// Pointer releases end grabs.
-fn releases_to_grabs(
-    mut releases: MessageReader<Pointer<Release>>,
-    mut end: MessageWriter<GrabEnd>,
-) {
-    for r in releases.read() {
-        end.write(GrabEnd {
-            pointer: r.pointer_id,
-        });
-    }
+    moves.write_batch(motion);
 }
 
 /// What [`start_grabs`] reads of a grabbed mesh.
@@ -213,6 +322,7 @@ type GrabbedMesh<'a> = (
     Option<&'a GrabHandle>,
     Option<&'a Grabbable>,
     Option<&'a DeformableFrom>,
+    Has<PosedSkeleton>,
 );
 
 /// Registers new grabs; a mesh grabbed before first makes its current pose the rest pose.
@@ -224,7 +334,7 @@ fn start_grabs(
     settings: Query<&Grabbable>,
 ) {
     for s in starts.read() {
-        let Ok((global, previous, own, from)) = meshes.get(s.entity) else {
+        let Ok((global, previous, own, from, character)) = meshes.get(s.entity) else {
             continue;
         };
         if grabs.0.values().any(|g| g.mesh == s.entity) {
@@ -236,21 +346,29 @@ fn start_grabs(
         else {
             continue;
         };
-        // Radii to mesh units.
+        // Radii to mesh units (a character's welded surface is in world units).
         let scale = global.compute_transform().scale.abs();
-        let mean_scale = ((scale.x + scale.y + scale.z) / 3.0).max(1e-6);
+        let mean_scale = match character {
+            true => 1.0,
+            false => ((scale.x + scale.y + scale.z) / 3.0).max(1e-6),
+        };
         let settings = Grabbable {
             radius: grabbable.radius / mean_scale,
             region_radius: grabbable.region_radius / mean_scale,
         };
         if let Some(GrabHandle(handle)) = previous {
-            // Bake: the deformed mesh becomes the new rest (prepared again in the background).
+            // Bake: the deformed mesh becomes the new rest (prepared again in the background);
+            // a character keeps its pose as it is.
             commands.entity(*handle).despawn();
-            commands
-                .entity(s.entity)
-                .remove::<(GrabHandle, DeformState)>();
+            commands.entity(s.entity).remove::<GrabHandle>();
+            if !character {
+                commands.entity(s.entity).remove::<DeformState>();
+            }
         }
-        let point = global.affine().inverse().transform_point3(s.point);
+        let point = match character {
+            true => s.point,
+            false => global.affine().inverse().transform_point3(s.point),
+        };
         grabs.0.insert(
             s.pointer,
             ActiveGrab {
@@ -260,6 +378,7 @@ fn start_grabs(
                 settings,
                 handle: None,
                 early_motion: None,
+                character,
             },
         );
     }
@@ -270,29 +389,46 @@ fn place_grabs(
     mut commands: Commands,
     mut grabs: ResMut<ActiveGrabs>,
     mut meshes: Query<(&DeformState, &mut Deformable, Has<FixedRegion>)>,
+    characters: Query<&PosedSkeleton>,
 ) {
     for grab in grabs.0.values_mut().filter(|g| g.handle.is_none()) {
-        let Ok((state, mut deformable, has_fixed)) = meshes.get_mut(grab.mesh) else {
-            continue;
-        };
-        let Some(topology) = state.topology() else {
-            continue; // still (re)building the rest pose
-        };
-        let (patch, region) = geodesic_regions(topology, grab.point, &grab.settings);
-        if patch.is_empty() {
-            continue;
-        }
-        if !has_fixed {
-            let region = render_vertices(topology, &region);
-            if deformable.region_of_interest.as_ref() != Some(&region) {
-                deformable.region_of_interest = Some(region);
+        let vertices = if grab.character {
+            let Ok(posed) = characters.get(grab.mesh) else {
+                continue;
+            };
+            // The seed on the surface as posed; distances along the welded bind surface
+            // (rigid bones keep them).
+            let skinned = posed.model.skin_welded(&posed.pose);
+            let Some(seed) = nearest_vertex(&skinned, grab.point) else {
+                continue;
+            };
+            let topology = posed.model.topology();
+            let (patch, _) = geodesic_regions_from(topology, seed, &grab.settings);
+            render_vertices(topology, &patch)
+        } else {
+            let Ok((state, mut deformable, has_fixed)) = meshes.get_mut(grab.mesh) else {
+                continue;
+            };
+            let Some(topology) = state.topology() else {
+                continue; // still (re)building the rest pose
+            };
+            let (patch, region) = geodesic_regions(topology, grab.point, &grab.settings);
+            if !has_fixed {
+                let region = render_vertices(topology, &region);
+                if deformable.region_of_interest.as_ref() != Some(&region) {
+                    deformable.region_of_interest = Some(region);
+                }
             }
+            render_vertices(topology, &patch)
+        };
+        if vertices.is_empty() {
+            continue;
         }
         let handle = commands
             .spawn((
                 DeformHandle {
                     target: grab.mesh,
-                    vertices: render_vertices(topology, &patch),
+                    vertices,
                     pivot: None,
                 },
                 Transform::IDENTITY,
@@ -333,11 +469,13 @@ fn move_grabs(
             grab.early_motion = Some((first, to));
             continue;
         };
-        let (Ok((camera, camera_transform)), Ok(space), Ok((h, mut transform))) = (
-            cameras.get(grab.camera),
-            spaces.get(grab.mesh),
-            handles.get_mut(handle),
-        ) else {
+        let space = match grab.character {
+            true => Ok(GlobalTransform::IDENTITY),
+            false => spaces.get(grab.mesh).copied(),
+        };
+        let (Ok((camera, camera_transform)), Ok(space), Ok((h, mut transform))) =
+            (cameras.get(grab.camera), space, handles.get_mut(handle))
+        else {
             continue;
         };
         if h.pivot.is_none() {
@@ -369,6 +507,38 @@ fn move_grabs(
     }
 }
 
+/// Turns grabbed handles about their camera's view axis.
+fn twist_grabs(
+    mut twists: MessageReader<GrabTwist>,
+    grabs: Res<ActiveGrabs>,
+    cameras: Query<&GlobalTransform, With<Camera>>,
+    spaces: Query<&GlobalTransform>,
+    mut handles: Query<&mut Transform, With<DeformHandle>>,
+) {
+    for twist in twists.read() {
+        let Some(grab) = grabs.0.get(&twist.pointer) else {
+            continue;
+        };
+        let space = match grab.character {
+            true => Ok(GlobalTransform::IDENTITY),
+            false => spaces.get(grab.mesh).copied(),
+        };
+        let (Some(handle), Ok(camera), Ok(space)) = (grab.handle, cameras.get(grab.camera), space)
+        else {
+            continue;
+        };
+        let Ok(mut transform) = handles.get_mut(handle) else {
+            continue;
+        };
+        // Counter-clockwise on screen = about the view axis pointing at the viewer (+Z).
+        let in_view = Quat::from_rotation_z(twist.radians);
+        let rotation = turned_in_space(in_view, camera, &space.affine(), transform.rotation);
+        if rotation.is_finite() {
+            transform.rotation = rotation;
+        }
+    }
+}
+
 fn end_grabs(mut ends: MessageReader<GrabEnd>, mut grabs: ResMut<ActiveGrabs>) {
     for e in ends.read() {
         grabs.0.remove(&e.pointer);
@@ -382,15 +552,28 @@ pub(crate) fn geodesic_regions(
     point: Vec3,
     settings: &Grabbable,
 ) -> (Vec<u32>, Vec<u32>) {
-    let positions = topology.positions();
+    match nearest_vertex(topology.positions(), point) {
+        Some(seed) => geodesic_regions_from(topology, seed, settings),
+        None => (Vec::new(), Vec::new()),
+    }
+}
+
+/// The index of the position nearest to `point`.
+fn nearest_vertex(positions: &[glam::DVec3], point: Vec3) -> Option<usize> {
     let point = point.as_dvec3();
-    let Some(seed) = (0..positions.len()).min_by(|&a, &b| {
+    (0..positions.len()).min_by(|&a, &b| {
         positions[a]
             .distance_squared(point)
             .total_cmp(&positions[b].distance_squared(point))
-    }) else {
-        return (Vec::new(), Vec::new());
-    };
+    })
+}
+
+/// [`geodesic_regions`] from a given welded vertex.
+fn geodesic_regions_from(
+    topology: &Topology,
+    seed: usize,
+    settings: &Grabbable,
+) -> (Vec<u32>, Vec<u32>) {
     let limit = settings.region_radius.max(settings.radius) as f64;
     let distance = geodesic_distances(topology, seed, limit);
     let within = |r: f32| -> Vec<u32> {

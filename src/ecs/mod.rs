@@ -30,7 +30,9 @@ pub use deform::{
     DeformConfig, DeformError, DeformFailed, DeformHandle, DeformPhase, DeformPlugin, DeformSolved,
     DeformStatus, DeformSystems, Deformable, FixedRegion, mesh_from_triangles,
 };
-pub use grab::{ActiveGrabs, GrabEnd, GrabHandle, GrabMove, GrabPlugin, GrabStart, Grabbable};
+pub use grab::{
+    ActiveGrabs, GrabEnd, GrabHandle, GrabMove, GrabPlugin, GrabStart, GrabTwist, Grabbable,
+};
 pub use mouse::{MouseHandleControl, arcball_rotation};
 pub use scene::{DeformableFrom, DeformableScene};
 pub use wiimote::{
