@@ -1506,19 +1506,7 @@ fn the_pointer_grabs_a_posed_character_drags_twists_and_releases() {
         "twist off by {}°",
         error.to_degrees()
     );
-    pointer(
-        &mut app,
-        end,
-        PointerAction::Release(PointerButton::Primary),
-    );
-    app.update();
-    assert_eq!(
-        app.world()
-            .resource::<ActiveGrabs>()
-            .mesh_of(PointerId::Mouse),
-        None
-    );
-    // The pose settles and stays: the top has followed the drag.
+    // Held still, the pose converges: the top has followed the drag.
     common::drive_solves(&mut app, root, handle, 30);
     let posed = app.world().get::<PosedSkeleton>(root).unwrap().clone();
     let skinned = posed.skinned_positions();
@@ -1533,6 +1521,33 @@ fn the_pointer_grabs_a_posed_character_drags_twists_and_releases() {
         "the grabbed top moved {}",
         centroid - pivot
     );
+    // Released: the grab ends, its handle goes, the character keeps the pose.
+    pointer(
+        &mut app,
+        end,
+        PointerAction::Release(PointerButton::Primary),
+    );
+    for _ in 0..20 {
+        app.update();
+    }
+    assert_eq!(
+        app.world()
+            .resource::<ActiveGrabs>()
+            .mesh_of(PointerId::Mouse),
+        None
+    );
+    assert!(app.world().get_entity(handle).is_err(), "the handle stayed");
+    let kept = app
+        .world()
+        .get::<PosedSkeleton>(root)
+        .unwrap()
+        .skinned_positions();
+    let drift = kept
+        .iter()
+        .zip(&skinned)
+        .map(|(a, b)| a.distance(*b))
+        .fold(0.0, f32::max);
+    assert!(drift < 1e-5, "the pose moved {drift} after release");
     // Press where the posed top is now (the bind pose is not there): the character is hit.
     let posed_tip = to_screen(&mut app, camera, centroid);
     let bind_hit = posed
@@ -1553,6 +1568,36 @@ fn the_pointer_grabs_a_posed_character_drags_twists_and_releases() {
     common::update_until(&mut app, "the second grab", |a| {
         a.world()
             .get::<GrabHandle>(root)
-            .is_some_and(|h| h.0 != handle)
+            .and_then(|h| a.world().get::<DeformHandle>(h.0))
+            .is_some_and(|h| h.pivot.is_some())
     });
+    // A quick flick and release, then the app resets the pose while the flick still settles:
+    // the reset wins.
+    let flick = posed_tip + Vec2::new(0.0, -60.0);
+    let delta = Vec2::new(0.0, -60.0);
+    pointer(&mut app, flick, PointerAction::Move { delta });
+    app.update();
+    pointer(
+        &mut app,
+        flick,
+        PointerAction::Release(PointerButton::Primary),
+    );
+    let rest = posed.model.skeleton().bind_pose();
+    app.world_mut().get_mut::<PosedSkeleton>(root).unwrap().pose = rest.clone();
+    for _ in 0..40 {
+        app.update();
+        std::thread::yield_now();
+    }
+    let now = app.world().get::<PosedSkeleton>(root).unwrap();
+    let reset = now.model.skin_render(&rest);
+    let drift = now
+        .skinned_positions()
+        .iter()
+        .zip(&reset)
+        .map(|(a, b)| a.as_dvec3().distance(*b))
+        .fold(0.0, f64::max);
+    assert!(
+        drift < 1e-5,
+        "the released grab pulled the reset pose by {drift}"
+    );
 }

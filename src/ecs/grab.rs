@@ -22,8 +22,9 @@
 //! gets the [`PosedSkeleton`]) grabs the *posed* surface: a press ray-casts the CPU-skinned
 //! triangles (Bevy's mesh picking tests the bind pose of skinned meshes), the patch is found
 //! along the welded surface the same way, and the handle is an ordinary world-space
-//! [`DeformHandle`] aimed at the character, so dragging solves a skeleton pose. Of a static mesh
-//! and a character under the same press, the nearer one is grabbed.
+//! [`DeformHandle`] aimed at the character, so dragging solves a skeleton pose; on release the
+//! handle goes and the character holds its pose. Of a static mesh and a character under the
+//! same press, the nearer one is grabbed.
 
 use std::collections::{BinaryHeap, HashMap};
 use std::sync::Arc;
@@ -539,9 +540,23 @@ fn twist_grabs(
     }
 }
 
-fn end_grabs(mut ends: MessageReader<GrabEnd>, mut grabs: ResMut<ActiveGrabs>) {
+fn end_grabs(
+    mut commands: Commands,
+    mut ends: MessageReader<GrabEnd>,
+    mut grabs: ResMut<ActiveGrabs>,
+) {
     for e in ends.read() {
-        grabs.0.remove(&e.pointer);
+        let Some(grab) = grabs.0.remove(&e.pointer) else {
+            continue;
+        };
+        // A character holds its pose by itself: its handle goes, so loading or resetting a
+        // pose afterwards is not pulled back by a stale target.
+        if grab.character
+            && let Some(handle) = grab.handle
+        {
+            commands.entity(handle).despawn();
+            commands.entity(grab.mesh).remove::<GrabHandle>();
+        }
     }
 }
 

@@ -110,6 +110,9 @@ pub(crate) struct PoseState {
     pending: Option<PoseConstraints>,
     /// The constraints of the running solve (re-queued while the pose is still settling).
     running: Option<PoseConstraints>,
+    /// The pose the last landed solve wrote: anything else in [`PosedSkeleton::pose`] was put
+    /// there by the app (a loaded or reset pose).
+    written: Option<SkeletonPose>,
 }
 
 fn fail(
@@ -343,6 +346,7 @@ fn find_skins(
             requested: Arc::new(AtomicU64::new(0)),
             pending: None,
             running: None,
+            written: None,
         });
     }
 }
@@ -612,6 +616,15 @@ fn poll_pose_solves(
             continue;
         };
         state.task = None;
+        // Released (no handles left) and the app set a pose since: it wins over the settling
+        // of the old targets.
+        let set_by_app = state.written.as_ref().is_some_and(|w| *w != posed.pose);
+        if state.key.is_none() && set_by_app {
+            state.pending = None;
+            state.running = None;
+            status.phase = DeformPhase::Idle;
+            continue;
+        }
         match result {
             Ok((solver, solution, ms)) => {
                 // Not converged (every iteration used, still improving): keep settling with
@@ -637,6 +650,7 @@ fn poll_pose_solves(
                     DeformPhase::Idle
                 };
                 posed.pose = solution.pose.clone();
+                state.written = Some(solution.pose.clone());
                 state.solver = Some(solver);
                 state.last = Some(Arc::new(solution));
                 solved.write(PoseSolved {
