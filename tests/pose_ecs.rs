@@ -320,9 +320,11 @@ fn the_fox_from_bevys_gltf_loader_is_poseable() {
             .pivot
             .is_some()
     });
-    let feet_before: Vec<Transform> = feet
+    // Pinned feet hold where they are in the world (their local transforms would not tell:
+    // a bone's local translation never changes).
+    let feet_before: Vec<Vec3> = feet
         .iter()
-        .map(|&f| *app.world().get::<Transform>(f).unwrap())
+        .map(|&f| app.world().get::<GlobalTransform>(f).unwrap().translation())
         .collect();
     let reference = app
         .world()
@@ -354,8 +356,16 @@ fn the_fox_from_bevys_gltf_loader_is_poseable() {
         "head vertices {mean_error} from target (size {size})"
     );
     for (f, before) in feet.iter().zip(&feet_before) {
-        let after = app.world().get::<Transform>(*f).unwrap();
-        assert!(after.translation.distance(before.translation) < 1e-3 * size);
+        let after = app
+            .world()
+            .get::<GlobalTransform>(*f)
+            .unwrap()
+            .translation();
+        assert!(
+            after.distance(*before) < 1e-3 * size,
+            "a pinned foot moved {} (size {size})",
+            after.distance(*before)
+        );
     }
 
     // Save the pose as a RON pose file and as a one-keyframe glTF clip; play the clip back

@@ -7,7 +7,7 @@
 //! * **Left-drag on the character**: grabs the vertices around the point under the cursor
 //!   (on the *posed* mesh: picking ray-casts the CPU-skinned positions) and drags them in the
 //!   view plane; the skeleton follows, As-Rigid-As-Possible. Release: the pose stays.
-//! * **F**: pin / unpin the feet (joints whose name contains "foot"; pinned at start).
+//! * **F**: pin / unpin the feet (the joints nearest the ground; pinned at start).
 //! * **S** / **L**: save the pose (RON + a one-keyframe glTF clip) to `poses/` / load the RON.
 //! * **R**: back to the pose the character was loaded in.
 //! * **`--remote`**: a Wii Remote (MotionPlus) drives a handle on the head: hold B and turn
