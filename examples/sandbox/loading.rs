@@ -401,3 +401,67 @@ struct LoadTargets<'w> {
     selection: ResMut<'w, Selection>,
     history: ResMut<'w, History>,
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use bevy::asset::RenderAssetUsages;
+    use bevy::ecs::system::RunSystemOnce;
+
+    fn triangle(topology: PrimitiveTopology) -> Mesh {
+        Mesh::new(topology, RenderAssetUsages::default())
+            .with_inserted_attribute(
+                Mesh::ATTRIBUTE_POSITION,
+                vec![[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+            )
+            .with_inserted_indices(Indices::U16(vec![0, 1, 2]))
+    }
+
+    /// Two primitives under nested nodes (translated, rotated, scaled), one line primitive:
+    /// merged with every node transform applied, the line skipped and counted.
+    #[test]
+    fn a_scene_merges_its_primitives_with_their_node_transforms() {
+        let mut world = World::new();
+        let mut meshes = Assets::<Mesh>::default();
+        let tri = meshes.add(triangle(PrimitiveTopology::TriangleList));
+        let line = meshes.add(triangle(PrimitiveTopology::LineList));
+        world.insert_resource(meshes);
+        let outer = Transform::from_xyz(10.0, 0.0, 0.0).with_scale(Vec3::splat(2.0));
+        let inner = Transform::from_rotation(Quat::from_rotation_z(std::f32::consts::FRAC_PI_2));
+        let root = world.spawn(Transform::from_xyz(100.0, 0.0, 0.0)).id();
+        let node = world.spawn((outer, ChildOf(root))).id();
+        world.spawn((Mesh3d(tri.clone()), ChildOf(node)));
+        let child = world.spawn((inner, ChildOf(node))).id();
+        world.spawn((Mesh3d(tri), ChildOf(child)));
+        world.spawn((Mesh3d(line), ChildOf(child)));
+        let (merged, skipped) = world
+            .run_system_once(
+                move |nodes: Query<(Option<&Transform>, Option<&Mesh3d>, Option<&Children>)>,
+                      meshes: Res<Assets<Mesh>>| {
+                    let mut out = TriMesh::default();
+                    let mut skipped = 0;
+                    let children = nodes.get(root).unwrap().2.unwrap();
+                    for &c in children {
+                        let identity = DAffine3::IDENTITY;
+                        merge_below(c, identity, &nodes, &meshes, &mut out, &mut skipped);
+                    }
+                    (out, skipped)
+                },
+            )
+            .unwrap();
+        assert_eq!(skipped, 1);
+        assert_eq!(merged.triangles, vec![[0, 1, 2], [3, 4, 5]]);
+        // The root's own transform is not applied (the scene in its own space).
+        let expected = [
+            [10.0, 0.0, 0.0],
+            [12.0, 0.0, 0.0],
+            [10.0, 2.0, 0.0],
+            [10.0, 0.0, 0.0],
+            [10.0, 2.0, 0.0],
+            [8.0, 0.0, 0.0],
+        ];
+        for (p, e) in merged.positions.iter().zip(expected) {
+            assert!(p.distance(DVec3::from_array(e)) < 1e-6, "{p} vs {e:?}");
+        }
+    }
+}
