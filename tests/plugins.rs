@@ -10,7 +10,7 @@ use bevy_wii_deform::deform::{self, synth};
 use bevy_wii_deform::ecs::{ActiveGrabs, GrabHandle};
 use bevy_wii_deform::prelude::*;
 use bevy_wii_deform::wiimote::protocol::Buttons;
-use bevy_wii_deform::wiimote::{ConstantRate, Still};
+use bevy_wii_deform::wiimote::{FnMotion, Still};
 use glam::{DQuat, DVec3};
 
 mod common;
@@ -263,11 +263,23 @@ fn several_meshes_at_once() {
     assert_ne!(positions(&app, a), positions(&app, b));
 }
 
+/// A bar with a Wii Remote-controlled handle and one emulated remote paced by the app's clock
+/// (10 ms per update): no wall-clock sleeps, the remote's samples follow the stepped time.
 fn wiimote_app() -> (App, Entity, Entity) {
     let mut app = app();
+    app.insert_resource(bevy::time::TimeUpdateStrategy::ManualDuration(
+        Duration::from_millis(10),
+    ));
+    let clock = bevy_wii_deform::wiimote::EmulatorClock::new();
     app.add_plugins((
         DeformPlugin::default(),
-        WiimotePlugin::emulated(),
+        WiimotePlugin {
+            source: WiimoteSource::Emulator(vec![EmulatorConfig {
+                clock: Some(clock),
+                ..default()
+            }]),
+            ..default()
+        },
         WiimoteControlPlugin,
     ));
     let (e, handle, _) = spawn_bar(&mut app);
@@ -277,12 +289,17 @@ fn wiimote_app() -> (App, Entity, Entity) {
     (app, e, handle)
 }
 
-fn update_for(app: &mut App, seconds: f32) {
-    let end = Instant::now() + Duration::from_secs_f32(seconds);
-    while Instant::now() < end {
-        app.update();
-        std::thread::sleep(Duration::from_millis(5));
-    }
+/// The remote entity's state, once there is one.
+fn remote_state(app: &mut App) -> Option<Wiimote> {
+    let mut q = app.world_mut().query::<&Wiimote>();
+    q.iter(app.world()).next().cloned()
+}
+
+/// Steps the app until the remote has delivered samples up to `t` seconds (its own clock).
+fn update_until_sample(app: &mut App, t: f64) {
+    common::update_until(app, "the remote's samples", |a| {
+        remote_state(a).is_some_and(|w| w.timestamp_us as f64 * 1e-6 >= t)
+    });
 }
 
 #[test]
@@ -291,42 +308,51 @@ fn an_emulated_remote_turns_a_handle_and_a_disconnect_keeps_the_pose() {
     let controls = app.world().resource::<WiimoteEmulators>().0[0].clone();
     controls.set_motion(Arc::new(Still(DQuat::IDENTITY)));
     // Connect and calibrate at rest.
-    update_for(&mut app, 4.0);
+    common::update_until(&mut app, "a calibrated remote", |a| {
+        remote_state(a).is_some_and(|w| {
+            w.connection == ConnectionState::Connected
+                && w.motion_plus
+                && matches!(w.calibration, WiimoteCalibration::Calibrated(_))
+        })
+    });
     let remote = {
-        let mut q = app.world_mut().query::<(Entity, &Wiimote)>();
-        let (re, w) = q.single(app.world()).expect("one remote entity");
-        assert_eq!(w.connection, ConnectionState::Connected);
-        assert!(w.motion_plus);
-        re
+        let mut q = app.world_mut().query_filtered::<Entity, With<Wiimote>>();
+        q.single(app.world()).expect("one remote entity")
     };
-    // Grab with B and yaw the remote (about its top axis = Bevy +Y) at 45°/s for 1 s.
+    // Grab with B, then yaw the remote (about its top axis = Bevy +Y) by 40° over 1 s of its
+    // own time, and hold still.
     controls.set_buttons(Buttons(Buttons::B));
-    update_for(&mut app, 0.3);
-    let start_t = std::time::Instant::now();
-    controls.set_motion(Arc::new(ConstantRate {
-        start: DQuat::IDENTITY,
-        axis: DVec3::Z,
-        rate: 45f64.to_radians(),
-    }));
-    update_for(&mut app, 1.0);
-    controls.set_motion(Arc::new(Still(DQuat::from_rotation_z(
-        (45.0 * start_t.elapsed().as_secs_f64()).to_radians(),
-    ))));
-    update_for(&mut app, 0.3);
+    common::update_until(&mut app, "the grab", |a| {
+        a.world()
+            .get::<WiimoteHandleControl>(handle)
+            .unwrap()
+            .is_grabbing()
+    });
+    let t0 = remote_state(&mut app).unwrap().timestamp_us as f64 * 1e-6 + 0.1;
+    controls.set_motion(Arc::new(FnMotion(move |t: f64| {
+        let angle = ((t - t0) / 1.0).clamp(0.0, 1.0) * 40f64.to_radians();
+        (DQuat::from_rotation_z(angle), DVec3::ZERO)
+    })));
+    update_until_sample(&mut app, t0 + 1.5);
+    app.update();
     let rot = app.world().get::<Transform>(handle).unwrap().rotation;
     let (axis, angle) = rot.to_axis_angle();
-    assert!(angle > 0.4, "handle turned only {angle} rad");
-    assert!(axis.y.abs() > 0.9, "turned about {axis}");
+    // 1:1 within 1° (a gain of 0.9 would be 4° short).
+    assert!(
+        (angle.to_degrees() - 40.0).abs() < 1.0,
+        "handle turned {}° for 40°",
+        angle.to_degrees()
+    );
+    assert!(axis.y.abs() > 0.99, "turned about {axis}");
     // Disconnect mid-drag (B still held): the state shows it, the last pose is kept.
     controls.set_connected(false);
-    let deadline = Instant::now() + Duration::from_secs(5);
-    while app.world().get::<Wiimote>(remote).unwrap().connection != ConnectionState::Disconnected {
-        assert!(Instant::now() < deadline, "disconnect not noticed");
-        app.update();
-        std::thread::sleep(Duration::from_millis(5));
-    }
+    common::update_until(&mut app, "the disconnect", |a| {
+        a.world().get::<Wiimote>(remote).unwrap().connection == ConnectionState::Disconnected
+    });
     let before = app.world().get::<Transform>(handle).unwrap().rotation;
-    update_for(&mut app, 0.5);
+    for _ in 0..50 {
+        app.update();
+    }
     assert_eq!(
         app.world().get::<Transform>(handle).unwrap().rotation,
         before
@@ -342,11 +368,9 @@ fn an_emulated_remote_turns_a_handle_and_a_disconnect_keeps_the_pose() {
     }
     // It comes back on the same entity.
     controls.set_connected(true);
-    update_for(&mut app, 3.0);
-    assert_eq!(
-        app.world().get::<Wiimote>(remote).unwrap().connection,
-        ConnectionState::Connected
-    );
+    common::update_until(&mut app, "the reconnect", |a| {
+        a.world().get::<Wiimote>(remote).unwrap().connection == ConnectionState::Connected
+    });
 }
 
 #[derive(Resource, Default)]

@@ -4,9 +4,9 @@
 use bevy::prelude::*;
 
 use crate::wiimote::{
-    CalibrationPhase, EmulatorConfig, EmulatorControls, FilterKind, ManagerConfig, ManagerEvent,
-    MotionPlusState, RemoteCommand, RemoteId, RemoteProblem, RemoteSource, SessionConfig,
-    WiimoteManager, protocol::Buttons,
+    CalibrationPhase, EmulatorClock, EmulatorConfig, EmulatorControls, FilterKind, ManagerConfig,
+    ManagerEvent, MotionPlusState, RemoteCommand, RemoteId, RemoteProblem, RemoteSource,
+    SessionConfig, WiimoteManager, protocol::Buttons,
 };
 
 /// Wiimote systems, in `PreUpdate`.
@@ -306,6 +306,31 @@ impl Plugin for WiimotePlugin {
                     .chain()
                     .in_set(WiimoteSystems::Receive),
             );
+        // Emulated remotes paced by a clock follow the app's (real) time: with
+        // `TimeUpdateStrategy::ManualDuration` a test steps them frame by frame.
+        let clocks: Vec<EmulatorClock> = match &self.source {
+            WiimoteSource::Emulator(configs) => {
+                configs.iter().filter_map(|c| c.clock.clone()).collect()
+            }
+            _ => Vec::new(),
+        };
+        if !clocks.is_empty() {
+            app.insert_resource(EmulatorClocks(clocks)).add_systems(
+                First,
+                advance_emulator_clocks.after(bevy::time::TimeSystems),
+            );
+        }
+    }
+}
+
+/// The pacing clocks of the plugin's emulated remotes.
+#[derive(Resource)]
+struct EmulatorClocks(Vec<EmulatorClock>);
+
+fn advance_emulator_clocks(clocks: Res<EmulatorClocks>, time: Res<Time<Real>>) {
+    let now = time.elapsed().as_micros() as u64;
+    for clock in &clocks.0 {
+        clock.advance_to(now);
     }
 }
 

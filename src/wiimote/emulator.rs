@@ -1,10 +1,11 @@
 //! A software Wii Remote (original with external MotionPlus, or Remote Plus "-TR") that speaks
 //! the real byte protocol behind the [`Transport`] trait. Sensors are synthesised from a
 //! ground-truth [`Motion`] with the error model of `PROTOCOL.md` §13.3, on a deterministic
-//! virtual clock (or in real time for demos).
+//! virtual clock, in real time (demos), or paced by an [`EmulatorClock`] the app advances
+//! (tests that step time by hand).
 
 use std::collections::VecDeque;
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Condvar, Mutex};
 use std::time::Instant;
 
 use glam::{DMat3, DQuat, DVec3};
@@ -98,6 +99,73 @@ impl SensorModel {
     }
 }
 
+/// A clock the app advances (e.g. from Bevy's virtual time) that paces emulated remotes: a
+/// report is delivered once the clock has reached its time, so a test steps the remote
+/// exactly like the rest of the app, with no wall-clock sleeps. Closing it releases every
+/// waiting remote (from then on reports come at once); the manager closes its remotes'
+/// clocks when it stops.
+#[derive(Clone, Default)]
+pub struct EmulatorClock(Arc<(Mutex<ClockState>, Condvar)>);
+
+#[derive(Default)]
+struct ClockState {
+    now_us: u64,
+    closed: bool,
+}
+
+impl EmulatorClock {
+    /// A clock at 0.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    fn state(&self) -> std::sync::MutexGuard<'_, ClockState> {
+        self.0.0.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Microseconds since the clock started.
+    pub fn now_us(&self) -> u64 {
+        self.state().now_us
+    }
+
+    /// Moves the clock forward to `t_us` (never back) and wakes the remotes waiting for it.
+    pub fn advance_to(&self, t_us: u64) {
+        let mut state = self.state();
+        if t_us > state.now_us {
+            state.now_us = t_us;
+            self.0.1.notify_all();
+        }
+    }
+
+    /// Releases every waiting remote, for good.
+    pub fn close(&self) {
+        self.state().closed = true;
+        self.0.1.notify_all();
+    }
+
+    /// Blocks until the clock reaches `t_us` or is closed.
+    fn wait_until(&self, t_us: u64) {
+        let mut state = self.state();
+        while state.now_us < t_us && !state.closed {
+            state = self.0.1.wait(state).unwrap_or_else(|e| e.into_inner());
+        }
+    }
+}
+
+impl std::fmt::Debug for EmulatorClock {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_tuple("EmulatorClock")
+            .field(&self.now_us())
+            .finish()
+    }
+}
+
+impl PartialEq for EmulatorClock {
+    fn eq(&self, other: &Self) -> bool {
+        Arc::ptr_eq(&self.0, &other.0)
+    }
+}
+
 /// Emulator configuration.
 #[derive(Debug, Clone, PartialEq)]
 pub struct EmulatorConfig {
@@ -129,6 +197,9 @@ pub struct EmulatorConfig {
     pub error2_acks: bool,
     /// Deliver reports in real time (sleep until due) instead of instantly.
     pub realtime: bool,
+    /// Deliver reports as this clock reaches them (takes precedence over `realtime`); the
+    /// emulator's time starts at the clock's time when the remote is opened.
+    pub clock: Option<EmulatorClock>,
     /// Battery level byte.
     pub battery: u8,
     /// Sensor error model.
@@ -155,6 +226,7 @@ impl Default for EmulatorConfig {
             always_ack: false,
             error2_acks: false,
             realtime: false,
+            clock: None,
             battery: 0x68,
             sensors: SensorModel::default(),
             open_error: None,
@@ -356,6 +428,8 @@ pub struct EmulatedRemote {
     rng: Rng,
     unit: Unit,
     epoch: Instant,
+    /// The pacing clock's time when this remote was opened.
+    clock_origin: u64,
     now_us: u64,
     next_tick_us: u64,
     tick: u64,
@@ -410,6 +484,7 @@ impl EmulatedRemote {
             rng,
             unit,
             epoch: Instant::now(),
+            clock_origin: config.clock.as_ref().map_or(0, EmulatorClock::now_us),
             now_us: 0,
             next_tick_us: 0,
             tick: 0,
@@ -1065,7 +1140,9 @@ impl EmulatedRemote {
     }
 
     fn wait_until(&self, t_us: u64) {
-        if self.config.realtime {
+        if let Some(clock) = &self.config.clock {
+            clock.wait_until(self.clock_origin + t_us);
+        } else if self.config.realtime {
             let target = std::time::Duration::from_micros(t_us);
             let now = self.epoch.elapsed();
             if target > now {
@@ -1080,7 +1157,10 @@ impl Transport for EmulatedRemote {
         if !self.controls.connected() {
             return Err(TransportError::Disconnected);
         }
-        if self.config.realtime {
+        if let Some(clock) = &self.config.clock {
+            let now = clock.now_us().saturating_sub(self.clock_origin);
+            self.now_us = self.now_us.max(now);
+        } else if self.config.realtime {
             self.now_us = self.now_us.max(self.epoch.elapsed().as_micros() as u64);
         }
         self.advance_state();

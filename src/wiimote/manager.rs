@@ -158,6 +158,8 @@ pub struct WiimoteManager {
     stop: Arc<AtomicBool>,
     threads: Vec<JoinHandle<()>>,
     commands: CommandMap,
+    /// Pacing clocks of emulated remotes, closed on drop so no thread waits forever.
+    clocks: Vec<super::EmulatorClock>,
 }
 
 impl std::fmt::Debug for WiimoteManager {
@@ -175,8 +177,10 @@ impl WiimoteManager {
         let stop = Arc::new(AtomicBool::new(false));
         let commands: CommandMap = Arc::default();
         let mut threads = Vec::new();
+        let mut clocks = Vec::new();
         match config.source.clone() {
             RemoteSource::Emulated(list) => {
+                clocks.extend(list.iter().filter_map(|(emu, _)| emu.clock.clone()));
                 for (i, (emu, controls)) in list.into_iter().enumerate() {
                     let id = i as RemoteId;
                     let mut session = config.session.clone();
@@ -237,6 +241,7 @@ impl WiimoteManager {
             stop,
             threads,
             commands,
+            clocks,
         }
     }
 
@@ -263,6 +268,7 @@ impl WiimoteManager {
 impl Drop for WiimoteManager {
     fn drop(&mut self) {
         self.stop.store(true, Ordering::Relaxed);
+        self.clocks.iter().for_each(super::EmulatorClock::close);
         for t in self.threads.drain(..) {
             let _ = t.join();
         }

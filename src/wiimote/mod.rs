@@ -34,7 +34,9 @@ mod transport;
 mod vqf;
 
 pub use diagnosis::{LinuxDevices, OpenErrorKind, RemoteProblem};
-pub use emulator::{EmulatedRemote, EmulatorConfig, EmulatorControls, SensorModel, Variant};
+pub use emulator::{
+    EmulatedRemote, EmulatorClock, EmulatorConfig, EmulatorControls, SensorModel, Variant,
+};
 pub use filter::{
     Calibration, CalibrationPhase, FilterKind, FusionFilter, ImuSample, OrientationFilter,
     PaperFilter, RawIntegration, StillnessBias, snap_tilt,
