@@ -16,6 +16,8 @@
 //!   iterations). `plain` and `anderson` (depth 3, history per solve call); `best` is what the
 //!   plugin uses (plain). 4096 means "not settled within 2048 iterations".
 //!
+//! `--set-change-only` skips the settling runs (reported as 0).
+//!
 //! The last stdout line is `{"meshes": [{"name", "vertices", "set_change_first_pose_ms",
 //! "settle_iterations": {"plain", "anderson", "best"}}]}`.
 
@@ -35,9 +37,14 @@ fn options(iterations: u32, anderson_depth: usize) -> SolveOptions {
     }
 }
 
-/// Precompute for a changed handle set + one warm iteration, median ms of 5.
+/// Precompute for a changed handle set + one warm iteration, median ms of 5. The mesh has
+/// been solved before with another set (bottom and top slabs), as in an interaction.
 fn set_change_ms(topology: &Arc<Topology>, start: &Solution) -> f64 {
     let positions = topology.positions();
+    let (bottom, top) = synth::slab_regions(positions, 1, 0.1, 0.1);
+    let before = Constraints::with_handle(bottom, top, RigidTransform::IDENTITY);
+    ArapSolver::precompute(topology.clone(), &before, SolverSettings::default())
+        .expect("precompute");
     let (fixed, handle) = synth::slab_regions(positions, 0, 0.15, 0.15);
     let mut c = Constraints::with_handle(fixed, handle, RigidTransform::IDENTITY);
     c.handles[0].transform.translation = DVec3::Y * 0.05 * topology.bounding_diagonal();
@@ -48,6 +55,9 @@ fn set_change_ms(topology: &Arc<Topology>, start: &Solution) -> f64 {
                 .expect("precompute");
             let s = solver.solve(&c, &options(1, 0), InitialGuess::Warm(start), NEVER);
             assert!(s.is_ok());
+            if std::env::var_os("BENCH_DEBUG").is_some() {
+                eprintln!("  {:?}", solver.precompute_stats());
+            }
             t0.elapsed().as_secs_f64() * 1e3
         })
         .collect();
@@ -141,6 +151,8 @@ fn close(topology: &Topology, x: &[DVec3], star: &[DVec3], e_star: f64, diagonal
 
 fn main() {
     let json = std::env::args().any(|a| a == "--json");
+    // `--set-change-only`: skip the (long) settling runs.
+    let settle = !std::env::args().any(|a| a == "--set-change-only");
     let mut meshes = vec![("bar_5k".to_string(), synth::bar_with_vertices(5_000))];
     match TriMesh::read("../shared/meshes/armadillo.off") {
         Ok(arm) => {
@@ -154,8 +166,13 @@ fn main() {
         let topology = Arc::new(Topology::new(&mesh.positions, &mesh.triangles).expect("mesh"));
         let rest = Solution::rest(&topology);
         let first_pose = set_change_ms(&topology, &rest);
-        let plain = settle_iterations(&topology, 0);
-        let anderson = settle_iterations(&topology, 3);
+        let (plain, anderson) = match settle {
+            true => (
+                settle_iterations(&topology, 0),
+                settle_iterations(&topology, 3),
+            ),
+            false => (0, 0),
+        };
         eprintln!(
             "{name}: {} vertices, set change → first pose {first_pose:.1} ms, settle: plain {plain}, anderson {anderson}",
             topology.vertex_count()
