@@ -1288,18 +1288,25 @@ fn normals_and_tangents_turn_with_the_surface_and_two_handles_move_one_mesh() {
     }
 }
 
-/// `MouseHandleControl` drives a character's handle exactly like a static mesh's: shift-drag
-/// puts the handle under the cursor (world space, `space: None`) and the skeleton follows.
-#[test]
-fn a_mouse_drag_moves_a_character_handle_with_the_cursor() {
+/// A headless app with a window, input, cameras, `PosePlugin` and `plugins`; a camera looking
+/// at a three-bone bar character whose root joint is pinned.
+fn character_app<M>(
+    plugins: impl bevy::app::Plugins<M>,
+) -> (
+    App,
+    Entity,
+    bevy_wii_deform::pose::synth_rig::SyntheticRig,
+    Entity,
+    Vec<Entity>,
+) {
     let mut app = app();
     app.add_plugins((
         bevy::window::WindowPlugin::default(),
         bevy::input::InputPlugin,
         bevy::camera::CameraPlugin,
         PosePlugin,
-        MouseControlPlugin,
-    ));
+    ))
+    .add_plugins(plugins);
     app.insert_resource(bevy::time::TimeUpdateStrategy::ManualDuration(
         Duration::from_millis(16),
     ));
@@ -1318,6 +1325,14 @@ fn a_mouse_drag_moves_a_character_handle_with_the_cursor() {
         },
         PinnedJoints(vec![joints[0]]),
     ));
+    (app, camera, rig, root, joints)
+}
+
+/// `MouseHandleControl` drives a character's handle exactly like a static mesh's: shift-drag
+/// puts the handle under the cursor (world space, `space: None`) and the skeleton follows.
+#[test]
+fn a_mouse_drag_moves_a_character_handle_with_the_cursor() {
+    let (mut app, camera, rig, root, joints) = character_app(MouseControlPlugin);
     common::update_until(&mut app, "the model", |a| {
         a.world().get::<PosedSkeleton>(root).is_some()
     });
@@ -1427,37 +1442,11 @@ fn pointer(app: &mut App, at: Vec2, action: bevy::picking::pointer::PointerActio
 #[test]
 fn the_pointer_grabs_a_posed_character_drags_twists_and_releases() {
     use bevy::picking::pointer::{PointerAction, PointerButton};
-    let mut app = app();
-    app.add_plugins((
-        bevy::window::WindowPlugin::default(),
-        bevy::input::InputPlugin,
-        bevy::camera::CameraPlugin,
-        DeformPlugin::default(),
-        PosePlugin,
-        GrabPlugin,
-    ));
-    app.insert_resource(bevy::time::TimeUpdateStrategy::ManualDuration(
-        Duration::from_millis(16),
-    ));
-    app.finish();
-    app.cleanup();
-    let camera = spawn_camera(
-        &mut app,
-        Transform::from_xyz(0.0, 0.6, 4.0).looking_at(Vec3::new(0.0, 0.5, 0.0), Vec3::Y),
-    );
-    let rig = bevy_wii_deform::pose::synth_rig::bar_rig(3, 12, 30);
-    let (root, joints, _) = common::spawn_rig(&mut app, &rig, Vec3::ZERO);
-    app.world_mut().entity_mut(root).insert((
-        Poseable {
-            max_iterations: 8,
-            ..default()
-        },
-        PinnedJoints(vec![joints[0]]),
-        Grabbable {
-            radius: 0.12,
-            region_radius: 1.0,
-        },
-    ));
+    let (mut app, camera, rig, root, _) = character_app((DeformPlugin::default(), GrabPlugin));
+    app.world_mut().entity_mut(root).insert(Grabbable {
+        radius: 0.12,
+        region_radius: 1.0,
+    });
     common::update_until(&mut app, "the model", |a| {
         a.world().get::<PosedSkeleton>(root).is_some()
     });

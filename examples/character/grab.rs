@@ -39,6 +39,15 @@ fn make_grabbable(
     }
 }
 
+/// The topmost point of the posed mesh (the Fox's ear tips).
+pub fn top_point(posed: &PosedSkeleton) -> Vec3 {
+    posed
+        .skinned_positions()
+        .into_iter()
+        .max_by(|a, b| a.y.total_cmp(&b.y))
+        .unwrap_or(Vec3::ZERO)
+}
+
 /// Grabs the vertices within `RADIUS` of a point on the posed character (scripted grabs).
 pub fn grab_at(
     commands: &mut Commands,
@@ -114,13 +123,7 @@ fn spawn_remote_handle(
     character: Query<(Entity, &PosedSkeleton), NewCharacter>,
 ) {
     for (entity, posed) in &character {
-        let points = posed.skinned_positions();
-        let top = points
-            .iter()
-            .copied()
-            .max_by(|a, b| a.y.total_cmp(&b.y))
-            .unwrap_or(Vec3::ZERO);
-        let handle = grab_at(&mut commands, entity, posed, top);
+        let handle = grab_at(&mut commands, entity, posed, top_point(posed));
         // World space (`space: None`), as every character handle.
         commands
             .entity(handle)

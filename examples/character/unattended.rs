@@ -6,7 +6,7 @@ use bevy::render::view::screenshot::{Screenshot, save_to_disk};
 use bevy_wii_deform::prelude::*;
 
 use crate::Args;
-use crate::grab::grab_at;
+use crate::grab::{grab_at, top_point};
 use crate::scene::Character;
 
 /// Scripted grab and screenshot.
@@ -43,13 +43,7 @@ fn script(
     };
     let start = *state.start.get_or_insert(frame + 10);
     if frame == start {
-        // The topmost point of the posed mesh (the Fox's ear tips).
-        let points = posed.skinned_positions();
-        let top = points
-            .iter()
-            .copied()
-            .max_by(|a, b| a.y.total_cmp(&b.y))
-            .unwrap_or(Vec3::ZERO);
+        let top = top_point(posed);
         let size = posed.model.topology().bounding_diagonal() as f32;
         let hit = top - Vec3::Y * 0.05 * size;
         let handle = grab_at(&mut commands, entity, posed, hit);
