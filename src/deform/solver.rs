@@ -743,27 +743,33 @@ struct Layout {
     rest: Vec<DVec3>,
 }
 
+/// A memory order for the mesh: its own when neighbours already sit close (generated grids,
+/// ring-by-ring bars: mean index distance within a few rows of a √n × √n grid), else a
+/// Z-order curve. Computed once per topology.
+fn memory_order(topology: &Topology) -> Vec<u32> {
+    let n = topology.vertex_count();
+    let (offsets_w, nbrs_w) = (topology.offsets(), topology.neighbor_list());
+    let spread = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            nbrs_w[offsets_w[i] as usize..offsets_w[i + 1] as usize]
+                .iter()
+                .map(|&j| (i as u64).abs_diff(j as u64))
+                .sum::<u64>()
+        })
+        .sum::<u64>() as f64
+        / nbrs_w.len().max(1) as f64;
+    if spread <= 2.0 * (n as f64).sqrt() {
+        (0..n as u32).collect()
+    } else {
+        spatial_order(topology.positions())
+    }
+}
+
 impl Layout {
     fn new(topology: &Topology, weights: &[f64]) -> Self {
-        let n = topology.vertex_count();
         let (offsets_w, nbrs_w) = (topology.offsets(), topology.neighbor_list());
-        // Keep the mesh's own order when neighbours already sit close (generated grids,
-        // ring-by-ring bars): mean index distance within a few rows of a √n × √n grid.
-        let spread = (0..n)
-            .into_par_iter()
-            .map(|i| {
-                nbrs_w[offsets_w[i] as usize..offsets_w[i + 1] as usize]
-                    .iter()
-                    .map(|&j| (i as u64).abs_diff(j as u64))
-                    .sum::<u64>()
-            })
-            .sum::<u64>() as f64
-            / nbrs_w.len().max(1) as f64;
-        let to_welded = if spread <= 2.0 * (n as f64).sqrt() {
-            (0..n as u32).collect()
-        } else {
-            spatial_order(topology.positions())
-        };
+        let to_welded = topology.memory_order(memory_order).to_vec();
         let mut to_solver = vec![0u32; to_welded.len()];
         for (k, &w) in to_welded.iter().enumerate() {
             to_solver[w as usize] = k as u32;

@@ -81,6 +81,9 @@ pub struct Topology {
     offsets: Vec<u32>,
     neighbors: Vec<u32>,
     cotangent: Vec<f64>,
+    /// The solvers' memory order of the vertices (computed by the first solver, shared by
+    /// every constraint set after it).
+    memory_order: std::sync::OnceLock<Vec<u32>>,
 }
 
 /// CSR rows built piece by piece (in parallel): `(row lengths, neighbours, weights)`.
@@ -277,7 +280,52 @@ impl Topology {
             offsets,
             neighbors,
             cotangent,
+            memory_order: std::sync::OnceLock::new(),
         })
+    }
+
+    /// The solvers' memory order (solver index → welded index), computed once by `order`.
+    pub(crate) fn memory_order(&self, order: impl FnOnce(&Self) -> Vec<u32>) -> &[u32] {
+        self.memory_order.get_or_init(|| order(self))
+    }
+
+    /// Distances along mesh edges from the nearest of `seeds` (welded indices) to every welded
+    /// vertex within `limit` (Dijkstra; seeds at 0). A region of interest around a handle, a
+    /// grabbed patch.
+    pub fn geodesic_distances(&self, seeds: &[u32], limit: f64) -> HashMap<u32, f64> {
+        #[derive(PartialEq)]
+        struct Item(f64, u32);
+        impl Eq for Item {}
+        impl PartialOrd for Item {
+            fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+                Some(self.cmp(other))
+            }
+        }
+        impl Ord for Item {
+            fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+                other.0.total_cmp(&self.0) // min-heap
+            }
+        }
+        let positions = &self.positions;
+        let mut best: HashMap<u32, f64> = HashMap::new();
+        let mut heap = std::collections::BinaryHeap::new();
+        for &seed in seeds.iter().filter(|&&s| (s as usize) < positions.len()) {
+            best.insert(seed, 0.0);
+            heap.push(Item(0.0, seed));
+        }
+        while let Some(Item(d, v)) = heap.pop() {
+            if d > best.get(&v).copied().unwrap_or(f64::MAX) {
+                continue;
+            }
+            for &w in self.neighbors(v as usize) {
+                let nd = d + positions[v as usize].distance(positions[w as usize]);
+                if nd <= limit && nd < best.get(&w).copied().unwrap_or(f64::MAX) {
+                    best.insert(w, nd);
+                    heap.push(Item(nd, w));
+                }
+            }
+        }
+        best
     }
 
     /// CSR slot of edge `i → j` (test helper).

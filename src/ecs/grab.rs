@@ -26,7 +26,7 @@
 //! handle goes and the character holds its pose. Of a static mesh and a character under the
 //! same press, the nearer one is grabbed.
 
-use std::collections::{BinaryHeap, HashMap};
+use std::collections::HashMap;
 use std::sync::Arc;
 
 use bevy::camera::RenderTarget;
@@ -590,7 +590,7 @@ fn geodesic_regions_from(
     settings: &Grabbable,
 ) -> (Vec<u32>, Vec<u32>) {
     let limit = settings.region_radius.max(settings.radius) as f64;
-    let distance = geodesic_distances(topology, seed, limit);
+    let distance = topology.geodesic_distances(&[seed as u32], limit);
     let within = |r: f32| -> Vec<u32> {
         distance
             .iter()
@@ -606,41 +606,6 @@ fn geodesic_regions_from(
     let mut region = within(settings.region_radius.max(settings.radius));
     region.sort_unstable();
     (patch, region)
-}
-
-/// Dijkstra from `seed` over welded edges, up to `limit`.
-fn geodesic_distances(topology: &Topology, seed: usize, limit: f64) -> HashMap<u32, f64> {
-    #[derive(PartialEq)]
-    struct Item(f64, u32);
-    impl Eq for Item {}
-    impl PartialOrd for Item {
-        fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
-            Some(self.cmp(other))
-        }
-    }
-    impl Ord for Item {
-        fn cmp(&self, other: &Self) -> std::cmp::Ordering {
-            other.0.total_cmp(&self.0) // min-heap
-        }
-    }
-    let positions = topology.positions();
-    let mut best: HashMap<u32, f64> = HashMap::new();
-    let mut heap = BinaryHeap::new();
-    best.insert(seed as u32, 0.0);
-    heap.push(Item(0.0, seed as u32));
-    while let Some(Item(d, v)) = heap.pop() {
-        if d > best.get(&v).copied().unwrap_or(f64::MAX) {
-            continue;
-        }
-        for &w in topology.neighbors(v as usize) {
-            let nd = d + positions[v as usize].distance(positions[w as usize]);
-            if nd <= limit && nd < best.get(&w).copied().unwrap_or(f64::MAX) {
-                best.insert(w, nd);
-                heap.push(Item(nd, w));
-            }
-        }
-    }
-    best
 }
 
 /// Every render vertex whose welded vertex is in `welded` (sorted).
