@@ -163,7 +163,7 @@ impl Plugin for GrabPlugin {
             )
             .add_systems(
                 Update,
-                (place_grabs, move_grabs, twist_grabs, end_grabs)
+                (place_grabs, move_grabs, end_grabs)
                     .chain()
                     .after(DeformSystems::Prepare)
                     .before(DeformSystems::Request),
@@ -441,33 +441,46 @@ fn place_grabs(
     }
 }
 
-/// Moves grabbed handles in their camera's view plane.
+/// One pointer step applied to a grab's handle.
+#[derive(Clone, Copy)]
+enum Step {
+    /// The pointer moved from → to; `true` turns (arcball) instead of moving.
+    Drag(Vec2, Vec2, bool),
+    /// Turn about the view axis, radians counter-clockwise on screen.
+    Twist(f32),
+}
+
+/// Moves grabbed handles in their camera's view plane, turns them (Shift: arcball) and
+/// twists them about the view axis (wheel).
 fn move_grabs(
-    mut moves: MessageReader<GrabMove>,
+    (mut moves, mut twists): (MessageReader<GrabMove>, MessageReader<GrabTwist>),
     mut grabs: ResMut<ActiveGrabs>,
     cameras: Query<(&Camera, &GlobalTransform)>,
     spaces: Query<&GlobalTransform>,
     mut handles: Query<(&DeformHandle, &mut Transform)>,
 ) {
-    let mut pending: Vec<(PointerId, Vec2, Vec2, bool)> = moves
+    let mut pending: Vec<(PointerId, Step)> = moves
         .read()
-        .map(|m| (m.pointer, m.from, m.to, m.rotate))
+        .map(|m| (m.pointer, Step::Drag(m.from, m.to, m.rotate)))
+        .chain(twists.read().map(|t| (t.pointer, Step::Twist(t.radians))))
         .collect();
     // Motion that arrived before a handle existed is applied once it does.
     for (pointer, grab) in grabs.0.iter_mut() {
         if grab.handle.is_some()
             && let Some((from, to)) = grab.early_motion.take()
         {
-            pending.insert(0, (*pointer, from, to, false));
+            pending.insert(0, (*pointer, Step::Drag(from, to, false)));
         }
     }
-    for (pointer, from, to, rotate) in pending {
+    for (pointer, step) in pending {
         let Some(grab) = grabs.0.get_mut(&pointer) else {
             continue;
         };
         let Some(handle) = grab.handle else {
-            let first = grab.early_motion.map_or(from, |(f, _)| f);
-            grab.early_motion = Some((first, to));
+            if let Step::Drag(from, to, _) = step {
+                let first = grab.early_motion.map_or(from, |(f, _)| f);
+                grab.early_motion = Some((first, to));
+            }
             continue;
         };
         let space = match grab.character {
@@ -481,59 +494,35 @@ fn move_grabs(
         };
         if h.pivot.is_none() {
             // The plugin has not put the handle at its pivot yet: keep the motion for later.
-            grab.early_motion = Some((from, to));
+            if let Step::Drag(from, to, _) = step {
+                grab.early_motion = Some((from, to));
+            }
             continue;
         }
         let space = space.affine();
         let at = space.transform_point3(transform.translation);
-        if rotate {
-            let (Ok(centre), Some(size)) = (
-                camera.world_to_viewport(camera_transform, at),
-                camera.logical_viewport_size(),
-            ) else {
-                continue;
-            };
-            let in_view = arcball_rotation(from, to, centre, 0.35 * size.min_element());
-            let rotation = turned_in_space(in_view, camera_transform, &space, transform.rotation);
-            if rotation.is_finite() {
-                transform.rotation = rotation;
+        let in_view = match step {
+            // Counter-clockwise on screen = about the view axis pointing at the viewer (+Z).
+            Step::Twist(radians) => Quat::from_rotation_z(radians),
+            Step::Drag(from, to, true) => {
+                let (Ok(centre), Some(size)) = (
+                    camera.world_to_viewport(camera_transform, at),
+                    camera.logical_viewport_size(),
+                ) else {
+                    continue;
+                };
+                arcball_rotation(from, to, centre, 0.35 * size.min_element())
             }
-            continue;
-        }
-        let delta = view_plane_motion(camera, camera_transform, at, from, to);
-        let local = space.inverse().transform_vector3(delta);
-        if local.is_finite() {
-            transform.translation += local;
-        }
-    }
-}
-
-/// Turns grabbed handles about their camera's view axis.
-fn twist_grabs(
-    mut twists: MessageReader<GrabTwist>,
-    grabs: Res<ActiveGrabs>,
-    cameras: Query<&GlobalTransform, With<Camera>>,
-    spaces: Query<&GlobalTransform>,
-    mut handles: Query<&mut Transform, With<DeformHandle>>,
-) {
-    for twist in twists.read() {
-        let Some(grab) = grabs.0.get(&twist.pointer) else {
-            continue;
+            Step::Drag(from, to, false) => {
+                let delta = view_plane_motion(camera, camera_transform, at, from, to);
+                let local = space.inverse().transform_vector3(delta);
+                if local.is_finite() {
+                    transform.translation += local;
+                }
+                continue;
+            }
         };
-        let space = match grab.character {
-            true => Ok(GlobalTransform::IDENTITY),
-            false => spaces.get(grab.mesh).copied(),
-        };
-        let (Some(handle), Ok(camera), Ok(space)) = (grab.handle, cameras.get(grab.camera), space)
-        else {
-            continue;
-        };
-        let Ok(mut transform) = handles.get_mut(handle) else {
-            continue;
-        };
-        // Counter-clockwise on screen = about the view axis pointing at the viewer (+Z).
-        let in_view = Quat::from_rotation_z(twist.radians);
-        let rotation = turned_in_space(in_view, camera, &space.affine(), transform.rotation);
+        let rotation = turned_in_space(in_view, camera_transform, &space, transform.rotation);
         if rotation.is_finite() {
             transform.rotation = rotation;
         }
