@@ -108,7 +108,7 @@ impl Plugin for DeformPlugin {
 /// Marks a `Mesh3d` entity as deformable. Handles refer to it by entity.
 ///
 /// Put on an entity without a mesh — a glTF scene root (`WorldAssetRoot`) or any ancestor —
-/// it applies to every mesh primitive below it once they exist (see [`DeformableScene`]).
+/// it applies to every mesh primitive below it once they exist (see [`DeformableScene`](crate::ecs::DeformableScene)).
 ///
 /// Vertex indices everywhere in the plugin are *render* vertex indices of the mesh (as in its
 /// index buffer); seams are welded internally so split vertices move together.
