@@ -33,7 +33,7 @@ use std::time::Instant;
 
 use bevy_wii_deform::deform::{
     ArapSolver, Constraints, Handle, InitialGuess, RigidTransform, SolveOptions, SolverSettings,
-    arap_energy,
+    arap_energy, centroid,
 };
 use bevy_wii_deform::pose::synth_rig::mannequin_rig;
 use bevy_wii_deform::pose::*;
@@ -110,7 +110,7 @@ fn main() {
         by_z.sort_unstable();
         by_z
     };
-    let pivot = handle.iter().map(|&i| rest[i as usize]).sum::<DVec3>() / handle.len() as f64;
+    let pivot = centroid(&rest, &handle);
     let target = RigidTransform::new(
         DQuat::from_rotation_z(25f64.to_radians()),
         DVec3::new(0.06, 0.05, 0.02) * diagonal,

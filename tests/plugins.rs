@@ -1339,32 +1339,13 @@ fn a_mouse_drag_moves_a_character_handle_with_the_cursor() {
     let top: Vec<u32> = (0..rig.mesh.positions.len() as u32)
         .filter(|&i| rig.mesh.positions[i as usize].y > 0.8)
         .collect();
-    let handle = app
-        .world_mut()
-        .spawn((
-            DeformHandle {
-                target: root,
-                vertices: top.clone(),
-                pivot: None,
-            },
-            Transform::IDENTITY,
-            MouseHandleControl::default().with_camera(camera),
-        ))
-        .id();
-    common::update_until(&mut app, "the pivot", |a| {
-        a.world()
-            .get::<DeformHandle>(handle)
-            .unwrap()
-            .pivot
-            .is_some()
-    });
+    let (handle, pivot) = common::spawn_handle(
+        &mut app,
+        root,
+        top.clone(),
+        MouseHandleControl::default().with_camera(camera),
+    );
     app.update();
-    let pivot = app
-        .world()
-        .get::<DeformHandle>(handle)
-        .unwrap()
-        .pivot
-        .unwrap();
     let start = to_screen(&mut app, camera, pivot);
     let end = start + Vec2::new(70.0, 0.0);
     cursor_to(&mut app, start);

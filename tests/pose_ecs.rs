@@ -11,7 +11,7 @@ use bevy_wii_deform::pose::{JointTransform, SkeletonPose};
 use bevy_wii_deform::prelude::*;
 
 mod common;
-use common::{drive_solves, spawn_rig, update_until};
+use common::{drive_solves, spawn_handle, spawn_rig, update_until};
 
 fn app() -> App {
     let mut app = App::new();
@@ -63,31 +63,8 @@ fn a_vertex_handle_poses_the_skeleton_and_the_pinned_root_stays() {
     let top: Vec<u32> = (0..rig.mesh.positions.len() as u32)
         .filter(|&i| rig.mesh.positions[i as usize].y > 0.9)
         .collect();
-    let handle = app
-        .world_mut()
-        .spawn((
-            DeformHandle {
-                target: root,
-                vertices: top.clone(),
-                pivot: None,
-            },
-            Transform::IDENTITY,
-        ))
-        .id();
     // The plugin rebases the handle: pivot at the world centroid of the top vertices.
-    update_until(&mut app, "the pivot", |a| {
-        a.world()
-            .get::<DeformHandle>(handle)
-            .unwrap()
-            .pivot
-            .is_some()
-    });
-    let pivot = app
-        .world()
-        .get::<DeformHandle>(handle)
-        .unwrap()
-        .pivot
-        .unwrap();
+    let (handle, pivot) = spawn_handle(&mut app, root, top.clone(), ());
     assert!(
         (pivot - (offset + Vec3::new(0.0, 0.97, 0.0))).length() < 0.05,
         "pivot {pivot}"
@@ -302,24 +279,7 @@ fn the_fox_from_bevys_gltf_loader_is_poseable() {
     let mut order: Vec<u32> = (0..drawn.len() as u32).collect();
     order.sort_by(|&a, &b| drawn[b as usize].y.total_cmp(&drawn[a as usize].y));
     let head: Vec<u32> = order[..drawn.len() / 30].to_vec();
-    let handle = app
-        .world_mut()
-        .spawn((
-            DeformHandle {
-                target: root,
-                vertices: head.clone(),
-                pivot: None,
-            },
-            Transform::IDENTITY,
-        ))
-        .id();
-    update_until(&mut app, "the pivot", |a| {
-        a.world()
-            .get::<DeformHandle>(handle)
-            .unwrap()
-            .pivot
-            .is_some()
-    });
+    let (handle, pivot) = spawn_handle(&mut app, root, head.clone(), ());
     // Pinned feet hold where they are in the world (their local transforms would not tell:
     // a bone's local translation never changes).
     let feet_before: Vec<Vec3> = feet
@@ -332,12 +292,6 @@ fn the_fox_from_bevys_gltf_loader_is_poseable() {
         .unwrap()
         .skinned_positions();
     let shift = Vec3::new(0.04, 0.03, 0.0) * size;
-    let pivot = app
-        .world()
-        .get::<DeformHandle>(handle)
-        .unwrap()
-        .pivot
-        .unwrap();
     app.world_mut()
         .get_mut::<Transform>(handle)
         .unwrap()
@@ -490,25 +444,7 @@ fn the_wii_remote_turns_a_character_handle_one_to_one() {
     let top: Vec<u32> = (0..rig.mesh.positions.len() as u32)
         .filter(|&i| rig.mesh.positions[i as usize].y > 0.8)
         .collect();
-    let handle = app
-        .world_mut()
-        .spawn((
-            DeformHandle {
-                target: root,
-                vertices: top,
-                pivot: None,
-            },
-            Transform::IDENTITY,
-            WiimoteHandleControl::default(),
-        ))
-        .id();
-    update_until(&mut app, "the pivot", |a| {
-        a.world()
-            .get::<DeformHandle>(handle)
-            .unwrap()
-            .pivot
-            .is_some()
-    });
+    let (handle, _) = spawn_handle(&mut app, root, top, WiimoteHandleControl::default());
     let remote = app
         .world_mut()
         .spawn(Wiimote {
@@ -593,30 +529,7 @@ fn a_grab_starts_from_the_pose_on_screen() {
     let top: Vec<u32> = (0..rig.mesh.positions.len() as u32)
         .filter(|&i| rig.mesh.positions[i as usize].y > 0.9)
         .collect();
-    let handle = app
-        .world_mut()
-        .spawn((
-            DeformHandle {
-                target: root,
-                vertices: top,
-                pivot: None,
-            },
-            Transform::IDENTITY,
-        ))
-        .id();
-    update_until(&mut app, "the pivot", |a| {
-        a.world()
-            .get::<DeformHandle>(handle)
-            .unwrap()
-            .pivot
-            .is_some()
-    });
-    let pivot = app
-        .world()
-        .get::<DeformHandle>(handle)
-        .unwrap()
-        .pivot
-        .unwrap();
+    let (_, pivot) = spawn_handle(&mut app, root, top, ());
     // The bent top's centroid: joint 1 at y = 1/3, the top ~0.62 above it, turned 45° about x.
     let expected = Vec3::new(0.0, 1.0 / 3.0, 0.0) + bend * Vec3::new(0.0, 0.97 - 1.0 / 3.0, 0.0);
     assert!(

@@ -5,6 +5,7 @@ use bevy::mesh::VertexAttributeValues;
 use bevy::picking::mesh_picking::ray_cast::{MeshRayCast, MeshRayCastSettings, RayCastVisibility};
 use bevy::prelude::*;
 use bevy::window::PrimaryWindow;
+use bevy_wii_deform::deform::centroid;
 use bevy_wii_deform::prelude::*;
 use glam::DVec3;
 
@@ -276,12 +277,7 @@ pub fn spawn_regions(
     if handle.is_empty() {
         return;
     }
-    let pivot = (handle
-        .iter()
-        .map(|&i| model.mesh.positions[i as usize])
-        .sum::<DVec3>()
-        / handle.len() as f64)
-        .as_vec3();
+    let pivot = centroid(&model.mesh.positions, &handle).as_vec3();
     let mut e = commands.spawn((
         DeformHandle {
             target: mesh_entity,

@@ -4,7 +4,7 @@ use std::sync::Arc;
 
 use bevy_wii_deform::deform::{
     ArapSolver, Constraints, InitialGuess, RigidTransform, SolveOptions, SolverSettings, Topology,
-    TriMesh,
+    TriMesh, centroid,
 };
 use glam::{DQuat, DVec3};
 use serde::{Deserialize, Serialize};
@@ -152,11 +152,7 @@ impl Task {
         if handle.is_empty() {
             return Err(format!("task {:?}: empty handle region", self.name));
         }
-        let pivot = handle
-            .iter()
-            .map(|&i| topology.positions()[i as usize])
-            .sum::<DVec3>()
-            / handle.len() as f64;
+        let pivot = centroid(topology.positions(), &handle);
         let c = Constraints::with_handle(fixed, handle, self.motion(pivot));
         let solver = ArapSolver::precompute(topology.clone(), &c, SolverSettings::default())
             .map_err(|e| e.to_string())?;

@@ -28,6 +28,16 @@ pub fn bounding_box(points: &[DVec3]) -> (DVec3, DVec3) {
     )
 }
 
+/// Mean of `points[v]` over the listed vertices that exist (zero when none do): the pivot of a
+/// handle, the centre of a region.
+pub fn centroid(points: &[DVec3], vertices: &[u32]) -> DVec3 {
+    let (sum, n) = vertices
+        .iter()
+        .filter_map(|&v| points.get(v as usize))
+        .fold((DVec3::ZERO, 0usize), |(sum, n), p| (sum + *p, n + 1));
+    if n == 0 { DVec3::ZERO } else { sum / n as f64 }
+}
+
 /// A mesh file could not be read.
 #[derive(Debug, thiserror::Error)]
 pub enum MeshIoError {

@@ -34,7 +34,7 @@ mod topology;
 
 pub use constraints::{ConstraintError, Constraints, Handle, RigidTransform};
 pub use energy::arap_energy;
-pub use io::{MeshIoError, TriMesh, bounding_box, glb_container};
+pub use io::{MeshIoError, TriMesh, bounding_box, centroid, glb_container};
 pub use rotation::{best_rotation_exact, fit_rotation_warm};
 pub use solver::{
     ArapSolver, Factorization, FillOrdering, InitialGuess, PrecomputeStats, Solution, SolveError,

@@ -208,8 +208,7 @@ pub fn slab_regions(
 /// around its centroid and moved by `shift`.
 pub fn bend_problem(positions: &[DVec3], angle: f64, shift: DVec3) -> Constraints {
     let (fixed, handle) = slab_regions(positions, 1, 0.1, 0.1);
-    let pivot =
-        handle.iter().map(|&i| positions[i as usize]).sum::<DVec3>() / handle.len().max(1) as f64;
+    let pivot = super::centroid(positions, &handle);
     Constraints::with_handle(
         fixed,
         handle,

@@ -13,7 +13,7 @@ use glam::DVec3;
 
 use crate::deform::{
     ArapSolver, Constraints, Handle as CoreHandle, InitialGuess, MeshError, RigidTransform,
-    Solution, SolveError, SolveOptions, SolverSettings, Topology, WeightMode,
+    Solution, SolveError, SolveOptions, SolverSettings, Topology, WeightMode, centroid,
 };
 
 /// Ordered phases of the deformation systems, all in `Update` (chained in this order).
@@ -154,7 +154,10 @@ impl DeformHandle {
     /// A handle with its rest transform computed from `mesh` (positions in mesh space).
     pub fn bundle(mesh: &Mesh, target: Entity, vertices: Vec<u32>) -> (Self, Transform) {
         let pivot = mesh_positions(mesh)
-            .map(|p| centroid(&p, &vertices))
+            .map(|p| {
+                let p: Vec<DVec3> = p.iter().map(|q| q.as_dvec3()).collect();
+                centroid(&p, &vertices).as_vec3()
+            })
             .unwrap_or(Vec3::ZERO);
         (
             Self {
@@ -315,18 +318,6 @@ fn mesh_positions(mesh: &Mesh) -> Option<Vec<Vec3>> {
     }
 }
 
-fn centroid(positions: &[Vec3], vertices: &[u32]) -> Vec3 {
-    let mut sum = Vec3::ZERO;
-    let mut n = 0;
-    for &v in vertices {
-        if let Some(p) = positions.get(v as usize) {
-            sum += *p;
-            n += 1;
-        }
-    }
-    if n == 0 { Vec3::ZERO } else { sum / n as f32 }
-}
-
 #[allow(clippy::type_complexity)]
 fn prepare_deformables(
     mut commands: Commands,
@@ -463,17 +454,12 @@ fn request_solves(
         let Some(rest) = &state.rest else { continue };
         let topo = &rest.topology;
         let map = topo.render_to_welded();
-        let pts: Vec<Vec3> = h
+        let welded: Vec<u32> = h
             .vertices
             .iter()
-            .filter_map(|&v| map.get(v as usize))
-            .map(|&w| topo.positions()[w as usize].as_vec3())
+            .filter_map(|&v| map.get(v as usize).copied())
             .collect();
-        let c = if pts.is_empty() {
-            Vec3::ZERO
-        } else {
-            pts.iter().sum::<Vec3>() / pts.len() as f32
-        };
+        let c = centroid(topo.positions(), &welded).as_vec3();
         h.pivot = Some(c);
         if *transform == Transform::IDENTITY {
             transform.translation = c;

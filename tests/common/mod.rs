@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use bevy::prelude::*;
 use bevy_wii_deform::pose::synth_rig::SyntheticRig;
-use bevy_wii_deform::prelude::PoseStatus;
+use bevy_wii_deform::prelude::{DeformHandle, PoseStatus};
 
 /// Spawns the rig as a character entity (root) with a joint chain and a skinned mesh child,
 /// placed at `offset`. Returns (root, joints, mesh entity).
@@ -97,4 +97,35 @@ pub fn drive_solves(app: &mut App, character: Entity, handle: Entity, n: u32) {
             .set_changed();
         update_until(app, "a solve", |a| solves(a, character) > before);
     }
+}
+
+/// Spawns a vertex handle (with `extra` components) on `target`, a character or deformable,
+/// and updates until the plugin has put it at its pivot; returns the handle and the pivot.
+pub fn spawn_handle(
+    app: &mut App,
+    target: Entity,
+    vertices: Vec<u32>,
+    extra: impl Bundle,
+) -> (Entity, Vec3) {
+    let handle = app
+        .world_mut()
+        .spawn((
+            DeformHandle {
+                target,
+                vertices,
+                pivot: None,
+            },
+            Transform::IDENTITY,
+            extra,
+        ))
+        .id();
+    update_until(app, "the pivot", |a| {
+        a.world()
+            .get::<DeformHandle>(handle)
+            .unwrap()
+            .pivot
+            .is_some()
+    });
+    let pivot = app.world().get::<DeformHandle>(handle).unwrap().pivot;
+    (handle, pivot.unwrap())
 }

@@ -12,13 +12,13 @@ use bevy::tasks::futures::check_ready;
 use bevy::tasks::{AsyncComputeTaskPool, Task};
 use bevy::transform::TransformSystems;
 use bevy::world_serialization::WorldAssetRoot;
-use glam::{DAffine3, DVec3};
+use glam::DAffine3;
 
 use super::{
     PinnedJoints, PoseFailed, PoseJointHandle, PoseSolved, PoseStatus, Poseable, PoseableError,
     PosedSkeleton,
 };
-use crate::deform::{Handle as CoreHandle, RigidTransform};
+use crate::deform::{Handle as CoreHandle, RigidTransform, centroid};
 use crate::ecs::scene::{SceneSpawned, mark_scene_spawned};
 use crate::ecs::{DeformHandle, DeformPhase, DeformSystems};
 use crate::pose::{
@@ -402,16 +402,7 @@ fn rebase(
     let model = &posed.model;
     let skinned = model.skin_render(reference);
     for (_, h, t) in handles.iter_mut() {
-        let pts: Vec<DVec3> = h
-            .vertices
-            .iter()
-            .filter_map(|&v| skinned.get(v as usize).copied())
-            .collect();
-        let c = if pts.is_empty() {
-            DVec3::ZERO
-        } else {
-            pts.iter().sum::<DVec3>() / pts.len() as f64
-        };
+        let c = centroid(&skinned, &h.vertices);
         h.pivot = Some(c.as_vec3());
         **t = Transform::from_translation(c.as_vec3());
     }
