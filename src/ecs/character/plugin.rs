@@ -86,11 +86,36 @@ impl Plugin for PosePlugin {
 }
 
 /// Which handles and pins a solver was built for.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, Default)]
 struct SetKey {
     handles: Vec<(Entity, Vec<u32>)>,
     joint_handles: Vec<(Entity, Entity)>,
     pins: Vec<Entity>,
+}
+
+impl SetKey {
+    /// True when the handles and pins now are the ones this key was made from (compared in
+    /// place: this runs every frame).
+    fn matches(
+        &self,
+        handles: &[(Entity, Mut<DeformHandle>, Mut<Transform>)],
+        joint_handles: &[(Entity, Mut<PoseJointHandle>, Mut<Transform>)],
+        pins: &[Entity],
+    ) -> bool {
+        self.pins == pins
+            && self.handles.len() == handles.len()
+            && self
+                .handles
+                .iter()
+                .zip(handles)
+                .all(|((e, v), (f, h, _))| e == f && *v == h.vertices)
+            && self.joint_handles.len() == joint_handles.len()
+            && self
+                .joint_handles
+                .iter()
+                .zip(joint_handles)
+                .all(|((e, j), (f, h, _))| e == f && *j == h.joint)
+    }
 }
 
 type SolveResult = Result<(Arc<PoseSolver>, PoseSolution, f64), PoseableError>;
@@ -445,19 +470,15 @@ fn request_pose_solves(
             .collect();
         mine.sort_by_key(|(e, _, _)| *e);
         mine_j.sort_by_key(|(e, _, _)| *e);
-        let key = SetKey {
-            handles: mine
-                .iter()
-                .map(|(e, h, _)| (*e, h.vertices.clone()))
-                .collect(),
-            joint_handles: mine_j.iter().map(|(e, h, _)| (*e, h.joint)).collect(),
-            pins: pins.as_ref().map(|p| p.0.clone()).unwrap_or_default(),
-        };
         if mine.is_empty() && mine_j.is_empty() {
             state.bypass_change_detection().key = None;
             continue; // nothing drives the pose
         }
-        let set_changed = state.key.as_ref() != Some(&key)
+        let pinned = pins.as_ref().map_or(&[][..], |p| &p.0[..]);
+        let set_changed = !state
+            .key
+            .as_ref()
+            .is_some_and(|k| k.matches(&mine, &mine_j, pinned))
             || mine.iter().any(|(_, h, _)| h.pivot.is_none())
             || mine_j.iter().any(|(_, h, _)| h.rest.is_none());
         if set_changed {
@@ -480,7 +501,14 @@ fn request_pose_solves(
             let reference = posed.pose.clone();
             rebase(&posed, &reference, &mut mine, &mut mine_j);
             let state = state.bypass_change_detection();
-            state.key = Some(key);
+            state.key = Some(SetKey {
+                handles: mine
+                    .iter()
+                    .map(|(e, h, _)| (*e, h.vertices.clone()))
+                    .collect(),
+                joint_handles: mine_j.iter().map(|(e, h, _)| (*e, h.joint)).collect(),
+                pins: pinned.to_vec(),
+            });
             state.reference = Some(reference);
             state.solver = None;
             state.last = None;
