@@ -87,7 +87,7 @@ fn bench(c: &mut Criterion) {
                             &SolveOptions {
                                 max_iterations: iters,
                                 tolerance: 0.0,
-                                anderson_depth,
+                                acceleration: Acceleration::anderson(anderson_depth),
                             },
                             InitialGuess::Warm(&warm),
                             &never,

@@ -34,13 +34,16 @@ use glam::DVec3;
 
 const NEVER: &dyn Fn() -> bool = &|| false;
 
-fn options(iterations: u32, anderson_depth: usize) -> SolveOptions {
+fn options(iterations: u32, acceleration: Acceleration) -> SolveOptions {
     SolveOptions {
         max_iterations: iterations,
         tolerance: 0.0,
-        anderson_depth,
+        acceleration,
     }
 }
+
+/// Curvature pairs of the L-BFGS runs.
+const LBFGS_DEPTH: usize = 8;
 
 /// Radius of the region of interest around a new handle, as a fraction of the diagonal.
 const ROI_RADIUS: f64 = 0.25;
@@ -74,7 +77,12 @@ fn set_change_ms(topology: &Arc<Topology>, start: &Solution, roi: bool) -> (f64,
             }
             let solver =
                 ArapSolver::precompute(topology.clone(), &c, settings).expect("precompute");
-            let s = solver.solve(&c, &options(1, 0), InitialGuess::Warm(start), NEVER);
+            let s = solver.solve(
+                &c,
+                &options(1, Acceleration::None),
+                InitialGuess::Warm(start),
+                NEVER,
+            );
             assert!(s.is_ok());
             if std::env::var_os("BENCH_DEBUG").is_some() {
                 eprintln!("  {:?}", solver.precompute_stats());
@@ -87,7 +95,7 @@ fn set_change_ms(topology: &Arc<Topology>, start: &Solution, roi: bool) -> (f64,
 }
 
 /// Iterations after release until within 1 % energy and 5e-4 × diagonal of converged.
-fn settle_iterations(topology: &Arc<Topology>, anderson_depth: usize) -> u32 {
+fn settle_iterations(topology: &Arc<Topology>, acceleration: Acceleration) -> u32 {
     let diagonal = topology.bounding_diagonal();
     let bend = |f: f64| {
         synth::bend_problem(
@@ -100,7 +108,12 @@ fn settle_iterations(topology: &Arc<Topology>, anderson_depth: usize) -> u32 {
     let solver = ArapSolver::precompute(topology.clone(), &c0, SolverSettings::default())
         .expect("precompute");
     let mut pose = solver
-        .solve(&c0, &options(2, 0), InitialGuess::Laplacian, NEVER)
+        .solve(
+            &c0,
+            &options(2, Acceleration::None),
+            InitialGuess::Laplacian,
+            NEVER,
+        )
         .expect("solve");
     let mut c = c0;
     for frame in 1..=60 {
@@ -108,15 +121,27 @@ fn settle_iterations(topology: &Arc<Topology>, anderson_depth: usize) -> u32 {
         pose = solver
             .solve(
                 &c,
-                &options(2, anderson_depth),
+                &options(2, acceleration),
                 InitialGuess::Warm(&pose),
                 NEVER,
             )
             .expect("solve");
     }
-    let converged = solver
-        .solve(&c, &options(3000, 0), InitialGuess::Warm(&pose), NEVER)
-        .expect("solve");
+    // Converged: the lower-energy of 3000 plain and 3000 L-BFGS iterations.
+    let converged = [
+        Acceleration::None,
+        Acceleration::Lbfgs { depth: LBFGS_DEPTH },
+    ]
+    .map(|a| {
+        solver
+            .solve(&c, &options(3000, a), InitialGuess::Warm(&pose), NEVER)
+            .expect("solve")
+    })
+    .into_iter()
+    .min_by(|a, b| {
+        arap_energy(topology, &a.positions).total_cmp(&arap_energy(topology, &b.positions))
+    })
+    .expect("two solves");
     let e_star = arap_energy(topology, &converged.positions);
     let settled = |k: u32| {
         if k == 0 {
@@ -131,7 +156,7 @@ fn settle_iterations(topology: &Arc<Topology>, anderson_depth: usize) -> u32 {
         let s = solver
             .solve(
                 &c,
-                &options(k, anderson_depth),
+                &options(k, acceleration),
                 InitialGuess::Warm(&pose),
                 NEVER,
             )
@@ -174,6 +199,7 @@ fn main() {
     let json = std::env::args().any(|a| a == "--json");
     // `--set-change-only`: skip the (long) settling runs.
     let settle = !std::env::args().any(|a| a == "--set-change-only");
+    let only = std::env::args().skip_while(|a| a != "--only").nth(1);
     let mut meshes = vec![("bar_5k".to_string(), synth::bar_with_vertices(5_000))];
     match TriMesh::read("../shared/meshes/armadillo.off") {
         Ok(arm) => {
@@ -184,19 +210,23 @@ fn main() {
     }
     let mut rows = Vec::new();
     for (name, mesh) in meshes {
+        if only.as_ref().is_some_and(|o| !name.starts_with(o.as_str())) {
+            continue;
+        }
         let topology = Arc::new(Topology::new(&mesh.positions, &mesh.triangles).expect("mesh"));
         let rest = Solution::rest(&topology);
         let (first_pose, _) = set_change_ms(&topology, &rest, false);
         let (roi_first_pose, roi_vertices) = set_change_ms(&topology, &rest, true);
-        let (plain, anderson) = match settle {
+        let (plain, anderson, lbfgs) = match settle {
             true => (
-                settle_iterations(&topology, 0),
-                settle_iterations(&topology, 3),
+                settle_iterations(&topology, Acceleration::None),
+                settle_iterations(&topology, Acceleration::Anderson { depth: 3 }),
+                settle_iterations(&topology, Acceleration::Lbfgs { depth: LBFGS_DEPTH }),
             ),
-            false => (0, 0),
+            false => (0, 0, 0),
         };
         eprintln!(
-            "{name}: {} vertices, set change → first pose {first_pose:.1} ms (ROI of {roi_vertices}: {roi_first_pose:.1} ms), settle: plain {plain}, anderson {anderson}",
+            "{name}: {} vertices, set change → first pose {first_pose:.1} ms (ROI of {roi_vertices}: {roi_first_pose:.1} ms), settle: plain {plain}, anderson {anderson}, lbfgs {lbfgs}",
             topology.vertex_count()
         );
         rows.push(serde_json::json!({
@@ -205,7 +235,7 @@ fn main() {
             "set_change_first_pose_ms": first_pose,
             "set_change_roi_first_pose_ms": roi_first_pose,
             "roi_vertices": roi_vertices,
-            "settle_iterations": {"plain": plain, "anderson": anderson, "best": plain},
+            "settle_iterations": {"plain": plain, "anderson": anderson, "lbfgs": lbfgs, "best": plain},
         }));
     }
     if json {

@@ -127,7 +127,7 @@ fn run() -> Result<(), String> {
     let options = SolveOptions {
         max_iterations: iters,
         tolerance: 0.0,
-        anderson_depth,
+        acceleration: Acceleration::anderson(anderson_depth),
     };
     let (mut pre, mut sol_s) = (Vec::new(), Vec::new());
     let mut last = None;

@@ -68,7 +68,7 @@ fn profile(
     let fixed = |iterations| SolveOptions {
         max_iterations: iterations,
         tolerance: 0.0,
-        anderson_depth,
+        acceleration: Acceleration::anderson(anderson_depth),
     };
     let energy_after = |iterations| -> Result<f64, String> {
         let s = solver

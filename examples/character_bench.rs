@@ -32,8 +32,8 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use bevy_wii_deform::deform::{
-    ArapSolver, Constraints, Handle, InitialGuess, RigidTransform, SolveOptions, SolverSettings,
-    arap_energy, centroid,
+    Acceleration, ArapSolver, Constraints, Handle, InitialGuess, RigidTransform, SolveOptions,
+    SolverSettings, arap_energy, centroid,
 };
 use bevy_wii_deform::pose::synth_rig::mannequin_rig;
 use bevy_wii_deform::pose::*;
@@ -226,7 +226,7 @@ fn main() {
             &SolveOptions {
                 max_iterations: 400,
                 tolerance: 1e-9,
-                anderson_depth: 0,
+                acceleration: Acceleration::None,
             },
             InitialGuess::Laplacian,
             &|| false,

@@ -244,7 +244,7 @@ fn matches_dense_reference_on(mesh: &TriMesh) {
                 max_iterations: iterations as u32,
                 tolerance: 0.0,
                 // The reference is the plain local/global map.
-                anderson_depth: 0,
+                acceleration: Acceleration::None,
             },
             InitialGuess::Rest,
             NEVER,
@@ -451,7 +451,7 @@ fn warm_start_reuses_factorization_and_converges_closer() {
         let opts = SolveOptions {
             max_iterations: 3,
             tolerance: 0.0,
-            anderson_depth,
+            acceleration: Acceleration::anderson(anderson_depth),
         };
         let mut c = c0.clone();
         let mut warm = solver
@@ -470,7 +470,7 @@ fn warm_start_reuses_factorization_and_converges_closer() {
     let plain = SolveOptions {
         max_iterations: 3,
         tolerance: 0.0,
-        anderson_depth: 0,
+        acceleration: Acceleration::None,
     };
     let cold = solver
         .solve(&c, &plain, InitialGuess::Laplacian, NEVER)
@@ -515,7 +515,7 @@ fn anderson_acceleration_lowers_the_energy_at_equal_iterations() {
                 &SolveOptions {
                     max_iterations: 10,
                     tolerance: 0.0,
-                    anderson_depth,
+                    acceleration: Acceleration::anderson(anderson_depth),
                 },
                 InitialGuess::Laplacian,
                 NEVER,
@@ -809,4 +809,56 @@ fn render_constraints_out_of_range_are_rejected() {
         c.from_render(&t),
         Err(ConstraintError::OutOfRange { .. })
     ));
+}
+
+/// L-BFGS reaches the converged pose of plain local/global (to 1e-8 of the diagonal), never
+/// raises the energy, and gets there in a fraction of the plain iterations (the settling
+/// benchmark's criterion: within 1 % energy and 5e-4 × the diagonal of converged).
+#[test]
+fn lbfgs_reaches_the_plain_converged_pose_in_fewer_iterations() {
+    let t = topo(&synth::bar(8, 40, 0.1, 1.0));
+    let c = bend_problem(&t, 1.0);
+    let solver = ArapSolver::precompute(t.clone(), &c, SolverSettings::default()).unwrap();
+    let diagonal = t.bounding_diagonal();
+    let solve = |iterations, acceleration| {
+        let options = SolveOptions {
+            max_iterations: iterations,
+            tolerance: 0.0,
+            acceleration,
+        };
+        let s = solver
+            .solve(&c, &options, InitialGuess::Laplacian, NEVER)
+            .unwrap();
+        for w in s.stats.energies.windows(2) {
+            assert!(w[1] <= w[0] * (1.0 + 1e-12), "energy rose {w:?}");
+        }
+        s
+    };
+    let lbfgs = Acceleration::Lbfgs { depth: 8 };
+    let plain_star = solve(20_000, Acceleration::None);
+    let lbfgs_star = solve(2_000, lbfgs);
+    let worst = |a: &Solution, b: &Solution| {
+        a.positions
+            .iter()
+            .zip(&b.positions)
+            .map(|(p, q)| p.distance(*q))
+            .fold(0.0, f64::max)
+    };
+    let gap = worst(&plain_star, &lbfgs_star);
+    assert!(gap <= 1e-8 * diagonal, "converged poses differ by {gap}");
+    let e_star = arap_energy(&t, &plain_star.positions);
+    let settled = |s: &Solution| {
+        arap_energy(&t, &s.positions) <= 1.01 * e_star && worst(s, &plain_star) <= 5e-4 * diagonal
+    };
+    let first = |acceleration| {
+        (1..=4000)
+            .find(|&k| settled(&solve(k, acceleration)))
+            .unwrap_or(u32::MAX)
+    };
+    let (plain_k, lbfgs_k) = (first(Acceleration::None), first(lbfgs));
+    eprintln!("settled: plain {plain_k}, L-BFGS {lbfgs_k} iterations; converged gap {gap:e}");
+    assert!(
+        lbfgs_k * 3 <= plain_k,
+        "L-BFGS settles in {lbfgs_k} iterations, plain in {plain_k}"
+    );
 }

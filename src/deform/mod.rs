@@ -26,6 +26,7 @@ pub(crate) mod constraints;
 mod energy;
 mod factor;
 mod io;
+mod lbfgs;
 mod ordering;
 mod rotation;
 mod solver;
@@ -37,7 +38,7 @@ pub use energy::arap_energy;
 pub use io::{MeshIoError, TriMesh, bounding_box, centroid, glb_container};
 pub use rotation::{best_rotation_exact, fit_rotation_warm};
 pub use solver::{
-    ArapSolver, Factorization, FillOrdering, InitialGuess, PrecomputeStats, Solution, SolveError,
-    SolveOptions, SolveStats, SolverSettings,
+    Acceleration, ArapSolver, Factorization, FillOrdering, InitialGuess, PrecomputeStats, Solution,
+    SolveError, SolveOptions, SolveStats, SolverSettings,
 };
 pub use topology::{MeshError, Topology, WeightMode, WeldPolicy};

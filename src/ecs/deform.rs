@@ -12,8 +12,9 @@ use bevy::tasks::{AsyncComputeTaskPool, Task};
 use glam::DVec3;
 
 use crate::deform::{
-    ArapSolver, Constraints, Handle as CoreHandle, InitialGuess, MeshError, RigidTransform,
-    Solution, SolveError, SolveOptions, SolverSettings, Topology, WeightMode, centroid,
+    Acceleration, ArapSolver, Constraints, Handle as CoreHandle, InitialGuess, MeshError,
+    RigidTransform, Solution, SolveError, SolveOptions, SolveStats, SolverSettings, Topology,
+    WeightMode, centroid,
 };
 
 /// Ordered phases of the deformation systems, all in `Update` (chained in this order).
@@ -41,6 +42,15 @@ pub struct DeformConfig {
     pub max_iterations: u32,
     /// Relative energy decrease below which a solve stops early.
     pub tolerance: f32,
+    /// How the iterations are accelerated (L-BFGS by default: it settles in a fraction of the
+    /// plain iterations, see the README's interaction figures). Not reflected (a core type).
+    #[reflect(ignore)]
+    pub acceleration: Acceleration,
+    /// After the handles stop moving, the plugin keeps iterating in the background (solves of
+    /// `max_iterations`, warm-started) until a solve stops on the tolerance or this many
+    /// iterations have run, so a released pose settles instead of freezing half-converged
+    /// (0 = never).
+    pub settle_iterations: u32,
 }
 
 /// Adds ARAP deformation of [`Deformable`] meshes driven by [`DeformHandle`] entities.
@@ -50,6 +60,10 @@ pub struct DeformPlugin {
     pub max_iterations: u32,
     /// Default tolerance.
     pub tolerance: f32,
+    /// Default acceleration ([`DeformConfig::acceleration`]).
+    pub acceleration: Acceleration,
+    /// Default settling budget ([`DeformConfig::settle_iterations`]).
+    pub settle_iterations: u32,
 }
 
 impl Default for DeformPlugin {
@@ -57,6 +71,8 @@ impl Default for DeformPlugin {
         Self {
             max_iterations: 4,
             tolerance: 1e-3,
+            acceleration: Acceleration::Lbfgs { depth: 8 },
+            settle_iterations: 400,
         }
     }
 }
@@ -66,6 +82,8 @@ impl Plugin for DeformPlugin {
         app.insert_resource(DeformConfig {
             max_iterations: self.max_iterations,
             tolerance: self.tolerance,
+            acceleration: self.acceleration,
+            settle_iterations: self.settle_iterations,
         })
         .register_type::<Deformable>()
         .register_type::<FixedRegion>()
@@ -242,6 +260,9 @@ pub enum DeformPhase {
     Factorizing,
     /// Iterating.
     Solving,
+    /// The handles stopped; iterating on toward the converged pose
+    /// ([`DeformConfig::settle_iterations`]).
+    Settling,
     /// The mesh could not be prepared (see [`DeformStatus::error`]); nothing will be solved
     /// until the [`Deformable`] is re-inserted.
     Failed,
@@ -279,6 +300,10 @@ struct Rest {
 struct SolveOutput {
     result: Result<(Arc<ArapSolver>, Arc<Solution>, RenderPose), SolveError>,
     ms: f64,
+    /// The constraints solved for (a settling solve reuses them).
+    constraints: Constraints,
+    /// The solve ran all its iterations without meeting the tolerance or being cancelled.
+    unsettled: bool,
 }
 
 /// Render-ordered attributes ready to copy into the mesh.
@@ -300,6 +325,8 @@ pub(crate) struct DeformState {
     pending: Option<Constraints>,
     ready: Option<RenderPose>,
     attempted: bool,
+    /// Settling iterations left since the handles last changed.
+    settle_left: u32,
 }
 
 impl DeformState {
@@ -383,6 +410,7 @@ fn prepare_deformables(
             pending: None,
             ready: None,
             attempted: false,
+            settle_left: 0,
         });
     }
     for (entity, mut state, mut status) in &mut building {
@@ -498,20 +526,24 @@ fn request_solves(
         let state = state.bypass_change_detection();
         state.attempted = true;
         state.pending = Some(constraints);
+        state.settle_left = config.settle_iterations;
         state.requested.fetch_add(1, Ordering::Relaxed);
         if state.task.is_some() {
             continue; // the running task is cancelled at its next iteration; respawn on landing
         }
-        spawn_solve(state, &rest, deformable, &config, &mut status);
+        spawn_solve(state, &rest, deformable, &config, &mut status, false);
     }
 }
 
+/// Starts a solve of the pending constraints (`settling`: the handles have not changed since
+/// the last solve, which did not converge).
 fn spawn_solve(
     state: &mut DeformState,
     rest: &Arc<Rest>,
     deformable: &Deformable,
     config: &DeformConfig,
     status: &mut DeformStatus,
+    settling: bool,
 ) {
     let Some(constraints) = state.pending.take() else {
         return;
@@ -526,10 +558,10 @@ fn spawn_solve(
         .solver
         .clone()
         .filter(|s| s.accepts(&constraints) && *s.settings() == settings);
-    status.phase = if reuse.is_some() {
-        DeformPhase::Solving
-    } else {
-        DeformPhase::Factorizing
+    status.phase = match (&reuse, settling) {
+        (None, _) => DeformPhase::Factorizing,
+        (Some(_), false) => DeformPhase::Solving,
+        (Some(_), true) => DeformPhase::Settling,
     };
     let warm = if reuse.is_some() {
         state.last.clone()
@@ -542,7 +574,7 @@ fn spawn_solve(
             .unwrap_or(config.max_iterations)
             .max(1),
         tolerance: deformable.tolerance.unwrap_or(config.tolerance).max(0.0) as f64,
-        ..Default::default()
+        acceleration: config.acceleration,
     };
     state.task = Some(AsyncComputeTaskPool::get().spawn(async move {
         let t0 = std::time::Instant::now();
@@ -568,11 +600,39 @@ fn spawn_solve(
             let pose = render_pose(&rest, &solution);
             Ok((solver, Arc::new(solution), pose))
         })();
+        let unsettled = result
+            .as_ref()
+            .is_ok_and(|(_, s, _)| still_converging(&s.stats, &options));
         SolveOutput {
             result,
             ms: t0.elapsed().as_secs_f64() * 1e3,
+            constraints,
+            unsettled,
         }
     }));
+}
+
+/// Relative energy decrease per iteration below which a pose counts as converged for settling.
+const SETTLED_DECREASE: f64 = 1e-9;
+/// Normalised energy below which a pose counts as converged (rounding noise, e.g. at rest).
+const SETTLED_ENERGY: f64 = 1e-14;
+
+/// Whether a solve stopped short of convergence: it ran all its iterations (no cancel, no
+/// tolerance stop) and its last iteration still lowered the energy noticeably.
+fn still_converging(stats: &SolveStats, options: &SolveOptions) -> bool {
+    if stats.iterations < options.max_iterations || stats.cancelled {
+        return false;
+    }
+    let before = match stats.energies.len() {
+        0 => return false,
+        1 => stats.initial_energy,
+        n => Some(stats.energies[n - 2]),
+    };
+    let last = stats.final_energy();
+    match before {
+        Some(b) => b > SETTLED_ENERGY && b - last > SETTLED_DECREASE * b,
+        None => last > SETTLED_ENERGY,
+    }
 }
 
 /// The solver settings a [`Deformable`] asks for (welded region-of-interest mask).
@@ -655,6 +715,7 @@ fn poll_tasks(
             continue;
         };
         state.task = None;
+        let settle = out.unsettled && state.pending.is_none() && state.settle_left > 0;
         match out.result {
             Ok((solver, solution, pose)) if finite(&pose) => {
                 status.iterations = solution.stats.iterations;
@@ -689,10 +750,16 @@ fn poll_tasks(
             }
         }
         // A newer request arrived while solving: start it now with the freshest constraints.
+        // Otherwise, if that solve did not converge, settle on with the same constraints.
+        let settling = settle && status.error.is_none();
+        if settling {
+            state.settle_left = state.settle_left.saturating_sub(status.iterations.max(1));
+            state.pending = Some(out.constraints);
+        }
         if state.pending.is_some()
             && let Some(rest) = state.rest.clone()
         {
-            spawn_solve(state, &rest, deformable, &config, &mut status);
+            spawn_solve(state, &rest, deformable, &config, &mut status, settling);
         }
     }
 }

@@ -15,12 +15,18 @@ use faer::{Par, Side};
 use glam::{DMat3, DQuat, DVec3};
 use rayon::prelude::*;
 
-use super::anderson::Anderson;
 use super::constraints::{ConstraintError, Constraints, Role};
 use super::factor::LowerFactor;
 use super::ordering::{dissect, minimum_degree, spatial_order};
 use super::rotation::{add_outer, fit_rotation_warm};
 use super::topology::{MeshError, RowPiece, Topology, WeightMode, join_rows};
+
+mod iterate;
+use super::lbfgs::Lbfgs;
+use iterate::Iterate;
+
+/// Source of [`ArapSolver`] ids.
+static NEXT_SOLVER_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 
 /// Which faer Cholesky variant computes the factor. Either way the factor is then compacted
 /// into the solver's own compressed-column layout, so this choice only changes how long the
@@ -70,13 +76,42 @@ pub struct SolveOptions {
     pub max_iterations: u32,
     /// Stop when the relative energy decrease of one iteration falls below this (0 = never).
     pub tolerance: f64,
-    /// Anderson acceleration of the local/global iteration: how many previous iterates it
-    /// combines (0 = plain local/global, the default; 3 is a good value). Every extrapolated
-    /// iterate is checked against the energy and replaced by the plain one when it is not
-    /// lower, so the energy still never rises. It pays off in long solves from a cold start
-    /// (15 % lower energy after 10 iterations on the armadillo); in a drag with a few
-    /// warm-started iterations per frame it has too little history to help.
-    pub anderson_depth: usize,
+    /// How the iterations are accelerated beyond plain local/global.
+    pub acceleration: Acceleration,
+}
+
+/// Acceleration of the local/global iteration. Every accelerated iterate is checked against the
+/// energy and replaced by the plain local/global step when it does not lower it, so the energy
+/// never rises whichever is chosen.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Acceleration {
+    /// Plain local/global (Sorkine & Alexa 2007): one rotation fit and one back-substitution per
+    /// iteration.
+    #[default]
+    None,
+    /// Anderson acceleration (Peng et al. 2018) combining the last `depth` iterates (3 is a good
+    /// value). It pays off in long solves from a cold start.
+    Anderson {
+        /// Previous iterates combined.
+        depth: usize,
+    },
+    /// L-BFGS on the energy with the factored Laplacian as the initial inverse Hessian (Liu,
+    /// Bouaziz & Kavan 2017), line-searched: per iteration one back-substitution, one rotation
+    /// fit per line-search trial and one gradient pass.
+    Lbfgs {
+        /// Curvature pairs kept.
+        depth: usize,
+    },
+}
+
+impl Acceleration {
+    /// Anderson acceleration of `depth` iterates, or plain local/global when `depth` is 0.
+    pub fn anderson(depth: usize) -> Self {
+        match depth {
+            0 => Self::None,
+            depth => Self::Anderson { depth },
+        }
+    }
 }
 
 impl Default for SolveOptions {
@@ -84,7 +119,7 @@ impl Default for SolveOptions {
         Self {
             max_iterations: 10,
             tolerance: 1e-3,
-            anderson_depth: 0,
+            acceleration: Acceleration::None,
         }
     }
 }
@@ -206,6 +241,20 @@ pub struct Solution {
     pub rotations: Vec<DQuat>,
     /// Statistics.
     pub stats: SolveStats,
+    /// The L-BFGS curvature pairs the solve ended with ([`Acceleration::Lbfgs`]): a solve
+    /// warm-started from this solution by the same solver continues with them.
+    pub(crate) history: CarriedHistory,
+}
+
+/// L-BFGS curvature pairs and the solver (precompute) they belong to. Compares equal always: it
+/// is a cache, not part of the result.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct CarriedHistory(Option<(u64, Lbfgs)>);
+
+impl PartialEq for CarriedHistory {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
 }
 
 impl Solution {
@@ -215,6 +264,7 @@ impl Solution {
             positions: topology.positions().to_vec(),
             rotations: vec![DQuat::IDENTITY; topology.vertex_count()],
             stats: SolveStats::default(),
+            history: CarriedHistory::default(),
         }
     }
 }
@@ -231,6 +281,8 @@ const CHUNK: usize = 512;
 /// Connected components (of positive-weight edges) containing no constrained vertex would make
 /// the system singular; they keep their rest pose, as do isolated vertices.
 pub struct ArapSolver {
+    /// Unique per precompute (tells whose curvature pairs a warm start carries).
+    id: u64,
     topology: Arc<Topology>,
     settings: SolverSettings,
     constraints: Constraints,
@@ -425,6 +477,7 @@ impl ArapSolver {
         };
 
         Ok(Self {
+            id: NEXT_SOLVER_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
             topology,
             settings,
             constraints: constraints.clone(),
@@ -508,7 +561,7 @@ impl ArapSolver {
         };
         let mut mats: Vec<DMat3> = quats.par_iter().map(|q| DMat3::from_quat(*q)).collect();
         let mut rhs = vec![DVec3::ZERO; self.free.len()];
-        let mut rhs_by_vertex = vec![DVec3::ZERO; n];
+        let rhs_by_vertex = vec![DVec3::ZERO; n];
 
         // Inactive cells (no free vertex in the one-ring) never change during the solve.
         let tl = Instant::now();
@@ -534,67 +587,46 @@ impl ArapSolver {
             prev_energy = Some(e);
         }
 
-        let mut anderson =
-            (options.anderson_depth > 0).then(|| Anderson::new(options.anderson_depth));
-        let (mut proposal, mut current) = (Vec::new(), Vec::new());
+        let mut carry = CarriedHistory::default();
+        let mut it = Iterate {
+            x,
+            quats,
+            mats,
+            rhs,
+            rhs_by_vertex,
+            constant_energy,
+            energy: prev_energy,
+            stats,
+        };
         if !self.free.is_empty() {
-            for _ in 0..options.max_iterations {
-                if should_cancel() {
-                    if stats.iterations == 0 {
-                        return Err(SolveError::Cancelled);
-                    }
-                    stats.cancelled = true;
-                    break;
+            match options.acceleration {
+                Acceleration::Lbfgs { depth } => {
+                    let carried = match initial {
+                        InitialGuess::Warm(prev) => match &prev.history.0 {
+                            Some((id, h)) if *id == self.id && h.depth() == depth => Some(h),
+                            _ => None,
+                        },
+                        _ => None,
+                    };
+                    let mut history = carried.cloned().unwrap_or_else(|| Lbfgs::new(depth));
+                    self.iterate_lbfgs(&mut it, &mut history, options, should_cancel)?;
+                    carry = CarriedHistory(Some((self.id, history)));
                 }
-                let tr = Instant::now();
-                self.arap_rhs(&x, &mats, &mut rhs_by_vertex, &mut rhs);
-                let tg = Instant::now();
-                self.cot_factor.solve_in_place(&mut rhs);
-                stats.rhs_s += (tg - tr).as_secs_f64();
-                stats.global_s += tg.elapsed().as_secs_f64();
-                // `rhs` now holds G(y): the plain next iterate.
-                let ta = Instant::now();
-                let extrapolated = match anderson.as_mut() {
-                    Some(aa) if prev_energy.is_some() => {
-                        current.clear();
-                        current.extend(self.free.iter().map(|&i| x[i as usize]));
-                        aa.extrapolate(&current, &rhs, &mut proposal)
-                    }
-                    _ => false,
-                };
-                stats.acceleration_s += ta.elapsed().as_secs_f64();
-                let norm = self.rest_norm.max(f64::MIN_POSITIVE);
-                let tl = Instant::now();
-                let mut e = f64::INFINITY;
-                if extrapolated {
-                    self.write_free(&proposal, &mut x);
-                    e = (constant_energy + self.local_step(&x, &mut quats, &mut mats, true)) / norm;
+                Acceleration::None => {
+                    self.iterate_local_global(&mut it, 0, options, should_cancel)?
                 }
-                // An extrapolation must lower the energy; otherwise take the plain step,
-                // which never raises it.
-                let accepted = extrapolated && prev_energy.is_some_and(|pe| e < pe);
-                if !accepted {
-                    if extrapolated {
-                        stats.rejected_extrapolations += 1;
-                        if let Some(aa) = anderson.as_mut() {
-                            aa.reset();
-                        }
-                    }
-                    self.write_free(&rhs, &mut x);
-                    e = (constant_energy + self.local_step(&x, &mut quats, &mut mats, true)) / norm;
+                Acceleration::Anderson { depth } => {
+                    self.iterate_local_global(&mut it, depth, options, should_cancel)?
                 }
-                stats.local_s += tl.elapsed().as_secs_f64();
-                stats.iterations += 1;
-                stats.energies.push(e);
-                if let Some(pe) = prev_energy {
-                    let decrease = (pe - e) / f64::max(pe, 1e-300);
-                    if options.tolerance > 0.0 && decrease < options.tolerance {
-                        break;
-                    }
-                }
-                prev_energy = Some(e);
             }
         }
+        let Iterate {
+            x,
+            mut quats,
+            mut mats,
+            mut stats,
+            ..
+        } = it;
         if matches!(initial, InitialGuess::Rest | InitialGuess::Warm(_)) && stats.iterations == 0 {
             // Rotations of free cells were never fitted for these positions.
             let e = constant_energy + self.local_step(&x, &mut quats, &mut mats, true);
@@ -608,6 +640,7 @@ impl ArapSolver {
             positions: layout.scatter(&x),
             rotations: layout.scatter(&quats),
             stats,
+            history: carry,
         })
     }
 

@@ -1,0 +1,264 @@
+//! The iterations of a solve: plain or Anderson-accelerated local/global, and L-BFGS on the
+//! energy. All keep the energy from rising: an accelerated iterate that does not lower it is
+//! replaced by the plain local/global step, which never raises it.
+
+use std::time::Instant;
+
+use glam::{DMat3, DQuat, DVec3};
+use rayon::prelude::*;
+
+use super::{ArapSolver, CHUNK, NOT_FREE, SolveError, SolveOptions, SolveStats};
+use crate::deform::anderson::Anderson;
+use crate::deform::lbfgs::{Lbfgs, dot};
+
+/// Backtracking halvings of an L-BFGS step before the plain step is taken instead.
+const LINE_SEARCH_TRIALS: u32 = 4;
+/// Sufficient-decrease constant of the line search (Armijo).
+const ARMIJO: f64 = 1e-4;
+/// Relative energy change below which a step is rounding noise.
+const ROUNDING: f64 = 1e-12;
+
+/// The state a solve iterates on (solver memory order).
+pub(super) struct Iterate {
+    /// All positions; free ones are the unknowns.
+    pub x: Vec<DVec3>,
+    /// Cell rotations.
+    pub quats: Vec<DQuat>,
+    /// The same as matrices.
+    pub mats: Vec<DMat3>,
+    /// Scratch: right-hand side in elimination order.
+    pub rhs: Vec<DVec3>,
+    /// Scratch: right-hand side per vertex.
+    pub rhs_by_vertex: Vec<DVec3>,
+    /// Un-normalised energy of the cells with no free vertex.
+    pub constant_energy: f64,
+    /// Normalised energy of `x` with its fitted rotations, when known.
+    pub energy: Option<f64>,
+    /// Statistics so far.
+    pub stats: SolveStats,
+}
+
+impl ArapSolver {
+    /// Normalised energy of `it.x`, fitting the rotations of the active cells to it.
+    fn refit(&self, it: &mut Iterate) -> f64 {
+        let tl = Instant::now();
+        let e = (it.constant_energy + self.local_step(&it.x, &mut it.quats, &mut it.mats, true))
+            / self.rest_norm.max(f64::MIN_POSITIVE);
+        it.stats.local_s += tl.elapsed().as_secs_f64();
+        e
+    }
+
+    /// Writes the plain local/global image `G(x)` of the free positions into `it.rhs`.
+    fn global_step(&self, it: &mut Iterate) {
+        let tr = Instant::now();
+        self.arap_rhs(&it.x, &it.mats, &mut it.rhs_by_vertex, &mut it.rhs);
+        let tg = Instant::now();
+        self.cot_factor.solve_in_place(&mut it.rhs);
+        it.stats.rhs_s += (tg - tr).as_secs_f64();
+        it.stats.global_s += tg.elapsed().as_secs_f64();
+    }
+
+    /// Records an iteration's energy; true when the tolerance says stop.
+    fn finish_iteration(it: &mut Iterate, e: f64, options: &SolveOptions) -> bool {
+        it.stats.iterations += 1;
+        it.stats.energies.push(e);
+        let stop = it.energy.is_some_and(|pe| {
+            let decrease = (pe - e) / f64::max(pe, 1e-300);
+            options.tolerance > 0.0 && decrease < options.tolerance
+        });
+        it.energy = Some(e);
+        stop
+    }
+
+    /// Whether to stop before the next iteration (`Err` when none was done yet).
+    fn cancelled(it: &mut Iterate, should_cancel: &dyn Fn() -> bool) -> Result<bool, SolveError> {
+        if !should_cancel() {
+            return Ok(false);
+        }
+        if it.stats.iterations == 0 {
+            return Err(SolveError::Cancelled);
+        }
+        it.stats.cancelled = true;
+        Ok(true)
+    }
+
+    /// Local/global iterations, Anderson-accelerated when `depth > 0`.
+    pub(super) fn iterate_local_global(
+        &self,
+        it: &mut Iterate,
+        depth: usize,
+        options: &SolveOptions,
+        should_cancel: &dyn Fn() -> bool,
+    ) -> Result<(), SolveError> {
+        let mut anderson = (depth > 0).then(|| Anderson::new(depth));
+        let (mut proposal, mut current) = (Vec::new(), Vec::new());
+        for _ in 0..options.max_iterations {
+            if Self::cancelled(it, should_cancel)? {
+                break;
+            }
+            self.global_step(it);
+            // `it.rhs` now holds G(y): the plain next iterate.
+            let ta = Instant::now();
+            let extrapolated = match anderson.as_mut() {
+                Some(aa) if it.energy.is_some() => {
+                    current.clear();
+                    current.extend(self.free.iter().map(|&i| it.x[i as usize]));
+                    aa.extrapolate(&current, &it.rhs, &mut proposal)
+                }
+                _ => false,
+            };
+            it.stats.acceleration_s += ta.elapsed().as_secs_f64();
+            let mut e = f64::INFINITY;
+            if extrapolated {
+                self.write_free(&proposal, &mut it.x);
+                e = self.refit(it);
+            }
+            // An extrapolation must lower the energy; otherwise take the plain step,
+            // which never raises it.
+            let accepted = extrapolated && it.energy.is_some_and(|pe| e < pe);
+            if !accepted {
+                if extrapolated {
+                    it.stats.rejected_extrapolations += 1;
+                    if let Some(aa) = anderson.as_mut() {
+                        aa.reset();
+                    }
+                }
+                self.write_free(&it.rhs, &mut it.x);
+                e = self.refit(it);
+            }
+            if Self::finish_iteration(it, e, options) {
+                break;
+            }
+        }
+        Ok(())
+    }
+
+    /// L-BFGS iterations on the energy, preconditioned by the factored Laplacian: with an
+    /// empty `history` the first direction is the plain local/global step, later ones add the
+    /// curvature pairs (a warm start may bring pairs from the previous solve). Each
+    /// direction is line-searched (Armijo, halving); when that fails the plain step is taken
+    /// and the history forgotten.
+    pub(super) fn iterate_lbfgs(
+        &self,
+        it: &mut Iterate,
+        history: &mut Lbfgs,
+        options: &SolveOptions,
+        should_cancel: &dyn Fn() -> bool,
+    ) -> Result<(), SolveError> {
+        let norm = self.rest_norm.max(f64::MIN_POSITIVE);
+        // Rotations fitted to the starting positions (a warm start carries the previous ones).
+        let mut e = self.refit(it);
+        if it.stats.initial_energy.is_none() {
+            it.stats.initial_energy = Some(e);
+        }
+        it.energy = Some(e);
+        let mut g = vec![DVec3::ZERO; self.free.len()];
+        self.gradient(it, &mut g);
+        let mut xf: Vec<DVec3> = self.free.iter().map(|&i| it.x[i as usize]).collect();
+        let mut direction = Vec::with_capacity(g.len());
+        let mut trial = Vec::with_capacity(g.len());
+        for _ in 0..options.max_iterations {
+            if Self::cancelled(it, should_cancel)? {
+                break;
+            }
+            // `direction` = H g; the step is −direction.
+            let ta = Instant::now();
+            direction.clone_from(&g);
+            history.apply(&mut direction, |q| {
+                let tg = Instant::now();
+                self.cot_factor.solve_in_place(q);
+                it.stats.global_s += tg.elapsed().as_secs_f64();
+            });
+            let mut slope = -dot(&g, &direction);
+            // Not a descent direction (or NaN): restart from the plain step.
+            if slope.partial_cmp(&0.0) != Some(std::cmp::Ordering::Less) && history.len() > 0 {
+                history.reset();
+                direction.clone_from(&g);
+                self.cot_factor.solve_in_place(&mut direction);
+                slope = -dot(&g, &direction);
+            }
+            it.stats.acceleration_s += ta.elapsed().as_secs_f64();
+            // ∇E = 4 g in un-normalised energy.
+            let slope = 4.0 * slope / norm;
+            let mut alpha = 1.0;
+            let mut accepted = None;
+            for _ in 0..LINE_SEARCH_TRIALS {
+                trial.clear();
+                trial.extend(xf.iter().zip(&direction).map(|(x, d)| *x - alpha * *d));
+                self.write_free(&trial, &mut it.x);
+                let et = self.refit(it);
+                if et <= e + ARMIJO * alpha * slope {
+                    accepted = Some(et);
+                    break;
+                }
+                it.stats.rejected_extrapolations += 1;
+                alpha *= 0.5;
+            }
+            let e_new = match accepted {
+                Some(et) => et,
+                None => {
+                    // The plain step from `xf` never raises the energy.
+                    history.reset();
+                    self.write_free(&xf, &mut it.x);
+                    self.refit(it);
+                    self.global_step(it);
+                    trial.clone_from(&it.rhs);
+                    self.write_free(&trial, &mut it.x);
+                    self.refit(it)
+                }
+            };
+            let mut g_new = vec![DVec3::ZERO; g.len()];
+            self.gradient(it, &mut g_new);
+            let ta = Instant::now();
+            // A step that changed the energy only at rounding level (at rest, or converged)
+            // measures noise, not curvature.
+            if e - e_new > ROUNDING * e {
+                let s: Vec<DVec3> = trial.iter().zip(&xf).map(|(a, b)| *a - *b).collect();
+                let y: Vec<DVec3> = g_new.iter().zip(&g).map(|(a, b)| *a - *b).collect();
+                history.push(s, y);
+            }
+            it.stats.acceleration_s += ta.elapsed().as_secs_f64();
+            std::mem::swap(&mut xf, &mut trial);
+            g = g_new;
+            e = e_new;
+            if Self::finish_iteration(it, e, options) {
+                break;
+            }
+        }
+        Ok(())
+    }
+
+    /// `g = L x − b(R)` on the free vertices in elimination order: a quarter of the energy's
+    /// gradient (rotations fitted to `x`, so they contribute nothing by optimality).
+    #[allow(clippy::needless_range_loop)] // CSR rows: `e` indexes weights and neighbours alike
+    fn gradient(&self, it: &mut Iterate, out: &mut [DVec3]) {
+        let tr = Instant::now();
+        let layout = &self.layout;
+        let (rest, offsets, nbrs) = (&layout.rest, &layout.offsets, &layout.nbrs);
+        let (x, mats) = (&it.x, &it.mats);
+        it.rhs_by_vertex
+            .par_chunks_mut(CHUNK)
+            .enumerate()
+            .for_each(|(c, chunk)| {
+                for (k, g_out) in chunk.iter_mut().enumerate() {
+                    let i = c * CHUNK + k;
+                    if self.free_index[i] == NOT_FREE {
+                        continue;
+                    }
+                    let mut g = -0.5 * (mats[i] * self.weighted_rest_sum[i]);
+                    for e in offsets[i] as usize..offsets[i + 1] as usize {
+                        let w = layout.weights[e];
+                        let j = nbrs[e] as usize;
+                        g += w * (x[i] - x[j]) - (0.5 * w) * (mats[j] * (rest[i] - rest[j]));
+                    }
+                    *g_out = g;
+                }
+            });
+        let by_vertex = &it.rhs_by_vertex;
+        out.par_iter_mut()
+            .zip(self.free.par_iter())
+            .with_min_len(CHUNK)
+            .for_each(|(o, &i)| *o = by_vertex[i as usize]);
+        it.stats.rhs_s += tr.elapsed().as_secs_f64();
+    }
+}
