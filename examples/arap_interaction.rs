@@ -42,8 +42,10 @@ fn options(iterations: u32, acceleration: Acceleration) -> SolveOptions {
     }
 }
 
-/// Curvature pairs of the L-BFGS runs.
-const LBFGS_DEPTH: usize = 8;
+/// The L-BFGS of the runs (and of the plugin).
+const LBFGS: Acceleration = Acceleration::Lbfgs { depth: 8 };
+/// The truncated Newton of the runs (and of the plugin's settling).
+const NEWTON: Acceleration = Acceleration::Newton { max_cg: 30 };
 
 /// Radius of the region of interest around a new handle, as a fraction of the diagonal.
 const ROI_RADIUS: f64 = 0.25;
@@ -94,95 +96,146 @@ fn set_change_ms(topology: &Arc<Topology>, start: &Solution, roi: bool) -> (f64,
     (ms[2], inside)
 }
 
-/// Iterations after release until within 1 % energy and 5e-4 × diagonal of converged.
-fn settle_iterations(topology: &Arc<Topology>, acceleration: Acceleration) -> u32 {
-    let diagonal = topology.bounding_diagonal();
-    let bend = |f: f64| {
-        synth::bend_problem(
-            topology.positions(),
-            0.6 * f,
-            DVec3::new(0.15 * diagonal * f, 0.0, 0.0),
-        )
-    };
-    let c0 = bend(0.0);
-    let solver = ArapSolver::precompute(topology.clone(), &c0, SolverSettings::default())
-        .expect("precompute");
-    let mut pose = solver
-        .solve(
-            &c0,
-            &options(2, Acceleration::None),
-            InitialGuess::Laplacian,
-            NEVER,
-        )
-        .expect("solve");
-    let mut c = c0;
-    for frame in 1..=60 {
-        c = bend(frame as f64 / 60.0);
-        pose = solver
-            .solve(
-                &c,
-                &options(2, acceleration),
-                InitialGuess::Warm(&pose),
-                NEVER,
-            )
-            .expect("solve");
+/// How one method settles after the release.
+#[derive(Debug, Clone, Copy, Default)]
+struct Settled {
+    /// Iterations after release (4096 = not within 2048).
+    iterations: u32,
+    /// Back-substitutions of those iterations.
+    back_substitutions: u32,
+    /// Milliseconds of that solve.
+    ms: f64,
+}
+
+/// The drag of the settling benchmark on one mesh and its converged end pose.
+struct Drag {
+    topology: Arc<Topology>,
+    solver: ArapSolver,
+    frames: Vec<Constraints>,
+    converged: Solution,
+    e_star: f64,
+}
+
+impl Drag {
+    /// A handle dragged for 60 frames (bend to 0.6 rad and 15 % of the diagonal); converged
+    /// = the lower-energy of 3000 L-BFGS and 60 Newton iterations from the end of an L-BFGS
+    /// drag.
+    fn new(topology: &Arc<Topology>) -> Self {
+        let diagonal = topology.bounding_diagonal();
+        let frames: Vec<Constraints> = (0..=60)
+            .map(|frame| {
+                let f = frame as f64 / 60.0;
+                synth::bend_problem(
+                    topology.positions(),
+                    0.6 * f,
+                    DVec3::new(0.15 * diagonal * f, 0.0, 0.0),
+                )
+            })
+            .collect();
+        let solver =
+            ArapSolver::precompute(topology.clone(), &frames[0], SolverSettings::default())
+                .expect("precompute");
+        let mut drag = Self {
+            topology: topology.clone(),
+            solver,
+            frames,
+            converged: Solution::rest(topology),
+            e_star: 0.0,
+        };
+        let released = drag.released(LBFGS);
+        let last = drag.frames.last().expect("frames");
+        drag.converged = [
+            options(3000, LBFGS),
+            options(60, Acceleration::Newton { max_cg: 200 }),
+        ]
+        .map(|o| {
+            drag.solver
+                .solve(last, &o, InitialGuess::Warm(&released), NEVER)
+                .expect("solve")
+        })
+        .into_iter()
+        .min_by(|a, b| {
+            arap_energy(topology, &a.positions).total_cmp(&arap_energy(topology, &b.positions))
+        })
+        .expect("two solves");
+        drag.e_star = arap_energy(topology, &drag.converged.positions);
+        drag
     }
-    // Converged: the lower-energy of 3000 plain and 3000 L-BFGS iterations.
-    let converged = [
-        Acceleration::None,
-        Acceleration::Lbfgs { depth: LBFGS_DEPTH },
-    ]
-    .map(|a| {
-        solver
-            .solve(&c, &options(3000, a), InitialGuess::Warm(&pose), NEVER)
-            .expect("solve")
-    })
-    .into_iter()
-    .min_by(|a, b| {
-        arap_energy(topology, &a.positions).total_cmp(&arap_energy(topology, &b.positions))
-    })
-    .expect("two solves");
-    let e_star = arap_energy(topology, &converged.positions);
-    let settled = |k: u32| {
-        if k == 0 {
-            return close(
-                topology,
-                &pose.positions,
-                &converged.positions,
-                e_star,
-                diagonal,
-            );
-        }
-        let s = solver
+
+    /// The pose at release after dragging with `acceleration`, 2 warm iterations per frame.
+    fn released(&self, acceleration: Acceleration) -> Solution {
+        let mut pose = self
+            .solver
             .solve(
-                &c,
-                &options(k, acceleration),
-                InitialGuess::Warm(&pose),
+                &self.frames[0],
+                &options(2, Acceleration::None),
+                InitialGuess::Laplacian,
                 NEVER,
             )
             .expect("solve");
+        for c in &self.frames[1..] {
+            pose = self
+                .solver
+                .solve(
+                    c,
+                    &options(2, acceleration),
+                    InitialGuess::Warm(&pose),
+                    NEVER,
+                )
+                .expect("solve");
+        }
+        pose
+    }
+
+    /// Iterations of `settle` after a drag with `drag` until within 1 % energy and 5e-4 ×
+    /// diagonal of converged.
+    fn settle(&self, drag: Acceleration, settle: Acceleration) -> Settled {
+        let pose = self.released(drag);
+        let last = self.frames.last().expect("frames");
+        let run = |k: u32| {
+            if k == 0 {
+                return (self.close(&pose.positions), Settled::default());
+            }
+            let s = self
+                .solver
+                .solve(last, &options(k, settle), InitialGuess::Warm(&pose), NEVER)
+                .expect("solve");
+            let done = Settled {
+                iterations: k,
+                back_substitutions: s.stats.back_substitutions,
+                ms: s.stats.total_s * 1e3,
+            };
+            (self.close(&s.positions), done)
+        };
+        // Exponential search, then bisection (the criterion tightens as iterations go on).
+        let mut hi = 1;
+        while !run(hi).0 {
+            hi *= 2;
+            if hi > 2048 {
+                return Settled {
+                    iterations: hi,
+                    ..Default::default()
+                };
+            }
+        }
+        let mut lo = hi / 2;
+        while hi - lo > 1 {
+            let mid = (lo + hi) / 2;
+            if run(mid).0 { hi = mid } else { lo = mid }
+        }
+        let (at_lo, settled) = run(lo);
+        if at_lo { settled } else { run(hi).1 }
+    }
+
+    fn close(&self, x: &[DVec3]) -> bool {
         close(
-            topology,
-            &s.positions,
-            &converged.positions,
-            e_star,
-            diagonal,
+            &self.topology,
+            x,
+            &self.converged.positions,
+            self.e_star,
+            self.topology.bounding_diagonal(),
         )
-    };
-    // Exponential search, then bisection (the criterion tightens as iterations go on).
-    let mut hi = 1;
-    while !settled(hi) {
-        hi *= 2;
-        if hi > 2048 {
-            return hi;
-        }
     }
-    let mut lo = hi / 2;
-    while hi - lo > 1 {
-        let mid = (lo + hi) / 2;
-        if settled(mid) { hi = mid } else { lo = mid }
-    }
-    if settled(lo) { lo } else { hi }
 }
 
 fn close(topology: &Topology, x: &[DVec3], star: &[DVec3], e_star: f64, diagonal: f64) -> bool {
@@ -217,17 +270,44 @@ fn main() {
         let rest = Solution::rest(&topology);
         let (first_pose, _) = set_change_ms(&topology, &rest, false);
         let (roi_first_pose, roi_vertices) = set_change_ms(&topology, &rest, true);
-        let (plain, anderson, lbfgs) = match settle {
-            true => (
-                settle_iterations(&topology, Acceleration::None),
-                settle_iterations(&topology, Acceleration::Anderson { depth: 3 }),
-                settle_iterations(&topology, Acceleration::Lbfgs { depth: LBFGS_DEPTH }),
+        let methods = [
+            ("plain", Acceleration::None, Acceleration::None),
+            (
+                "anderson",
+                Acceleration::Anderson { depth: 3 },
+                Acceleration::Anderson { depth: 3 },
             ),
-            false => (0, 0, 0),
+            ("lbfgs", LBFGS, LBFGS),
+            ("newton", NEWTON, NEWTON),
+            ("best", LBFGS, NEWTON),
+        ];
+        let settled: Vec<(&str, Settled)> = match settle {
+            true => {
+                let drag = Drag::new(&topology);
+                methods
+                    .iter()
+                    .map(|&(name, d, s)| (name, drag.settle(d, s)))
+                    .collect()
+            }
+            false => methods
+                .iter()
+                .map(|&(n, _, _)| (n, Settled::default()))
+                .collect(),
+        };
+        let field = |f: fn(&Settled) -> serde_json::Value| {
+            serde_json::Value::Object(settled.iter().map(|(n, s)| (n.to_string(), f(s))).collect())
         };
         eprintln!(
-            "{name}: {} vertices, set change → first pose {first_pose:.1} ms (ROI of {roi_vertices}: {roi_first_pose:.1} ms), settle: plain {plain}, anderson {anderson}, lbfgs {lbfgs}",
-            topology.vertex_count()
+            "{name}: {} vertices, set change → first pose {first_pose:.1} ms (ROI of {roi_vertices}: {roi_first_pose:.1} ms), settle (iterations / back-substitutions / ms): {}",
+            topology.vertex_count(),
+            settled
+                .iter()
+                .map(|(n, s)| format!(
+                    "{n} {} / {} / {:.0}",
+                    s.iterations, s.back_substitutions, s.ms
+                ))
+                .collect::<Vec<_>>()
+                .join(", ")
         );
         rows.push(serde_json::json!({
             "name": name,
@@ -235,7 +315,9 @@ fn main() {
             "set_change_first_pose_ms": first_pose,
             "set_change_roi_first_pose_ms": roi_first_pose,
             "roi_vertices": roi_vertices,
-            "settle_iterations": {"plain": plain, "anderson": anderson, "lbfgs": lbfgs, "best": plain},
+            "settle_iterations": field(|s| s.iterations.into()),
+            "settle_back_substitutions": field(|s| s.back_substitutions.into()),
+            "settle_ms": field(|s| s.ms.into()),
         }));
     }
     if json {

@@ -811,11 +811,12 @@ fn render_constraints_out_of_range_are_rejected() {
     ));
 }
 
-/// L-BFGS reaches the converged pose of plain local/global (to 1e-8 of the diagonal), never
-/// raises the energy, and gets there in a fraction of the plain iterations (the settling
-/// benchmark's criterion: within 1 % energy and 5e-4 × the diagonal of converged).
+/// L-BFGS and truncated Newton reach the converged pose of plain local/global (to 1e-8 of the
+/// diagonal), never raise the energy, and settle (the benchmark's criterion: within 1 % energy
+/// and 5e-4 × the diagonal of converged) in a fraction of the plain iterations; Newton in
+/// fewer iterations than L-BFGS.
 #[test]
-fn lbfgs_reaches_the_plain_converged_pose_in_fewer_iterations() {
+fn accelerations_reach_the_plain_converged_pose_in_fewer_iterations() {
     let t = topo(&synth::bar(8, 40, 0.1, 1.0));
     let c = bend_problem(&t, 1.0);
     let solver = ArapSolver::precompute(t.clone(), &c, SolverSettings::default()).unwrap();
@@ -835,8 +836,8 @@ fn lbfgs_reaches_the_plain_converged_pose_in_fewer_iterations() {
         s
     };
     let lbfgs = Acceleration::Lbfgs { depth: 8 };
+    let newton = Acceleration::Newton { max_cg: 30 };
     let plain_star = solve(20_000, Acceleration::None);
-    let lbfgs_star = solve(2_000, lbfgs);
     let worst = |a: &Solution, b: &Solution| {
         a.positions
             .iter()
@@ -844,8 +845,13 @@ fn lbfgs_reaches_the_plain_converged_pose_in_fewer_iterations() {
             .map(|(p, q)| p.distance(*q))
             .fold(0.0, f64::max)
     };
-    let gap = worst(&plain_star, &lbfgs_star);
-    assert!(gap <= 1e-8 * diagonal, "converged poses differ by {gap}");
+    for (name, acceleration, iterations) in [("L-BFGS", lbfgs, 2_000), ("Newton", newton, 100)] {
+        let gap = worst(&plain_star, &solve(iterations, acceleration));
+        assert!(
+            gap <= 1e-8 * diagonal,
+            "{name}: converged poses differ by {gap}"
+        );
+    }
     let e_star = arap_energy(&t, &plain_star.positions);
     let settled = |s: &Solution| {
         arap_energy(&t, &s.positions) <= 1.01 * e_star && worst(s, &plain_star) <= 5e-4 * diagonal
@@ -855,10 +861,14 @@ fn lbfgs_reaches_the_plain_converged_pose_in_fewer_iterations() {
             .find(|&k| settled(&solve(k, acceleration)))
             .unwrap_or(u32::MAX)
     };
-    let (plain_k, lbfgs_k) = (first(Acceleration::None), first(lbfgs));
-    eprintln!("settled: plain {plain_k}, L-BFGS {lbfgs_k} iterations; converged gap {gap:e}");
+    let (plain_k, lbfgs_k, newton_k) = (first(Acceleration::None), first(lbfgs), first(newton));
+    eprintln!("settled: plain {plain_k}, L-BFGS {lbfgs_k}, Newton {newton_k} iterations");
     assert!(
         lbfgs_k * 3 <= plain_k,
         "L-BFGS settles in {lbfgs_k} iterations, plain in {plain_k}"
+    );
+    assert!(
+        newton_k * 2 <= lbfgs_k,
+        "Newton settles in {newton_k} iterations, L-BFGS in {lbfgs_k}"
     );
 }

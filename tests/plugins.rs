@@ -1628,7 +1628,7 @@ fn a_released_handle_settles_to_the_converged_pose() {
             solves,
         )
     };
-    let (settled, tri, handle_at, settled_solves) = run(400);
+    let (settled, tri, handle_at, settled_solves) = run(DeformPlugin::default().settle_iterations);
     let (frozen, _, _, frozen_solves) = run(0);
 
     // The converged pose for the same constraints, from the core.

@@ -40,7 +40,7 @@ pub(super) struct Iterate {
 
 impl ArapSolver {
     /// Normalised energy of `it.x`, fitting the rotations of the active cells to it.
-    fn refit(&self, it: &mut Iterate) -> f64 {
+    pub(super) fn refit(&self, it: &mut Iterate) -> f64 {
         let tl = Instant::now();
         let e = (it.constant_energy + self.local_step(&it.x, &mut it.quats, &mut it.mats, true))
             / self.rest_norm.max(f64::MIN_POSITIVE);
@@ -54,12 +54,13 @@ impl ArapSolver {
         self.arap_rhs(&it.x, &it.mats, &mut it.rhs_by_vertex, &mut it.rhs);
         let tg = Instant::now();
         self.cot_factor.solve_in_place(&mut it.rhs);
+        it.stats.back_substitutions += 1;
         it.stats.rhs_s += (tg - tr).as_secs_f64();
         it.stats.global_s += tg.elapsed().as_secs_f64();
     }
 
     /// Records an iteration's energy; true when the tolerance says stop.
-    fn finish_iteration(it: &mut Iterate, e: f64, options: &SolveOptions) -> bool {
+    pub(super) fn finish_iteration(it: &mut Iterate, e: f64, options: &SolveOptions) -> bool {
         it.stats.iterations += 1;
         it.stats.energies.push(e);
         let stop = it.energy.is_some_and(|pe| {
@@ -71,7 +72,10 @@ impl ArapSolver {
     }
 
     /// Whether to stop before the next iteration (`Err` when none was done yet).
-    fn cancelled(it: &mut Iterate, should_cancel: &dyn Fn() -> bool) -> Result<bool, SolveError> {
+    pub(super) fn cancelled(
+        it: &mut Iterate,
+        should_cancel: &dyn Fn() -> bool,
+    ) -> Result<bool, SolveError> {
         if !should_cancel() {
             return Ok(false);
         }
@@ -145,7 +149,6 @@ impl ArapSolver {
         options: &SolveOptions,
         should_cancel: &dyn Fn() -> bool,
     ) -> Result<(), SolveError> {
-        let norm = self.rest_norm.max(f64::MIN_POSITIVE);
         // Rotations fitted to the starting positions (a warm start carries the previous ones).
         let mut e = self.refit(it);
         if it.stats.initial_energy.is_none() {
@@ -168,45 +171,25 @@ impl ArapSolver {
                 let tg = Instant::now();
                 self.cot_factor.solve_in_place(q);
                 it.stats.global_s += tg.elapsed().as_secs_f64();
+                it.stats.back_substitutions += 1;
             });
-            let mut slope = -dot(&g, &direction);
-            // Not a descent direction (or NaN): restart from the plain step.
-            if slope.partial_cmp(&0.0) != Some(std::cmp::Ordering::Less) && history.len() > 0 {
+            if dot(&g, &direction).partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater)
+                && history.len() > 0
+            {
+                // Not a descent direction (or NaN): restart from the plain step.
                 history.reset();
                 direction.clone_from(&g);
                 self.cot_factor.solve_in_place(&mut direction);
-                slope = -dot(&g, &direction);
+                it.stats.back_substitutions += 1;
             }
+            direction.iter_mut().for_each(|d| *d = -*d);
             it.stats.acceleration_s += ta.elapsed().as_secs_f64();
-            // ∇E = 4 g in un-normalised energy.
-            let slope = 4.0 * slope / norm;
-            let mut alpha = 1.0;
-            let mut accepted = None;
-            for _ in 0..LINE_SEARCH_TRIALS {
-                trial.clear();
-                trial.extend(xf.iter().zip(&direction).map(|(x, d)| *x - alpha * *d));
-                self.write_free(&trial, &mut it.x);
-                let et = self.refit(it);
-                if et <= e + ARMIJO * alpha * slope {
-                    accepted = Some(et);
-                    break;
-                }
-                it.stats.rejected_extrapolations += 1;
-                alpha *= 0.5;
+            let (e_new, plain) = self.line_search(it, &xf, &direction, &g, e);
+            if plain {
+                history.reset();
             }
-            let e_new = match accepted {
-                Some(et) => et,
-                None => {
-                    // The plain step from `xf` never raises the energy.
-                    history.reset();
-                    self.write_free(&xf, &mut it.x);
-                    self.refit(it);
-                    self.global_step(it);
-                    trial.clone_from(&it.rhs);
-                    self.write_free(&trial, &mut it.x);
-                    self.refit(it)
-                }
-            };
+            trial.clear();
+            trial.extend(self.free.iter().map(|&i| it.x[i as usize]));
             let mut g_new = vec![DVec3::ZERO; g.len()];
             self.gradient(it, &mut g_new);
             let ta = Instant::now();
@@ -228,10 +211,48 @@ impl ArapSolver {
         Ok(())
     }
 
+    /// Line search from the free positions `xf` (energy `e`, gradient `g`) along the step `d`:
+    /// `xf + α d` for α = 1, ½, ¼, … until the energy falls enough (Armijo); when none does,
+    /// the plain local/global step from `xf`, which never raises it. Leaves the accepted
+    /// positions and their fitted rotations in `it`; returns their energy and whether the plain
+    /// step was taken.
+    pub(super) fn line_search(
+        &self,
+        it: &mut Iterate,
+        xf: &[DVec3],
+        d: &[DVec3],
+        g: &[DVec3],
+        e: f64,
+    ) -> (f64, bool) {
+        // ∇E = 4 g in un-normalised energy.
+        let slope = 4.0 * dot(g, d) / self.rest_norm.max(f64::MIN_POSITIVE);
+        let mut alpha = 1.0;
+        let mut trial = Vec::with_capacity(xf.len());
+        if slope < 0.0 {
+            for _ in 0..LINE_SEARCH_TRIALS {
+                trial.clear();
+                trial.extend(xf.iter().zip(d).map(|(x, d)| *x + alpha * *d));
+                self.write_free(&trial, &mut it.x);
+                let et = self.refit(it);
+                if et <= e + ARMIJO * alpha * slope {
+                    return (et, false);
+                }
+                it.stats.rejected_extrapolations += 1;
+                alpha *= 0.5;
+            }
+        }
+        self.write_free(xf, &mut it.x);
+        self.refit(it);
+        self.global_step(it);
+        trial.clone_from(&it.rhs);
+        self.write_free(&trial, &mut it.x);
+        (self.refit(it), true)
+    }
+
     /// `g = L x − b(R)` on the free vertices in elimination order: a quarter of the energy's
     /// gradient (rotations fitted to `x`, so they contribute nothing by optimality).
     #[allow(clippy::needless_range_loop)] // CSR rows: `e` indexes weights and neighbours alike
-    fn gradient(&self, it: &mut Iterate, out: &mut [DVec3]) {
+    pub(super) fn gradient(&self, it: &mut Iterate, out: &mut [DVec3]) {
         let tr = Instant::now();
         let layout = &self.layout;
         let (rest, offsets, nbrs) = (&layout.rest, &layout.offsets, &layout.nbrs);

@@ -22,6 +22,7 @@ use super::rotation::{add_outer, fit_rotation_warm};
 use super::topology::{MeshError, RowPiece, Topology, WeightMode, join_rows};
 
 mod iterate;
+mod newton;
 use super::lbfgs::Lbfgs;
 use iterate::Iterate;
 
@@ -101,6 +102,14 @@ pub enum Acceleration {
     Lbfgs {
         /// Curvature pairs kept.
         depth: usize,
+    },
+    /// Truncated Newton: per iteration, conjugate gradients on the exact Hessian (rotation
+    /// fits differentiated) preconditioned by the factored Laplacian, up to `max_cg`
+    /// back-substitutions, then a line search. Far fewer iterations than the others on soft
+    /// modes, each costing several back-substitutions ([`SolveStats::back_substitutions`]).
+    Newton {
+        /// Conjugate-gradient steps per iteration at most.
+        max_cg: u32,
     },
 }
 
@@ -214,6 +223,10 @@ pub struct SolveStats {
     /// Extrapolated iterates that did not lower the energy and were replaced by the plain
     /// local/global step (each costs one extra local step).
     pub rejected_extrapolations: u32,
+    /// Back-substitutions with the factored Laplacian (one per plain, Anderson or L-BFGS
+    /// iteration, more for Newton and for rejected line searches): the comparable unit of
+    /// work across accelerations.
+    pub back_substitutions: u32,
     /// Total seconds.
     pub total_s: f64,
     /// The cancel callback stopped the iterations early (the result is the last completed
@@ -611,6 +624,9 @@ impl ArapSolver {
                     let mut history = carried.cloned().unwrap_or_else(|| Lbfgs::new(depth));
                     self.iterate_lbfgs(&mut it, &mut history, options, should_cancel)?;
                     carry = CarriedHistory(Some((self.id, history)));
+                }
+                Acceleration::Newton { max_cg } => {
+                    self.iterate_newton(&mut it, max_cg, options, should_cancel)?
                 }
                 Acceleration::None => {
                     self.iterate_local_global(&mut it, 0, options, should_cancel)?
