@@ -16,15 +16,20 @@
 //! * `settle_iterations`: a handle is dragged for 60 frames (bend to 0.6 rad and 15 % of the
 //!   diagonal, 2 warm iterations per frame), then released (held at its last target). Counted
 //!   are the further iterations until the energy is within 1 % of the converged value and no
-//!   vertex is farther than 5e-4 × the diagonal from the converged pose (converged = 3000
-//!   iterations). `plain` and `anderson` (depth 3, history per solve call); `best` is what the
-//!   plugin uses (plain). 4096 means "not settled within 2048 iterations".
+//!   vertex is farther than 5e-4 × the diagonal from the converged pose (converged = the lower
+//!   energy of 3000 L-BFGS and 60 Newton iterations). Methods (drag / settle): `plain`,
+//!   `anderson` (depth 3), `lbfgs` (depth 8, curvature pairs carried from frame to frame),
+//!   `newton` (truncated Newton, ≤ 30 CG steps), and `best` = L-BFGS while dragging, Newton to
+//!   settle: what `DeformPlugin` does. 4096 means "not settled within 2048 iterations".
+//!   `settle_back_substitutions` and `settle_ms` give the work of those iterations (one
+//!   back-substitution per plain, Anderson or L-BFGS iteration; up to 32 per Newton one).
+//! * `--only PREFIX` runs only the meshes whose name starts with it.
 //!
 //! `--set-change-only` skips the settling runs (reported as 0).
 //!
 //! The last stdout line is `{"meshes": [{"name", "vertices", "set_change_first_pose_ms",
 //! "set_change_roi_first_pose_ms", "roi_vertices", "settle_iterations": {"plain", "anderson",
-//! "best"}}]}`.
+//! "lbfgs", "newton", "best"}, "settle_back_substitutions": {…}, "settle_ms": {…}}]}`.
 
 use std::sync::Arc;
 use std::time::Instant;

@@ -49,7 +49,7 @@ impl ArapSolver {
     }
 
     /// Writes the plain local/global image `G(x)` of the free positions into `it.rhs`.
-    fn global_step(&self, it: &mut Iterate) {
+    pub(super) fn global_step(&self, it: &mut Iterate) {
         let tr = Instant::now();
         self.arap_rhs(&it.x, &it.mats, &mut it.rhs_by_vertex, &mut it.rhs);
         let tg = Instant::now();

@@ -18,6 +18,9 @@ use crate::deform::rotation::add_outer;
 /// CG stops when the preconditioned residual has shrunk by this factor.
 const CG_REDUCTION: f64 = 0.1;
 
+/// Longest vertex move of one Newton step, as a fraction of the bounding-box diagonal.
+const MAX_STEP: f64 = 0.02;
+
 /// Scratch of the Hessian-vector products (solver memory order).
 struct Scratch {
     /// The vector, per vertex (zero on known vertices).
@@ -189,6 +192,7 @@ impl ArapSolver {
             p.clone_from(&z);
             let mut rz = dot(&r, &z);
             let rz0 = rz;
+
             for k in 0..max_cg.max(1) {
                 self.hessian_times(&p, &it.mats, &mut s, &mut hp);
                 let php = dot(&p, &hp);
@@ -213,9 +217,25 @@ impl ArapSolver {
                 p.iter_mut().zip(&z).for_each(|(p, z)| *p = *z + beta * *p);
             }
             it.stats.acceleration_s += ta.elapsed().as_secs_f64();
+            // Trust the quadratic model only so far: no vertex moves more than `MAX_STEP` of the
+            // mesh's diagonal in one step (a long CG can propose a swing into another basin).
+            let longest = d.iter().map(|v| v.length()).fold(0.0, f64::max);
+            let limit = MAX_STEP * self.topology.bounding_diagonal();
+            if longest > limit {
+                let k = limit / longest;
+                d.iter_mut().for_each(|v| *v *= k);
+            }
             let xf: Vec<DVec3> = self.free.iter().map(|&i| it.x[i as usize]).collect();
-            let (e_new, _) = self.line_search(it, &xf, &d, &g, e);
-            e = e_new;
+            self.line_search(it, &xf, &d, &g, e);
+            // One plain local/global step: it removes, for one back-substitution, the stiff
+            // (high-frequency) residual a long Newton step leaves behind, which the next CG
+            // would otherwise spend its iterations on (26k armadillo: 6 instead of 11 Newton
+            // iterations to settle, 188 instead of 218 back-substitutions).
+            self.global_step(it);
+            let next = std::mem::take(&mut it.rhs);
+            self.write_free(&next, &mut it.x);
+            it.rhs = next;
+            e = self.refit(it);
             if Self::finish_iteration(it, e, options) {
                 break;
             }
