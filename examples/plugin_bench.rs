@@ -2,9 +2,11 @@
 //! main-thread time spent in the plugin's systems and completed solves per second.
 //!
 //! ```text
-//! cargo run --release --example plugin_bench -- [--mesh PATH | --bar VERTICES] [--seconds 5] [--iterations 1] [--fps 120] [--grab] --json
+//! cargo run --release --example plugin_bench -- [--mesh PATH | --bar VERTICES] [--seconds 5] [--iterations 1] [--fps 120] [--grab] [--plain] --json
 //! ```
 //! Default mesh: ../shared/meshes/armadillo.off (26k vertices), else a 26k-vertex bar.
+//! `--plain`: the plugin with plain local/global iterations and no settling (default: L-BFGS
+//! while dragging, Newton settling after).
 //! Last stdout line: `{"vertices": N, "frames": F, "main_ms_median": x, "main_ms_p99": y, "solves_per_s": z}`.
 //! `--grab`: no fixed region; a new pointer grab (`GrabStart`, patch radius 3 % and region 30 %
 //! of the bounding-box diagonal) every second at a pseudo-random vertex, its handle dragged in
@@ -97,13 +99,23 @@ fn main() {
             synth::bar_with_vertices(26_002)
         })
     };
+    // `--plain`: plain local/global and no settling (the plugin before L-BFGS), for side-by-side
+    // comparisons.
+    let deform_plugin = match args.iter().any(|a| a == "--plain") {
+        true => DeformPlugin {
+            acceleration: bevy_wii_deform::deform::Acceleration::None,
+            settle_iterations: 0,
+            ..default()
+        },
+        false => DeformPlugin::default(),
+    };
     let mut app = App::new();
     app.add_plugins((
         MinimalPlugins,
         bevy::asset::AssetPlugin::default(),
         bevy::mesh::MeshPlugin,
         bevy::transform::TransformPlugin,
-        DeformPlugin::default(),
+        deform_plugin,
     ))
     .init_resource::<Timing>()
     .add_systems(

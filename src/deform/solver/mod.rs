@@ -218,7 +218,7 @@ pub struct SolveStats {
     pub rhs_s: f64,
     /// Seconds in triangular solves.
     pub global_s: f64,
-    /// Seconds extrapolating (Anderson acceleration).
+    /// Seconds in the acceleration: Anderson extrapolation, L-BFGS directions, Newton CG.
     pub acceleration_s: f64,
     /// Extrapolated iterates that did not lower the energy and were replaced by the plain
     /// local/global step (each costs one extra local step).
@@ -529,9 +529,10 @@ impl ArapSolver {
     }
 
     /// Solves for the given constraint values. `should_cancel` is polled before every
-    /// iteration; when it returns true the solve stops: with [`SolveError::Cancelled`] if no
-    /// iteration was done yet, otherwise with the last completed iteration and
-    /// [`SolveStats::cancelled`] set.
+    /// iteration (and between Newton's conjugate-gradient steps, which then end that iteration
+    /// with the direction found so far); when it returns true the solve stops: with
+    /// [`SolveError::Cancelled`] if no iteration was done yet, otherwise with the last
+    /// completed iteration and [`SolveStats::cancelled`] set.
     pub fn solve(
         &self,
         constraints: &Constraints,

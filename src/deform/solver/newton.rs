@@ -194,6 +194,11 @@ impl ArapSolver {
             let rz0 = rz;
 
             for k in 0..max_cg.max(1) {
+                // A newer request: finish this iteration with the direction found so far
+                // (one Newton iteration is many back-substitutions; the caller must not wait).
+                if k > 0 && should_cancel() {
+                    break;
+                }
                 self.hessian_times(&p, &it.mats, &mut s, &mut hp);
                 let php = dot(&p, &hp);
                 if php.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
