@@ -5,9 +5,8 @@
 use std::time::Instant;
 
 use glam::{DMat3, DQuat, DVec3};
-use rayon::prelude::*;
 
-use super::{ArapSolver, CHUNK, NOT_FREE, SolveError, SolveOptions, SolveStats};
+use super::{ArapSolver, SolveError, SolveOptions, SolveStats};
 use crate::deform::anderson::Anderson;
 use crate::deform::lbfgs::{Lbfgs, dot};
 
@@ -149,13 +148,9 @@ impl ArapSolver {
         options: &SolveOptions,
         should_cancel: &dyn Fn() -> bool,
     ) -> Result<(), SolveError> {
-        // Rotations fitted to the starting positions (a warm start carries the previous ones).
-        let mut e = self.refit(it);
-        if it.stats.initial_energy.is_none() {
-            it.stats.initial_energy = Some(e);
-        }
-        it.energy = Some(e);
+        let mut e = self.start_energy(it);
         let mut g = vec![DVec3::ZERO; self.free.len()];
+        let mut g_new = g.clone();
         self.gradient(it, &mut g);
         let mut xf: Vec<DVec3> = self.free.iter().map(|&i| it.x[i as usize]).collect();
         let mut direction = Vec::with_capacity(g.len());
@@ -167,20 +162,14 @@ impl ArapSolver {
             // `direction` = H g; the step is −direction.
             let ta = Instant::now();
             direction.clone_from(&g);
-            history.apply(&mut direction, |q| {
-                let tg = Instant::now();
-                self.cot_factor.solve_in_place(q);
-                it.stats.global_s += tg.elapsed().as_secs_f64();
-                it.stats.back_substitutions += 1;
-            });
+            history.apply(&mut direction, |q| self.precondition(&mut it.stats, q));
             if dot(&g, &direction).partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater)
                 && history.len() > 0
             {
                 // Not a descent direction (or NaN): restart from the plain step.
                 history.reset();
                 direction.clone_from(&g);
-                self.cot_factor.solve_in_place(&mut direction);
-                it.stats.back_substitutions += 1;
+                self.precondition(&mut it.stats, &mut direction);
             }
             direction.iter_mut().for_each(|d| *d = -*d);
             it.stats.acceleration_s += ta.elapsed().as_secs_f64();
@@ -190,7 +179,6 @@ impl ArapSolver {
             }
             trial.clear();
             trial.extend(self.free.iter().map(|&i| it.x[i as usize]));
-            let mut g_new = vec![DVec3::ZERO; g.len()];
             self.gradient(it, &mut g_new);
             let ta = Instant::now();
             // A step that changed the energy only at rounding level (at rest, or converged)
@@ -202,7 +190,7 @@ impl ArapSolver {
             }
             it.stats.acceleration_s += ta.elapsed().as_secs_f64();
             std::mem::swap(&mut xf, &mut trial);
-            g = g_new;
+            std::mem::swap(&mut g, &mut g_new);
             e = e_new;
             if Self::finish_iteration(it, e, options) {
                 break;
@@ -243,43 +231,41 @@ impl ArapSolver {
         }
         self.write_free(xf, &mut it.x);
         self.refit(it);
-        self.global_step(it);
-        trial.clone_from(&it.rhs);
-        self.write_free(&trial, &mut it.x);
-        (self.refit(it), true)
+        (self.plain_step(it), true)
     }
 
     /// `g = L x − b(R)` on the free vertices in elimination order: a quarter of the energy's
     /// gradient (rotations fitted to `x`, so they contribute nothing by optimality).
-    #[allow(clippy::needless_range_loop)] // CSR rows: `e` indexes weights and neighbours alike
     pub(super) fn gradient(&self, it: &mut Iterate, out: &mut [DVec3]) {
         let tr = Instant::now();
-        let layout = &self.layout;
-        let (rest, offsets, nbrs) = (&layout.rest, &layout.offsets, &layout.nbrs);
-        let (x, mats) = (&it.x, &it.mats);
-        it.rhs_by_vertex
-            .par_chunks_mut(CHUNK)
-            .enumerate()
-            .for_each(|(c, chunk)| {
-                for (k, g_out) in chunk.iter_mut().enumerate() {
-                    let i = c * CHUNK + k;
-                    if self.free_index[i] == NOT_FREE {
-                        continue;
-                    }
-                    let mut g = -0.5 * (mats[i] * self.weighted_rest_sum[i]);
-                    for e in offsets[i] as usize..offsets[i + 1] as usize {
-                        let w = layout.weights[e];
-                        let j = nbrs[e] as usize;
-                        g += w * (x[i] - x[j]) - (0.5 * w) * (mats[j] * (rest[i] - rest[j]));
-                    }
-                    *g_out = g;
-                }
-            });
-        let by_vertex = &it.rhs_by_vertex;
-        out.par_iter_mut()
-            .zip(self.free.par_iter())
-            .with_min_len(CHUNK)
-            .for_each(|(o, &i)| *o = by_vertex[i as usize]);
+        self.laplacian_minus_rotated(&it.x, &it.mats, &mut it.rhs_by_vertex, out);
         it.stats.rhs_s += tr.elapsed().as_secs_f64();
+    }
+
+    /// Applies the inverse of the factored Laplacian to `v` in place (counted).
+    pub(super) fn precondition(&self, stats: &mut SolveStats, v: &mut [DVec3]) {
+        let tg = Instant::now();
+        self.cot_factor.solve_in_place(v);
+        stats.global_s += tg.elapsed().as_secs_f64();
+        stats.back_substitutions += 1;
+    }
+
+    /// One plain local/global step from `it.x` (rotations fitted to it): the free positions
+    /// become `G(x)`, the rotations are refitted; returns the new energy.
+    pub(super) fn plain_step(&self, it: &mut Iterate) -> f64 {
+        self.global_step(it);
+        self.write_free(&it.rhs, &mut it.x);
+        self.refit(it)
+    }
+
+    /// Fits the rotations to the starting positions (a warm start carries the previous
+    /// solve's) and records the starting energy.
+    pub(super) fn start_energy(&self, it: &mut Iterate) -> f64 {
+        let e = self.refit(it);
+        if it.stats.initial_energy.is_none() {
+            it.stats.initial_energy = Some(e);
+        }
+        it.energy = Some(e);
+        e
     }
 }

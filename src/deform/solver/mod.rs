@@ -739,10 +739,67 @@ impl ArapSolver {
                     *b_out = b;
                 }
             });
-        rhs.par_iter_mut()
+        self.gather_free(by_vertex, rhs);
+    }
+
+    /// `out_i = Σ_j w_ij (u_i − u_j) − ½ M_i Σ_j w_ij (p_i − p_j) − Σ_j ½ w_ij M_j (p_i − p_j)`
+    /// for the free vertices, in elimination order (computed per vertex into `by_vertex`, then
+    /// gathered, as [`Self::arap_rhs`]). With `(u, M) = (x, R)` it is the energy's gradient
+    /// `L x − b(R)` (a quarter of it); with `(v, dR[v])` its Hessian applied to `v`.
+    #[allow(clippy::needless_range_loop)] // CSR rows: `e` indexes weights and neighbours alike
+    fn laplacian_minus_rotated(
+        &self,
+        u: &[DVec3],
+        mats: &[DMat3],
+        by_vertex: &mut [DVec3],
+        out: &mut [DVec3],
+    ) {
+        let layout = &self.layout;
+        let (rest, offsets, nbrs) = (&layout.rest, &layout.offsets, &layout.nbrs);
+        by_vertex
+            .par_chunks_mut(CHUNK)
+            .enumerate()
+            .for_each(|(c, chunk)| {
+                for (k, o) in chunk.iter_mut().enumerate() {
+                    let i = c * CHUNK + k;
+                    if self.free_index[i] == NOT_FREE {
+                        continue;
+                    }
+                    let mut g = -0.5 * (mats[i] * self.weighted_rest_sum[i]);
+                    for e in offsets[i] as usize..offsets[i + 1] as usize {
+                        let w = layout.weights[e];
+                        let j = nbrs[e] as usize;
+                        g += w * (u[i] - u[j]) - (0.5 * w) * (mats[j] * (rest[i] - rest[j]));
+                    }
+                    *o = g;
+                }
+            });
+        self.gather_free(by_vertex, out);
+    }
+
+    /// `out[k] = by_vertex[free[k]]`: per-vertex values of the free vertices in elimination
+    /// order.
+    fn gather_free(&self, by_vertex: &[DVec3], out: &mut [DVec3]) {
+        out.par_iter_mut()
             .zip(self.free.par_iter())
             .with_min_len(CHUNK)
-            .for_each(|(out, &i)| *out = by_vertex[i as usize]);
+            .for_each(|(o, &i)| *o = by_vertex[i as usize]);
+    }
+
+    /// The covariance `Σ_j w_ij (u_i − u_j)(p_i − p_j)ᵀ` of cell `i` under the field `u`.
+    fn cell_covariance(&self, i: usize, u: &[DVec3]) -> DMat3 {
+        let layout = &self.layout;
+        let mut a = DMat3::ZERO;
+        for e in layout.offsets[i] as usize..layout.offsets[i + 1] as usize {
+            let j = layout.nbrs[e] as usize;
+            add_outer(
+                &mut a,
+                layout.weights[e],
+                u[i] - u[j],
+                layout.rest[i] - layout.rest[j],
+            );
+        }
+        a
     }
 
     /// Uniform Laplacian right-hand side `deg_i p_i − Σ_j p_j + Σ_{j known} x_j`.

@@ -11,9 +11,8 @@ use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 
 use super::iterate::Iterate;
-use super::{ArapSolver, CHUNK, NOT_FREE, SolveError, SolveOptions};
+use super::{ArapSolver, CHUNK, SolveError, SolveOptions};
 use crate::deform::lbfgs::dot;
-use crate::deform::rotation::add_outer;
 
 /// CG stops when the preconditioned residual has shrunk by this factor.
 const CG_REDUCTION: f64 = 0.1;
@@ -31,6 +30,17 @@ struct Scratch {
     out: Vec<DVec3>,
     /// `Y = Rᵀ A` per cell (symmetric part), fixed during one Newton step.
     y: Vec<DMat3>,
+}
+
+impl Scratch {
+    fn new(n: usize) -> Self {
+        Self {
+            v: vec![DVec3::ZERO; n],
+            dr: vec![DMat3::ZERO; n],
+            out: vec![DVec3::ZERO; n],
+            y: vec![DMat3::ZERO; n],
+        }
+    }
 }
 
 /// `[ω]×`.
@@ -66,32 +76,20 @@ fn solve_spd3(k: &DMat3, b: DVec3) -> Option<DVec3> {
 
 impl ArapSolver {
     /// `Y = sym(Rᵀ A)` of every active cell at `x` (rotations in `mats` fitted to `x`).
-    #[allow(clippy::needless_range_loop)] // CSR rows: `e` indexes weights and neighbours alike
     fn polar_factors(&self, x: &[DVec3], mats: &[DMat3], out: &mut [DMat3]) {
-        let layout = &self.layout;
-        let (rest, offsets, nbrs) = (&layout.rest, &layout.offsets, &layout.nbrs);
         out.par_chunks_mut(CHUNK).enumerate().for_each(|(c, ys)| {
             for (k, y_out) in ys.iter_mut().enumerate() {
                 let i = c * CHUNK + k;
-                if !self.active[i] {
-                    continue;
+                if self.active[i] {
+                    let y = mats[i].transpose() * self.cell_covariance(i, x);
+                    *y_out = (y + y.transpose()) * 0.5;
                 }
-                let mut a = DMat3::ZERO;
-                for e in offsets[i] as usize..offsets[i + 1] as usize {
-                    let j = nbrs[e] as usize;
-                    add_outer(&mut a, layout.weights[e], x[i] - x[j], rest[i] - rest[j]);
-                }
-                let y = mats[i].transpose() * a;
-                *y_out = (y + y.transpose()) * 0.5;
             }
         });
     }
 
     /// `H v` for the quarter-scaled energy (free vertices, elimination order).
-    #[allow(clippy::needless_range_loop)] // CSR rows: `e` indexes weights and neighbours alike
     fn hessian_times(&self, v: &[DVec3], mats: &[DMat3], s: &mut Scratch, out: &mut [DVec3]) {
-        let layout = &self.layout;
-        let (rest, offsets, nbrs) = (&layout.rest, &layout.offsets, &layout.nbrs);
         s.v.iter_mut().for_each(|p| *p = DVec3::ZERO);
         for (&i, p) in self.free.iter().zip(v) {
             s.v[i as usize] = *p;
@@ -104,12 +102,7 @@ impl ArapSolver {
                 if !self.active[i] {
                     continue;
                 }
-                let mut da = DMat3::ZERO;
-                for e in offsets[i] as usize..offsets[i + 1] as usize {
-                    let j = nbrs[e] as usize;
-                    add_outer(&mut da, layout.weights[e], vv[i] - vv[j], rest[i] - rest[j]);
-                }
-                let m = mats[i].transpose() * da;
+                let m = mats[i].transpose() * self.cell_covariance(i, vv);
                 let skew = m - m.transpose();
                 let b = DVec3::new(skew.y_axis.z, skew.z_axis.x, skew.x_axis.y);
                 let y = ys[i];
@@ -120,30 +113,8 @@ impl ArapSolver {
                 }
             }
         });
-        let dr = &s.dr;
-        s.out
-            .par_chunks_mut(CHUNK)
-            .enumerate()
-            .for_each(|(c, outs)| {
-                for (k, o) in outs.iter_mut().enumerate() {
-                    let i = c * CHUNK + k;
-                    if self.free_index[i] == NOT_FREE {
-                        continue;
-                    }
-                    let mut h = -0.5 * (dr[i] * self.weighted_rest_sum[i]);
-                    for e in offsets[i] as usize..offsets[i + 1] as usize {
-                        let w = layout.weights[e];
-                        let j = nbrs[e] as usize;
-                        h += w * (vv[i] - vv[j]) - (0.5 * w) * (dr[j] * (rest[i] - rest[j]));
-                    }
-                    *o = h;
-                }
-            });
-        let by_vertex = &s.out;
-        out.par_iter_mut()
-            .zip(self.free.par_iter())
-            .with_min_len(CHUNK)
-            .for_each(|(o, &i)| *o = by_vertex[i as usize]);
+        // The gradient's formula with (v, dR) in place of (x, R).
+        self.laplacian_minus_rotated(&s.v, &s.dr, &mut s.out, out);
     }
 
     /// Truncated Newton iterations (each: CG of at most `max_cg` preconditioned steps, then a
@@ -155,20 +126,11 @@ impl ArapSolver {
         options: &SolveOptions,
         should_cancel: &dyn Fn() -> bool,
     ) -> Result<(), SolveError> {
-        let n = self.layout.rest.len();
         let nf = self.free.len();
-        let mut e = self.refit(it);
-        if it.stats.initial_energy.is_none() {
-            it.stats.initial_energy = Some(e);
-        }
-        it.energy = Some(e);
-        let mut s = Scratch {
-            v: vec![DVec3::ZERO; n],
-            dr: vec![DMat3::ZERO; n],
-            out: vec![DVec3::ZERO; n],
-            y: vec![DMat3::ZERO; n],
-        };
+        let mut e = self.start_energy(it);
+        let mut s = Scratch::new(self.layout.rest.len());
         let mut g = vec![DVec3::ZERO; nf];
+        let mut xf = Vec::with_capacity(nf);
         let (mut d, mut r, mut z, mut p, mut hp) = (
             vec![DVec3::ZERO; nf],
             vec![DVec3::ZERO; nf],
@@ -187,12 +149,10 @@ impl ArapSolver {
             d.iter_mut().for_each(|v| *v = DVec3::ZERO);
             r.iter_mut().zip(&g).for_each(|(r, g)| *r = -*g);
             z.clone_from(&r);
-            self.cot_factor.solve_in_place(&mut z);
-            it.stats.back_substitutions += 1;
+            self.precondition(&mut it.stats, &mut z);
             p.clone_from(&z);
             let mut rz = dot(&r, &z);
             let rz0 = rz;
-
             for k in 0..max_cg.max(1) {
                 // A newer request: finish this iteration with the direction found so far
                 // (one Newton iteration is many back-substitutions; the caller must not wait).
@@ -211,8 +171,7 @@ impl ArapSolver {
                 d.iter_mut().zip(&p).for_each(|(d, p)| *d += alpha * *p);
                 r.iter_mut().zip(&hp).for_each(|(r, h)| *r -= alpha * *h);
                 z.clone_from(&r);
-                self.cot_factor.solve_in_place(&mut z);
-                it.stats.back_substitutions += 1;
+                self.precondition(&mut it.stats, &mut z);
                 let rz_new = dot(&r, &z);
                 if rz_new <= CG_REDUCTION * CG_REDUCTION * rz0 {
                     break;
@@ -230,17 +189,14 @@ impl ArapSolver {
                 let k = limit / longest;
                 d.iter_mut().for_each(|v| *v *= k);
             }
-            let xf: Vec<DVec3> = self.free.iter().map(|&i| it.x[i as usize]).collect();
+            xf.clear();
+            xf.extend(self.free.iter().map(|&i| it.x[i as usize]));
             self.line_search(it, &xf, &d, &g, e);
             // One plain local/global step: it removes, for one back-substitution, the stiff
             // (high-frequency) residual a long Newton step leaves behind, which the next CG
             // would otherwise spend its iterations on (26k armadillo: 6 instead of 11 Newton
             // iterations to settle, 188 instead of 218 back-substitutions).
-            self.global_step(it);
-            let next = std::mem::take(&mut it.rhs);
-            self.write_free(&next, &mut it.x);
-            it.rhs = next;
-            e = self.refit(it);
+            e = self.plain_step(it);
             if Self::finish_iteration(it, e, options) {
                 break;
             }
@@ -301,12 +257,7 @@ mod tests {
         };
         let x0 = it.x.clone();
         gradient_at(&mut it, &x0);
-        let mut s = Scratch {
-            v: vec![DVec3::ZERO; n],
-            dr: vec![DMat3::ZERO; n],
-            out: vec![DVec3::ZERO; n],
-            y: vec![DMat3::ZERO; n],
-        };
+        let mut s = Scratch::new(n);
         solver.polar_factors(&it.x, &it.mats, &mut s.y);
         let v: Vec<DVec3> = (0..nf)
             .map(|k| {
