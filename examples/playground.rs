@@ -60,6 +60,7 @@ fn setup(
     let grab = Grabbable {
         radius: 0.1,
         region_radius: 1.0,
+        ..default()
     };
     let bendable = (Deformable::default(), grab);
     let mut material = |r, g, b| MeshMaterial3d(materials.add(Color::srgb(r, g, b)));

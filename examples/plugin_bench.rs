@@ -148,6 +148,7 @@ fn main() {
         let grabbable = Grabbable {
             radius: 0.03 * diagonal,
             region_radius: 0.3 * diagonal,
+            ..default()
         };
         app.world_mut()
             .spawn((Mesh3d(h), deformable, grabbable))

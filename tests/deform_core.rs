@@ -552,6 +552,47 @@ fn region_of_interest_keeps_outside_at_rest() {
             assert_eq!(sol.positions[i], t.positions()[i]);
         }
     }
+    // The same problem with the outside stated as fixed vertices, solved by the dense
+    // reference (which fits every cell, also those the solver knows are at rest). The solve is
+    // warm-started from the rest pose with wrong rotations in the cells wholly outside (which
+    // nothing reads): they must come back as the identity, not as the warm start's.
+    let mut stated = c.clone();
+    stated
+        .fixed
+        .extend((0..t.vertex_count() as u32).filter(|&i| !roi[i as usize]));
+    stated.fixed.sort_unstable();
+    stated.fixed.dedup();
+    let iterations = 5;
+    let reference = dense_reference(&t, &stated, iterations);
+    let deep_outside = (0..t.vertex_count())
+        .filter(|&i| !roi[i] && t.neighbors(i).iter().all(|&j| !roi[j as usize]))
+        .collect::<Vec<_>>();
+    assert!(!deep_outside.is_empty());
+    let mut twisted = Solution::rest(&t);
+    for &i in &deep_outside {
+        twisted.rotations[i] = DQuat::from_rotation_z(0.3);
+    }
+    let plain = SolveOptions {
+        max_iterations: iterations as u32,
+        tolerance: 0.0,
+        acceleration: Acceleration::None,
+    };
+    let from_rest = solver
+        .solve(&c, &plain, InitialGuess::Warm(&twisted), NEVER)
+        .unwrap();
+    let err = from_rest
+        .positions
+        .iter()
+        .zip(&reference)
+        .map(|(a, b)| (*a - *b).length())
+        .fold(0.0, f64::max);
+    assert!(
+        err <= 1e-8 * t.bounding_diagonal(),
+        "{err} from the reference"
+    );
+    for i in deep_outside {
+        assert_eq!(from_rest.rotations[i], DQuat::IDENTITY, "cell {i}");
+    }
     let bad = SolverSettings {
         region_of_interest: Some(vec![true; 3]),
         ..Default::default()

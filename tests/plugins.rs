@@ -986,6 +986,7 @@ fn grabbing_a_scaled_rotated_mesh_bends_it_under_the_pointer_and_keeps_the_pose(
             Grabbable {
                 radius: 0.15,
                 region_radius: 1.0,
+                ..default()
             },
         ))
         .id();
@@ -1078,6 +1079,7 @@ fn two_pointers_grab_two_meshes_at_once_one_moving_one_turning() {
                 Grabbable {
                     radius: 0.15,
                     region_radius: 0.6,
+                    ..default()
                 },
             ))
             .id()
@@ -1429,6 +1431,7 @@ fn the_pointer_grabs_a_posed_character_drags_twists_and_releases() {
     app.world_mut().entity_mut(root).insert(Grabbable {
         radius: 0.12,
         region_radius: 1.0,
+        ..default()
     });
     common::update_until(&mut app, "the model", |a| {
         a.world().get::<PosedSkeleton>(root).is_some()

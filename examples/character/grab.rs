@@ -35,6 +35,7 @@ fn make_grabbable(
         commands.entity(entity).insert(Grabbable {
             radius: RADIUS * size,
             region_radius: size,
+            ..default()
         });
     }
 }

@@ -42,7 +42,7 @@ impl ArapSolver {
     pub(super) fn refit(&self, it: &mut Iterate) -> f64 {
         let tl = Instant::now();
         let e = (it.constant_energy + self.local_step(&it.x, &mut it.quats, &mut it.mats, true))
-            / self.rest_norm.max(f64::MIN_POSITIVE);
+            / self.layout.rest_norm.max(f64::MIN_POSITIVE);
         it.stats.local_s += tl.elapsed().as_secs_f64();
         e
     }
@@ -213,7 +213,7 @@ impl ArapSolver {
         e: f64,
     ) -> (f64, bool) {
         // ∇E = 4 g in un-normalised energy.
-        let slope = 4.0 * dot(g, d) / self.rest_norm.max(f64::MIN_POSITIVE);
+        let slope = 4.0 * dot(g, d) / self.layout.rest_norm.max(f64::MIN_POSITIVE);
         let mut alpha = 1.0;
         let mut trial = Vec::with_capacity(xf.len());
         if slope < 0.0 {

@@ -1,4 +1,4 @@
-//! The ARAP solver: precompute (weights, elimination, two Cholesky factorizations) and
+//! The ARAP solver: precompute (weights, elimination, Cholesky factorization) and
 //! warm-startable local/global iterations.
 
 use std::sync::Arc;
@@ -189,12 +189,14 @@ pub struct PrecomputeStats {
     pub supernodal: bool,
     /// Non-zeros of the Cholesky factor as the iterations store it.
     pub factor_nonzeros: usize,
-    /// Seconds building the solver's vertex layout, finding the free vertices and their graph.
+    /// Seconds finding the free vertices and their graph (and, for a topology's first solver,
+    /// building the vertex layout every later one shares).
     pub assembly_s: f64,
     /// Seconds ordering, assembling both matrices in elimination order and analysing the
     /// factor's structure.
     pub symbolic_s: f64,
-    /// Seconds in the two numeric factorizations (and compacting them to the solve layout).
+    /// Seconds in the numeric factorization of the cotangent Laplacian (and compacting it to
+    /// the solve layout).
     pub numeric_s: f64,
     /// Whether the triangular solves run on two threads (independent halves in the
     /// elimination order).
@@ -299,18 +301,19 @@ pub struct ArapSolver {
     topology: Arc<Topology>,
     settings: SolverSettings,
     constraints: Constraints,
-    /// The mesh in the solver's memory order; every per-vertex array below follows it.
-    layout: Layout,
+    /// The mesh in the solver's memory order (shared by every solver of the topology); every
+    /// per-vertex array below follows it.
+    layout: Arc<Layout>,
     roles: Vec<Role>,
-    weighted_rest_sum: Vec<DVec3>,
-    cell_rest_sq: Vec<f64>,
-    rest_norm: f64,
     /// Free vertices in elimination order.
     free: Vec<u32>,
     free_index: Vec<u32>,
-    active: Vec<bool>,
+    /// What each vertex's cell does in a solve.
+    cells: Vec<CellKind>,
     cot_factor: LowerFactor,
-    uniform_factor: LowerFactor,
+    /// The uniform Laplacian, factored by the first solve that starts from it (a warm-started
+    /// interaction never does, and a new grab should not wait for it).
+    uniform: LazyFactor,
     stats: PrecomputeStats,
 }
 
@@ -324,8 +327,12 @@ impl std::fmt::Debug for ArapSolver {
 }
 
 impl ArapSolver {
-    /// Weights, elimination of the constrained vertices and both Cholesky factorizations
-    /// (uniform Laplacian for the initial guess, cotangent Laplacian for the iterations).
+    /// Elimination of the constrained vertices and the Cholesky factorization of the cotangent
+    /// Laplacian (the iterations' system). The uniform Laplacian (the initial guess's) is
+    /// factored by the first solve from [`InitialGuess::Laplacian`]. The mesh's layout in
+    /// memory (renumbering, weights, rest sums) is built by the topology's first solver and
+    /// shared by all after it, so a new constraint set costs work in proportion to its free
+    /// vertices, little more.
     pub fn precompute(
         topology: Arc<Topology>,
         constraints: &Constraints,
@@ -349,20 +356,15 @@ impl ArapSolver {
                 }
             }
         }
-        // The solver's layout and the search for unanchored components are independent.
-        let mesh_weights = topology.weights(settings.weights);
-        let (layout, pinned) = rayon::join(
-            || Layout::new(&topology, &mesh_weights),
-            || pin_unanchored_components(&topology, &mesh_weights, &mut roles),
-        );
-        // From here on every per-vertex array is in the solver's order.
-        let roles: Vec<Role> = layout
-            .to_welded
-            .iter()
-            .map(|&w| roles[w as usize])
-            .collect();
+        // The mesh in the solver's order (built by the topology's first solver), then every
+        // per-vertex array in that order.
+        let layout = topology
+            .solver_layout(settings.weights, |t| Layout::new(t, settings.weights))
+            .clone();
+        let mut roles = layout.gather(&roles);
+        let pinned = pin_unanchored_components(&layout, &mut roles);
         let (offsets, nbrs) = (&layout.offsets[..], &layout.nbrs[..]);
-        let (weights, p) = (&layout.weights[..], &layout.rest[..]);
+        let p = &layout.rest[..];
 
         let mut free_index = vec![NOT_FREE; n];
         let mut free: Vec<u32> = (0..n as u32)
@@ -371,30 +373,8 @@ impl ArapSolver {
         for (f, &i) in free.iter().enumerate() {
             free_index[i as usize] = f as u32;
         }
-        // A cell is active when its vertex or a neighbour is free (adjacency is symmetric).
         let one_ring = |i: usize| &nbrs[offsets[i] as usize..offsets[i + 1] as usize];
-        let active: Vec<bool> = (0..n)
-            .into_par_iter()
-            .map(|i| {
-                free_index[i] != NOT_FREE
-                    || one_ring(i)
-                        .iter()
-                        .any(|&j| free_index[j as usize] != NOT_FREE)
-            })
-            .collect();
-        let (weighted_rest_sum, cell_rest_sq): (Vec<DVec3>, Vec<f64>) = (0..n)
-            .into_par_iter()
-            .map(|i| {
-                let (mut sum, mut sq) = (DVec3::ZERO, 0.0);
-                for e in offsets[i] as usize..offsets[i + 1] as usize {
-                    let d = p[i] - p[nbrs[e] as usize];
-                    sum += weights[e] * d;
-                    sq += weights[e] * d.length_squared();
-                }
-                (sum, sq)
-            })
-            .unzip();
-        let rest_norm: f64 = cell_rest_sq.iter().sum();
+        let cells = cell_kinds(&layout, &roles, &free_index);
 
         // The free-vertex graph, for the ordering.
         let nf = free.len();
@@ -418,8 +398,8 @@ impl ArapSolver {
             assembly_s,
             ..Default::default()
         };
-        let (cot_factor, uniform_factor) = if nf == 0 {
-            (LowerFactor::default(), LowerFactor::default())
+        let (cot_factor, uniform) = if nf == 0 {
+            (LowerFactor::default(), LazyFactor::default())
         } else {
             let t1 = Instant::now();
             let (order, split) = match settings.ordering {
@@ -439,7 +419,7 @@ impl ArapSolver {
             let laplacians = FreeLaplacians {
                 offsets,
                 nbrs,
-                weights,
+                weights: &layout.weights,
                 free: &free,
                 free_index: &free_index,
             };
@@ -478,15 +458,21 @@ impl ArapSolver {
             stats.symbolic_s = t1.elapsed().as_secs_f64();
             stats.supernodal = matches!(symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_));
             let t2 = Instant::now();
-            let (cot, uni) = rayon::join(
-                || numeric(&symbolic, pattern, &system.cotangent, split),
-                || numeric(&symbolic, pattern, &system.uniform, split),
-            );
+            let cot = numeric(&symbolic, pattern, &system.cotangent, split)?;
             stats.numeric_s = t2.elapsed().as_secs_f64();
-            let cot = cot?;
             stats.parallel_solves = cot.is_split();
             stats.factor_nonzeros = cot.nonzeros();
-            (cot, uni?)
+            let uniform = LazyFactor {
+                source: Some(LazySource {
+                    symbolic,
+                    col_ptr: system.col_ptr,
+                    rows: system.rows,
+                    values: system.uniform,
+                    split,
+                }),
+                factor: Default::default(),
+            };
+            (cot, uniform)
         };
 
         Ok(Self {
@@ -496,14 +482,11 @@ impl ArapSolver {
             constraints: constraints.clone(),
             roles,
             layout,
-            weighted_rest_sum,
-            cell_rest_sq,
-            rest_norm,
             free,
             free_index,
-            active,
+            cells,
             cot_factor,
-            uniform_factor,
+            uniform,
             stats,
         })
     }
@@ -587,7 +570,7 @@ impl ArapSolver {
         match initial {
             InitialGuess::Laplacian if !self.free.is_empty() => {
                 self.uniform_rhs(&x, &mut rhs);
-                self.back_substitute(&self.uniform_factor, &mut rhs, &mut x);
+                self.back_substitute(self.uniform.get()?, &mut rhs, &mut x);
             }
             _ => {}
         }
@@ -595,7 +578,7 @@ impl ArapSolver {
         if !matches!(initial, InitialGuess::Warm(_) | InitialGuess::Rest) {
             let tl = Instant::now();
             let e = (constant_energy + self.local_step(&x, &mut quats, &mut mats, true))
-                / self.rest_norm.max(f64::MIN_POSITIVE);
+                / self.layout.rest_norm.max(f64::MIN_POSITIVE);
             stats.local_s += tl.elapsed().as_secs_f64();
             stats.initial_energy = Some(e);
             prev_energy = Some(e);
@@ -647,7 +630,7 @@ impl ArapSolver {
         if matches!(initial, InitialGuess::Rest | InitialGuess::Warm(_)) && stats.iterations == 0 {
             // Rotations of free cells were never fitted for these positions.
             let e = constant_energy + self.local_step(&x, &mut quats, &mut mats, true);
-            stats.initial_energy = Some(e / self.rest_norm.max(f64::MIN_POSITIVE));
+            stats.initial_energy = Some(e / self.layout.rest_norm.max(f64::MIN_POSITIVE));
         }
         if !x.iter().all(|p| p.is_finite()) || !quats.iter().all(|q| q.is_finite()) {
             return Err(SolveError::NonFinite);
@@ -662,7 +645,7 @@ impl ArapSolver {
     }
 
     /// Fits rotations for active (`true`) or inactive (`false`) cells; returns their summed
-    /// un-normalised energy.
+    /// un-normalised energy. Cells at rest get the identity (their energy is zero) unfitted.
     #[allow(clippy::needless_range_loop)] // CSR rows: `e` indexes weights and neighbours alike
     fn local_step(
         &self,
@@ -681,7 +664,13 @@ impl ArapSolver {
                 let mut energy = 0.0;
                 for k in 0..qs.len() {
                     let i = c * CHUNK + k;
-                    if self.active[i] != active {
+                    let kind = self.cells[i];
+                    if (kind == CellKind::Active) != active {
+                        continue;
+                    }
+                    if kind == CellKind::Rest {
+                        qs[k] = DQuat::IDENTITY;
+                        ms[k] = DMat3::IDENTITY;
                         continue;
                     }
                     let mut a = DMat3::ZERO;
@@ -700,7 +689,7 @@ impl ArapSolver {
                     let r = DMat3::from_quat(q);
                     let tr =
                         r.x_axis.dot(a.x_axis) + r.y_axis.dot(a.y_axis) + r.z_axis.dot(a.z_axis);
-                    energy += sq + self.cell_rest_sq[i] - 2.0 * tr;
+                    energy += sq + self.layout.cell_rest_sq[i] - 2.0 * tr;
                     qs[k] = q;
                     ms[k] = r;
                 }
@@ -727,7 +716,7 @@ impl ArapSolver {
                     if self.free_index[i] == NOT_FREE {
                         continue;
                     }
-                    let mut b = 0.5 * (mats[i] * self.weighted_rest_sum[i]);
+                    let mut b = 0.5 * (mats[i] * self.layout.weighted_rest_sum[i]);
                     for e in offsets[i] as usize..offsets[i + 1] as usize {
                         let w = layout.weights[e];
                         let j = nbrs[e] as usize;
@@ -765,7 +754,7 @@ impl ArapSolver {
                     if self.free_index[i] == NOT_FREE {
                         continue;
                     }
-                    let mut g = -0.5 * (mats[i] * self.weighted_rest_sum[i]);
+                    let mut g = -0.5 * (mats[i] * self.layout.weighted_rest_sum[i]);
                     for e in offsets[i] as usize..offsets[i + 1] as usize {
                         let w = layout.weights[e];
                         let j = nbrs[e] as usize;
@@ -839,20 +828,27 @@ impl ArapSolver {
 
 /// The mesh renumbered in a spatial (Z-order curve) order, so the neighbours a local step or a
 /// right-hand side reads sit close in memory: on meshes whose file order is scattered
-/// (subdivided, edited) this halves the time of those steps.
-#[derive(Debug, Clone)]
-struct Layout {
+/// (subdivided, edited) this halves the time of those steps. Depends only on the topology and
+/// the weight mode, so the topology keeps it for every solver after the first.
+#[derive(Debug)]
+pub(crate) struct Layout {
     /// Solver index → welded index.
     to_welded: Vec<u32>,
     offsets: Vec<u32>,
     nbrs: Vec<u32>,
     weights: Vec<f64>,
     rest: Vec<DVec3>,
+    /// `Σ_j w_ij (p_i − p_j)` per cell.
+    weighted_rest_sum: Vec<DVec3>,
+    /// `Σ_j w_ij |p_i − p_j|²` per cell.
+    cell_rest_sq: Vec<f64>,
+    /// Sum of `cell_rest_sq`: the energy's normalisation.
+    rest_norm: f64,
 }
 
 /// A memory order for the mesh: its own when neighbours already sit close (generated grids,
 /// ring-by-ring bars: mean index distance within a few rows of a √n × √n grid), else a
-/// Z-order curve. Computed once per topology.
+/// Z-order curve.
 fn memory_order(topology: &Topology) -> Vec<u32> {
     let n = topology.vertex_count();
     let (offsets_w, nbrs_w) = (topology.offsets(), topology.neighbor_list());
@@ -874,9 +870,10 @@ fn memory_order(topology: &Topology) -> Vec<u32> {
 }
 
 impl Layout {
-    fn new(topology: &Topology, weights: &[f64]) -> Self {
+    fn new(topology: &Topology, mode: WeightMode) -> Self {
+        let weights = topology.weights(mode);
         let (offsets_w, nbrs_w) = (topology.offsets(), topology.neighbor_list());
-        let to_welded = topology.memory_order(memory_order).to_vec();
+        let to_welded = memory_order(topology);
         let mut to_solver = vec![0u32; to_welded.len()];
         for (k, &w) in to_welded.iter().enumerate() {
             to_solver[w as usize] = k as u32;
@@ -897,16 +894,32 @@ impl Layout {
             })
             .collect();
         let (offsets, nbrs, weights) = join_rows(&pieces);
-        let rest = to_welded
+        let rest: Vec<DVec3> = to_welded
             .iter()
             .map(|&w| topology.positions()[w as usize])
             .collect();
+        let (weighted_rest_sum, cell_rest_sq): (Vec<DVec3>, Vec<f64>) = (0..rest.len())
+            .into_par_iter()
+            .map(|i| {
+                let (mut sum, mut sq) = (DVec3::ZERO, 0.0);
+                for e in offsets[i] as usize..offsets[i + 1] as usize {
+                    let d = rest[i] - rest[nbrs[e] as usize];
+                    sum += weights[e] * d;
+                    sq += weights[e] * d.length_squared();
+                }
+                (sum, sq)
+            })
+            .unzip();
+        let rest_norm = cell_rest_sq.iter().sum();
         Self {
             to_welded,
             offsets,
             nbrs,
             weights,
             rest,
+            weighted_rest_sum,
+            cell_rest_sq,
+            rest_norm,
         }
     }
 
@@ -925,11 +938,43 @@ impl Layout {
     }
 }
 
+/// What a vertex's cell (the vertex and its one-ring) does in a solve.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum CellKind {
+    /// A free vertex in the one-ring: its rotation is fitted at every iteration.
+    Active,
+    /// Only constrained vertices, some of them moved by a handle or target: fitted once per
+    /// solve.
+    Constant,
+    /// Only fixed vertices, which stay at rest: the rotation is the identity and the energy
+    /// zero, with nothing to fit (most of the mesh when a region of interest is solved).
+    Rest,
+}
+
+/// The [`CellKind`] of every vertex (solver order). Adjacency is symmetric, so a cell is
+/// active exactly when its vertex or a neighbour is free.
+fn cell_kinds(layout: &Layout, roles: &[Role], free_index: &[u32]) -> Vec<CellKind> {
+    (0..roles.len())
+        .into_par_iter()
+        .map(|i| {
+            let ring = &layout.nbrs[layout.offsets[i] as usize..layout.offsets[i + 1] as usize];
+            let ring_and_self = || ring.iter().map(|&j| j as usize).chain([i]);
+            if ring_and_self().any(|j| free_index[j] != NOT_FREE) {
+                CellKind::Active
+            } else if ring_and_self().all(|j| roles[j] == Role::Fixed) {
+                CellKind::Rest
+            } else {
+                CellKind::Constant
+            }
+        })
+        .collect()
+}
+
 /// Fixes the free vertices of every connected component (through non-zero weights) that
 /// reaches no constrained vertex: they keep their rest pose, and the system stays
 /// non-singular. Returns how many vertices were fixed.
-fn pin_unanchored_components(topology: &Topology, weights: &[f64], roles: &mut [Role]) -> usize {
-    let (offsets, nbrs) = (topology.offsets(), topology.neighbor_list());
+fn pin_unanchored_components(layout: &Layout, roles: &mut [Role]) -> usize {
+    let (offsets, nbrs, weights) = (&layout.offsets, &layout.nbrs, &layout.weights);
     let n = roles.len();
     let mut pinned = 0usize;
     let mut seen = vec![false; n];
@@ -1069,6 +1114,37 @@ impl FreeLaplacians<'_> {
             cotangent,
             uniform: uniform.concat(),
         }
+    }
+}
+
+/// A factor computed on first use, from the symbolic analysis and values kept for it.
+#[derive(Default)]
+struct LazyFactor {
+    source: Option<LazySource>,
+    factor: std::sync::OnceLock<Result<LowerFactor, SolveError>>,
+}
+
+/// What a [`LazyFactor`] is computed from.
+struct LazySource {
+    symbolic: SymbolicCholesky<u32>,
+    col_ptr: Vec<u32>,
+    rows: Vec<u32>,
+    values: Vec<f64>,
+    split: Option<(usize, usize)>,
+}
+
+impl LazyFactor {
+    /// The factor (an empty one for an empty system).
+    fn get(&self) -> Result<&LowerFactor, SolveError> {
+        let factor = self.factor.get_or_init(|| match &self.source {
+            None => Ok(LowerFactor::default()),
+            Some(s) => {
+                let n = s.col_ptr.len() - 1;
+                let pattern = SymbolicSparseColMatRef::new_checked(n, n, &s.col_ptr, None, &s.rows);
+                numeric(&s.symbolic, pattern, &s.values, s.split)
+            }
+        });
+        factor.as_ref().map_err(Clone::clone)
     }
 }
 

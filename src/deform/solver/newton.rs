@@ -11,7 +11,7 @@ use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 
 use super::iterate::Iterate;
-use super::{ArapSolver, CHUNK, SolveError, SolveOptions};
+use super::{ArapSolver, CHUNK, CellKind, SolveError, SolveOptions};
 use crate::deform::lbfgs::dot;
 
 /// CG stops when the preconditioned residual has shrunk by this factor.
@@ -80,7 +80,7 @@ impl ArapSolver {
         out.par_chunks_mut(CHUNK).enumerate().for_each(|(c, ys)| {
             for (k, y_out) in ys.iter_mut().enumerate() {
                 let i = c * CHUNK + k;
-                if self.active[i] {
+                if self.cells[i] == CellKind::Active {
                     let y = mats[i].transpose() * self.cell_covariance(i, x);
                     *y_out = (y + y.transpose()) * 0.5;
                 }
@@ -99,7 +99,7 @@ impl ArapSolver {
             for (k, dr) in drs.iter_mut().enumerate() {
                 let i = c * CHUNK + k;
                 *dr = DMat3::ZERO;
-                if !self.active[i] {
+                if self.cells[i] != CellKind::Active {
                     continue;
                 }
                 let m = mats[i].transpose() * self.cell_covariance(i, vv);
