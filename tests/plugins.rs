@@ -111,8 +111,8 @@ fn moved_handle_matches_the_core_solver() {
     assert_eq!(ok[0].entity, e);
     let got = positions(&app, e);
 
-    // The same constraints through the core directly (warm-started from the rest solve, as
-    // the plugin does).
+    // The same constraints through the core directly (the plugin's first solve, handles at
+    // rest, starts from rest; the move is warm-started from it).
     let topology = Arc::new(Topology::new(&tri.positions, &tri.triangles).unwrap());
     let (fixed, hv) = regions(&tri);
     let pivot = hv.iter().map(|&i| tri.positions[i as usize]).sum::<DVec3>() / hv.len() as f64;
@@ -129,7 +129,7 @@ fn moved_handle_matches_the_core_solver() {
         acceleration: app.world().resource::<DeformConfig>().acceleration,
     };
     let first = solver
-        .solve(&c, &opts, InitialGuess::Laplacian, &|| false)
+        .solve(&c, &opts, InitialGuess::Rest, &|| false)
         .unwrap();
     c.handles[0].transform = RigidTransform::new(
         rotation.as_dquat(),
@@ -151,6 +151,71 @@ fn moved_handle_matches_the_core_solver() {
             .zip(&tri.positions)
             .any(|(a, b)| (a.as_dvec3() - *b).length() > 0.05)
     );
+}
+
+/// The first solve on a rest pose starts from the paper's Laplacian guess only when the
+/// handles are far from rest (`DeformConfig::laplacian_start_displacement`), else from rest:
+/// one iteration through the plugin matches the core's one iteration from that start, and
+/// not the other start's.
+#[test]
+fn the_first_solve_starts_from_the_laplacian_guess_only_for_a_far_pose() {
+    for (offset, laplacian) in [(0.3f32, true), (0.02, false)] {
+        let mut app = app();
+        app.add_plugins(DeformPlugin::default());
+        let (e, handle, tri) = spawn_bar(&mut app);
+        app.world_mut()
+            .get_mut::<Deformable>(e)
+            .unwrap()
+            .max_iterations = Some(1);
+        let pivot = {
+            let mut t = app.world_mut().get_mut::<Transform>(handle).unwrap();
+            let pivot = t.translation;
+            t.translation += Vec3::new(offset, 0.0, 0.0);
+            pivot
+        };
+        let (ok, bad) = run_until_messages(&mut app, 1);
+        assert!(bad.is_empty() && ok.len() == 1, "{bad:?}");
+        let got = positions(&app, e);
+
+        let topology = Arc::new(Topology::new(&tri.positions, &tri.triangles).unwrap());
+        let (fixed, hv) = regions(&tri);
+        let c = Constraints::with_handle(
+            fixed,
+            hv,
+            RigidTransform::new(
+                DQuat::IDENTITY,
+                (pivot + Vec3::new(offset, 0.0, 0.0)).as_dvec3() - pivot.as_dvec3(),
+                pivot.as_dvec3(),
+            ),
+        );
+        let solver =
+            ArapSolver::precompute(topology.clone(), &c, SolverSettings::default()).unwrap();
+        let opts = SolveOptions {
+            max_iterations: 1,
+            tolerance: 0.0,
+            acceleration: app.world().resource::<DeformConfig>().acceleration,
+        };
+        let error_from = |start: InitialGuess| {
+            let want = solver.solve(&c, &opts, start, &|| false).unwrap();
+            let want = topology.to_render(&want.positions);
+            got.iter()
+                .zip(&want)
+                .map(|(a, b)| (a.as_dvec3() - *b).length())
+                .fold(0.0, f64::max)
+        };
+        let (from_laplacian, from_rest) = (
+            error_from(InitialGuess::Laplacian),
+            error_from(InitialGuess::Rest),
+        );
+        let (matched, other) = match laplacian {
+            true => (from_laplacian, from_rest),
+            false => (from_rest, from_laplacian),
+        };
+        assert!(
+            matched < 1e-5 && other > 100.0 * matched.max(1e-6),
+            "offset {offset}: from the Laplacian guess {from_laplacian:e}, from rest {from_rest:e}"
+        );
+    }
 }
 
 #[test]

@@ -197,6 +197,29 @@ impl Constraints {
             && same_keys(&self.targets, &other.targets, |t| &t.0)
     }
 
+    /// How far the constraints move any constrained vertex from its position in `rest`
+    /// (welded positions; indices out of range are skipped, non-finite values give NaN): how
+    /// far an edit is from its rest pose, e.g. to choose where its iterations start.
+    pub fn largest_displacement(&self, rest: &[DVec3]) -> f64 {
+        let handles = self.handles.iter().flat_map(|h| {
+            h.vertices.iter().filter_map(|&v| {
+                let p = *rest.get(v as usize)?;
+                Some(h.transform.apply(p).distance(p))
+            })
+        });
+        let targets = self
+            .targets
+            .iter()
+            .filter_map(|&(v, t)| Some(t.distance(*rest.get(v as usize)?)));
+        handles.chain(targets).fold(0.0, |a: f64, d| {
+            if a.is_nan() || d.is_nan() {
+                f64::NAN
+            } else {
+                a.max(d)
+            }
+        })
+    }
+
     /// Validates the constraints against a mesh with `n` vertices and returns each vertex'
     /// role.
     pub(crate) fn roles(&self, n: usize) -> Result<Vec<Role>, ConstraintError> {
@@ -252,6 +275,31 @@ impl Constraints {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn largest_displacement_measures_handles_and_targets() {
+        let rest = [DVec3::ZERO, DVec3::X, DVec3::new(0.0, 2.0, 0.0)];
+        let mut c = Constraints::with_handle(
+            vec![0],
+            vec![1],
+            RigidTransform::new(DQuat::IDENTITY, DVec3::new(0.0, 0.3, 0.0), DVec3::ZERO),
+        );
+        assert!((c.largest_displacement(&rest) - 0.3).abs() < 1e-15);
+        // A rotation about the pivot moves the handle vertex by |2 sin(θ/2)| · radius.
+        c.handles[0].transform = RigidTransform::new(
+            DQuat::from_rotation_z(std::f64::consts::FRAC_PI_2),
+            DVec3::ZERO,
+            DVec3::ZERO,
+        );
+        let expected = 2.0 * (std::f64::consts::FRAC_PI_4).sin();
+        assert!((c.largest_displacement(&rest) - expected).abs() < 1e-12);
+        c.targets.push((2, DVec3::new(0.0, 4.0, 0.0)));
+        assert!((c.largest_displacement(&rest) - 2.0).abs() < 1e-15);
+        // NaN anywhere (here in the handle, before a finite target) is reported.
+        c.handles[0].transform.translation.x = f64::NAN;
+        assert!(c.largest_displacement(&rest).is_nan());
+        assert_eq!(Constraints::default().largest_displacement(&rest), 0.0);
+    }
 
     #[test]
     fn rigid_transform_rotates_about_pivot() {
