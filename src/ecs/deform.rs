@@ -353,7 +353,22 @@ impl DeformState {
     pub(crate) fn topology(&self) -> Option<&Arc<Topology>> {
         self.rest.as_ref().map(|r| &r.topology)
     }
+
+    /// Makes the mesh's current pose its rest pose: the deformable is prepared again, keeping
+    /// the weld and adjacency of this rest pose when it has one ([`Topology::rebased`]).
+    pub(crate) fn bake(&self, entity: Entity, commands: &mut Commands) {
+        let mut entity = commands.entity(entity);
+        entity.remove::<DeformState>();
+        if let Some(topology) = self.topology() {
+            entity.insert(PreviousTopology(topology.clone()));
+        }
+    }
 }
+
+/// The topology of a baked rest pose, reused (same weld and adjacency, new weights) when the
+/// deformable is prepared again.
+#[derive(Component)]
+struct PreviousTopology(Arc<Topology>);
 
 fn mesh_positions(mesh: &Mesh) -> Option<Vec<Vec3>> {
     match mesh.try_attribute(Mesh::ATTRIBUTE_POSITION).ok()? {
@@ -369,16 +384,23 @@ fn prepare_deformables(
     mut commands: Commands,
     mut meshes: ResMut<Assets<Mesh>>,
     mut new: Query<
-        (Entity, &mut Mesh3d, &mut DeformStatus),
+        (
+            Entity,
+            &mut Mesh3d,
+            &mut DeformStatus,
+            Option<&PreviousTopology>,
+        ),
         (With<Deformable>, Without<DeformState>),
     >,
     mut building: Query<(Entity, &mut DeformState, &mut DeformStatus)>,
     mut failed: MessageWriter<DeformFailed>,
 ) {
-    for (entity, mut mesh3d, mut status) in &mut new {
+    for (entity, mut mesh3d, mut status, previous) in &mut new {
         let Some(mesh) = meshes.get(&mesh3d.0) else {
             continue; // not loaded yet
         };
+        let previous = previous.map(|p| p.0.clone());
+        commands.entity(entity).remove::<PreviousTopology>();
         let topology = mesh.primitive_topology();
         let triangles = topology == bevy::mesh::PrimitiveTopology::TriangleList;
         // Copy per instance: glTF entities may share one mesh asset.
@@ -411,7 +433,11 @@ fn prepare_deformables(
                 Some(i) => i,
                 None => (0..positions.len() as u32).collect(),
             };
-            let topology = Topology::from_render_mesh(&positions, &indices)?;
+            // A baked pose of the same mesh keeps its weld; anything else is built afresh.
+            let topology = match previous.map(|p| p.rebased(&positions, &indices)) {
+                Some(Ok(rebased)) => rebased,
+                _ => Topology::from_render_mesh(&positions, &indices)?,
+            };
             Ok(Rest {
                 topology: Arc::new(topology),
                 normals,

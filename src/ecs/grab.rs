@@ -339,6 +339,7 @@ fn start_grabs(
     mut grabs: ResMut<ActiveGrabs>,
     meshes: Query<GrabbedMesh>,
     settings: Query<&Grabbable>,
+    states: Query<&DeformState>,
 ) {
     for s in starts.read() {
         let Ok((global, previous, own, from, character)) = meshes.get(s.entity) else {
@@ -369,8 +370,8 @@ fn start_grabs(
             // a character keeps its pose as it is.
             commands.entity(*handle).despawn();
             commands.entity(s.entity).remove::<GrabHandle>();
-            if !character {
-                commands.entity(s.entity).remove::<DeformState>();
+            if let (false, Ok(state)) = (character, states.get(s.entity)) {
+                state.bake(s.entity, &mut commands);
             }
         }
         let point = match character {
