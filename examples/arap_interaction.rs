@@ -24,12 +24,15 @@
 //!   settle: what `DeformPlugin` does. 4096 means "not settled within 2048 iterations".
 //!   `settle_back_substitutions` and `settle_ms` give the work of those iterations (one
 //!   back-substitution per plain, Anderson or L-BFGS iteration; up to 32 per Newton one).
+//! * `rest_topology_ms` (`fresh`, `rebased`): a deformed pose becomes the rest pose of the
+//!   next edit (a second grab): a fresh `Topology::from_render_mesh` of it, and
+//!   `Topology::rebased` of the previous topology. Median of 9.
 //! * `--only PREFIX` runs only the meshes whose name starts with it.
 //!
 //! `--set-change-only` skips the settling runs (reported as 0).
 //!
 //! The last stdout line is `{"meshes": [{"name", "vertices", "set_change_first_pose_ms",
-//! "set_change_roi_first_pose_ms", "roi_vertices", "settle_iterations": {"plain", "anderson",
+//! "set_change_roi_first_pose_ms", "roi_vertices", "rest_topology_ms", "settle_iterations": {"plain", "anderson",
 //! "lbfgs", "newton", "best"}, "settle_back_substitutions": {…}, "settle_ms": {…}}]}`.
 
 use std::sync::Arc;
@@ -105,6 +108,34 @@ fn set_change_ms(topology: &Arc<Topology>, start: &Solution, roi: bool) -> (f64,
         .collect();
     ms.sort_by(f64::total_cmp);
     (ms[4], inside)
+}
+
+/// Making a deformed pose the rest pose of the next edit (what a second grab does), median ms
+/// of 9: a fresh [`Topology::from_render_mesh`] of the deformed render positions, and
+/// [`Topology::rebased`] of the previous topology (same weld and adjacency, new weights).
+fn rebake_ms(mesh: &TriMesh) -> (f64, f64) {
+    let indices: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
+    let rest: Vec<glam::Vec3> = mesh.positions.iter().map(|p| p.as_vec3()).collect();
+    let previous = Topology::from_render_mesh(&rest, &indices).expect("mesh");
+    // A smooth non-rigid pose.
+    let posed: Vec<glam::Vec3> = rest
+        .iter()
+        .map(|p| *p + glam::Vec3::new(0.1 * p.y * p.y, 0.05 * p.z, -0.05 * p.x))
+        .collect();
+    let mut times = |f: &dyn Fn() -> Topology| {
+        let mut ms: Vec<f64> = (0..9)
+            .map(|_| {
+                let t0 = Instant::now();
+                std::hint::black_box(f());
+                t0.elapsed().as_secs_f64() * 1e3
+            })
+            .collect();
+        ms.sort_by(f64::total_cmp);
+        ms[4]
+    };
+    let fresh = times(&|| Topology::from_render_mesh(&posed, &indices).expect("mesh"));
+    let rebased = times(&|| previous.rebased(&posed, &indices).expect("same mesh"));
+    (fresh, rebased)
 }
 
 /// How one method settles after the release.
@@ -281,6 +312,7 @@ fn main() {
         let rest = Solution::rest(&topology);
         let (first_pose, _) = set_change_ms(&topology, &rest, false);
         let (roi_first_pose, roi_vertices) = set_change_ms(&topology, &rest, true);
+        let (fresh_ms, rebased_ms) = rebake_ms(&mesh);
         let methods = [
             ("plain", Acceleration::None, Acceleration::None),
             (
@@ -309,7 +341,7 @@ fn main() {
             serde_json::Value::Object(settled.iter().map(|(n, s)| (n.to_string(), f(s))).collect())
         };
         eprintln!(
-            "{name}: {} vertices, set change → first pose {first_pose:.1} ms (ROI of {roi_vertices}: {roi_first_pose:.1} ms), settle (iterations / back-substitutions / ms): {}",
+            "{name}: {} vertices, set change → first pose {first_pose:.1} ms (ROI of {roi_vertices}: {roi_first_pose:.1} ms), posed mesh → rest topology {fresh_ms:.1} ms fresh / {rebased_ms:.1} ms rebased, settle (iterations / back-substitutions / ms): {}",
             topology.vertex_count(),
             settled
                 .iter()
@@ -326,6 +358,7 @@ fn main() {
             "set_change_first_pose_ms": first_pose,
             "set_change_roi_first_pose_ms": roi_first_pose,
             "roi_vertices": roi_vertices,
+            "rest_topology_ms": {"fresh": fresh_ms, "rebased": rebased_ms},
             "settle_iterations": field(|s| s.iterations.into()),
             "settle_back_substitutions": field(|s| s.back_substitutions.into()),
             "settle_ms": field(|s| s.ms.into()),
