@@ -122,7 +122,7 @@ fn rebake_ms(mesh: &TriMesh) -> (f64, f64) {
         .iter()
         .map(|p| *p + glam::Vec3::new(0.1 * p.y * p.y, 0.05 * p.z, -0.05 * p.x))
         .collect();
-    let mut times = |f: &dyn Fn() -> Topology| {
+    let times = |f: &dyn Fn() -> Topology| {
         let mut ms: Vec<f64> = (0..9)
             .map(|_| {
                 let t0 = Instant::now();
