@@ -28,6 +28,26 @@ pub(crate) struct Dissection {
     pub split: Option<(usize, usize)>,
 }
 
+impl Dissection {
+    /// This order restricted to a subset of the vertices, renumbered by `local` (`None` for
+    /// the vertices left out): an elimination order of the induced subgraph. Halves that
+    /// shared no edge still share none; a split that leaves a half empty is dropped.
+    pub(crate) fn restricted(&self, local: impl Fn(u32) -> Option<u32>) -> Dissection {
+        let mut order = Vec::new();
+        let mut kept_before = Vec::with_capacity(self.order.len() + 1);
+        for &v in &self.order {
+            kept_before.push(order.len());
+            order.extend(local(v));
+        }
+        kept_before.push(order.len());
+        let split = self
+            .split
+            .map(|(a, b)| (kept_before[a], kept_before[b]))
+            .filter(|&(a, b)| a > 0 && b > a);
+        Dissection { order, split }
+    }
+}
+
 /// A memory order for the vertices at `coords`: along a Z-order (Morton) curve through their
 /// bounding box, so mesh neighbours sit close in memory. `order[k]` is the vertex stored
 /// `k`-th.
@@ -323,6 +343,49 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn a_restricted_order_orders_the_subset_with_independent_halves() {
+        let (offsets, adjacency, coords) = grid(40, 25);
+        let d = dissect(&offsets, &adjacency, &coords);
+        // Keep a disc in the middle (straddling the cut) and renumber it.
+        let inside = |v: u32| coords[v as usize].distance(DVec3::new(20.0, 12.0, 0.0)) < 9.0;
+        let mut local = vec![None; 1000];
+        let mut kept = 0u32;
+        for v in 0..1000u32 {
+            if inside(v) {
+                local[v as usize] = Some(kept);
+                kept += 1;
+            }
+        }
+        let r = d.restricted(|v| local[v as usize]);
+        let mut seen = r.order.clone();
+        seen.sort_unstable();
+        assert_eq!(seen, (0..kept).collect::<Vec<u32>>());
+        let (a, b) = r.split.expect("the disc straddles the cut");
+        // The restricted order is the whole order's, filtered.
+        let filtered: Vec<u32> = d.order.iter().filter_map(|&v| local[v as usize]).collect();
+        assert_eq!(r.order, filtered);
+        let mut half = vec![0u8; kept as usize];
+        for (k, &v) in r.order.iter().enumerate() {
+            half[v as usize] = 1 + (k >= a) as u8 + (k >= b) as u8;
+        }
+        for v in (0..1000u32).filter(|&v| inside(v)) {
+            for &w in &adjacency[offsets[v as usize] as usize..offsets[v as usize + 1] as usize] {
+                let (Some(lv), Some(lw)) = (local[v as usize], local[w as usize]) else {
+                    continue;
+                };
+                let pair = (half[lv as usize], half[lw as usize]);
+                assert!(
+                    pair != (1, 2) && pair != (2, 1),
+                    "edge {v}-{w} joins the halves"
+                );
+            }
+        }
+        // A subset within one half: no split.
+        let left = |v: u32| (coords[v as usize].x < 5.0).then_some(v);
+        assert_eq!(d.restricted(left).split, None);
     }
 
     #[test]

@@ -6,6 +6,7 @@ use std::hash::{BuildHasherDefault, Hasher};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
+use super::ordering::{Dissection, dissect};
 use super::solver::Layout;
 
 /// Errors raised while building a [`Topology`] from render-mesh data.
@@ -97,6 +98,10 @@ pub struct Topology {
     /// The solvers' mesh data per [`WeightMode`] (memory order, renumbered rows, rest sums):
     /// built by the first solver, shared by every constraint set after it.
     solver_layouts: [std::sync::OnceLock<std::sync::Arc<Layout>>; 3],
+    /// Fill-reducing elimination order of the whole mesh (welded indices), made once and
+    /// restricted to each constraint set's free vertices; shared with rebased copies (same
+    /// graph).
+    elimination: std::sync::Arc<std::sync::OnceLock<Dissection>>,
 }
 
 /// CSR rows built piece by piece (in parallel): `(row lengths, neighbours, weights)`.
@@ -294,7 +299,27 @@ impl Topology {
             neighbors,
             cotangent,
             solver_layouts: Default::default(),
+            elimination: Default::default(),
         })
+    }
+
+    /// Computes the whole mesh's fill-reducing elimination order now, e.g. on a loading
+    /// thread. Solvers restrict it to their free vertices instead of ordering each constraint
+    /// set afresh; without this call the first solver with at least half the vertices free
+    /// makes it.
+    pub fn prepare_elimination_order(&self) {
+        self.elimination_order();
+    }
+
+    /// The whole mesh's elimination order, made on first use.
+    pub(crate) fn elimination_order(&self) -> &Dissection {
+        self.elimination
+            .get_or_init(|| dissect(&self.offsets, &self.neighbors, &self.positions))
+    }
+
+    /// The whole mesh's elimination order, if it has been made.
+    pub(crate) fn elimination_order_if_made(&self) -> Option<&Dissection> {
+        self.elimination.get()
     }
 
     /// The same mesh with new rest positions (render order and index buffer, as
@@ -364,6 +389,7 @@ impl Topology {
             neighbors: self.neighbors.clone(),
             cotangent,
             solver_layouts: Default::default(),
+            elimination: self.elimination.clone(),
         })
     }
 

@@ -438,6 +438,8 @@ fn prepare_deformables(
                 Some(Ok(rebased)) => rebased,
                 _ => Topology::from_render_mesh(&positions, &indices)?,
             };
+            // Here, off the path of a first grab: every constraint set restricts it.
+            topology.prepare_elimination_order();
             Ok(Rest {
                 topology: Arc::new(topology),
                 normals,

@@ -402,13 +402,29 @@ impl ArapSolver {
             (LowerFactor::default(), LazyFactor::default())
         } else {
             let t1 = Instant::now();
-            let (order, split) = match settings.ordering {
-                FillOrdering::Halves => {
+            // The whole mesh's order restricted to the free vertices, when it exists or is
+            // worth making (at least half the vertices free); else this set ordered afresh.
+            let whole = match settings.ordering {
+                FillOrdering::Halves if 2 * nf >= n => Some(topology.elimination_order()),
+                FillOrdering::Halves => topology.elimination_order_if_made(),
+                FillOrdering::MinimumDegree => None,
+            };
+            let (order, split) = match (whole, settings.ordering) {
+                (Some(whole), _) => {
+                    let d = whole.restricted(|w| {
+                        let f = free_index[layout.to_solver[w as usize] as usize];
+                        (f != NOT_FREE).then_some(f)
+                    });
+                    (d.order, d.split)
+                }
+                (None, FillOrdering::Halves) => {
                     let coords: Vec<DVec3> = free.iter().map(|&i| p[i as usize]).collect();
                     let d = dissect(&graph_offsets, &graph, &coords);
                     (d.order, d.split)
                 }
-                FillOrdering::MinimumDegree => (minimum_degree(&graph_offsets, &graph), None),
+                (None, FillOrdering::MinimumDegree) => {
+                    (minimum_degree(&graph_offsets, &graph), None)
+                }
             };
             // The solves work in elimination order: the free list takes that order, and the
             // matrices are assembled in it, so faer needs no permutation of its own.
@@ -834,6 +850,8 @@ impl ArapSolver {
 pub(crate) struct Layout {
     /// Solver index → welded index.
     to_welded: Vec<u32>,
+    /// Welded index → solver index.
+    to_solver: Vec<u32>,
     offsets: Vec<u32>,
     nbrs: Vec<u32>,
     weights: Vec<f64>,
@@ -912,6 +930,7 @@ impl Layout {
             .unzip();
         let rest_norm = cell_rest_sq.iter().sum();
         Self {
+            to_solver,
             to_welded,
             offsets,
             nbrs,
