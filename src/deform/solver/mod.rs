@@ -331,8 +331,10 @@ impl ArapSolver {
     /// Laplacian (the iterations' system). The uniform Laplacian (the initial guess's) is
     /// factored by the first solve from [`InitialGuess::Laplacian`]. The mesh's layout in
     /// memory (renumbering, weights, rest sums) is built by the topology's first solver and
-    /// shared by all after it, so a new constraint set costs work in proportion to its free
-    /// vertices, little more.
+    /// shared by all after it, and so is the whole mesh's fill-reducing order (restricted to
+    /// each set's free vertices; made by the first set with at least half the vertices free,
+    /// or by [`Topology::prepare_elimination_order`]), so a new constraint set costs work in
+    /// proportion to its free vertices, little more.
     pub fn precompute(
         topology: Arc<Topology>,
         constraints: &Constraints,
