@@ -189,11 +189,12 @@ pub struct PrecomputeStats {
     pub supernodal: bool,
     /// Non-zeros of the Cholesky factor as the iterations store it.
     pub factor_nonzeros: usize,
-    /// Seconds finding the free vertices and their graph (and, for a topology's first solver,
-    /// building the vertex layout every later one shares).
+    /// Seconds finding the free vertices (and, for a topology's first solver, building the
+    /// vertex layout every later one shares).
     pub assembly_s: f64,
-    /// Seconds ordering, assembling both matrices in elimination order and analysing the
-    /// factor's structure.
+    /// Seconds ordering (restricting the whole mesh's order, or building the free graph and
+    /// ordering it), assembling both matrices in elimination order and analysing the factor's
+    /// structure.
     pub symbolic_s: f64,
     /// Seconds in the numeric factorization of the cotangent Laplacian (and compacting it to
     /// the solve layout).
@@ -378,20 +379,23 @@ impl ArapSolver {
         let one_ring = |i: usize| &nbrs[offsets[i] as usize..offsets[i + 1] as usize];
         let cells = cell_kinds(&layout, &roles, &free_index);
 
-        // The free-vertex graph, for the ordering.
+        // The free-vertex graph, for ordering a set on its own.
         let nf = free.len();
-        let mut graph_offsets = Vec::with_capacity(nf + 1);
-        let mut graph = Vec::new();
-        graph_offsets.push(0u32);
-        for &i in &free {
-            graph.extend(
-                one_ring(i as usize)
-                    .iter()
-                    .map(|&j| free_index[j as usize])
-                    .filter(|&fj| fj != NOT_FREE),
-            );
-            graph_offsets.push(graph.len() as u32);
-        }
+        let free_graph = |free: &[u32], free_index: &[u32]| {
+            let mut graph_offsets = Vec::with_capacity(nf + 1);
+            let mut graph = Vec::new();
+            graph_offsets.push(0u32);
+            for &i in free {
+                graph.extend(
+                    one_ring(i as usize)
+                        .iter()
+                        .map(|&j| free_index[j as usize])
+                        .filter(|&fj| fj != NOT_FREE),
+                );
+                graph_offsets.push(graph.len() as u32);
+            }
+            (graph_offsets, graph)
+        };
         let assembly_s = t0.elapsed().as_secs_f64();
 
         let mut stats = PrecomputeStats {
@@ -420,11 +424,13 @@ impl ArapSolver {
                     (d.order, d.split)
                 }
                 (None, FillOrdering::Halves) => {
+                    let (graph_offsets, graph) = free_graph(&free, &free_index);
                     let coords: Vec<DVec3> = free.iter().map(|&i| p[i as usize]).collect();
                     let d = dissect(&graph_offsets, &graph, &coords);
                     (d.order, d.split)
                 }
                 (None, FillOrdering::MinimumDegree) => {
+                    let (graph_offsets, graph) = free_graph(&free, &free_index);
                     (minimum_degree(&graph_offsets, &graph), None)
                 }
             };
