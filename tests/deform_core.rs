@@ -15,6 +15,14 @@ fn bend_problem(topology: &Topology, angle: f64) -> Constraints {
 
 const NEVER: &dyn Fn() -> bool = &|| false;
 
+/// The largest distance between corresponding points of `a` and `b`.
+fn max_distance(a: &[DVec3], b: &[DVec3]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(p, q)| p.distance(*q))
+        .fold(0.0, f64::max)
+}
+
 #[test]
 fn one_rigid_transform_everywhere_reproduces_it() {
     let mesh = synth::icosphere(3, 1.0);
@@ -252,12 +260,7 @@ fn matches_dense_reference_on(mesh: &TriMesh) {
         .unwrap();
     assert_eq!(sol.stats.iterations, iterations as u32);
     let scale = t.bounding_diagonal();
-    let err = sol
-        .positions
-        .iter()
-        .zip(&reference)
-        .map(|(a, b)| (*a - *b).length())
-        .fold(0.0, f64::max);
+    let err = max_distance(&sol.positions, &reference);
     assert!(
         err <= 1e-8 * scale,
         "max deviation {err} vs dense reference"
@@ -580,12 +583,7 @@ fn region_of_interest_keeps_outside_at_rest() {
     let from_rest = solver
         .solve(&c, &plain, InitialGuess::Warm(&twisted), NEVER)
         .unwrap();
-    let err = from_rest
-        .positions
-        .iter()
-        .zip(&reference)
-        .map(|(a, b)| (*a - *b).length())
-        .fold(0.0, f64::max);
+    let err = max_distance(&from_rest.positions, &reference);
     assert!(
         err <= 1e-8 * t.bounding_diagonal(),
         "{err} from the reference"
@@ -635,11 +633,7 @@ fn factorization_variants_and_orderings_agree() {
     ] {
         let (b, parallel) = run(f, o);
         assert_eq!(parallel, o == FillOrdering::Halves);
-        let d = a
-            .iter()
-            .zip(&b)
-            .map(|(x, y)| (*x - *y).length())
-            .fold(0.0, f64::max);
+        let d = max_distance(&a, &b);
         assert!(d < 1e-9, "{f:?} {o:?}: {d}");
     }
 }
@@ -824,11 +818,7 @@ fn coincident_vertices_solve_like_vertices_a_hair_apart() {
     let diag = Topology::new(&positions, &triangles)
         .unwrap()
         .bounding_diagonal();
-    let worst = together
-        .iter()
-        .zip(&separated)
-        .map(|(p, q)| p.distance(*q))
-        .fold(0.0, f64::max);
+    let worst = max_distance(&together, &separated);
     assert!(worst < 1e-6 * diag, "worst {worst} vs diagonal {diag}");
     // The moved tops really moved (the problem is not trivial).
     let moved = handle_a
@@ -879,13 +869,7 @@ fn accelerations_reach_the_plain_converged_pose_in_fewer_iterations() {
     let lbfgs = Acceleration::Lbfgs { depth: 8 };
     let newton = Acceleration::Newton { max_cg: 30 };
     let plain_star = solve(20_000, Acceleration::None);
-    let worst = |a: &Solution, b: &Solution| {
-        a.positions
-            .iter()
-            .zip(&b.positions)
-            .map(|(p, q)| p.distance(*q))
-            .fold(0.0, f64::max)
-    };
+    let worst = |a: &Solution, b: &Solution| max_distance(&a.positions, &b.positions);
     for (name, acceleration, iterations) in [("L-BFGS", lbfgs, 2_000), ("Newton", newton, 100)] {
         let gap = worst(&plain_star, &solve(iterations, acceleration));
         assert!(
@@ -962,19 +946,9 @@ fn a_set_change_matches_a_fresh_precompute() {
     // Fresh, ordering the region on its own: the same solution up to rounding.
     let own = solve(&topo(&mesh));
     let diagonal = reused.bounding_diagonal();
-    let worst = a
-        .positions
-        .iter()
-        .zip(&own.positions)
-        .map(|(p, q)| p.distance(*q))
-        .fold(0.0, f64::max);
+    let worst = max_distance(&a.positions, &own.positions);
     assert!(worst < 1e-10 * diagonal, "{worst:e}");
     // And the region really moved (the comparison is not of two rest poses).
-    let moved = a
-        .positions
-        .iter()
-        .zip(reused.positions())
-        .map(|(p, q)| p.distance(*q))
-        .fold(0.0, f64::max);
+    let moved = max_distance(&a.positions, reused.positions());
     assert!(moved > 0.01 * diagonal, "{moved}");
 }

@@ -325,11 +325,11 @@ impl Topology {
     /// The same mesh with new rest positions (render order and index buffer, as
     /// [`Topology::from_render_mesh`] takes them; the indices must be the ones this topology
     /// was built from, [`MeshError::TrianglesChanged`] otherwise): the weld, triangles and
-    /// adjacency are kept, the positions and cotangent weights are new. For making a deformed pose the rest pose of the next edit (a grab),
-    /// where welded copies were written the same position; each welded vertex takes its first
-    /// render copy's position. Gives exactly what a fresh build from these positions gives
-    /// whenever that build welds the same way, at a fraction of its cost (26k vertices: ~12 ms
-    /// → a few ms).
+    /// adjacency are kept, the positions and cotangent weights are new. For making a deformed
+    /// pose the rest pose of the next edit (a grab), where welded copies were written the same
+    /// position; each welded vertex takes its first render copy's position. Gives exactly what
+    /// a fresh build from these positions gives whenever that build welds the same way, at
+    /// about half its cost (`arap_interaction`'s `rest_topology_ms`: 26k 10.0 → 4.6 ms).
     pub fn rebased(
         &self,
         render_positions: &[Vec3],

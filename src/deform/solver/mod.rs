@@ -379,23 +379,7 @@ impl ArapSolver {
         let one_ring = |i: usize| &nbrs[offsets[i] as usize..offsets[i + 1] as usize];
         let cells = cell_kinds(&layout, &roles, &free_index);
 
-        // The free-vertex graph, for ordering a set on its own.
         let nf = free.len();
-        let free_graph = |free: &[u32], free_index: &[u32]| {
-            let mut graph_offsets = Vec::with_capacity(nf + 1);
-            let mut graph = Vec::new();
-            graph_offsets.push(0u32);
-            for &i in free {
-                graph.extend(
-                    one_ring(i as usize)
-                        .iter()
-                        .map(|&j| free_index[j as usize])
-                        .filter(|&fj| fj != NOT_FREE),
-                );
-                graph_offsets.push(graph.len() as u32);
-            }
-            (graph_offsets, graph)
-        };
         let assembly_s = t0.elapsed().as_secs_f64();
 
         let mut stats = PrecomputeStats {
@@ -415,23 +399,38 @@ impl ArapSolver {
                 FillOrdering::Halves => topology.elimination_order_if_made(),
                 FillOrdering::MinimumDegree => None,
             };
-            let (order, split) = match (whole, settings.ordering) {
-                (Some(whole), _) => {
+            let (order, split) = match whole {
+                Some(whole) => {
                     let d = whole.restricted(|w| {
                         let f = free_index[layout.to_solver[w as usize] as usize];
                         (f != NOT_FREE).then_some(f)
                     });
                     (d.order, d.split)
                 }
-                (None, FillOrdering::Halves) => {
-                    let (graph_offsets, graph) = free_graph(&free, &free_index);
-                    let coords: Vec<DVec3> = free.iter().map(|&i| p[i as usize]).collect();
-                    let d = dissect(&graph_offsets, &graph, &coords);
-                    (d.order, d.split)
-                }
-                (None, FillOrdering::MinimumDegree) => {
-                    let (graph_offsets, graph) = free_graph(&free, &free_index);
-                    (minimum_degree(&graph_offsets, &graph), None)
+                None => {
+                    // This set ordered on its own, on the graph of its free vertices.
+                    let mut graph_offsets = Vec::with_capacity(nf + 1);
+                    let mut graph = Vec::new();
+                    graph_offsets.push(0u32);
+                    for &i in &free {
+                        graph.extend(
+                            one_ring(i as usize)
+                                .iter()
+                                .map(|&j| free_index[j as usize])
+                                .filter(|&fj| fj != NOT_FREE),
+                        );
+                        graph_offsets.push(graph.len() as u32);
+                    }
+                    match settings.ordering {
+                        FillOrdering::Halves => {
+                            let coords: Vec<DVec3> = free.iter().map(|&i| p[i as usize]).collect();
+                            let d = dissect(&graph_offsets, &graph, &coords);
+                            (d.order, d.split)
+                        }
+                        FillOrdering::MinimumDegree => {
+                            (minimum_degree(&graph_offsets, &graph), None)
+                        }
+                    }
                 }
             };
             // The solves work in elimination order: the free list takes that order, and the
