@@ -3,17 +3,39 @@
 //! session set (`default`, `no_warm_up`, `continuous`; see `wiimote::drift`).
 //!
 //! ```text
-//! cargo run --release --example orientation_drift -- --json [--seeds 5] [--first-seed 1] [--seconds 600] [--set NAME]
+//! cargo run --release --example orientation_drift -- --json [--seeds 5] [--first-seed 1] [--seconds 600] [--set NAME] [--ideal LIST]
 //! ```
+//! `--ideal` removes sensor errors from the emulated unit, to find which one limits a filter:
+//! a comma-separated list of `accel` (misalignment and scale), `gyro_scale` (calibration-block
+//! scale error), `gyro_misalignment`, `bias_walk`, `warm_up`, `gyro_noise` (σ 0.01 deg/s).
 //! The last stdout line is one JSON object: the default set's scores keyed by filter name
 //! (`raw`, `paper`, `ours`, `vqf`), and under `sets` every set's scores by filter plus the
 //! accelerometer-only tilt floor. Metrics include BROAD-style `heading_rmse_deg` and
 //! `inclination_rmse_deg`.
 
 use bevy_wii_deform::wiimote::{
-    FilterKind,
+    FilterKind, SensorModel,
     drift::{self, SessionSet},
 };
+
+/// `model` with the errors named in `list` (see the module docs) removed.
+fn idealised(mut model: SensorModel, list: &str) -> Result<SensorModel, String> {
+    for name in list.split(',').filter(|n| !n.is_empty()) {
+        match name {
+            "accel" => {
+                model.accel_misalignment = 0.0;
+                model.accel_scale_error = 0.0;
+            }
+            "gyro_scale" => model.gyro_block_scale_error = 0.0,
+            "gyro_misalignment" => model.gyro_misalignment = 0.0,
+            "bias_walk" => model.gyro_bias_walk = 0.0,
+            "warm_up" => model.gyro_temperature_drift_dps = 0.0,
+            "gyro_noise" => model.gyro_noise_dps = 0.01,
+            other => return Err(format!("unknown sensor error {other}")),
+        }
+    }
+    Ok(model)
+}
 
 /// Mean scores of every filter on one set, and the accelerometer's own tilt error.
 struct SetReport {
@@ -22,11 +44,25 @@ struct SetReport {
     floor: f64,
 }
 
-fn run_set(set: SessionSet, seeds: std::ops::RangeInclusive<u64>, seconds: f64) -> SetReport {
+fn run_set(
+    set: SessionSet,
+    ideal: &str,
+    seeds: std::ops::RangeInclusive<u64>,
+    seconds: f64,
+) -> SetReport {
+    let sensor = match idealised(set.sensor(), ideal) {
+        Ok(sensor) => sensor,
+        Err(e) => {
+            eprintln!(
+                "{e}: accel, gyro_scale, gyro_misalignment, bias_walk, warm_up or gyro_noise"
+            );
+            std::process::exit(2);
+        }
+    };
     let mut per_filter: Vec<Vec<drift::FilterScore>> = vec![Vec::new(); FilterKind::ALL.len()];
     let mut floors = Vec::new();
     for seed in seeds {
-        let rec = set.record(seed, seconds);
+        let rec = set.record_with_sensor(sensor.clone(), seed, seconds);
         eprintln!(
             "{} seed {seed}: {} samples, {:.0} s",
             set.name(),
@@ -101,6 +137,7 @@ fn main() {
     let first = number("--first-seed", 1.0).max(0.0) as u64;
     let seconds = number("--seconds", 600.0);
     let json = args.iter().any(|a| a == "--json");
+    let ideal = value("--ideal").map(String::as_str).unwrap_or("");
     let sets: Vec<SessionSet> = match value("--set") {
         Some(name) => match SessionSet::from_name(name) {
             Some(set) => vec![set],
@@ -113,7 +150,7 @@ fn main() {
     };
     let reports: Vec<SetReport> = sets
         .iter()
-        .map(|set| run_set(*set, first..=first + seeds - 1, seconds))
+        .map(|set| run_set(*set, ideal, first..=first + seeds - 1, seconds))
         .collect();
     for r in &reports {
         print_table(r);

@@ -260,6 +260,12 @@ impl SessionSet {
 
     /// Records one session of this set.
     pub fn record(self, seed: u64, duration_s: f64) -> Recording {
+        self.record_with_sensor(self.sensor(), seed, duration_s)
+    }
+
+    /// Records one session of this set's motion with another sensor model (for ablations: which
+    /// sensor error limits a filter).
+    pub fn record_with_sensor(self, sensor: SensorModel, seed: u64, duration_s: f64) -> Recording {
         match self {
             SessionSet::Default | SessionSet::NoWarmUp => {
                 let scenario = std::sync::Arc::new(DriftScenario::new(seed, duration_s));
@@ -273,12 +279,12 @@ impl SessionSet {
                     }
                 };
                 let end = scenario.duration();
-                record_motion(scenario, self.sensor(), seed, end, still)
+                record_motion(scenario, sensor, seed, end, still)
             }
             SessionSet::Continuous => {
                 let scenario = std::sync::Arc::new(ContinuousScenario::new(seed, duration_s));
                 let end = scenario.duration();
-                record_motion(scenario, self.sensor(), seed, end, |t| t < START_STILL)
+                record_motion(scenario, sensor, seed, end, |t| t < START_STILL)
             }
         }
     }
