@@ -27,9 +27,16 @@
 //! * `rest_topology_ms` (`fresh`, `rebased`): a deformed pose becomes the rest pose of the
 //!   next edit (a second grab): a fresh `Topology::from_render_mesh` of it, and
 //!   `Topology::rebased` of the previous topology. Median of 9.
-//! * `--only PREFIX` runs only the meshes whose name starts with it.
+//! * `--only PREFIX` runs only the meshes whose name starts with it; `--methods a,b` settles
+//!   only with the named methods (the others are reported as 0; at 104k each method takes
+//!   minutes in the dev profile).
 //!
 //! `--set-change-only` skips the settling runs (reported as 0).
+//!
+//! A fourth mesh, `armadillo_loop_104k`, is the armadillo Loop-subdivided: the same
+//! connectivity as the midpoint ×4 mesh but smooth, without the flat one-rings midpoint
+//! subdivision leaves on every input triangle (to tell what the finer mesh costs from what
+//! its flat patches cost).
 //!
 //! The last stdout line is `{"meshes": [{"name", "vertices", "set_change_first_pose_ms",
 //! "set_change_roi_first_pose_ms", "roi_vertices", "rest_topology_ms", "settle_iterations": {"plain", "anderson",
@@ -295,11 +302,18 @@ fn main() {
     // `--set-change-only`: skip the (long) settling runs.
     let settle = !std::env::args().any(|a| a == "--set-change-only");
     let only = std::env::args().skip_while(|a| a != "--only").nth(1);
+    let chosen = std::env::args().skip_while(|a| a != "--methods").nth(1);
+    let settles = |method: &str| {
+        chosen
+            .as_ref()
+            .is_none_or(|list| list.split(',').any(|m| m == method))
+    };
     let mut meshes = vec![("bar_5k".to_string(), synth::bar_with_vertices(5_000))];
     match TriMesh::read("../shared/meshes/armadillo.off") {
         Ok(arm) => {
             meshes.push(("armadillo_26k".into(), arm.clone()));
             meshes.push(("armadillo_x4_104k".into(), synth::subdivide_midpoint(&arm)));
+            meshes.push(("armadillo_loop_104k".into(), synth::subdivide_loop(&arm)));
         }
         Err(_) => eprintln!("SKIPPED armadillo: ../shared/meshes/armadillo.off not found"),
     }
@@ -329,7 +343,10 @@ fn main() {
                 let drag = Drag::new(&topology);
                 methods
                     .iter()
-                    .map(|&(name, d, s)| (name, drag.settle(d, s)))
+                    .map(|&(name, d, s)| match settles(name) {
+                        true => (name, drag.settle(d, s)),
+                        false => (name, Settled::default()),
+                    })
                     .collect()
             }
             false => methods

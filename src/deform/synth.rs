@@ -150,26 +150,127 @@ pub fn split_per_face(mesh: &TriMesh) -> TriMesh {
     }
 }
 
-/// Loop-style midpoint subdivision (each triangle → 4, no smoothing): ~4× the vertices.
-pub fn subdivide_midpoint(mesh: &TriMesh) -> TriMesh {
-    let mut positions = mesh.positions.clone();
-    let mut mid = std::collections::HashMap::new();
-    let mut triangles = Vec::with_capacity(mesh.triangles.len() * 4);
-    let mut midpoint = |a: u32, b: u32, positions: &mut Vec<DVec3>| -> u32 {
-        *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
-            positions.push((positions[a as usize] + positions[b as usize]) * 0.5);
-            positions.len() as u32 - 1
-        })
-    };
-    for &[a, b, c] in &mesh.triangles {
-        let ab = midpoint(a, b, &mut positions);
-        let bc = midpoint(b, c, &mut positions);
-        let ca = midpoint(c, a, &mut positions);
-        triangles.extend_from_slice(&[[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+/// Every triangle split into four at its edge midpoints: the original vertices, one vertex per
+/// edge, and for each triangle the indices of its edges' vertices (`ab`, `bc`, `ca`).
+struct EdgeSplit {
+    /// Endpoints of each edge; edge `e` becomes vertex `original vertex count + e`.
+    edges: Vec<(u32, u32)>,
+    /// Per triangle, its edges `ab`, `bc`, `ca` as indices into `edges`.
+    triangle_edges: Vec<[u32; 3]>,
+}
+
+impl EdgeSplit {
+    fn new(mesh: &TriMesh) -> Self {
+        let mut index = std::collections::HashMap::new();
+        let mut edges = Vec::new();
+        let mut edge = |a: u32, b: u32| -> u32 {
+            *index.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                edges.push((a.min(b), a.max(b)));
+                edges.len() as u32 - 1
+            })
+        };
+        let triangle_edges = mesh
+            .triangles
+            .iter()
+            .map(|&[a, b, c]| [edge(a, b), edge(b, c), edge(c, a)])
+            .collect();
+        Self {
+            edges,
+            triangle_edges,
+        }
     }
+
+    /// The four triangles of each input triangle, over `vertex_count` original vertices.
+    fn triangles(&self, mesh: &TriMesh) -> Vec<[u32; 3]> {
+        let base = mesh.positions.len() as u32;
+        let mut triangles = Vec::with_capacity(mesh.triangles.len() * 4);
+        for (&[a, b, c], &[ab, bc, ca]) in mesh.triangles.iter().zip(&self.triangle_edges) {
+            let (ab, bc, ca) = (base + ab, base + bc, base + ca);
+            triangles.extend_from_slice(&[[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        triangles
+    }
+}
+
+/// Midpoint subdivision (each triangle → 4, no smoothing): ~4× the vertices, and every new
+/// vertex lies in the plane of an input triangle (so most one-rings are flat).
+pub fn subdivide_midpoint(mesh: &TriMesh) -> TriMesh {
+    let split = EdgeSplit::new(mesh);
+    let mut positions = mesh.positions.clone();
+    positions.extend(
+        split
+            .edges
+            .iter()
+            .map(|&(a, b)| (mesh.positions[a as usize] + mesh.positions[b as usize]) * 0.5),
+    );
     TriMesh {
+        triangles: split.triangles(mesh),
         positions,
-        triangles,
+    }
+}
+
+/// Loop subdivision (Loop 1987; Warren's vertex weights are not used, Loop's own β is): each
+/// triangle → 4 like [`subdivide_midpoint`], but the surface is smoothed — an interior edge's
+/// vertex is 3/8 of each endpoint plus 1/8 of each opposite vertex, and an original vertex of
+/// valence n moves to (1 − nβ)·v + β·Σ neighbours with β = (5/8 − (3/8 + cos(2π/n)/4)²)/n.
+/// Vertices on boundary or non-manifold edges keep their position and such edges get their
+/// midpoint (the surface is held there rather than given boundary rules). The refined mesh
+/// of a real model, without the flat patches midpoint subdivision leaves.
+pub fn subdivide_loop(mesh: &TriMesh) -> TriMesh {
+    let split = EdgeSplit::new(mesh);
+    let n = mesh.positions.len();
+    // Per edge: the sum of its opposite vertices and how many triangles share it.
+    let mut opposite = vec![(DVec3::ZERO, 0u32); split.edges.len()];
+    for (&[a, b, c], edges) in mesh.triangles.iter().zip(&split.triangle_edges) {
+        for (e, o) in edges.iter().zip([c, a, b]) {
+            let slot = &mut opposite[*e as usize];
+            slot.0 += mesh.positions[o as usize];
+            slot.1 += 1;
+        }
+    }
+    let mut neighbour_sum = vec![DVec3::ZERO; n];
+    let mut valence = vec![0u32; n];
+    let mut held = vec![false; n];
+    for (&(a, b), &(_, sharing)) in split.edges.iter().zip(&opposite) {
+        let (a, b) = (a as usize, b as usize);
+        neighbour_sum[a] += mesh.positions[b];
+        neighbour_sum[b] += mesh.positions[a];
+        valence[a] += 1;
+        valence[b] += 1;
+        if sharing != 2 {
+            held[a] = true;
+            held[b] = true;
+        }
+    }
+    let mut positions: Vec<DVec3> = (0..n)
+        .map(|v| {
+            let p = mesh.positions[v];
+            if held[v] || valence[v] == 0 {
+                return p;
+            }
+            let k = valence[v] as f64;
+            let c = 0.375 + 0.25 * (std::f64::consts::TAU / k).cos();
+            let beta = (0.625 - c * c) / k;
+            p * (1.0 - k * beta) + neighbour_sum[v] * beta
+        })
+        .collect();
+    positions.extend(
+        split
+            .edges
+            .iter()
+            .zip(&opposite)
+            .map(|(&(a, b), &(sum, sharing))| {
+                let ends = mesh.positions[a as usize] + mesh.positions[b as usize];
+                if sharing == 2 {
+                    ends * 0.375 + sum * 0.125
+                } else {
+                    ends * 0.5
+                }
+            }),
+    );
+    TriMesh {
+        triangles: split.triangles(mesh),
+        positions,
     }
 }
 
@@ -457,5 +558,55 @@ mod tests {
     fn icosphere_counts() {
         assert_eq!(icosphere(2, 1.0).positions.len(), 162);
         assert_eq!(subdivide_midpoint(&icosphere(1, 1.0)).positions.len(), 162);
+        assert_eq!(subdivide_loop(&icosphere(1, 1.0)).positions.len(), 162);
+    }
+
+    #[test]
+    fn loop_subdivision_uses_loops_weights() {
+        // Octahedron: valence 4 everywhere, β = (5/8 − (3/8)²)/4 = 31/256, and each vertex's
+        // neighbours sum to zero; an edge's two opposite vertices also sum to zero.
+        let octa = octahedron(DVec3::ZERO, 1.0);
+        let fine = subdivide_loop(&octa);
+        assert_eq!(fine.triangles.len(), 32);
+        assert_eq!(fine.positions.len(), 6 + 12);
+        for (old, new) in octa.positions.iter().zip(&fine.positions) {
+            assert!(
+                (*new - *old * (1.0 - 4.0 * 31.0 / 256.0)).length() < 1e-15,
+                "{new}"
+            );
+        }
+        // Every edge vertex: 3/8 of each endpoint (the opposites cancel): length 3/8 · √2.
+        for p in &fine.positions[6..] {
+            assert!((p.length() - 0.375 * 2f64.sqrt()).abs() < 1e-15, "{p}");
+        }
+        // Same connectivity as midpoint subdivision.
+        assert_eq!(fine.triangles, subdivide_midpoint(&octa).triangles);
+        // On an open mesh the boundary is held: one triangle only gets its midpoints.
+        let tri = TriMesh {
+            positions: vec![DVec3::ZERO, DVec3::X, DVec3::Y],
+            triangles: vec![[0, 1, 2]],
+        };
+        assert_eq!(
+            subdivide_loop(&tri).positions,
+            subdivide_midpoint(&tri).positions
+        );
+    }
+
+    #[test]
+    fn loop_subdivision_smooths_an_icosphere_towards_a_sphere() {
+        // Midpoint vertices sit inside the sphere on flat faces; Loop's spread less in radius.
+        let ico = icosphere(1, 1.0);
+        let spread = |m: &TriMesh| {
+            let r: Vec<f64> = m.positions.iter().map(|p| p.length()).collect();
+            r.iter().cloned().fold(f64::MIN, f64::max) - r.iter().cloned().fold(f64::MAX, f64::min)
+        };
+        let (mid, smooth) = (
+            spread(&subdivide_midpoint(&ico)),
+            spread(&subdivide_loop(&ico)),
+        );
+        assert!(
+            smooth < 0.5 * mid,
+            "Loop radius spread {smooth}, midpoint {mid}"
+        );
     }
 }
