@@ -14,7 +14,6 @@ mod character;
 mod control;
 mod deform;
 mod grab;
-mod mouse;
 mod scene;
 mod wiimote;
 
@@ -25,7 +24,10 @@ pub use character::{
     PinnedJoints, PoseFailed, PoseJointHandle, PosePlugin, PoseSolved, PoseStatus, PoseSystems,
     Poseable, PoseableError, PosedSkeleton,
 };
-pub use control::WiimoteHandleControl;
+pub use control::{
+    MouseControlPlugin, MouseHandleControl, WiimoteControlPlugin, WiimoteHandleControl,
+    arcball_rotation,
+};
 pub use deform::{
     DeformConfig, DeformError, DeformFailed, DeformHandle, DeformPhase, DeformPlugin, DeformSolved,
     DeformStatus, DeformSystems, Deformable, FixedRegion, mesh_from_triangles,
@@ -33,7 +35,6 @@ pub use deform::{
 pub use grab::{
     ActiveGrabs, GrabEnd, GrabHandle, GrabMove, GrabPlugin, GrabStart, GrabTwist, Grabbable,
 };
-pub use mouse::{MouseHandleControl, arcball_rotation};
 pub use scene::{DeformableFrom, DeformableScene};
 pub use wiimote::{
     ConnectionState, Wiimote, WiimoteButtonChanged, WiimoteCalibration, WiimoteConnected,
@@ -41,37 +42,6 @@ pub use wiimote::{
     WiimotePlugin, WiimoteProblem, WiimoteProblems, WiimoteSettings, WiimoteSource, WiimoteSystems,
     remote_to_bevy, remote_vec_to_bevy,
 };
-
-/// Adds [`WiimoteHandleControl`] (requires [`WiimotePlugin`]).
-#[derive(Debug, Clone, Default)]
-pub struct WiimoteControlPlugin;
-
-impl Plugin for WiimoteControlPlugin {
-    fn build(&self, app: &mut App) {
-        app.register_type::<WiimoteHandleControl>();
-        app.add_systems(
-            Update,
-            control::drive_handles
-                .in_set(WiimoteSystems::Control)
-                .before(DeformSystems::Request),
-        );
-    }
-}
-
-/// Adds [`MouseHandleControl`]: mouse drags turn and move handles (in `Update`, before
-/// [`DeformSystems::Request`]).
-#[derive(Debug, Clone, Default)]
-pub struct MouseControlPlugin;
-
-impl Plugin for MouseControlPlugin {
-    fn build(&self, app: &mut App) {
-        app.register_type::<MouseHandleControl>();
-        app.add_systems(
-            Update,
-            mouse::drive_mouse_handles.before(DeformSystems::Request),
-        );
-    }
-}
 
 /// Every plugin: [`DeformPlugin`], [`PosePlugin`], [`WiimotePlugin`], [`WiimoteControlPlugin`] and
 /// [`MouseControlPlugin`].

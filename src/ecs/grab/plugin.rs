@@ -1,30 +1,5 @@
-//! Pointer grab: press on a [`Grabbable`] deformable, drag, release — the surface under the
-//! pointer follows it, and the pose stays.
-//!
-//! A grab is driven by messages — [`GrabStart`], [`GrabMove`], [`GrabTwist`], [`GrabEnd`] —
-//! which [`GrabPlugin`] writes from Bevy's picking: presses from `Pointer<Press>` hits (add a
-//! picking backend such as `MeshPickingPlugin`), motion, wheel and release from the raw
-//! `PointerInput`. Other input (a Wii Remote cursor, VR controllers, tests) can write them
-//! directly.
-//!
-//! On a press, the grabbed patch is every vertex within [`Grabbable::radius`] of the hit
-//! *measured along the surface* (Dijkstra over the welded mesh, so a brush does not jump across
-//! a thin gap). With no [`FixedRegion`] on the mesh, the vertices within
-//! [`Grabbable::region_radius`] become the region of interest and everything beyond is held at
-//! rest: grabbing a 100k-vertex mesh solves a small local system. Dragging moves the patch in
-//! the camera's view plane, at its depth; with Shift held it turns the patch instead (an
-//! arcball about its position on screen, all three axes). On release the handle stays where it is, so the pose
-//! is kept; the next grab of the same mesh first makes the current pose the new rest pose, so
-//! bends accumulate. Radii are in world units (the mesh's scale is divided out). The wheel
-//! turns a held patch about the camera's view axis ([`GrabTwist`]).
-//!
-//! **Characters.** [`Grabbable`] on a [`Poseable`](super::Poseable) character (the entity that
-//! gets the [`PosedSkeleton`]) grabs the *posed* surface: a press ray-casts the CPU-skinned
-//! triangles (Bevy's mesh picking tests the bind pose of skinned meshes), the patch is found
-//! along the welded surface the same way, and the handle is an ordinary world-space
-//! [`DeformHandle`] aimed at the character, so dragging solves a skeleton pose; on release the
-//! handle goes and the character holds its pose. Of a static mesh and a character under the
-//! same press, the nearer one is grabbed.
+//! The grab plugin: picking and pointer input to grab messages, and the systems that start,
+//! place, move and end grabs.
 
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -35,116 +10,45 @@ use bevy::picking::pointer::{PointerAction, PointerButton, PointerId, PointerInp
 use bevy::prelude::*;
 use bevy::window::PrimaryWindow;
 
-use super::character::PosedSkeleton;
-use super::deform::{DeformHandle, DeformState, DeformSystems, Deformable, FixedRegion};
-use super::mouse::{arcball_rotation, turned_in_space, view_plane_motion};
-use super::scene::DeformableFrom;
 use crate::deform::Topology;
+use crate::ecs::character::PosedSkeleton;
+use crate::ecs::control::{arcball_rotation, turned_in_space, view_plane_motion};
+use crate::ecs::deform::{DeformHandle, DeformState, DeformSystems, Deformable, FixedRegion};
+use crate::ecs::scene::DeformableFrom;
 
-/// Makes a [`Deformable`] (or, on an ancestor, every deformable primitive below it) grabbable
-/// with the pointer.
-#[derive(Component, Debug, Clone, PartialEq, Reflect)]
-#[reflect(Component, Default)]
-pub struct Grabbable {
-    /// Radius of the grabbed patch along the surface, world units.
-    pub radius: f32,
-    /// Radius of the region that may move, along the surface, world units (used when the mesh
-    /// has no [`FixedRegion`]); beyond it the surface is held.
-    pub region_radius: f32,
-    /// At most this many vertices of the region move, the nearest along the surface: the
-    /// grab's first pose waits for the region's factorization, so on a dense mesh the region
-    /// shrinks rather than the grab stalling (16 384: a first pose in ~20 ms on 2 cores, see
-    /// the README).
-    pub max_region_vertices: u32,
-}
+use super::{
+    ActiveGrab, ActiveGrabs, GrabEnd, GrabHandle, GrabMove, GrabStart, GrabTwist, Grabbable,
+};
 
-impl Default for Grabbable {
-    fn default() -> Self {
-        Self {
-            radius: 0.08,
-            region_radius: 0.6,
-            max_region_vertices: 16_384,
-        }
-    }
-}
-
-/// Start grabbing `entity` (a deformable mesh primitive) at the world point `point`, seen
-/// from `camera`, for `pointer`.
-#[derive(Message, Debug, Clone, PartialEq)]
-pub struct GrabStart {
-    /// Which pointer grabs.
-    pub pointer: PointerId,
-    /// The mesh entity.
-    pub entity: Entity,
-    /// The grabbed point, world space.
-    pub point: Vec3,
-    /// The camera the pointer moves in.
-    pub camera: Entity,
-}
-
-/// The pointer of a grab moved from `from` to `to` (viewport coordinates of its camera).
-#[derive(Message, Debug, Clone, PartialEq)]
-pub struct GrabMove {
-    /// Which pointer.
-    pub pointer: PointerId,
-    /// Previous position.
-    pub from: Vec2,
-    /// New position.
-    pub to: Vec2,
-    /// Turn the grabbed patch (an arcball about its position on screen) instead of moving it;
-    /// the picking glue sets this while Shift is held.
-    pub rotate: bool,
-}
-
-/// Turn a grab's patch about its camera's view axis by `radians` (counter-clockwise as seen
-/// from the camera); the picking glue writes it from the mouse wheel.
-#[derive(Message, Debug, Clone, PartialEq)]
-pub struct GrabTwist {
-    /// Which pointer.
-    pub pointer: PointerId,
-    /// The angle, radians.
-    pub radians: f32,
-}
-
-/// The pointer released its grab (the pose stays).
-#[derive(Message, Debug, Clone, PartialEq)]
-pub struct GrabEnd {
-    /// Which pointer.
-    pub pointer: PointerId,
-}
-
-/// On a mesh: the handle entity its last grab created.
-#[derive(Component, Debug, Clone, Copy, PartialEq, Eq)]
-pub struct GrabHandle(pub Entity);
-
-/// Grabs in progress, by pointer.
-#[derive(Resource, Debug, Default)]
-pub struct ActiveGrabs(HashMap<PointerId, ActiveGrab>);
-
-impl ActiveGrabs {
-    /// The mesh a pointer is grabbing, if any.
-    pub fn mesh_of(&self, pointer: PointerId) -> Option<Entity> {
-        self.0.get(&pointer).map(|g| g.mesh)
-    }
-}
-
-#[derive(Debug)]
-struct ActiveGrab {
-    mesh: Entity,
-    camera: Entity,
-    /// The grabbed point in mesh space (kept until the rest pose is ready).
-    point: Vec3,
-    settings: Grabbable,
-    /// The handle, once placed.
-    handle: Option<Entity>,
-    /// Pointer motion received before the handle existed: (first from, latest to).
-    early_motion: Option<(Vec2, Vec2)>,
-    /// A posed character: the point and the handle are in world space.
-    character: bool,
-}
-
-/// Adds pointer grabs (see the module docs). Requires [`super::DeformPlugin`]; add a picking
-/// backend for the pointer events.
+/// Adds pointer grabs: press on a [`Grabbable`] deformable, drag, release — the surface under
+/// the pointer follows it, and the pose stays. Requires [`DeformPlugin`]; add a picking
+/// backend (such as `MeshPickingPlugin`) for the pointer events.
+///
+/// A grab is driven by messages — [`GrabStart`], [`GrabMove`], [`GrabTwist`], [`GrabEnd`] —
+/// which this plugin writes from Bevy's picking: presses from `Pointer<Press>` hits, motion,
+/// wheel and release from the raw `PointerInput`. Other input (a Wii Remote cursor, VR
+/// controllers, tests) can write them directly.
+///
+/// On a press, the grabbed patch is every vertex within [`Grabbable::radius`] of the hit
+/// *measured along the surface* (Dijkstra over the welded mesh, so a brush does not jump
+/// across a thin gap). With no [`FixedRegion`] on the mesh, the vertices within
+/// [`Grabbable::region_radius`] become the region of interest and everything beyond is held
+/// at rest: grabbing a 100k-vertex mesh solves a small local system. Dragging moves the patch
+/// in the camera's view plane, at its depth; with Shift held it turns the patch instead (an
+/// arcball about its position on screen, all three axes). On release the handle stays where
+/// it is, so the pose is kept; the next grab of the same mesh first makes the current pose
+/// the new rest pose, so bends accumulate. Radii are in world units (the mesh's scale is
+/// divided out). The wheel turns a held patch about the camera's view axis ([`GrabTwist`]).
+///
+/// **Characters.** [`Grabbable`] on a [`Poseable`](crate::ecs::Poseable) character (the
+/// entity that gets the [`PosedSkeleton`]) grabs the *posed* surface: a press ray-casts the
+/// CPU-skinned triangles (Bevy's mesh picking tests the bind pose of skinned meshes), the
+/// patch is found along the welded surface the same way, and the handle is an ordinary
+/// world-space [`DeformHandle`] aimed at the character, so dragging solves a skeleton pose; on
+/// release the handle goes and the character holds its pose. Of a static mesh and a character
+/// under the same press, the nearer one is grabbed.
+///
+/// [`DeformPlugin`]: crate::ecs::DeformPlugin
 #[derive(Debug, Clone, Default)]
 pub struct GrabPlugin;
 
@@ -559,7 +463,7 @@ fn end_grabs(
 
 /// Welded vertices within `radius` (the patch) and within `region_radius` (the region) of the
 /// vertex nearest to `point`, by shortest paths along mesh edges.
-pub(crate) fn geodesic_regions(
+fn geodesic_regions(
     topology: &Topology,
     point: Vec3,
     settings: &Grabbable,

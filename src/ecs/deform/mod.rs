@@ -1,0 +1,249 @@
+//! Deforming meshes in the ECS: [`Deformable`] on a mesh (or a glTF scene above meshes),
+//! [`DeformHandle`] entities whose `Transform`s move vertex sets, [`FixedRegion`]s held at
+//! rest. [`DeformPlugin`] solves ARAP on changed handles in Bevy's `AsyncComputeTaskPool`
+//! (latest wins) and writes positions, normals and tangents back to the mesh asset; the
+//! math is [`crate::deform`]. This file holds the data types; `plugin.rs` the plugin, its
+//! system sets and systems.
+
+mod plugin;
+
+use bevy::asset::RenderAssetUsages;
+use bevy::mesh::{Indices, VertexAttributeValues};
+use bevy::prelude::*;
+use glam::DVec3;
+
+use crate::deform::{Acceleration, MeshError, RigidTransform, SolveError, centroid};
+
+pub(crate) use plugin::DeformState;
+pub use plugin::{DeformPlugin, DeformSystems};
+
+/// Project-wide deformation defaults, mirrored from [`DeformPlugin`]; change at run time.
+#[derive(Resource, Debug, Clone, Reflect)]
+#[reflect(Resource)]
+pub struct DeformConfig {
+    /// Iterations per solve when a [`Deformable`] does not override them.
+    pub max_iterations: u32,
+    /// Relative energy decrease below which a solve stops early.
+    pub tolerance: f32,
+    /// How the iterations are accelerated (L-BFGS by default: it settles in a fraction of the
+    /// plain iterations, see the README's interaction figures). Not reflected (a core type).
+    #[reflect(ignore)]
+    pub acceleration: Acceleration,
+    /// After the handles stop moving, the plugin keeps iterating in the background with
+    /// [`Self::settle_acceleration`] (warm-started solves of one Newton iteration, or
+    /// `max_iterations` of the others) until the energy stops falling or this many iterations
+    /// have run, so a released pose settles instead of freezing half-converged (0 = never).
+    pub settle_iterations: u32,
+    /// The iterations that settle a released pose (truncated Newton by default: ~11 iterations
+    /// on the 26k armadillo where L-BFGS needs ~170, see the README). Not reflected.
+    #[reflect(ignore)]
+    pub settle_acceleration: Acceleration,
+    /// Where the first solve on a rest pose starts. When the handles move some vertex farther
+    /// than this fraction of the mesh's bounding diagonal from rest (a loaded pose, a scripted
+    /// jump), from the paper's uniform-Laplacian guess; otherwise from the rest pose itself (a
+    /// pointer grab starts at rest, and the Laplacian guess would cost a second factorization
+    /// for the same pose: 26k armadillo, press → first pose 69 → 52 ms median). A constraint
+    /// set that changes mid-edit always continues from the displayed pose.
+    pub laplacian_start_displacement: f32,
+}
+/// Marks a `Mesh3d` entity as deformable. Handles refer to it by entity.
+///
+/// Put on an entity without a mesh — a glTF scene root (`WorldAssetRoot`) or any ancestor —
+/// it applies to every mesh primitive below it once they exist (see [`DeformableScene`](crate::ecs::DeformableScene)).
+///
+/// Vertex indices everywhere in the plugin are *render* vertex indices of the mesh (as in its
+/// index buffer); seams are welded internally so split vertices move together.
+#[derive(Component, Debug, Clone, Reflect, PartialEq)]
+#[reflect(Component, Default)]
+#[require(DeformStatus)]
+#[derive(Default)]
+pub struct Deformable {
+    /// Iterations per solve (`None` = [`DeformConfig::max_iterations`]).
+    pub max_iterations: Option<u32>,
+    /// Tolerance (`None` = [`DeformConfig::tolerance`]).
+    pub tolerance: Option<f32>,
+    /// Use raw (possibly negative) cotangent weights instead of clamped ones.
+    pub raw_cotangent_weights: bool,
+    /// Optional region of interest (render vertex indices); others stay at rest.
+    pub region_of_interest: Option<Vec<u32>>,
+}
+
+/// Vertices of a [`Deformable`] held at their rest position (render indices).
+#[derive(Component, Debug, Clone, Default, Reflect, PartialEq)]
+#[reflect(Component, Default)]
+pub struct FixedRegion(pub Vec<u32>);
+
+/// A handle: a set of vertices of `target` moved rigidly by this entity's `Transform`.
+///
+/// The `Transform` is read in the target mesh's local space. At rest it is
+/// `Transform::from_translation(pivot)` (the rest centroid of the vertices): then
+/// `translation − pivot` is the handle's translation and `rotation` turns it about the pivot.
+/// Spawn it with [`DeformHandle::bundle`] to get that right, or leave `pivot` as `None` and
+/// an identity `Transform`: the plugin fills both in when the mesh is ready.
+#[derive(Component, Debug, Clone, Reflect, PartialEq)]
+#[reflect(Component)]
+pub struct DeformHandle {
+    /// The [`Deformable`] mesh entity.
+    pub target: Entity,
+    /// Render vertex indices of the handle.
+    pub vertices: Vec<u32>,
+    /// Rest centroid in mesh space (filled in by the plugin when `None`).
+    pub pivot: Option<Vec3>,
+}
+
+impl DeformHandle {
+    /// A handle with its rest transform computed from `mesh` (positions in mesh space).
+    pub fn bundle(mesh: &Mesh, target: Entity, vertices: Vec<u32>) -> (Self, Transform) {
+        let pivot = mesh_positions(mesh)
+            .map(|p| {
+                let p: Vec<DVec3> = p.iter().map(|q| q.as_dvec3()).collect();
+                centroid(&p, &vertices).as_vec3()
+            })
+            .unwrap_or(Vec3::ZERO);
+        (
+            Self {
+                target,
+                vertices,
+                pivot: Some(pivot),
+            },
+            Transform::from_translation(pivot),
+        )
+    }
+
+    /// The rigid transform this handle applies, given its `Transform`.
+    pub fn rigid_transform(&self, transform: &Transform) -> RigidTransform {
+        let pivot = self.pivot.unwrap_or(Vec3::ZERO).as_dvec3();
+        RigidTransform::new(
+            transform.rotation.as_dquat().normalize(),
+            transform.translation.as_dvec3() - pivot,
+            pivot,
+        )
+    }
+}
+
+/// Where a deformable stands; readable by UIs.
+#[derive(Component, Debug, Clone, Default, Reflect)]
+#[reflect(Component, Default)]
+pub struct DeformStatus {
+    /// What the background worker is doing.
+    pub phase: DeformPhase,
+    /// Welded vertex count (0 until prepared).
+    pub vertices: usize,
+    /// Iterations of the last solve.
+    pub iterations: u32,
+    /// Normalised ARAP energy after the last solve.
+    pub energy: f64,
+    /// Milliseconds of the last solve (including precompute when the sets changed).
+    pub solve_ms: f64,
+    /// Completed solves so far.
+    pub solves: u64,
+    /// Last error, if the last attempt failed.
+    #[reflect(ignore)]
+    pub error: Option<DeformError>,
+}
+
+/// Why a [`Deformable`] could not be prepared or solved (in [`DeformFailed`] and
+/// [`DeformStatus::error`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum DeformError {
+    /// The mesh has no CPU-side `Float32x3` positions (e.g. its asset usage is render-world
+    /// only, or positions are another format).
+    #[error("the mesh has no CPU-side Float32x3 positions")]
+    NoPositions,
+    /// The mesh is not a triangle list.
+    #[error("the mesh topology is {0}, not a triangle list")]
+    NotTriangleList(String),
+    /// The mesh data is invalid (bad indices, NaN positions, …).
+    #[error(transparent)]
+    Mesh(#[from] MeshError),
+    /// Precompute or solve failed (bad constraints, not positive definite, …).
+    #[error(transparent)]
+    Solve(#[from] SolveError),
+    /// A [`Deformable`] on an entity with no mesh below it (after its scene spawned).
+    #[error(
+        "no mesh below this entity: put Deformable on a Mesh3d entity, a glTF scene root or an ancestor of meshes"
+    )]
+    NoMeshBelow,
+    /// The solve produced NaN or infinity; the mesh was left unchanged.
+    #[error("the solve produced non-finite values; the mesh was left unchanged")]
+    NonFinite,
+}
+
+/// Background phase of a deformable.
+#[derive(Debug, Clone, Copy, Default, Reflect, PartialEq, Eq)]
+pub enum DeformPhase {
+    /// Waiting for the mesh asset.
+    #[default]
+    WaitingForMesh,
+    /// Welding and building the topology.
+    BuildingTopology,
+    /// Ready; no solve running.
+    Idle,
+    /// Factorizing (constraint sets changed).
+    Factorizing,
+    /// Iterating.
+    Solving,
+    /// The handles stopped; iterating on toward the converged pose
+    /// ([`DeformConfig::settle_iterations`]).
+    Settling,
+    /// The mesh could not be prepared (see [`DeformStatus::error`]); nothing will be solved
+    /// until the [`Deformable`] is re-inserted.
+    Failed,
+}
+
+/// A solve finished and was written to the mesh.
+#[derive(Message, Debug, Clone, PartialEq)]
+pub struct DeformSolved {
+    /// The deformable entity.
+    pub entity: Entity,
+    /// Iterations done.
+    pub iterations: u32,
+    /// Normalised energy.
+    pub energy: f64,
+    /// Solve time in ms (worker thread).
+    pub solve_ms: f64,
+}
+
+/// Preparing or solving a deformable failed; the mesh was left as it was.
+#[derive(Message, Debug, Clone, PartialEq)]
+pub struct DeformFailed {
+    /// The deformable entity.
+    pub entity: Entity,
+    /// What went wrong.
+    pub error: DeformError,
+}
+
+/// The mesh's CPU-side `Float32x3` positions, if it has them.
+pub(crate) fn mesh_positions(mesh: &Mesh) -> Option<Vec<Vec3>> {
+    match mesh.try_attribute(Mesh::ATTRIBUTE_POSITION).ok()? {
+        VertexAttributeValues::Float32x3(v) => {
+            Some(v.iter().map(|p| Vec3::from_array(*p)).collect())
+        }
+        _ => None,
+    }
+}
+
+/// Builds a triangle-list mesh (positions, normals, indices) from core data, keeping the
+/// CPU copy so it can be deformed.
+pub fn mesh_from_triangles(positions: &[DVec3], triangles: &[[u32; 3]]) -> Mesh {
+    let pos: Vec<[f32; 3]> = positions.iter().map(|p| p.as_vec3().to_array()).collect();
+    let mut normals = vec![Vec3::ZERO; positions.len()];
+    for t in triangles {
+        let [a, b, c] = t.map(|i| positions[i as usize].as_vec3());
+        let n = (b - a).cross(c - a);
+        for &i in t {
+            normals[i as usize] += n;
+        }
+    }
+    let normals: Vec<[f32; 3]> = normals
+        .iter()
+        .map(|n| n.normalize_or(Vec3::Y).to_array())
+        .collect();
+    Mesh::new(
+        bevy::mesh::PrimitiveTopology::TriangleList,
+        RenderAssetUsages::default(),
+    )
+    .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, pos)
+    .with_inserted_attribute(Mesh::ATTRIBUTE_NORMAL, normals)
+    .with_inserted_indices(Indices::U32(triangles.iter().flatten().copied().collect()))
+}
