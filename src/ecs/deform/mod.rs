@@ -34,8 +34,8 @@ pub struct DeformConfig {
     /// `max_iterations` of the others) until the energy stops falling or this many iterations
     /// have run, so a released pose settles instead of freezing half-converged (0 = never).
     pub settle_iterations: u32,
-    /// The iterations that settle a released pose (truncated Newton by default: ~11 iterations
-    /// on the 26k armadillo where L-BFGS needs ~170, see the README). Not reflected.
+    /// The iterations that settle a released pose (truncated Newton by default: 7 iterations
+    /// on the 26k armadillo where L-BFGS needs ~167, see the README). Not reflected.
     #[reflect(ignore)]
     pub settle_acceleration: Acceleration,
     /// Where the first solve on a rest pose starts. When the handles move some vertex farther
