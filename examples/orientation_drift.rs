@@ -10,7 +10,8 @@
 //! scale error), `gyro_misalignment`, `bias_walk`, `warm_up`, `gyro_noise` (σ 0.01 deg/s).
 //! The last stdout line is one JSON object: the default set's scores keyed by filter name
 //! (`raw`, `paper`, `ours`, `vqf`), and under `sets` every set's scores by filter plus the
-//! accelerometer-only tilt floor. Metrics include BROAD-style `heading_rmse_deg` and
+//! accelerometer-only tilt floor, and `ideal` (the `--ideal` list, empty for the real sensor
+//! model). Metrics include BROAD-style `heading_rmse_deg` and
 //! `inclination_rmse_deg`.
 
 use bevy_wii_deform::wiimote::{
@@ -172,6 +173,12 @@ fn main() {
             })
             .collect::<Vec<_>>()
             .join(", ");
-        println!("{{{}, \"sets\": {{{sets}}}}}", filters_json(head));
+        // Which sensor errors were removed (`--ideal`), so an ablation is never read as a
+        // default-set figure.
+        println!(
+            "{{{}, \"sets\": {{{sets}}}, \"ideal\": {:?}}}",
+            filters_json(head),
+            ideal
+        );
     }
 }
