@@ -180,7 +180,7 @@ impl EdgeSplit {
         }
     }
 
-    /// The four triangles of each input triangle, over `vertex_count` original vertices.
+    /// The four triangles of each triangle of `mesh` (the mesh this split was made from).
     fn triangles(&self, mesh: &TriMesh) -> Vec<[u32; 3]> {
         let base = mesh.positions.len() as u32;
         let mut triangles = Vec::with_capacity(mesh.triangles.len() * 4);

@@ -172,6 +172,7 @@ impl DeformState {
 /// deformable is prepared again.
 #[derive(Component)]
 struct PreviousTopology(Arc<Topology>);
+
 #[allow(clippy::type_complexity)]
 fn prepare_deformables(
     mut commands: Commands,
