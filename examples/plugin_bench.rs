@@ -2,7 +2,7 @@
 //! main-thread time spent in the plugin's systems and completed solves per second.
 //!
 //! ```text
-//! cargo run --release --example plugin_bench -- [--mesh PATH | --bar VERTICES] [--seconds 5] [--iterations 1] [--fps 120] [--grab] [--plain] --json
+//! cargo run --release --example plugin_bench -- [--mesh PATH | --bar VERTICES] [--seconds 5] [--iterations 1] [--fps 120] [--grab | --set-changes [--no-preview]] [--plain] --json
 //! ```
 //! Default mesh: ../shared/meshes/armadillo.off (26k vertices), else a 26k-vertex bar.
 //! `--plain`: the plugin with plain local/global iterations and no settling (default: L-BFGS
@@ -12,6 +12,13 @@
 //! of the bounding-box diagonal) every second at a pseudo-random vertex, its handle dragged in
 //! between; adds `grab_to_first_pose_ms_median` / `_p95` (press → first written pose, which
 //! includes re-preparing the rest pose from the current one and factorizing the region).
+//! `--set-changes`: the bottom slab held (`FixedRegion`), a new handle set every second (the
+//! vertices within 8 % of the diagonal of a pseudo-random vertex), turned for 0.6 s, then let
+//! go until the plugin is idle (so the first pose after a change is the new set's);
+//! `--no-preview` turns the preview off for a side-by-side figure; adds
+//! `set_change_to_first_pose_ms_median` / `_p95` (change → first written pose: the preview of
+//! `DeformConfig::preview` on a large mesh) and `set_change_to_whole_pose_ms_median` (→ first
+//! pose solved on the whole mesh).
 
 use std::time::{Duration, Instant};
 
@@ -24,6 +31,8 @@ struct Timing {
     start: Option<Instant>,
     frames_ms: Vec<f64>,
     measuring: bool,
+    /// The handle is let go (`--set-changes`, before a new set).
+    released: bool,
 }
 
 #[derive(Component)]
@@ -65,7 +74,7 @@ fn drag_grab(
 struct Diagonal(f32);
 
 fn drag(time: Res<Time>, timing: Res<Timing>, mut q: Query<&mut Transform, With<Dragged>>) {
-    if !timing.measuring {
+    if !timing.measuring || timing.released {
         return;
     }
     let t = time.elapsed_secs();
@@ -109,6 +118,14 @@ fn main() {
         },
         false => DeformPlugin::default(),
     };
+    // `--no-preview`: a new constraint set waits for the whole mesh (`DeformConfig::preview`).
+    let deform_plugin = match args.iter().any(|a| a == "--no-preview") {
+        true => DeformPlugin {
+            preview: None,
+            ..deform_plugin
+        },
+        false => deform_plugin,
+    };
     let mut app = App::new();
     app.add_plugins((
         MinimalPlugins,
@@ -135,6 +152,7 @@ fn main() {
         .unwrap_or(1.0);
     let mesh = mesh_from_triangles(&tri.positions, &tri.triangles);
     let (fixed, handle) = synth::slab_regions(&tri.positions, 1, 0.1, 0.1);
+    let fixed_set = fixed.clone();
     let bundle_src = mesh.clone();
     let h = app.world_mut().resource_mut::<Assets<Mesh>>().add(mesh);
     let deformable = Deformable {
@@ -164,6 +182,9 @@ fn main() {
     };
     if grab {
         return run_grabs(&mut app, e, &tri, seconds, fps);
+    }
+    if args.iter().any(|a| a == "--set-changes") {
+        return run_set_changes(&mut app, e, &tri, &fixed_set, diagonal, seconds, fps);
     }
     // Wait for topology + factorization (the first solve).
     let setup = Instant::now();
@@ -288,6 +309,116 @@ fn run_grabs(app: &mut App, e: Entity, tri: &TriMesh, seconds: f64, fps: f64) {
             "grabs": latencies.len(),
             "grab_to_first_pose_ms_median": pct(&latencies, 0.5),
             "grab_to_first_pose_ms_p95": pct(&latencies, 0.95),
+        })
+    );
+}
+
+/// `--set-changes`: a new handle set every second; prints the JSON line with the latencies to
+/// the first pose and to the first whole-mesh pose.
+fn run_set_changes(
+    app: &mut App,
+    e: Entity,
+    tri: &TriMesh,
+    fixed: &[u32],
+    diagonal: f32,
+    seconds: f64,
+    fps: f64,
+) {
+    while app.world().get::<DeformStatus>(e).unwrap().solves == 0 {
+        app.update();
+        std::thread::yield_now();
+    }
+    app.world_mut().resource_mut::<Timing>().measuring = true;
+    let frame = Duration::from_secs_f64(1.0 / fps.max(1.0));
+    let held: std::collections::HashSet<u32> = fixed.iter().copied().collect();
+    let (mut first, mut whole) = (Vec::new(), Vec::new());
+    let (mut changed, mut previewed, mut seed) = (None::<Instant>, 0, 0x2545F491u64);
+    let (start, mut next_change) = (Instant::now(), 0.0);
+    while start.elapsed().as_secs_f64() < seconds {
+        let f0 = Instant::now();
+        let now = start.elapsed().as_secs_f64();
+        let idle = app.world().get::<DeformStatus>(e).unwrap().phase == DeformPhase::Idle;
+        app.world_mut().resource_mut::<Timing>().released = now + 0.4 >= next_change;
+        if now >= next_change && idle && changed.is_none() {
+            next_change = now.floor() + 1.0;
+            let mut vertices = Vec::new();
+            while vertices.is_empty() {
+                seed = seed
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                let centre = tri.positions[(seed >> 33) as usize % tri.positions.len()];
+                let r = 0.08 * diagonal as f64;
+                vertices = (0..tri.positions.len() as u32)
+                    .filter(|v| {
+                        !held.contains(v) && tri.positions[*v as usize].distance(centre) < r
+                    })
+                    .collect();
+            }
+            let mut q = app
+                .world_mut()
+                .query_filtered::<(&mut DeformHandle, &mut Transform), With<Dragged>>();
+            for (mut h, mut t) in q.iter_mut(app.world_mut()) {
+                // A new set at rest: the plugin puts its pivot at the set's centroid.
+                h.vertices = vertices.clone();
+                h.pivot = None;
+                *t = Transform::IDENTITY;
+            }
+            changed = Some(Instant::now());
+            first.push(f64::NAN);
+            whole.push(f64::NAN);
+        }
+        app.update();
+        let done = app
+            .world_mut()
+            .resource_mut::<Messages<DeformSolved>>()
+            .drain()
+            .count();
+        let status = app.world().get::<DeformStatus>(e).unwrap();
+        if done > 0
+            && let Some(t) = changed
+        {
+            let ms = t.elapsed().as_secs_f64() * 1e3;
+            let n = first.len() - 1;
+            if first[n].is_nan() {
+                first[n] = ms;
+                previewed += status.preview as usize;
+            }
+            if !status.preview {
+                whole[n] = ms;
+                changed = None;
+            }
+        }
+        if let Some(rest) = frame.checked_sub(f0.elapsed()) {
+            std::thread::sleep(rest);
+        }
+    }
+    let mut ms = app.world().resource::<Timing>().frames_ms.clone();
+    ms.sort_by(f64::total_cmp);
+    let (mut first, mut whole): (Vec<f64>, Vec<f64>) = (
+        first.into_iter().filter(|m| !m.is_nan()).collect(),
+        whole.into_iter().filter(|m| !m.is_nan()).collect(),
+    );
+    first.sort_by(f64::total_cmp);
+    whole.sort_by(f64::total_cmp);
+    let pct = |v: &[f64], p: f64| {
+        v.get(((v.len().max(1) - 1) as f64 * p).round() as usize)
+            .copied()
+            .unwrap_or(f64::NAN)
+    };
+    eprintln!("set change → first pose, ms ({previewed} previews): {first:.1?}");
+    eprintln!("set change → first whole-mesh pose, ms: {whole:.1?}");
+    println!(
+        "{}",
+        serde_json::json!({
+            "vertices": app.world().get::<DeformStatus>(e).unwrap().vertices,
+            "frames": ms.len(),
+            "main_ms_median": pct(&ms, 0.5),
+            "main_ms_p99": pct(&ms, 0.99),
+            "set_changes": first.len(),
+            "previews": previewed,
+            "set_change_to_first_pose_ms_median": pct(&first, 0.5),
+            "set_change_to_first_pose_ms_p95": pct(&first, 0.95),
+            "set_change_to_whole_pose_ms_median": pct(&whole, 0.5),
         })
     );
 }

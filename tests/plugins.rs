@@ -1741,3 +1741,106 @@ fn a_released_handle_settles_to_the_converged_pose() {
     );
     assert!(settled_solves > frozen_solves);
 }
+
+/// A new constraint set on a mesh larger than the preview region is first shown as a preview:
+/// only the vertices near the handle move, the rest stay where they were shown (here, at
+/// rest). The whole mesh is then factored in the background and the pose settles to the
+/// whole mesh's converged pose. Without a preview the first pose moves the far vertices too.
+#[test]
+fn a_set_change_on_a_large_mesh_is_previewed_then_solved_whole() {
+    let first_and_settled = |preview: Option<deform::PreviewRegion>| {
+        let mut app = app();
+        app.add_plugins(DeformPlugin {
+            preview,
+            ..default()
+        });
+        let (e, handle, tri) = spawn_bar(&mut app);
+        {
+            // Moved before the first solve: the first constraint set is already bent.
+            let mut t = app.world_mut().get_mut::<Transform>(handle).unwrap();
+            t.rotation = Quat::from_rotation_z(0.6);
+            t.translation += Vec3::new(0.25, -0.1, 0.0);
+        }
+        let (ok, bad) = run_until_messages(&mut app, 1);
+        assert!(bad.is_empty(), "{bad:?}");
+        assert_eq!(ok.len(), 1);
+        let status = app.world().get::<DeformStatus>(e).unwrap().clone();
+        let first = positions(&app, e);
+        settle(&mut app, e);
+        let status_after = app.world().get::<DeformStatus>(e).unwrap().clone();
+        assert!(!status_after.preview);
+        (
+            status.preview,
+            first,
+            positions(&app, e),
+            tri,
+            *app.world().get::<Transform>(handle).unwrap(),
+        )
+    };
+    let region = deform::PreviewRegion {
+        radius: 0.25,
+        max_vertices: 100,
+    };
+    let (previewed, first, settled, tri, handle_at) = first_and_settled(Some(region));
+    let (whole_previewed, whole_first, _, _, _) = first_and_settled(None);
+    assert!(previewed);
+    assert!(!whole_previewed);
+
+    // The vertices at the bottom half (free, far from the handle at the top) stay at rest in
+    // the preview, and move in the whole mesh's first pose.
+    let (fixed, hv) = regions(&tri);
+    let far: Vec<usize> = (0..tri.positions.len())
+        .filter(|&v| tri.positions[v].y < 0.4 && !fixed.contains(&(v as u32)))
+        .collect();
+    assert!(far.len() > 50);
+    let moved = |pose: &[Vec3]| {
+        far.iter()
+            .map(|&v| (pose[v].as_dvec3() - tri.positions[v]).length())
+            .fold(0.0, f64::max)
+    };
+    assert!(
+        moved(&first) < 1e-6,
+        "preview moved far vertices {}",
+        moved(&first)
+    );
+    assert!(moved(&whole_first) > 1e-2, "whole {}", moved(&whole_first));
+    // Near the handle the preview bends.
+    let near =
+        (0..tri.positions.len()).filter(|&v| tri.positions[v].y > 0.7 && !hv.contains(&(v as u32)));
+    assert!(
+        near.clone()
+            .any(|v| (first[v].as_dvec3() - tri.positions[v]).length() > 0.02)
+    );
+
+    // Settled: the whole mesh's converged pose.
+    let topology = Arc::new(Topology::new(&tri.positions, &tri.triangles).unwrap());
+    let pivot = deform::centroid(&tri.positions, &hv).as_vec3();
+    let c = Constraints::with_handle(
+        fixed,
+        hv,
+        RigidTransform::new(
+            handle_at.rotation.as_dquat(),
+            (handle_at.translation - pivot).as_dvec3(),
+            pivot.as_dvec3(),
+        ),
+    );
+    let solver = ArapSolver::precompute(topology.clone(), &c, SolverSettings::default()).unwrap();
+    let options = SolveOptions {
+        max_iterations: 3000,
+        tolerance: 0.0,
+        acceleration: deform::Acceleration::Lbfgs { depth: 8 },
+    };
+    let star = solver
+        .solve(&c, &options, InitialGuess::Laplacian, &|| false)
+        .unwrap();
+    let want = topology.to_render(&star.positions);
+    let worst = settled
+        .iter()
+        .zip(&want)
+        .map(|(a, b)| (a.as_dvec3() - *b).length())
+        .fold(0.0, f64::max);
+    assert!(
+        worst <= 5e-4 * topology.bounding_diagonal(),
+        "settled {worst} from the whole mesh's converged pose"
+    );
+}

@@ -85,8 +85,9 @@ fn model_section(ui: &mut egui::Ui, p: &mut ModelPanel) {
     if let Some(s) = p.statuses.iter().next() {
         let error = s.error.as_ref().map(|e| format!(" · error: {e}"));
         ui.label(format!(
-            "{:?} · {} vertices · {:.1} ms · {} it · E {:.5}{}",
+            "{:?}{} · {} vertices · {:.1} ms · {} it · E {:.5}{}",
             s.phase,
+            if s.preview { " (preview)" } else { "" },
             s.vertices,
             s.solve_ms,
             s.iterations,

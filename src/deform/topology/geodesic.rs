@@ -1,5 +1,7 @@
 //! Distances along the mesh surface (edge paths): grab patches and regions of interest.
 
+use std::collections::BinaryHeap;
+
 use super::Topology;
 
 impl Topology {
@@ -32,20 +34,9 @@ impl Topology {
         // of it cost more than the whole search.
         let mut best = vec![f64::INFINITY; positions.len()];
         let mut settled = Vec::new();
-        let mut heap = std::collections::BinaryHeap::new();
-        for &seed in seeds.iter().filter(|&&s| (s as usize) < positions.len()) {
-            best[seed as usize] = 0.0;
-            heap.push(Item(0.0, seed));
-        }
+        let mut heap = BinaryHeap::new();
         let mut done = vec![false; positions.len()];
-        while let Some(Item(d, v)) = heap.pop() {
-            if settled.len() >= max_vertices {
-                break;
-            }
-            if std::mem::replace(&mut done[v as usize], true) {
-                continue; // an entry superseded by a shorter path (or a repeated seed)
-            }
-            settled.push((v, d));
+        let relax = |v: u32, d: f64, best: &mut [f64], heap: &mut BinaryHeap<Item>| {
             for &w in self.neighbors(v as usize) {
                 let nd = d + positions[v as usize].distance(positions[w as usize]);
                 if nd <= limit && nd < best[w as usize] {
@@ -53,6 +44,34 @@ impl Topology {
                     heap.push(Item(nd, w));
                 }
             }
+        };
+        // The seeds are settled at 0 in vertex order (what the heap would pop first), without
+        // passing through it: a handle can hold thousands of vertices.
+        let mut sorted: Vec<u32> = seeds
+            .iter()
+            .copied()
+            .filter(|&s| (s as usize) < positions.len())
+            .collect();
+        sorted.sort_unstable();
+        sorted.dedup();
+        sorted.truncate(max_vertices);
+        for &seed in &sorted {
+            best[seed as usize] = 0.0;
+            done[seed as usize] = true;
+            settled.push((seed, 0.0));
+        }
+        for &seed in &sorted {
+            relax(seed, 0.0, &mut best, &mut heap);
+        }
+        while let Some(Item(d, v)) = heap.pop() {
+            if settled.len() >= max_vertices {
+                break;
+            }
+            if std::mem::replace(&mut done[v as usize], true) {
+                continue; // an entry superseded by a shorter path
+            }
+            settled.push((v, d));
+            relax(v, d, &mut best, &mut heap);
         }
         settled
     }

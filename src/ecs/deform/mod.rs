@@ -12,7 +12,7 @@ use bevy::mesh::{Indices, VertexAttributeValues};
 use bevy::prelude::*;
 use glam::DVec3;
 
-use crate::deform::{Acceleration, MeshError, RigidTransform, SolveError, centroid};
+use crate::deform::{Acceleration, MeshError, PreviewRegion, RigidTransform, SolveError, centroid};
 
 pub(crate) use plugin::DeformState;
 pub use plugin::{DeformPlugin, DeformSystems};
@@ -45,6 +45,15 @@ pub struct DeformConfig {
     /// for the same pose: 26k armadillo, press → first pose 69 → 52 ms median). A constraint
     /// set that changes mid-edit always continues from the displayed pose.
     pub laplacian_start_displacement: f32,
+    /// A new constraint set on a mesh with more vertices than the region's `max_vertices` is
+    /// first shown as a *preview*: only the vertices near the handles are solved (the rest
+    /// held where they are shown), which takes a frame or two where the whole mesh's
+    /// factorization takes several (26k armadillo: ~15 against ~45 ms; 104k: ~50 against
+    /// ~220 ms, see the README). The whole mesh is then factored in the background and solved
+    /// on from the preview. `None`: always wait for the whole mesh. Not used on a
+    /// [`Deformable`] with its own region of interest. Not reflected (a core type).
+    #[reflect(ignore)]
+    pub preview: Option<PreviewRegion>,
 }
 /// Marks a `Mesh3d` entity as deformable. Handles refer to it by entity.
 ///
@@ -137,6 +146,9 @@ pub struct DeformStatus {
     pub solve_ms: f64,
     /// Completed solves so far.
     pub solves: u64,
+    /// The displayed pose is a preview ([`DeformConfig::preview`]): only the region near the
+    /// handles was solved, while the whole mesh is factored; its solve follows.
+    pub preview: bool,
     /// Last error, if the last attempt failed.
     #[reflect(ignore)]
     pub error: Option<DeformError>,

@@ -15,8 +15,9 @@ use super::{
     Deformable, FixedRegion, mesh_positions,
 };
 use crate::deform::{
-    Acceleration, ArapSolver, Constraints, Handle as CoreHandle, InitialGuess, Solution,
-    SolveError, SolveOptions, SolveStats, SolverSettings, Topology, WeightMode, centroid,
+    Acceleration, ArapSolver, Constraints, Handle as CoreHandle, InitialGuess, Preview,
+    PreviewRegion, Solution, SolveError, SolveOptions, SolveStats, SolverSettings, Topology,
+    WeightMode, centroid,
 };
 
 /// Ordered phases of the deformation systems, all in `Update` (chained in this order).
@@ -50,6 +51,8 @@ pub struct DeformPlugin {
     pub settle_acceleration: Acceleration,
     /// Default start rule ([`DeformConfig::laplacian_start_displacement`]).
     pub laplacian_start_displacement: f32,
+    /// Default first pose of a new constraint set on a large mesh ([`DeformConfig::preview`]).
+    pub preview: Option<PreviewRegion>,
 }
 
 impl Default for DeformPlugin {
@@ -61,6 +64,7 @@ impl Default for DeformPlugin {
             settle_iterations: 40,
             settle_acceleration: Acceleration::Newton { max_cg: 30 },
             laplacian_start_displacement: 0.05,
+            preview: Some(PreviewRegion::default()),
         }
     }
 }
@@ -74,6 +78,7 @@ impl Plugin for DeformPlugin {
             settle_iterations: self.settle_iterations,
             settle_acceleration: self.settle_acceleration,
             laplacian_start_displacement: self.laplacian_start_displacement,
+            preview: self.preview,
         })
         .register_type::<Deformable>()
         .register_type::<FixedRegion>()
@@ -119,8 +124,17 @@ struct Rest {
     tangents: Option<Vec<Vec4>>,
 }
 
+/// What a solve task produced.
+struct Solved {
+    solver: Arc<ArapSolver>,
+    solution: Arc<Solution>,
+    pose: RenderPose,
+    /// The preview `solver` belongs to, when the pose is one ([`DeformConfig::preview`]).
+    preview: Option<Arc<Preview>>,
+}
+
 struct SolveOutput {
-    result: Result<(Arc<ArapSolver>, Arc<Solution>, RenderPose), SolveError>,
+    result: Result<Solved, SolveError>,
     ms: f64,
     /// The constraints solved for (a settling solve reuses them).
     constraints: Constraints,
@@ -149,6 +163,14 @@ pub(crate) struct DeformState {
     attempted: bool,
     /// Settling iterations left since the handles last changed.
     settle_left: u32,
+    /// The preview of the current constraint sets and its solver, while the whole mesh is
+    /// factored ([`DeformConfig::preview`]).
+    preview: Option<(Arc<Preview>, Arc<ArapSolver>)>,
+    /// The whole mesh's factorization after a preview, in the background, and the
+    /// constraints it is for.
+    factoring: Option<(Constraints, Task<Result<ArapSolver, SolveError>>)>,
+    /// The constraints of the latest solve started (what a finished factorization resumes).
+    latest: Option<Constraints>,
 }
 
 impl DeformState {
@@ -252,6 +274,9 @@ fn prepare_deformables(
             ready: None,
             attempted: false,
             settle_left: 0,
+            preview: None,
+            factoring: None,
+            latest: None,
         });
     }
     for (entity, mut state, mut status) in &mut building {
@@ -399,11 +424,25 @@ fn spawn_solve(
         .solver
         .clone()
         .filter(|s| s.accepts(&constraints) && *s.settings() == settings);
-    status.phase = match (&reuse, settling) {
-        (None, _) => DeformPhase::Factorizing,
-        (Some(_), false) => DeformPhase::Solving,
-        (Some(_), true) => DeformPhase::Settling,
+    // Without the whole mesh's factorization: the current preview follows the handles, or a
+    // new constraint set gets a preview of its own (a large mesh, no region of interest).
+    let follow = match reuse {
+        Some(_) => None,
+        None => state.preview.as_ref().and_then(|(preview, solver)| {
+            let followed = preview.follow(&constraints)?;
+            Some((preview.clone(), solver.clone(), followed))
+        }),
     };
+    let region = match deformable.region_of_interest {
+        None if !settling => config.preview,
+        _ => None,
+    };
+    status.phase = match (&reuse, &follow, settling) {
+        (None, None, _) => DeformPhase::Factorizing,
+        (_, _, false) => DeformPhase::Solving,
+        (_, _, true) => DeformPhase::Settling,
+    };
+    state.latest = Some(constraints.clone());
     // A new factorization (set change) still continues from the displayed pose; the solver
     // drops acceleration history that belongs to another factorization.
     let warm = state.last.clone();
@@ -435,13 +474,27 @@ fn spawn_solve(
     state.task = Some(AsyncComputeTaskPool::get().spawn(async move {
         let t0 = std::time::Instant::now();
         let result = (|| {
-            let solver = match reuse {
-                Some(s) => s,
-                None => Arc::new(ArapSolver::precompute(
-                    rest.topology.clone(),
-                    &constraints,
-                    settings,
-                )?),
+            let (solver, preview, followed) = match (reuse, follow) {
+                (Some(solver), _) => (solver, None, None),
+                (None, Some((preview, solver, followed))) => {
+                    (solver, Some(preview), Some(followed))
+                }
+                (None, None) => {
+                    let current = warm
+                        .as_ref()
+                        .map_or(rest.topology.positions(), |w| &w.positions[..]);
+                    let preview = region
+                        .and_then(|r| r.preview(&rest.topology, &constraints, current))
+                        .map(Arc::new);
+                    let factored = preview.as_ref().map_or(&constraints, |p| p.constraints());
+                    let solver = ArapSolver::precompute(rest.topology.clone(), factored, settings)?;
+                    (Arc::new(solver), preview, None)
+                }
+            };
+            let solving = match (&followed, &preview) {
+                (Some(followed), _) => followed,
+                (None, Some(preview)) => preview.constraints(),
+                (None, None) => &constraints,
             };
             let init = match &warm {
                 Some(w) => InitialGuess::Warm(w),
@@ -453,13 +506,18 @@ fn spawn_solve(
                 calls.set(calls.get() + 1);
                 calls.get() > 1 && requested.load(Ordering::Relaxed) != generation
             };
-            let solution = solver.solve(&constraints, &options, init, &cancel)?;
+            let solution = solver.solve(solving, &options, init, &cancel)?;
             let pose = render_pose(&rest, &solution);
-            Ok((solver, Arc::new(solution), pose))
+            Ok(Solved {
+                solver,
+                solution: Arc::new(solution),
+                pose,
+                preview,
+            })
         })();
         let unsettled = result
             .as_ref()
-            .is_ok_and(|(_, s, _)| still_converging(&s.stats, &options));
+            .is_ok_and(|s| still_converging(&s.solution.stats, &options));
         SolveOutput {
             result,
             ms: t0.elapsed().as_secs_f64() * 1e3,
@@ -565,6 +623,7 @@ fn poll_tasks(
 ) {
     for (entity, deformable, mut state, mut status) in &mut deformables {
         let state = state.bypass_change_detection();
+        poll_factoring(entity, deformable, &config, state, &mut status, &mut failed);
         let Some(task) = state.task.as_mut() else {
             continue;
         };
@@ -572,24 +631,35 @@ fn poll_tasks(
             continue;
         };
         state.task = None;
-        let settle = out.unsettled && state.pending.is_none() && state.settle_left > 0;
+        let mut previewed = false;
         match out.result {
-            Ok((solver, solution, pose)) if finite(&pose) => {
-                status.iterations = solution.stats.iterations;
-                status.energy = solution.stats.final_energy();
+            Ok(s) if finite(&s.pose) => {
+                status.iterations = s.solution.stats.iterations;
+                status.energy = s.solution.stats.final_energy();
                 status.solve_ms = out.ms;
                 status.solves += 1;
                 status.error = None;
                 status.phase = DeformPhase::Idle;
+                status.preview = s.preview.is_some();
                 solved.write(DeformSolved {
                     entity,
-                    iterations: solution.stats.iterations,
+                    iterations: s.solution.stats.iterations,
                     energy: status.energy,
                     solve_ms: out.ms,
                 });
-                state.solver = Some(solver);
-                state.last = Some(solution);
-                state.ready = Some(pose);
+                match s.preview {
+                    Some(preview) => {
+                        previewed = true;
+                        state.preview = Some((preview, s.solver));
+                        factor_whole_mesh(state, deformable, &out.constraints);
+                    }
+                    None => {
+                        state.solver = Some(s.solver);
+                        state.preview = None;
+                    }
+                }
+                state.last = Some(s.solution);
+                state.ready = Some(s.pose);
             }
             Ok(_) => {
                 status.phase = DeformPhase::Idle;
@@ -607,7 +677,10 @@ fn poll_tasks(
             }
         }
         // A newer request arrived while solving: start it now with the freshest constraints.
-        // Otherwise, if that solve did not converge, settle on with the same constraints.
+        // Otherwise, if that solve did not converge, settle on with the same constraints (a
+        // preview does not settle: the whole mesh's solve follows it).
+        let settle =
+            out.unsettled && !previewed && state.pending.is_none() && state.settle_left > 0;
         let settling = settle && status.error.is_none();
         if settling {
             state.settle_left = state.settle_left.saturating_sub(status.iterations.max(1));
@@ -617,6 +690,81 @@ fn poll_tasks(
             && let Some(rest) = state.rest.clone()
         {
             spawn_solve(state, &rest, deformable, &config, &mut status, settling);
+        }
+        if state.task.is_none() && state.factoring.is_some() {
+            status.phase = DeformPhase::Factorizing;
+        }
+    }
+}
+
+/// After a preview of `constraints`: factor the whole mesh for them in the background,
+/// unless that is done or under way.
+fn factor_whole_mesh(state: &mut DeformState, deformable: &Deformable, constraints: &Constraints) {
+    let Some(rest) = state.rest.clone() else {
+        return;
+    };
+    let settings = solver_settings(deformable, &rest.topology);
+    let factored = state
+        .solver
+        .as_ref()
+        .is_some_and(|s| s.accepts(constraints) && *s.settings() == settings);
+    let under_way = state
+        .factoring
+        .as_ref()
+        .is_some_and(|(c, _)| c.same_sets(constraints));
+    if factored || under_way {
+        return;
+    }
+    let sets = constraints.clone();
+    let task = AsyncComputeTaskPool::get()
+        .spawn(async move { ArapSolver::precompute(rest.topology.clone(), &sets, settings) });
+    // A factorization for older sets is dropped (cancelled if it has not started).
+    state.factoring = Some((constraints.clone(), task));
+}
+
+/// A finished whole-mesh factorization replaces the preview and solves the latest
+/// constraints from the displayed pose (at once, or when the running solve lands).
+fn poll_factoring(
+    entity: Entity,
+    deformable: &Deformable,
+    config: &DeformConfig,
+    state: &mut DeformState,
+    status: &mut DeformStatus,
+    failed: &mut MessageWriter<DeformFailed>,
+) {
+    let Some((_, task)) = state.factoring.as_mut() else {
+        return;
+    };
+    let Some(result) = check_ready(task) else {
+        return;
+    };
+    state.factoring = None;
+    match result {
+        Ok(solver) => {
+            let latest = state.latest.clone();
+            if !latest.as_ref().is_some_and(|c| solver.accepts(c)) {
+                return; // the sets changed since: their own preview and factorization follow
+            }
+            state.solver = Some(Arc::new(solver));
+            state.preview = None;
+            if state.pending.is_none() {
+                state.pending = latest;
+                state.settle_left = config.settle_iterations;
+            }
+            if state.task.is_none()
+                && let Some(rest) = state.rest.clone()
+            {
+                spawn_solve(state, &rest, deformable, config, status, false);
+            }
+        }
+        Err(e) => {
+            // The preview stays on screen; the next change of the sets tries again.
+            if state.task.is_none() {
+                status.phase = DeformPhase::Idle;
+            }
+            let error = DeformError::from(e);
+            status.error = Some(error.clone());
+            failed.write(DeformFailed { entity, error });
         }
     }
 }
