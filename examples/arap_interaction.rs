@@ -9,7 +9,7 @@
 //! * `set_change_first_pose_ms`: the topology is built; the handle set changes (bottom → side
 //!   slab held, top → other side moved), then what `DeformPlugin` shows first: on a mesh of
 //!   more than 16 384 vertices a *preview* ([`PreviewRegion::default`]: only the vertices
-//!   within 0.25 × the diagonal of the new handle along the surface, at most 16 384 of them,
+//!   within 0.25 × the diagonal of the new handle along the surface, at most 8 192 of them,
 //!   move; the rest is held where it is) with its precompute and one iteration from the
 //!   current pose; on smaller meshes the whole mesh's. `preview_vertices`: how many vertices
 //!   that first pose moves. Median of 9.

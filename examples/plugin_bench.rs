@@ -328,6 +328,10 @@ fn run_set_changes(
         app.update();
         std::thread::yield_now();
     }
+    // The set-up's own solve messages are not a set change's.
+    app.world_mut()
+        .resource_mut::<Messages<DeformSolved>>()
+        .clear();
     app.world_mut().resource_mut::<Timing>().measuring = true;
     let frame = Duration::from_secs_f64(1.0 / fps.max(1.0));
     let held: std::collections::HashSet<u32> = fixed.iter().copied().collect();

@@ -1780,6 +1780,7 @@ fn a_set_change_on_a_large_mesh_is_previewed_then_solved_whole() {
     let region = deform::PreviewRegion {
         radius: 0.25,
         max_vertices: 100,
+        min_mesh_vertices: 100,
     };
     let (previewed, first, settled, tri, handle_at) = first_and_settled(Some(region));
     let (whole_previewed, whole_first, _, _, _) = first_and_settled(None);

@@ -1,8 +1,8 @@
 //! A first pose for a new constraint set without waiting for the whole mesh's factorization.
 //!
 //! On a large mesh the precompute of a new constraint set (a click on a painted region, a
-//! grab of a mesh with a fixed region) costs more than a frame: ~25 ms at 26k vertices and
-//! ~150 ms at 104k on two cores. A *preview* solves only the vertices near the handles, along
+//! grab of a mesh with a fixed region) costs several frames: with one iteration, ~40–50 ms at
+//! 26k vertices and ~170–240 ms at 104k on two cores. A *preview* solves only the vertices near the handles, along
 //! the surface, and holds every other vertex where the displayed pose has it; its system is
 //! small, so the first pose comes within a frame or two while the whole mesh is factored in
 //! the background (the first pose's figures are in the README, `arap_interaction`).
@@ -13,23 +13,27 @@ use super::constraints::Constraints;
 use super::topology::Topology;
 
 /// The region a preview solves: the vertices within `radius` × the bounding-box diagonal of
-/// the handles, along the surface, at most `max_vertices` of them (the nearest).
+/// the handles, along the surface, at most `max_vertices` of them (the nearest), on meshes of
+/// more than `min_mesh_vertices` vertices.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PreviewRegion {
     /// Radius along the surface, as a fraction of the mesh's bounding-box diagonal.
     pub radius: f64,
-    /// At most this many vertices move (the nearest to the handles). Meshes with no more
-    /// vertices than this are solved whole at once: the preview would not be smaller.
+    /// At most this many vertices move (the nearest to the handles).
     pub max_vertices: usize,
+    /// Meshes with no more vertices than this get no preview: their whole factorization is
+    /// about as quick.
+    pub min_mesh_vertices: usize,
 }
 
 impl Default for PreviewRegion {
-    /// A quarter of the diagonal, at most 16 384 vertices (a first pose in ~13 ms at 26k and
-    /// ~36 ms at 104k on two cores, see the README).
+    /// A quarter of the diagonal, at most 8 192 vertices, on meshes of more than 16 384 (a
+    /// first pose in ~12 ms at 26k and ~35–45 ms at 104k on two cores, see the README).
     fn default() -> Self {
         Self {
             radius: 0.25,
-            max_vertices: 16_384,
+            max_vertices: 8_192,
+            min_mesh_vertices: 16_384,
         }
     }
 }
@@ -40,8 +44,8 @@ impl PreviewRegion {
     /// that is its rest position (a cell of such vertices costs nothing to solve), else as a
     /// target — so the preview moves only the region and the rest of the pose stays as shown.
     ///
-    /// `None` when no preview is needed or possible: the mesh has at most `max_vertices`
-    /// vertices, the constraints have no handle or target to grow the region from, the region
+    /// `None` when no preview is needed or possible: the mesh has at most
+    /// `min_mesh_vertices` vertices, the constraints have no handle or target to grow the region from, the region
     /// already holds every free vertex, or `current` does not have one position per vertex.
     pub fn preview(
         &self,
@@ -50,7 +54,7 @@ impl PreviewRegion {
         current: &[DVec3],
     ) -> Option<Preview> {
         let n = topology.vertex_count();
-        if n <= self.max_vertices || current.len() != n {
+        if n <= self.min_mesh_vertices.max(self.max_vertices) || current.len() != n {
             return None;
         }
         let seeds: Vec<u32> = constraints
@@ -158,6 +162,7 @@ mod tests {
         let region = PreviewRegion {
             radius: 0.25,
             max_vertices: 200,
+            min_mesh_vertices: 200,
         };
         (topology, c, region)
     }
@@ -166,10 +171,10 @@ mod tests {
     fn no_preview_on_a_mesh_no_larger_than_the_region() {
         let (topology, c, mut region) = setup();
         let rest = topology.positions();
-        region.max_vertices = topology.vertex_count();
+        region.min_mesh_vertices = topology.vertex_count();
         assert!(region.preview(&topology, &c, rest).is_none());
         // Nor without a handle to grow from, nor with a pose of the wrong length.
-        region.max_vertices = 200;
+        region.min_mesh_vertices = 200;
         let mut fixed_only = c.clone();
         fixed_only.handles.clear();
         assert!(region.preview(&topology, &fixed_only, rest).is_none());

@@ -48,8 +48,8 @@ pub struct DeformConfig {
     /// A new constraint set on a mesh with more vertices than the region's `max_vertices` is
     /// first shown as a *preview*: only the vertices near the handles are solved (the rest
     /// held where they are shown), which takes a frame or two where the whole mesh's
-    /// factorization takes several (26k armadillo: ~15 against ~45 ms; 104k: ~50 against
-    /// ~220 ms, see the README). The whole mesh is then factored in the background and solved
+    /// factorization takes several (26k armadillo: ~12 against ~45 ms; 104k: ~35–45
+    /// against ~200 ms, see the README). The whole mesh is then factored in the background and solved
     /// on from the preview. `None`: always wait for the whole mesh. Not used on a
     /// [`Deformable`] with its own region of interest. Not reflected (a core type).
     #[reflect(ignore)]
