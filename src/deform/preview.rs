@@ -2,10 +2,10 @@
 //!
 //! On a large mesh the precompute of a new constraint set (a click on a painted region, a
 //! grab of a mesh with a fixed region) costs several frames: with one iteration, ~40–50 ms at
-//! 26k vertices and ~170–240 ms at 104k on two cores. A *preview* solves only the vertices near the handles, along
-//! the surface, and holds every other vertex where the displayed pose has it; its system is
-//! small, so the first pose comes within a frame or two while the whole mesh is factored in
-//! the background (the first pose's figures are in the README, `arap_interaction`).
+//! 26k vertices and ~170–240 ms at 104k on two cores. A *preview* solves only the vertices
+//! near the handles, along the surface, and holds every other vertex where the displayed pose
+//! has it; its system is small, so the first pose comes within a frame or two while the whole
+//! mesh is factored in the background (the figures are in the README, `arap_interaction`).
 
 use glam::DVec3;
 
@@ -45,8 +45,9 @@ impl PreviewRegion {
     /// target — so the preview moves only the region and the rest of the pose stays as shown.
     ///
     /// `None` when no preview is needed or possible: the mesh has at most
-    /// `min_mesh_vertices` vertices, the constraints have no handle or target to grow the region from, the region
-    /// already holds every free vertex, or `current` does not have one position per vertex.
+    /// `min_mesh_vertices` (or `max_vertices`) vertices, the constraints have no handle or
+    /// target to grow the region from, the region already holds every free vertex, or
+    /// `current` does not have one position per vertex.
     pub fn preview(
         &self,
         topology: &Topology,
