@@ -69,6 +69,14 @@ fn drag_grab(
     }
 }
 
+/// The `p`-quantile (0–1, nearest rank) of ascending `sorted` values; NaN when there are none.
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    sorted
+        .get(((sorted.len().max(1) - 1) as f64 * p).round() as usize)
+        .copied()
+        .unwrap_or(f64::NAN)
+}
+
 /// Bounding-box diagonal of the benchmark mesh.
 #[derive(Resource)]
 struct Diagonal(f32);
@@ -220,7 +228,6 @@ fn main() {
     let status = app.world().get::<DeformStatus>(e).unwrap().clone();
     let mut ms = app.world().resource::<Timing>().frames_ms.clone();
     ms.sort_by(f64::total_cmp);
-    let pct = |p: f64| ms[((ms.len() - 1) as f64 * p).round() as usize];
     eprintln!(
         "last solve: {} iterations, energy {:.5}, {:.2} ms",
         status.iterations, status.energy, status.solve_ms
@@ -230,8 +237,8 @@ fn main() {
         serde_json::json!({
             "vertices": status.vertices,
             "frames": ms.len(),
-            "main_ms_median": pct(0.5),
-            "main_ms_p99": pct(0.99),
+            "main_ms_median": percentile(&ms, 0.5),
+            "main_ms_p99": percentile(&ms, 0.99),
             "solves_per_s": (status.solves - solves0) as f64 / elapsed,
         })
     );
@@ -289,11 +296,6 @@ fn run_grabs(app: &mut App, e: Entity, tri: &TriMesh, seconds: f64, fps: f64) {
     let mut ms = app.world().resource::<Timing>().frames_ms.clone();
     ms.sort_by(f64::total_cmp);
     latencies.sort_by(f64::total_cmp);
-    let pct = |v: &[f64], p: f64| {
-        v.get(((v.len().max(1) - 1) as f64 * p).round() as usize)
-            .copied()
-            .unwrap_or(f64::NAN)
-    };
     eprintln!("grab → first pose, ms: {latencies:.1?}");
     eprintln!(
         "of which the first solve on the worker (factorization of the region + iterations), ms: {worker_ms:.1?}"
@@ -303,12 +305,12 @@ fn run_grabs(app: &mut App, e: Entity, tri: &TriMesh, seconds: f64, fps: f64) {
         serde_json::json!({
             "vertices": app.world().get::<DeformStatus>(e).unwrap().vertices,
             "frames": ms.len(),
-            "main_ms_median": pct(&ms, 0.5),
-            "main_ms_p99": pct(&ms, 0.99),
+            "main_ms_median": percentile(&ms, 0.5),
+            "main_ms_p99": percentile(&ms, 0.99),
             "solves_per_s": solves as f64 / start.elapsed().as_secs_f64(),
             "grabs": latencies.len(),
-            "grab_to_first_pose_ms_median": pct(&latencies, 0.5),
-            "grab_to_first_pose_ms_p95": pct(&latencies, 0.95),
+            "grab_to_first_pose_ms_median": percentile(&latencies, 0.5),
+            "grab_to_first_pose_ms_p95": percentile(&latencies, 0.95),
         })
     );
 }
@@ -404,11 +406,6 @@ fn run_set_changes(
     );
     first.sort_by(f64::total_cmp);
     whole.sort_by(f64::total_cmp);
-    let pct = |v: &[f64], p: f64| {
-        v.get(((v.len().max(1) - 1) as f64 * p).round() as usize)
-            .copied()
-            .unwrap_or(f64::NAN)
-    };
     eprintln!("set change → first pose, ms ({previewed} previews): {first:.1?}");
     eprintln!("set change → first whole-mesh pose, ms: {whole:.1?}");
     println!(
@@ -416,13 +413,13 @@ fn run_set_changes(
         serde_json::json!({
             "vertices": app.world().get::<DeformStatus>(e).unwrap().vertices,
             "frames": ms.len(),
-            "main_ms_median": pct(&ms, 0.5),
-            "main_ms_p99": pct(&ms, 0.99),
+            "main_ms_median": percentile(&ms, 0.5),
+            "main_ms_p99": percentile(&ms, 0.99),
             "set_changes": first.len(),
             "previews": previewed,
-            "set_change_to_first_pose_ms_median": pct(&first, 0.5),
-            "set_change_to_first_pose_ms_p95": pct(&first, 0.95),
-            "set_change_to_whole_pose_ms_median": pct(&whole, 0.5),
+            "set_change_to_first_pose_ms_median": percentile(&first, 0.5),
+            "set_change_to_first_pose_ms_p95": percentile(&first, 0.95),
+            "set_change_to_whole_pose_ms_median": percentile(&whole, 0.5),
         })
     );
 }

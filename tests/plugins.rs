@@ -1666,6 +1666,36 @@ fn the_pointer_grabs_a_posed_character_drags_twists_and_releases() {
     );
 }
 
+/// The core's converged pose (render order) of the bar of [`spawn_bar`] with its handle
+/// entity's `Transform` at `handle_at`, and the bar's bounding diagonal.
+fn converged_bar_pose(tri: &deform::TriMesh, handle_at: &Transform) -> (Vec<DVec3>, f64) {
+    let topology = Arc::new(Topology::new(&tri.positions, &tri.triangles).unwrap());
+    let (fixed, hv) = regions(tri);
+    let pivot = deform::centroid(&tri.positions, &hv).as_vec3();
+    let c = Constraints::with_handle(
+        fixed,
+        hv,
+        RigidTransform::new(
+            handle_at.rotation.as_dquat(),
+            (handle_at.translation - pivot).as_dvec3(),
+            pivot.as_dvec3(),
+        ),
+    );
+    let solver = ArapSolver::precompute(topology.clone(), &c, SolverSettings::default()).unwrap();
+    let options = SolveOptions {
+        max_iterations: 3000,
+        tolerance: 0.0,
+        acceleration: deform::Acceleration::Lbfgs { depth: 8 },
+    };
+    let star = solver
+        .solve(&c, &options, InitialGuess::Laplacian, &|| false)
+        .unwrap();
+    (
+        topology.to_render(&star.positions),
+        topology.bounding_diagonal(),
+    )
+}
+
 /// After the handle stops, the plugin keeps iterating (warm, in the background) until the pose
 /// has converged: the released pose ends within 5e-4 × the diagonal of the core's converged
 /// pose. With settling off, the pose freezes where the last solve of the move left it, farther
@@ -1700,36 +1730,13 @@ fn a_released_handle_settles_to_the_converged_pose() {
     let (frozen, _, _, frozen_solves) = run(0);
 
     // The converged pose for the same constraints, from the core.
-    let topology = Arc::new(Topology::new(&tri.positions, &tri.triangles).unwrap());
-    let (fixed, hv) = regions(&tri);
-    let pivot = deform::centroid(&tri.positions, &hv).as_vec3();
-    let moved = handle_at.translation - pivot;
-    let c = Constraints::with_handle(
-        fixed,
-        hv,
-        RigidTransform::new(
-            handle_at.rotation.as_dquat(),
-            moved.as_dvec3(),
-            pivot.as_dvec3(),
-        ),
-    );
-    let solver = ArapSolver::precompute(topology.clone(), &c, SolverSettings::default()).unwrap();
-    let options = SolveOptions {
-        max_iterations: 3000,
-        tolerance: 0.0,
-        acceleration: deform::Acceleration::Lbfgs { depth: 8 },
-    };
-    let star = solver
-        .solve(&c, &options, InitialGuess::Laplacian, &|| false)
-        .unwrap();
-    let want = topology.to_render(&star.positions);
+    let (want, diagonal) = converged_bar_pose(&tri, &handle_at);
     let worst = |got: &[Vec3]| {
         got.iter()
             .zip(&want)
             .map(|(a, b)| (a.as_dvec3() - *b).length())
             .fold(0.0, f64::max)
     };
-    let diagonal = topology.bounding_diagonal();
     let (settled_err, frozen_err) = (worst(&settled), worst(&frozen));
     assert!(
         settled_err <= 5e-4 * diagonal,
@@ -1814,34 +1821,14 @@ fn a_set_change_on_a_large_mesh_is_previewed_then_solved_whole() {
     );
 
     // Settled: the whole mesh's converged pose.
-    let topology = Arc::new(Topology::new(&tri.positions, &tri.triangles).unwrap());
-    let pivot = deform::centroid(&tri.positions, &hv).as_vec3();
-    let c = Constraints::with_handle(
-        fixed,
-        hv,
-        RigidTransform::new(
-            handle_at.rotation.as_dquat(),
-            (handle_at.translation - pivot).as_dvec3(),
-            pivot.as_dvec3(),
-        ),
-    );
-    let solver = ArapSolver::precompute(topology.clone(), &c, SolverSettings::default()).unwrap();
-    let options = SolveOptions {
-        max_iterations: 3000,
-        tolerance: 0.0,
-        acceleration: deform::Acceleration::Lbfgs { depth: 8 },
-    };
-    let star = solver
-        .solve(&c, &options, InitialGuess::Laplacian, &|| false)
-        .unwrap();
-    let want = topology.to_render(&star.positions);
+    let (want, diagonal) = converged_bar_pose(&tri, &handle_at);
     let worst = settled
         .iter()
         .zip(&want)
         .map(|(a, b)| (a.as_dvec3() - *b).length())
         .fold(0.0, f64::max);
     assert!(
-        worst <= 5e-4 * topology.bounding_diagonal(),
+        worst <= 5e-4 * diagonal,
         "settled {worst} from the whole mesh's converged pose"
     );
 }
