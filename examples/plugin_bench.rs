@@ -77,6 +77,34 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
         .unwrap_or(f64::NAN)
 }
 
+/// Sleeps out the rest of a frame of length `frame` that began at `began`.
+fn pace(frame: Duration, began: Instant) {
+    if let Some(rest) = frame.checked_sub(began.elapsed()) {
+        std::thread::sleep(rest);
+    }
+}
+
+/// The JSON fields every mode reports: the mesh's vertices and the main thread's frame times
+/// (count, median, p99) while measuring; each mode adds its own.
+fn main_thread_report(app: &App, e: Entity) -> serde_json::Map<String, serde_json::Value> {
+    let mut ms = app.world().resource::<Timing>().frames_ms.clone();
+    ms.sort_by(f64::total_cmp);
+    object(serde_json::json!({
+        "vertices": app.world().get::<DeformStatus>(e).unwrap().vertices,
+        "frames": ms.len(),
+        "main_ms_median": percentile(&ms, 0.5),
+        "main_ms_p99": percentile(&ms, 0.99),
+    }))
+}
+
+/// The fields of a JSON object literal.
+fn object(value: serde_json::Value) -> serde_json::Map<String, serde_json::Value> {
+    match value {
+        serde_json::Value::Object(fields) => fields,
+        _ => unreachable!("a JSON object literal"),
+    }
+}
+
 /// Bounding-box diagonal of the benchmark mesh.
 #[derive(Resource)]
 struct Diagonal(f32);
@@ -220,28 +248,19 @@ fn main() {
     while start.elapsed().as_secs_f64() < seconds {
         let f0 = Instant::now();
         app.update();
-        if let Some(rest) = frame.checked_sub(f0.elapsed()) {
-            std::thread::sleep(rest);
-        }
+        pace(frame, f0);
     }
     let elapsed = start.elapsed().as_secs_f64();
     let status = app.world().get::<DeformStatus>(e).unwrap().clone();
-    let mut ms = app.world().resource::<Timing>().frames_ms.clone();
-    ms.sort_by(f64::total_cmp);
     eprintln!(
         "last solve: {} iterations, energy {:.5}, {:.2} ms",
         status.iterations, status.energy, status.solve_ms
     );
-    println!(
-        "{}",
-        serde_json::json!({
-            "vertices": status.vertices,
-            "frames": ms.len(),
-            "main_ms_median": percentile(&ms, 0.5),
-            "main_ms_p99": percentile(&ms, 0.99),
-            "solves_per_s": (status.solves - solves0) as f64 / elapsed,
-        })
-    );
+    let mut report = main_thread_report(&app, e);
+    report.extend(object(serde_json::json!({
+        "solves_per_s": (status.solves - solves0) as f64 / elapsed,
+    })));
+    println!("{}", serde_json::Value::Object(report));
 }
 
 /// `--grab`: a new grab every second; prints the JSON line with grab latencies.
@@ -289,30 +308,21 @@ fn run_grabs(app: &mut App, e: Entity, tri: &TriMesh, seconds: f64, fps: f64) {
             latencies.push(t.elapsed().as_secs_f64() * 1e3);
             worker_ms.push(app.world().get::<DeformStatus>(e).unwrap().solve_ms);
         }
-        if let Some(rest) = frame.checked_sub(f0.elapsed()) {
-            std::thread::sleep(rest);
-        }
+        pace(frame, f0);
     }
-    let mut ms = app.world().resource::<Timing>().frames_ms.clone();
-    ms.sort_by(f64::total_cmp);
     latencies.sort_by(f64::total_cmp);
     eprintln!("grab → first pose, ms: {latencies:.1?}");
     eprintln!(
         "of which the first solve on the worker (factorization of the region + iterations), ms: {worker_ms:.1?}"
     );
-    println!(
-        "{}",
-        serde_json::json!({
-            "vertices": app.world().get::<DeformStatus>(e).unwrap().vertices,
-            "frames": ms.len(),
-            "main_ms_median": percentile(&ms, 0.5),
-            "main_ms_p99": percentile(&ms, 0.99),
-            "solves_per_s": solves as f64 / start.elapsed().as_secs_f64(),
-            "grabs": latencies.len(),
-            "grab_to_first_pose_ms_median": percentile(&latencies, 0.5),
-            "grab_to_first_pose_ms_p95": percentile(&latencies, 0.95),
-        })
-    );
+    let mut report = main_thread_report(app, e);
+    report.extend(object(serde_json::json!({
+        "solves_per_s": solves as f64 / start.elapsed().as_secs_f64(),
+        "grabs": latencies.len(),
+        "grab_to_first_pose_ms_median": percentile(&latencies, 0.5),
+        "grab_to_first_pose_ms_p95": percentile(&latencies, 0.95),
+    })));
+    println!("{}", serde_json::Value::Object(report));
 }
 
 /// `--set-changes`: a new handle set every second; prints the JSON line with the latencies to
@@ -394,12 +404,8 @@ fn run_set_changes(
                 changed = None;
             }
         }
-        if let Some(rest) = frame.checked_sub(f0.elapsed()) {
-            std::thread::sleep(rest);
-        }
+        pace(frame, f0);
     }
-    let mut ms = app.world().resource::<Timing>().frames_ms.clone();
-    ms.sort_by(f64::total_cmp);
     let (mut first, mut whole): (Vec<f64>, Vec<f64>) = (
         first.into_iter().filter(|m| !m.is_nan()).collect(),
         whole.into_iter().filter(|m| !m.is_nan()).collect(),
@@ -408,18 +414,13 @@ fn run_set_changes(
     whole.sort_by(f64::total_cmp);
     eprintln!("set change → first pose, ms ({previewed} previews): {first:.1?}");
     eprintln!("set change → first whole-mesh pose, ms: {whole:.1?}");
-    println!(
-        "{}",
-        serde_json::json!({
-            "vertices": app.world().get::<DeformStatus>(e).unwrap().vertices,
-            "frames": ms.len(),
-            "main_ms_median": percentile(&ms, 0.5),
-            "main_ms_p99": percentile(&ms, 0.99),
-            "set_changes": first.len(),
-            "previews": previewed,
-            "set_change_to_first_pose_ms_median": percentile(&first, 0.5),
-            "set_change_to_first_pose_ms_p95": percentile(&first, 0.95),
-            "set_change_to_whole_pose_ms_median": percentile(&whole, 0.5),
-        })
-    );
+    let mut report = main_thread_report(app, e);
+    report.extend(object(serde_json::json!({
+        "set_changes": first.len(),
+        "previews": previewed,
+        "set_change_to_first_pose_ms_median": percentile(&first, 0.5),
+        "set_change_to_first_pose_ms_p95": percentile(&first, 0.95),
+        "set_change_to_whole_pose_ms_median": percentile(&whole, 0.5),
+    })));
+    println!("{}", serde_json::Value::Object(report));
 }
