@@ -1,4 +1,12 @@
-#![doc = include_str!("../README.md")]
+//! Bevy 0.19 plugins for posing and playfully editing 3D meshes in-engine with
+//! As-Rigid-As-Possible deformation, driven by the mouse, a pointer grab, or a Nintendo Wii
+//! Remote with the MotionPlus gyroscope.
+//!
+//! Start with [`prelude`] and the `playground` example; the plugins and their system sets are
+//! listed in [`ecs`]. The guide below covers the layers, deforming meshes, posing characters and
+//! the core without Bevy.
+//!
+#![doc = include_str!("../docs/guide.md")]
 #![warn(missing_docs)]
 
 pub mod deform;
@@ -16,14 +24,14 @@ pub mod prelude {
     pub use crate::ecs::{
         ConnectionState, DeformConfig, DeformError, DeformFailed, DeformHandle, DeformPhase,
         DeformPlugin, DeformSolved, DeformStatus, DeformSystems, Deformable, DeformableFrom,
-        DeformableScene, FixedRegion, GrabEnd, GrabMove, GrabPlugin, GrabStart, GrabTwist,
-        Grabbable, MouseControlPlugin, MouseHandleControl, PinnedJoints, PoseFailed,
-        PoseJointHandle, PosePlugin, PoseSolved, PoseStatus, PoseSystems, Poseable, PoseableError,
-        PosedSkeleton, WiiDeformPlugins, Wiimote, WiimoteButtonChanged, WiimoteCalibration,
-        WiimoteConnected, WiimoteControlPlugin, WiimoteDisconnected, WiimoteEmulators,
-        WiimoteFilter, WiimoteHandleControl, WiimoteLink, WiimoteOrientationChanged, WiimotePlugin,
-        WiimoteProblem, WiimoteProblems, WiimoteSettings, WiimoteSource, WiimoteSystems,
-        mesh_from_triangles,
+        DeformableScene, FixedRegion, GrabAnchor, GrabButton, GrabEnd, GrabMove, GrabPlugin,
+        GrabStart, GrabTwist, Grabbable, MouseControlPlugin, MouseHandleControl, PinnedJoints,
+        PoseFailed, PoseJointHandle, PosePlugin, PoseSolved, PoseStatus, PoseSystems, Poseable,
+        PoseableError, PosedSkeleton, WiiDeformPlugins, Wiimote, WiimoteButtonChanged,
+        WiimoteCalibration, WiimoteConnected, WiimoteControlPlugin, WiimoteDisconnected,
+        WiimoteEmulators, WiimoteFilter, WiimoteHandleControl, WiimoteLink,
+        WiimoteOrientationChanged, WiimotePlugin, WiimoteProblem, WiimoteProblems, WiimoteSettings,
+        WiimoteSource, WiimoteSystems, mesh_from_triangles,
     };
     pub use crate::wiimote::{EmulatorConfig, EmulatorControls, FilterKind, RemoteProblem};
 }

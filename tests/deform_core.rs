@@ -1,5 +1,8 @@
 //! Integration tests of the deformation core against independent references.
 
+#[path = "common/shared.rs"]
+mod shared;
+
 use std::sync::Arc;
 
 use bevy_wii_deform::deform::*;
@@ -651,23 +654,22 @@ fn raw_weights_are_an_option_and_clamped_are_default() {
             weights,
             ..Default::default()
         };
-        // Either a solution or a typed error; never a panic or NaN.
-        if let Ok(solver) = ArapSolver::precompute(t.clone(), &c, s) {
-            let sol = solver
-                .solve(&c, &SolveOptions::default(), InitialGuess::Laplacian, NEVER)
-                .unwrap();
-            assert!(sol.positions.iter().all(|p| p.is_finite()));
-        }
+        // On a well-shaped icosphere every cotangent weight is positive: both modes must
+        // factor and solve to finite positions (a mode that fails is a bug, not an option).
+        let solver = ArapSolver::precompute(t.clone(), &c, s)
+            .unwrap_or_else(|e| panic!("{weights:?} does not factor: {e}"));
+        let sol = solver
+            .solve(&c, &SolveOptions::default(), InitialGuess::Laplacian, NEVER)
+            .unwrap_or_else(|e| panic!("{weights:?} does not solve: {e}"));
+        assert!(sol.positions.iter().all(|p| p.is_finite()), "{weights:?}");
     }
 }
 
 #[test]
 fn shared_meshes_load_when_present() {
-    let dir = std::path::Path::new("../shared/meshes");
-    if !dir.exists() {
-        eprintln!("skipping: ../shared/meshes is absent");
+    let Some(dir) = shared::shared_asset("meshes") else {
         return;
-    }
+    };
     for name in ["armadillo.off", "camel.off", "dino.off", "cactus.off"] {
         let m = TriMesh::read(dir.join(name)).unwrap();
         let t = Topology::new(&m.positions, &m.triangles).unwrap();
@@ -679,11 +681,11 @@ fn shared_meshes_load_when_present() {
 
 /// Positions and triangles of every triangle primitive of a glTF file (node transforms
 /// ignored: the test assets used here are single meshes at the origin).
-fn gltf_triangles(path: &str) -> Option<(Vec<DVec3>, Vec<[u32; 3]>)> {
-    let Ok((doc, buffers, _)) = gltf::import(path) else {
-        eprintln!("SKIPPED: {path} not found (the shared test assets sit beside the project root)");
-        return None;
-    };
+/// `None` when the asset is absent outside CI; a file that is present but does not parse fails.
+fn gltf_triangles(relative: &str) -> Option<(Vec<DVec3>, Vec<[u32; 3]>)> {
+    let path = shared::shared_asset(relative)?;
+    let (doc, buffers, _) =
+        gltf::import(&path).unwrap_or_else(|e| panic!("{} does not import: {e}", path.display()));
     let (mut positions, mut triangles) = (Vec::new(), Vec::new());
     for mesh in doc.meshes() {
         for prim in mesh.primitives() {
@@ -691,10 +693,15 @@ fn gltf_triangles(path: &str) -> Option<(Vec<DVec3>, Vec<[u32; 3]>)> {
             let base = positions.len() as u32;
             positions.extend(
                 reader
-                    .read_positions()?
+                    .read_positions()
+                    .expect("a primitive without positions")
                     .map(|p| DVec3::from(p.map(f64::from))),
             );
-            let idx: Vec<u32> = reader.read_indices()?.into_u32().collect();
+            let idx: Vec<u32> = reader
+                .read_indices()
+                .expect("a primitive without indices")
+                .into_u32()
+                .collect();
             triangles.extend(
                 idx.chunks_exact(3)
                     .map(|t| [t[0] + base, t[1] + base, t[2] + base]),
@@ -718,7 +725,7 @@ fn edge_uses(triangles: &[[u32; 3]]) -> std::collections::HashMap<(u32, u32), u3
 
 #[test]
 fn a_gltf_sphere_split_at_its_uv_seam_welds_to_one_closed_surface() {
-    let Some((positions, triangles)) = gltf_triangles("../shared/models/sphere.gltf") else {
+    let Some((positions, triangles)) = gltf_triangles("models/sphere.gltf") else {
         return;
     };
     let none = Topology::with_weld(&positions, &triangles, WeldPolicy::None).unwrap();

@@ -14,17 +14,7 @@ use bevy_wii_deform::wiimote::{FnMotion, Still};
 use glam::{DQuat, DVec3};
 
 mod common;
-
-fn app() -> App {
-    let mut app = App::new();
-    app.add_plugins((
-        MinimalPlugins,
-        bevy::asset::AssetPlugin::default(),
-        bevy::mesh::MeshPlugin,
-        bevy::transform::TransformPlugin,
-    ));
-    app
-}
+use common::{app, cursor_to, pointer, spawn_camera, to_screen};
 
 fn bar_mesh() -> (Mesh, deform::TriMesh) {
     let tri = synth::bar(12, 30, 0.1, 1.0);
@@ -713,29 +703,6 @@ fn deformable_on_an_ancestor_applies_to_the_meshes_below_it() {
     );
 }
 
-/// A 3D camera with the values the renderer would compute for a 1280×720 window (headless
-/// tests have no renderer).
-fn spawn_camera(app: &mut App, transform: Transform) -> Entity {
-    let mut camera = Camera::default();
-    camera.computed.target_info = Some(bevy::camera::RenderTargetInfo {
-        physical_size: UVec2::new(1280, 720),
-        scale_factor: 1.0,
-    });
-    let mut perspective = PerspectiveProjection::default();
-    bevy::camera::CameraProjection::update(&mut perspective, 1280.0, 720.0);
-    camera.computed.clip_from_view =
-        bevy::camera::CameraProjection::get_clip_from_view(&perspective);
-    app.world_mut()
-        .spawn((
-            Camera3d::default(),
-            camera,
-            Projection::Perspective(perspective),
-            transform,
-            GlobalTransform::from(transform),
-        ))
-        .id()
-}
-
 /// Where a world point along the ray through `cursor` meets the plane through `at` facing the
 /// camera.
 fn under_cursor(app: &mut App, camera: Entity, at: Vec3, cursor: Vec2) -> Vec3 {
@@ -747,12 +714,6 @@ fn under_cursor(app: &mut App, camera: Entity, at: Vec3, cursor: Vec2) -> Vec3 {
     let ray = cam.viewport_to_world(&tf, cursor).unwrap();
     let normal = *tf.forward();
     ray.origin + *ray.direction * ((at - ray.origin).dot(normal) / ray.direction.dot(normal))
-}
-
-fn to_screen(app: &mut App, camera: Entity, at: Vec3) -> Vec2 {
-    let mut q = app.world_mut().query::<(&Camera, &GlobalTransform)>();
-    let (c, t) = q.get(app.world(), camera).unwrap();
-    c.world_to_viewport(t, at).unwrap()
 }
 
 /// Updates until the deformable has been idle (no solve in flight, none landed) for 20 frames.
@@ -771,16 +732,6 @@ fn settle(app: &mut App, e: Entity) {
             0
         };
     }
-}
-
-fn cursor_to(app: &mut App, at: Vec2) {
-    let mut windows = app
-        .world_mut()
-        .query_filtered::<&mut Window, With<bevy::window::PrimaryWindow>>();
-    windows
-        .single_mut(app.world_mut())
-        .unwrap()
-        .set_cursor_position(Some(at));
 }
 
 #[test]
@@ -1464,26 +1415,6 @@ fn a_mouse_drag_moves_a_character_handle_with_the_cursor() {
 }
 
 /// A pointer press at `at` (viewport pixels) on the primary window, or a move/scroll/release.
-fn pointer(app: &mut App, at: Vec2, action: bevy::picking::pointer::PointerAction) {
-    let window = app
-        .world_mut()
-        .query_filtered::<Entity, With<bevy::window::PrimaryWindow>>()
-        .single(app.world())
-        .unwrap();
-    let target = bevy::camera::RenderTarget::Window(bevy::window::WindowRef::Primary)
-        .normalize(Some(window))
-        .unwrap();
-    let location = bevy::picking::pointer::Location {
-        target,
-        position: at,
-    };
-    app.world_mut()
-        .write_message(bevy::picking::pointer::PointerInput::new(
-            PointerId::Mouse,
-            location,
-            action,
-        ));
-}
 
 /// `GrabPlugin` grabs a *posed* character from the raw pointer input (Bevy's picking sees only
 /// the bind pose of skinned meshes): the press picks the CPU-skinned surface, motion drags the
@@ -1492,7 +1423,11 @@ fn pointer(app: &mut App, at: Vec2, action: bevy::picking::pointer::PointerActio
 #[test]
 fn the_pointer_grabs_a_posed_character_drags_twists_and_releases() {
     use bevy::picking::pointer::{PointerAction, PointerButton};
-    let (mut app, camera, rig, root, _) = character_app((DeformPlugin::default(), GrabPlugin));
+    let (mut app, camera, rig, root, _) = character_app((
+        DeformPlugin::default(),
+        GrabPlugin,
+        common::picking_plugins(),
+    ));
     app.world_mut().entity_mut(root).insert(Grabbable {
         radius: 0.12,
         region_radius: 1.0,

@@ -1,24 +1,13 @@
 //! The skinning-space pose solver on generated rigs: skinning, recovery of known poses,
 //! monotone energy, rigid bones, degenerate skins, pose files and clips.
 
-use std::sync::Arc;
-
 use bevy_wii_deform::deform::{Handle, RigidTransform};
 use bevy_wii_deform::pose::synth_rig::{SyntheticRig, bar_rig, mannequin_rig};
 use bevy_wii_deform::pose::*;
 use glam::{DAffine3, DQuat, DVec3, Vec3};
 
-fn model_of(rig: &SyntheticRig) -> Arc<SkinnedModel> {
-    Arc::new(
-        SkinnedModel::new(
-            rig.skeleton.clone(),
-            &rig.mesh,
-            &rig.rest,
-            ModelSettings::default(),
-        )
-        .unwrap(),
-    )
-}
+mod common;
+use common::model_of;
 
 /// The bar rig posed by forward kinematics: joint 1 bent 35° about z, joint 2 25° about x.
 fn known_pose(rig: &SyntheticRig) -> SkeletonPose {

@@ -14,14 +14,8 @@ mod common;
 use common::{drive_solves, spawn_handle, spawn_rig, update_until};
 
 fn app() -> App {
-    let mut app = App::new();
-    app.add_plugins((
-        MinimalPlugins,
-        bevy::asset::AssetPlugin::default(),
-        bevy::mesh::MeshPlugin,
-        bevy::transform::TransformPlugin,
-        PosePlugin,
-    ));
+    let mut app = common::app();
+    app.add_plugins(PosePlugin);
     app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_millis(
         16,
     )));
@@ -199,60 +193,11 @@ fn an_entity_without_a_skin_gets_a_typed_error() {
 /// 24 joints; a handle on the head's vertices moves them, the feet joints pinned stay.
 #[test]
 fn the_fox_from_bevys_gltf_loader_is_poseable() {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/models");
-    if !dir.join("Fox.glb").exists() {
-        eprintln!("SKIPPED: ../shared/models/Fox.glb is not present");
+    let Some(dir) = common::shared::shared_asset("models") else {
         return;
-    }
-    let mut app = App::new();
-    app.add_plugins((
-        MinimalPlugins,
-        bevy::asset::AssetPlugin {
-            file_path: dir.display().to_string(),
-            // The saved clip is written to a temporary directory outside the asset folder.
-            unapproved_path_mode: bevy::asset::UnapprovedPathMode::Allow,
-            ..default()
-        },
-        bevy::mesh::MeshPlugin,
-        bevy::transform::TransformPlugin,
-        bevy::image::ImagePlugin::default(),
-        bevy::world_serialization::WorldSerializationPlugin,
-        bevy::animation::AnimationPlugin,
-        bevy::gltf::GltfPlugin::default(),
-        PosePlugin,
-    ));
-    app.init_asset::<StandardMaterial>();
-    // The glTF loader is registered in `Plugin::finish` (which `App::run` calls).
-    app.finish();
-    app.cleanup();
-    app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_millis(
-        16,
-    )));
-    // Materials (and so textures) are not needed to pose; the test app has no renderer.
-    let scene = app
-        .world()
-        .resource::<AssetServer>()
-        .load_builder()
-        .with_settings(|s: &mut bevy::gltf::GltfLoaderSettings| {
-            s.load_materials = bevy::asset::RenderAssetUsages::empty();
-            s.load_cameras = false;
-            s.load_lights = false;
-        })
-        .load(GltfAssetLabel::Scene(0).from_asset("Fox.glb"));
-    let root = app
-        .world_mut()
-        .spawn((
-            bevy::world_serialization::WorldAssetRoot(scene),
-            Poseable::default(),
-        ))
-        .id();
-    update_until(&mut app, "the Fox's model", |a| {
-        a.world().get::<PosedSkeleton>(root).is_some()
-            || a.world()
-                .get::<PoseStatus>(root)
-                .is_some_and(|s| s.error.is_some())
-    });
-    assert_eq!(app.world().get::<PoseStatus>(root).unwrap().error, None);
+    };
+    assert!(dir.join("Fox.glb").exists(), "../shared/models/Fox.glb");
+    let (mut app, root) = common::fox_app(&dir, PosePlugin);
     let posed = app.world().get::<PosedSkeleton>(root).unwrap().clone();
     assert_eq!(posed.joints.len(), 24);
     let names: Vec<String> = posed

@@ -1,6 +1,7 @@
-//! Mouse grab on the posed character through the library's `GrabPlugin` (it ray-casts the
-//! CPU-skinned triangles: Bevy's mesh ray cast sees the bind pose of skinned meshes); F toggles
-//! the feet pins; with `--remote`, a Wii Remote drives a handle on the head.
+//! Mouse grab on the posed character through the library's `GrabPlugin` (the pose plugin is a
+//! picking backend that hits the CPU-skinned triangles: Bevy's mesh picking sees the bind pose
+//! of skinned meshes); F toggles the feet pins; with `--remote`, a Wii Remote drives a handle
+//! on the head.
 
 use bevy::prelude::*;
 use bevy_wii_deform::prelude::*;
@@ -34,7 +35,7 @@ fn make_grabbable(
         let size = posed.model.topology().bounding_diagonal() as f32;
         commands.entity(entity).insert(Grabbable {
             radius: RADIUS * size,
-            region_radius: size,
+            region_radius: 0.4 * size,
             ..default()
         });
     }

@@ -5,7 +5,7 @@
 //! 26k vertices and ~170–240 ms at 104k on two cores. A *preview* solves only the vertices
 //! near the handles, along the surface, and holds every other vertex where the displayed pose
 //! has it; its system is small, so the first pose comes within a frame or two while the whole
-//! mesh is factored in the background (the figures are in the README, `arap_interaction`).
+//! mesh is factored in the background (the figures are in docs/benchmarks.md, `arap_interaction`).
 
 use glam::DVec3;
 
@@ -28,7 +28,7 @@ pub struct PreviewRegion {
 
 impl Default for PreviewRegion {
     /// A quarter of the diagonal, at most 8 192 vertices, on meshes of more than 16 384 (a
-    /// first pose in ~12 ms at 26k and ~35–45 ms at 104k on two cores, see the README).
+    /// first pose in ~12 ms at 26k and ~35–45 ms at 104k on two cores, see docs/benchmarks.md).
     fn default() -> Self {
         Self {
             radius: 0.25,

@@ -21,8 +21,8 @@ use bevy::app::PluginGroupBuilder;
 use bevy::prelude::*;
 
 pub use character::{
-    PinnedJoints, PoseFailed, PoseJointHandle, PosePlugin, PoseSolved, PoseStatus, PoseSystems,
-    Poseable, PoseableError, PosedSkeleton,
+    GrabAnchor, HandlePositionOnly, PinnedJoints, PoseFailed, PoseJointHandle, PosePlugin,
+    PoseSolved, PoseStatus, PoseSystems, Poseable, PoseableError, PosedSkeleton,
 };
 pub use control::{
     MouseControlPlugin, MouseHandleControl, WiimoteControlPlugin, WiimoteHandleControl,
@@ -33,7 +33,8 @@ pub use deform::{
     DeformStatus, DeformSystems, Deformable, FixedRegion, mesh_from_triangles,
 };
 pub use grab::{
-    ActiveGrabs, GrabEnd, GrabHandle, GrabMove, GrabPlugin, GrabStart, GrabTwist, Grabbable,
+    ActiveGrabs, GrabButton, GrabEnd, GrabHandle, GrabMove, GrabPlugin, GrabStart, GrabTwist,
+    Grabbable,
 };
 pub use scene::{DeformableFrom, DeformableScene};
 pub use wiimote::{
@@ -43,8 +44,10 @@ pub use wiimote::{
     remote_to_bevy, remote_vec_to_bevy,
 };
 
-/// Every plugin: [`DeformPlugin`], [`PosePlugin`], [`WiimotePlugin`], [`WiimoteControlPlugin`] and
-/// [`MouseControlPlugin`].
+/// Every plugin: [`DeformPlugin`], [`PosePlugin`], [`GrabPlugin`], [`WiimotePlugin`],
+/// [`WiimoteControlPlugin`] and [`MouseControlPlugin`]. Leave one out with Bevy's plugin-group
+/// API, e.g. `WiiDeformPlugins::default().build().disable::<GrabPlugin>()` for an app that
+/// grabs nothing with the pointer.
 #[derive(Debug, Clone, Default)]
 pub struct WiiDeformPlugins {
     /// Deformation settings.
@@ -58,6 +61,7 @@ impl PluginGroup for WiiDeformPlugins {
         PluginGroupBuilder::start::<Self>()
             .add(self.deform)
             .add(PosePlugin)
+            .add(GrabPlugin)
             .add(self.wiimote)
             .add(WiimoteControlPlugin)
             .add(MouseControlPlugin)

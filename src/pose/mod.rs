@@ -37,13 +37,21 @@
 //! assert!(max_bone_length_error(model.skeleton(), &rig.rest, &solved.pose) < 1e-9);
 //! ```
 
+pub mod effectors;
 mod file;
+pub mod humanoid;
+pub mod limits;
+pub mod mirror;
 mod model;
 mod skeleton;
 mod solver;
 pub mod synth_rig;
 
+pub use effectors::{CentroidEffector, Effector, EffectorGoal, ReferenceStiffness};
 pub use file::{PoseFile, PoseFileError, write_gltf_pose_clip};
+pub use humanoid::{HumanoidRole, Side, humanoid_role};
+pub use limits::{JointLimit, JointLimits, LimitError};
+pub use mirror::{Mirror, mirror_partners};
 pub use model::{ModelSettings, SkinnedMesh, SkinnedModel};
 pub use skeleton::{
     Joint, JointTransform, Skeleton, SkeletonPose, VertexInfluences, skin_positions,
@@ -142,6 +150,12 @@ pub enum PoseError {
     /// A handle transform is NaN/infinite or its rotation is not unit length.
     #[error("a handle transform is not finite (or its rotation is not unit)")]
     NonFiniteTarget,
+    /// An effector or stiffness weight outside [0, 1] (or NaN).
+    #[error("a constraint weight is {weight}, outside [0, 1]")]
+    InvalidConstraintWeight {
+        /// The weight given.
+        weight: f64,
+    },
     /// The solve was given constraints whose sets differ from the precomputed ones.
     #[error("constraint sets changed since the solver was built; build it again")]
     ConstraintSetChanged,

@@ -216,6 +216,33 @@ impl SkinnedModel {
         &self.influences
     }
 
+    /// The joints a vertex set does not reach: no vertex of `welded` is weighted (more than
+    /// `min_weight`) to the joint or to any joint below it. Pinning them holds everything a
+    /// grab of `welded` should not carry along (the legs and tail when the head is grabbed),
+    /// while the chain from the root to the grabbed part stays free to bend.
+    pub fn joints_not_reaching(&self, welded: &[u32], min_weight: f64) -> Vec<usize> {
+        let n = self.skeleton.len();
+        let mut reached = vec![false; n];
+        for &v in welded {
+            if let Some(influences) = self.influences.get(v as usize) {
+                for &(j, w) in influences {
+                    if w > min_weight && (j as usize) < n {
+                        reached[j as usize] = true;
+                    }
+                }
+            }
+        }
+        // Parents come before children: propagate from the leaves up.
+        for j in (0..n).rev() {
+            if let Some(p) = self.skeleton.joints()[j].parent
+                && reached[j]
+            {
+                reached[p] = true;
+            }
+        }
+        (0..n).filter(|&j| !reached[j]).collect()
+    }
+
     /// Bind-pose position of each welded vertex (mesh space).
     pub fn bind_positions(&self) -> &[DVec3] {
         &self.bind

@@ -6,6 +6,10 @@ use std::time::Instant;
 use glam::{DAffine3, DMat3, DMat4, DQuat, DVec3, DVec4};
 
 use super::PoseError;
+use super::effectors::{
+    CentroidEffector, Effector, ExtraInputs, ExtraTerms, Param, ReferenceStiffness, skew,
+};
+use super::limits::JointLimits;
 use super::model::{SkinnedModel, add_outer4x3, mat3_from_rows};
 use super::skeleton::{JointTransform, SkeletonPose};
 use crate::deform::constraints::same_keys;
@@ -36,6 +40,15 @@ pub struct PoseConstraints {
     pub fixed_joints: Vec<usize>,
     /// Joints moved rigidly (grab the hand joint).
     pub joint_handles: Vec<JointHandle>,
+    /// Effectors on joints: positions, orientations, aims, each blended in by a weight (see
+    /// [`super::effectors`]). They may change freely between solves.
+    pub effectors: Vec<Effector>,
+    /// Centroids of vertex sets to world points.
+    pub centroid_effectors: Vec<CentroidEffector>,
+    /// A per-joint pull towards a reference pose ("preferred angles").
+    pub stiffness: Option<ReferenceStiffness>,
+    /// Joint limits every step respects ([`super::limits`]); `None` = every joint free.
+    pub limits: Option<Arc<JointLimits>>,
 }
 
 impl PoseConstraints {
@@ -376,12 +389,21 @@ impl PoseSolver {
             return Err(PoseError::NonFiniteTarget);
         }
         let skeleton = self.model.skeleton();
+        super::effectors::validate(
+            skeleton,
+            self.model.topology().vertex_count(),
+            &constraints.effectors,
+            &constraints.centroid_effectors,
+            constraints.stiffness.as_ref(),
+        )?;
         let clusters = self.model.cluster_count();
         let (start, warm) = match start {
             PoseStart::Pose(p) => (p, None),
             PoseStart::Warm(s) => (&s.pose, Some(s)),
         };
         skeleton.check_pose(start)?;
+        let extras = self.extra_terms(constraints);
+        let limits = constraints.limits.as_deref();
         let (mut rotations, mut damping, mut exact) = match warm {
             Some(w) if w.cluster_rotations.len() == clusters => {
                 (w.cluster_rotations.clone(), w.damping, false)
@@ -391,8 +413,12 @@ impl PoseSolver {
         let (b_pen, c_pen) = self.penalty_terms(constraints);
         let c0 = self.model.c0.max(1e-300);
         let mut pose = start.clone();
+        if let Some(limits) = limits {
+            limits.project(&mut pose);
+        }
         let mut globals = skeleton.global_transforms(&pose);
-        let mut x = self.model.stack(&skinning(&globals, skeleton));
+        let mut skin = skinning(&globals, skeleton);
+        let mut x = self.model.stack(&skin);
         let mut stats = PoseSolveStats::default();
         let mut b = vec![0.0; b_pen.len()];
         let mut last = f64::NAN;
@@ -409,13 +435,19 @@ impl PoseSolver {
             b.copy_from_slice(&b_pen);
             self.add_rotation_terms(&rotations, &mut b);
             let constant = self.model.c0 + c_pen;
-            let f0 = self.objective(&x, &b, constant);
+            let f0 = self.objective(&x, &b, constant) + extras.energy(&globals, &skin);
             if it == 0 {
                 stats.initial_energy = f0 / c0;
                 last = f0;
             }
             // Levenberg–Marquardt: damp the Gauss–Newton step until it lowers the energy.
-            let (h, g) = self.gauss_newton_system(&x, &b, &globals);
+            let (mut h, mut g) = self.gauss_newton_system(&x, &b, &globals);
+            if !extras.is_empty() {
+                extras.add_system(&globals, &skin, &self.param_list(), &mut h, &mut g);
+            }
+            if let Some(limits) = limits {
+                self.restrict_hinges(limits, &globals, &mut h, &mut g);
+            }
             stats.system_s += t.elapsed().as_secs_f64();
             let mut accepted = None;
             // A rejected step is first shortened along its direction (cheap: no new
@@ -423,12 +455,16 @@ impl PoseSolver {
             'trials: for _ in 0..12 {
                 let step = solve_damped(&h, &g, damping);
                 for (k, length) in [1.0, 0.5].into_iter().enumerate() {
-                    let candidate = retract(&pose, &globals, &step, length, self);
+                    let mut candidate = retract(&pose, &globals, &step, length, self);
+                    if let Some(limits) = limits {
+                        limits.project(&mut candidate);
+                    }
                     let cg = skeleton.global_transforms(&candidate);
-                    let cx = self.model.stack(&skinning(&cg, skeleton));
-                    let f = self.objective(&cx, &b, constant);
+                    let cs = skinning(&cg, skeleton);
+                    let cx = self.model.stack(&cs);
+                    let f = self.objective(&cx, &b, constant) + extras.energy(&cg, &cs);
                     if f.is_finite() && f <= f0 {
-                        accepted = Some((candidate, cg, cx, f));
+                        accepted = Some((candidate, cg, cs, cx, f));
                         damping = if k == 0 {
                             (damping / 2.0).max(1e-9)
                         } else {
@@ -442,9 +478,10 @@ impl PoseSolver {
             }
             stats.global_s += t.elapsed().as_secs_f64();
             let f = match accepted {
-                Some((candidate, cg, cx, f)) => {
+                Some((candidate, cg, cs, cx, f)) => {
                     pose = candidate;
                     globals = cg;
+                    skin = cs;
                     x = cx;
                     f
                 }
@@ -468,6 +505,96 @@ impl PoseSolver {
             damping,
             stats,
         })
+    }
+
+    /// The effector and stiffness terms of `constraints`, with targets blended from the
+    /// reference pose this solver was built for.
+    fn extra_terms<'a>(&'a self, constraints: &'a PoseConstraints) -> ExtraTerms<'a> {
+        let skeleton = self.model.skeleton();
+        let reference_skinning = skinning(&self.reference_globals, skeleton);
+        ExtraTerms::new(
+            skeleton,
+            &ExtraInputs {
+                effectors: &constraints.effectors,
+                centroids: &constraints.centroid_effectors,
+                stiffness: constraints.stiffness.as_ref(),
+                reference_globals: &self.reference_globals,
+                reference_skinning: &reference_skinning,
+                influences: self.model.influences(),
+                bind: self.model.bind_positions(),
+                joint_weight: self.joint_weight,
+                vertex_weight: self.vertex_weight,
+                length_scale: self.length_scale,
+            },
+        )
+    }
+
+    /// The bone parameters as the effector terms see them.
+    fn param_list(&self) -> Vec<Param> {
+        self.params
+            .iter()
+            .map(|&(j, kind)| match kind {
+                ParamKind::Rotation => Param::Rotation(j),
+                ParamKind::Translation => Param::Translation(j),
+            })
+            .collect()
+    }
+
+    /// Restricts each hinge joint's own rotation parameter to its hinge axis (world `a`):
+    /// `H ← TᵀHT + (I − T)·s`, `g ← Tᵀg` with `T = a aᵀ` on that parameter's block, so the
+    /// step turns a hinge about its axis only.
+    fn restrict_hinges(
+        &self,
+        limits: &JointLimits,
+        globals: &[DAffine3],
+        h: &mut [f64],
+        g: &mut [f64],
+    ) {
+        let np = g.len();
+        for (p, &(j, kind)) in self.params.iter().enumerate() {
+            let (ParamKind::Rotation, Some(axis)) = (kind, limits.hinge_axis(j)) else {
+                continue;
+            };
+            let a = (super::skeleton::rotation_of(&globals[j].matrix3) * axis).normalize();
+            let t = [a.x, a.y, a.z];
+            let proj = |v: &[f64]| -> [f64; 3] {
+                let d = v[0] * t[0] + v[1] * t[1] + v[2] * t[2];
+                [d * t[0], d * t[1], d * t[2]]
+            };
+            let scale = (0..3).map(|k| h[(3 * p + k) * np + 3 * p + k]).sum::<f64>() / 3.0;
+            // Rows of the block row p, then columns of the block column p.
+            for col in 0..np {
+                let v = [
+                    h[(3 * p) * np + col],
+                    h[(3 * p + 1) * np + col],
+                    h[(3 * p + 2) * np + col],
+                ];
+                let w = proj(&v);
+                for k in 0..3 {
+                    h[(3 * p + k) * np + col] = w[k];
+                }
+            }
+            for row in 0..np {
+                let v = [
+                    h[row * np + 3 * p],
+                    h[row * np + 3 * p + 1],
+                    h[row * np + 3 * p + 2],
+                ];
+                let w = proj(&v);
+                for k in 0..3 {
+                    h[row * np + 3 * p + k] = w[k];
+                }
+            }
+            for r in 0..3 {
+                for c in 0..3 {
+                    let identity = if r == c { 1.0 } else { 0.0 };
+                    h[(3 * p + r) * np + 3 * p + c] +=
+                        (identity - t[r] * t[c]) * scale.abs().max(1e-12);
+                }
+            }
+            let w = proj(&g[3 * p..3 * p + 3]);
+            g[3 * p..3 * p + 3].copy_from_slice(&w);
+        }
     }
 
     /// The linear (`B`, 4J × 3) and constant terms of the constraint penalties for the
@@ -819,15 +946,6 @@ fn skinning(globals: &[DAffine3], skeleton: &super::Skeleton) -> Vec<DAffine3> {
         .zip(skeleton.joints())
         .map(|(g, j)| *g * j.inverse_bind)
         .collect()
-}
-
-/// The cross-product matrix `[o]×` (`[o]× v = o × v`).
-fn skew(o: DVec3) -> DMat3 {
-    DMat3::from_cols(
-        DVec3::new(0.0, o.z, -o.y),
-        DVec3::new(-o.z, 0.0, o.x),
-        DVec3::new(o.y, -o.x, 0.0),
-    )
 }
 
 /// The 6 × 6 quadratic form `M[g][h] = tr(G_g N G_hᵀ)` of the twist generators (ω then v)

@@ -1,6 +1,6 @@
 //! The Wii Remote + MotionPlus device layer (no Bevy): protocol, transports (hidapi and a
 //! byte-exact emulator), the connection state machine, orientation filters, the drift
-//! benchmark and a multi-remote manager. Specification: `PROTOCOL.md` (see the repository).
+//! benchmark and a multi-remote manager. Specification: `docs/PROTOCOL.md` in the repository.
 //!
 //! ```
 //! use bevy_wii_deform::wiimote::*;
@@ -25,6 +25,7 @@ pub mod diagnosis;
 pub mod drift;
 mod emulator;
 mod filter;
+pub mod ir;
 mod manager;
 mod motion;
 pub mod protocol;

@@ -1,6 +1,8 @@
 //! Helpers shared by the integration tests.
 #![allow(dead_code)] // each test crate uses some of them
 
+pub mod shared;
+
 use bevy::asset::RenderAssetUsages;
 use bevy::mesh::skinning::{SkinnedMesh as BevySkin, SkinnedMeshInverseBindposes};
 use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
@@ -128,4 +130,172 @@ pub fn spawn_handle(
     });
     let pivot = app.world().get::<DeformHandle>(handle).unwrap().pivot;
     (handle, pivot.unwrap())
+}
+
+/// A headless app: minimal plugins, assets, meshes and transforms (no GPU, no window).
+pub fn app() -> App {
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        bevy::asset::AssetPlugin::default(),
+        bevy::mesh::MeshPlugin,
+        bevy::transform::TransformPlugin,
+    ));
+    app
+}
+
+/// A 3D camera with the values the renderer would compute for a 1280×720 window (headless
+/// tests have no renderer).
+pub fn spawn_camera(app: &mut App, transform: Transform) -> Entity {
+    let mut camera = Camera::default();
+    camera.computed.target_info = Some(bevy::camera::RenderTargetInfo {
+        physical_size: UVec2::new(1280, 720),
+        scale_factor: 1.0,
+    });
+    let mut perspective = PerspectiveProjection::default();
+    bevy::camera::CameraProjection::update(&mut perspective, 1280.0, 720.0);
+    camera.computed.clip_from_view =
+        bevy::camera::CameraProjection::get_clip_from_view(&perspective);
+    app.world_mut()
+        .spawn((
+            Camera3d::default(),
+            camera,
+            Projection::Perspective(perspective),
+            transform,
+            GlobalTransform::from(transform),
+        ))
+        .id()
+}
+
+/// Where `at` (world) is on `camera`'s viewport.
+pub fn to_screen(app: &mut App, camera: Entity, at: Vec3) -> Vec2 {
+    let mut q = app.world_mut().query::<(&Camera, &GlobalTransform)>();
+    let (c, t) = q.get(app.world(), camera).unwrap();
+    c.world_to_viewport(t, at).unwrap()
+}
+
+/// Puts the primary window's cursor at `at` (window coordinates).
+pub fn cursor_to(app: &mut App, at: Vec2) {
+    let mut windows = app
+        .world_mut()
+        .query_filtered::<&mut Window, With<bevy::window::PrimaryWindow>>();
+    windows
+        .single_mut(app.world_mut())
+        .unwrap()
+        .set_cursor_position(Some(at));
+}
+
+/// Writes a raw pointer input for the mouse pointer at `at` on the primary window, as bevy's
+/// input plugin would (a press is preceded by a move to the same spot).
+pub fn pointer(app: &mut App, at: Vec2, action: bevy::picking::pointer::PointerAction) {
+    let window = app
+        .world_mut()
+        .query_filtered::<Entity, With<bevy::window::PrimaryWindow>>()
+        .single(app.world())
+        .unwrap();
+    let target = bevy::camera::RenderTarget::Window(bevy::window::WindowRef::Primary)
+        .normalize(Some(window))
+        .unwrap();
+    let location = bevy::picking::pointer::Location {
+        target,
+        position: at,
+    };
+    use bevy::picking::pointer::{PointerAction, PointerId, PointerInput};
+    // A real mouse is over the spot before it presses there: picking casts rays from where
+    // pointers are, which only motion sets.
+    if matches!(action, PointerAction::Press(_)) {
+        app.world_mut().write_message(PointerInput::new(
+            PointerId::Mouse,
+            location.clone(),
+            PointerAction::Move { delta: Vec2::ZERO },
+        ));
+    }
+    app.world_mut()
+        .write_message(PointerInput::new(PointerId::Mouse, location, action));
+}
+
+/// bevy_picking without a window backend's input: pointers, rays, hover and `Pointer<…>`
+/// events (feed it with [`pointer`]).
+pub fn picking_plugins() -> (
+    bevy::picking::PickingPlugin,
+    bevy::picking::InteractionPlugin,
+    bevy::picking::input::PointerInputPlugin,
+) {
+    (
+        bevy::picking::PickingPlugin,
+        bevy::picking::InteractionPlugin,
+        bevy::picking::input::PointerInputPlugin,
+    )
+}
+
+/// A headless app that loads the Fox (`dir` holds `Fox.glb`) through Bevy's own glTF loader
+/// with `plugins` (which must include `PosePlugin`), a `Poseable` on the scene root, updated
+/// until its model is built. Returns the app and the root.
+pub fn fox_app<M>(dir: &std::path::Path, plugins: impl bevy::app::Plugins<M>) -> (App, Entity) {
+    use bevy::time::TimeUpdateStrategy;
+    use bevy_wii_deform::prelude::{Poseable, PosedSkeleton};
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        bevy::asset::AssetPlugin {
+            file_path: dir.display().to_string(),
+            // The saved clip is written to a temporary directory outside the asset folder.
+            unapproved_path_mode: bevy::asset::UnapprovedPathMode::Allow,
+            ..default()
+        },
+        bevy::mesh::MeshPlugin,
+        bevy::transform::TransformPlugin,
+        bevy::image::ImagePlugin::default(),
+        bevy::world_serialization::WorldSerializationPlugin,
+        bevy::animation::AnimationPlugin,
+        bevy::gltf::GltfPlugin::default(),
+    ));
+    app.add_plugins(plugins);
+    app.init_asset::<StandardMaterial>();
+    // The glTF loader is registered in `Plugin::finish` (which `App::run` calls).
+    app.finish();
+    app.cleanup();
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_millis(
+        16,
+    )));
+    // Materials (and so textures) are not needed to pose; the test app has no renderer.
+    let scene = app
+        .world()
+        .resource::<AssetServer>()
+        .load_builder()
+        .with_settings(|s: &mut bevy::gltf::GltfLoaderSettings| {
+            s.load_materials = bevy::asset::RenderAssetUsages::empty();
+            s.load_cameras = false;
+            s.load_lights = false;
+        })
+        .load(GltfAssetLabel::Scene(0).from_asset("Fox.glb"));
+    let root = app
+        .world_mut()
+        .spawn((
+            bevy::world_serialization::WorldAssetRoot(scene),
+            Poseable::default(),
+        ))
+        .id();
+    update_until(&mut app, "the Fox's model", |a| {
+        a.world().get::<PosedSkeleton>(root).is_some()
+            || a.world()
+                .get::<PoseStatus>(root)
+                .is_some_and(|s| s.error.is_some())
+    });
+    assert_eq!(app.world().get::<PoseStatus>(root).unwrap().error, None);
+    (app, root)
+}
+
+/// The skinned model of a generated rig (default settings).
+pub fn model_of(rig: &SyntheticRig) -> std::sync::Arc<bevy_wii_deform::pose::SkinnedModel> {
+    use bevy_wii_deform::pose::{ModelSettings, SkinnedModel};
+    std::sync::Arc::new(
+        SkinnedModel::new(
+            rig.skeleton.clone(),
+            &rig.mesh,
+            &rig.rest,
+            ModelSettings::default(),
+        )
+        .unwrap(),
+    )
 }

@@ -28,6 +28,7 @@
 //! Set [`PosedSkeleton::pose`] yourself (e.g. from a [`crate::pose::PoseFile`]) to load a
 //! pose; the next solve starts from it.
 
+mod picking;
 mod plugin;
 
 use std::sync::Arc;
@@ -102,6 +103,38 @@ impl PoseJointHandle {
         }
     }
 }
+
+/// What holds a character while a pointer grab bends it: put on the character by
+/// [`GrabPlugin`](crate::ecs::GrabPlugin) when a character with no [`PinnedJoints`] is
+/// grabbed, removed when the grab ends. Without it, a grab on the ear would carry the whole
+/// character along instead of bending it.
+///
+/// The grab pins every joint its region ([`Grabbable::region_radius`] along the surface from
+/// the grabbed point) does not reach — no vertex of the region is weighted to the joint or to
+/// any joint below it: grabbing the head pins the legs and the tail, so the feet stay and the
+/// spine, neck and head bend. A character of one chain (every joint reaches the region) is
+/// held by the farther half of its surface instead. Insert it yourself to anchor any solve the
+/// same way.
+///
+/// [`Grabbable::region_radius`]: crate::ecs::Grabbable::region_radius
+#[derive(Component, Debug, Clone, Default, PartialEq, Reflect)]
+#[reflect(Component, Default)]
+pub struct GrabAnchor {
+    /// Joint entities pinned (position and orientation) where they are.
+    pub joints: Vec<Entity>,
+    /// Welded vertex indices of the model kept where they are.
+    pub vertices: Vec<u32>,
+}
+
+/// On a [`DeformHandle`](crate::ecs::DeformHandle) aimed at a character: only the centroid
+/// of the handle's vertices follows the handle's translation, their orientation is left to
+/// the body (a position effector on the vertex set, [`crate::pose::CentroidEffector`]). Drag a
+/// character's ear up and the head tilts as the neck lets it, where a rigid handle would ask
+/// the ear to rise without turning. The grab plugin puts it on a character grab's handle and
+/// takes it off when the grab is turned (Shift-drag, wheel), which needs the orientation.
+#[derive(Component, Debug, Clone, Copy, Default, PartialEq, Reflect)]
+#[reflect(Component, Default)]
+pub struct HandlePositionOnly;
 
 /// Where a poseable character stands; readable by UIs.
 #[derive(Component, Debug, Clone, Default, Reflect)]

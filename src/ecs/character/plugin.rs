@@ -7,6 +7,9 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use bevy::app::AnimationSystems;
 use bevy::mesh::VertexAttributeValues;
 use bevy::mesh::skinning::{SkinnedMesh as BevySkin, SkinnedMeshInverseBindposes};
+use bevy::picking::PickingSystems;
+use bevy::picking::backend::PointerHits;
+use bevy::picking::backend::ray::RayMap;
 use bevy::prelude::*;
 use bevy::tasks::futures::check_ready;
 use bevy::tasks::{AsyncComputeTaskPool, Task};
@@ -14,17 +17,18 @@ use bevy::transform::TransformSystems;
 use bevy::world_serialization::WorldAssetRoot;
 use glam::DAffine3;
 
+use super::picking::{ignore_bind_pose_picking, pick_posed_characters};
 use super::{
-    PinnedJoints, PoseFailed, PoseJointHandle, PoseSolved, PoseStatus, Poseable, PoseableError,
-    PosedSkeleton,
+    GrabAnchor, HandlePositionOnly, PinnedJoints, PoseFailed, PoseJointHandle, PoseSolved,
+    PoseStatus, Poseable, PoseableError, PosedSkeleton,
 };
 use crate::deform::{Handle as CoreHandle, RigidTransform, centroid};
 use crate::ecs::scene::{SceneSpawned, mark_scene_spawned};
 use crate::ecs::{DeformHandle, DeformPhase, DeformSystems};
 use crate::pose::{
-    Joint, JointHandle, JointTransform, ModelSettings, PoseConstraints, PoseSolution,
-    PoseSolveOptions, PoseSolver, PoseSolverSettings, PoseStart, Skeleton, SkeletonPose,
-    SkinnedMesh, SkinnedModel,
+    CentroidEffector, Joint, JointHandle, JointTransform, ModelSettings, PoseConstraints,
+    PoseSolution, PoseSolveOptions, PoseSolver, PoseSolverSettings, PoseStart, Skeleton,
+    SkeletonPose, SkinnedMesh, SkinnedModel,
 };
 
 /// Phases of the character systems. Prepare, Request and Poll run in `Update` (Request after
@@ -52,6 +56,8 @@ impl Plugin for PosePlugin {
             .register_type::<PinnedJoints>()
             .register_type::<PoseJointHandle>()
             .register_type::<PoseStatus>()
+            .register_type::<GrabAnchor>()
+            .register_type::<HandlePositionOnly>()
             .add_message::<PoseSolved>()
             .add_message::<PoseFailed>()
             .add_observer(mark_scene_spawned)
@@ -81,7 +87,16 @@ impl Plugin for PosePlugin {
                     poll_pose_solves.in_set(PoseSystems::Poll),
                 ),
             )
-            .add_systems(PostUpdate, apply_poses.in_set(PoseSystems::Apply));
+            .add_systems(PostUpdate, apply_poses.in_set(PoseSystems::Apply))
+            // Posed characters are a picking backend (when bevy_picking is in the app).
+            .add_message::<PointerHits>()
+            .add_systems(
+                PreUpdate,
+                pick_posed_characters
+                    .in_set(PickingSystems::Backend)
+                    .run_if(resource_exists::<RayMap>),
+            )
+            .add_systems(Update, ignore_bind_pose_picking.after(PoseSystems::Poll));
     }
 }
 
@@ -91,6 +106,8 @@ struct SetKey {
     handles: Vec<(Entity, Vec<u32>)>,
     joint_handles: Vec<(Entity, Entity)>,
     pins: Vec<Entity>,
+    anchor: GrabAnchor,
+    position_only: Vec<Entity>,
 }
 
 impl SetKey {
@@ -452,14 +469,16 @@ fn request_pose_solves(
         &Poseable,
         &mut PosedSkeleton,
         Option<Ref<PinnedJoints>>,
+        Option<&GrabAnchor>,
         &mut PoseState,
         &mut PoseStatus,
     )>,
     mut handles: Query<(Entity, &mut DeformHandle, &mut Transform), Without<PoseJointHandle>>,
     mut joint_handles: Query<(Entity, &mut PoseJointHandle, &mut Transform), Without<DeformHandle>>,
     joints: Query<&Transform, (Without<DeformHandle>, Without<PoseJointHandle>)>,
+    position_only: Query<(), With<HandlePositionOnly>>,
 ) {
-    for (entity, poseable, mut posed, pins, mut state, mut status) in &mut characters {
+    for (entity, poseable, mut posed, pins, anchor, mut state, mut status) in &mut characters {
         let mut mine: Vec<(Entity, Mut<DeformHandle>, Mut<Transform>)> = handles
             .iter_mut()
             .filter(|(_, h, _)| h.target == entity)
@@ -475,11 +494,15 @@ fn request_pose_solves(
             continue; // nothing drives the pose
         }
         let pinned = pins.as_ref().map_or(&[][..], |p| &p.0[..]);
-        let set_changed = !state
-            .key
-            .as_ref()
-            .is_some_and(|k| k.matches(&mine, &mine_j, pinned))
-            || mine.iter().any(|(_, h, _)| h.pivot.is_none())
+        let anchor = anchor.cloned().unwrap_or_default();
+        let followers: Vec<Entity> = mine
+            .iter()
+            .map(|(e, _, _)| *e)
+            .filter(|e| position_only.contains(*e))
+            .collect();
+        let set_changed = !state.key.as_ref().is_some_and(|k| {
+            k.matches(&mine, &mine_j, pinned) && k.anchor == anchor && k.position_only == followers
+        }) || mine.iter().any(|(_, h, _)| h.pivot.is_none())
             || mine_j.iter().any(|(_, h, _)| h.rest.is_none());
         if set_changed {
             // The reference is what is on screen: the joints as they are now (the held pose,
@@ -499,7 +522,28 @@ fn request_pose_solves(
                 posed.pose = on_screen;
             }
             let reference = posed.pose.clone();
+            // A handle that turned rigid (a grab being turned) keeps its target: its world
+            // position and the turn just given to it, now about the patch as it is on screen.
+            let turned: Vec<(Entity, Transform)> = state
+                .key
+                .as_ref()
+                .map(|k| {
+                    mine.iter()
+                        .filter(|(e, h, _)| {
+                            h.pivot.is_some()
+                                && k.position_only.contains(e)
+                                && followers.binary_search(e).is_err()
+                        })
+                        .map(|(e, _, t)| (*e, **t))
+                        .collect()
+                })
+                .unwrap_or_default();
             rebase(&posed, &reference, &mut mine, &mut mine_j);
+            for (e, kept) in turned {
+                if let Some((_, _, t)) = mine.iter_mut().find(|(f, _, _)| *f == e) {
+                    **t = kept;
+                }
+            }
             let state = state.bypass_change_detection();
             state.key = Some(SetKey {
                 handles: mine
@@ -508,6 +552,8 @@ fn request_pose_solves(
                     .collect(),
                 joint_handles: mine_j.iter().map(|(e, h, _)| (*e, h.joint)).collect(),
                 pins: pinned.to_vec(),
+                anchor,
+                position_only: followers,
             });
             state.reference = Some(reference);
             state.solver = None;
@@ -521,20 +567,45 @@ fn request_pose_solves(
             continue;
         }
         let to_index = |e: &Entity| posed.joint_index(*e);
-        let fixed_joints: Vec<usize> = pins
+        let mut fixed_joints: Vec<usize> = pins
             .as_ref()
             .map(|p| p.0.iter().filter_map(to_index).collect())
             .unwrap_or_default();
+        fixed_joints.extend(anchor.joints.iter().filter_map(to_index));
+        fixed_joints.sort_unstable();
+        fixed_joints.dedup();
         let model = &posed.model;
+        let follows = |e: &Entity| followers.binary_search(e).is_ok();
+        // A position-only handle: the centroid of its welded vertices, where it was in the
+        // reference pose, moved by the handle's translation.
+        let reference_welded = (!followers.is_empty())
+            .then(|| state.reference.as_ref().map(|r| model.skin_welded(r)))
+            .flatten();
+        let centroid_effectors = mine
+            .iter()
+            .filter(|(e, _, _)| follows(e))
+            .filter_map(|(_, h, t)| {
+                let vertices = model.topology().welded_set(&h.vertices);
+                let at_reference = centroid(reference_welded.as_ref()?, &vertices);
+                let moved = (t.translation - h.pivot?).as_dvec3();
+                Some(CentroidEffector {
+                    vertices,
+                    target: at_reference + moved,
+                    weight: 1.0,
+                })
+            })
+            .collect();
         let constraints = PoseConstraints {
+            centroid_effectors,
             handles: mine
                 .iter()
+                .filter(|(e, _, _)| !follows(e))
                 .map(|(_, h, t)| CoreHandle {
                     vertices: model.topology().welded_set(&h.vertices),
                     transform: h.rigid_transform(t),
                 })
                 .collect(),
-            fixed_vertices: Vec::new(),
+            fixed_vertices: anchor.vertices.clone(),
             fixed_joints,
             joint_handles: mine_j
                 .iter()
@@ -552,6 +623,7 @@ fn request_pose_solves(
                     Some(JointHandle { joint, transform })
                 })
                 .collect(),
+            ..Default::default()
         };
         let state = state.bypass_change_detection();
         state.pending = Some(constraints);

@@ -83,13 +83,14 @@ pub fn drive_handles(
             .camera
             .and_then(|c| cameras.get(c).ok())
             .or_else(|| cameras.iter().next())
-            .map(|(_, g)| g.compute_transform().rotation)
+            .map(|(_, g)| rotation_of_space(&g.affine()))
             .unwrap_or(Quat::IDENTITY);
-        let space = control
+        let space_affine = control
             .space
             .and_then(|s| spaces.get(s).ok())
-            .map(|g| g.compute_transform().rotation)
-            .unwrap_or(Quat::IDENTITY);
+            .map(GlobalTransform::affine)
+            .unwrap_or_default();
+        let space = rotation_of_space(&space_affine);
         // Rotation since the grab, in the remote's world frame, expressed in camera space,
         // then in the handle's space.
         let delta = (wii.orientation * grab.remote_at_grab.inverse()).normalize();
@@ -124,8 +125,10 @@ pub fn drive_handles(
         }
         v += wii.stick.extend(0.0);
         if v != Vec3::ZERO {
+            // `speed` is in world units: the space's whole linear part (scale included) maps
+            // the world motion into the handle's space.
             let world = camera * v * control.speed * time.delta_secs();
-            let local = space.inverse() * world;
+            let local = space_affine.inverse().transform_vector3(world);
             if local.is_finite() {
                 transform.translation += local;
             }
@@ -206,12 +209,38 @@ pub(crate) fn turned_in_space(
     space: &bevy::math::Affine3A,
     rotation: Quat,
 ) -> Quat {
-    let camera_rotation = camera_transform.compute_transform().rotation;
+    let camera_rotation = rotation_of_space(&camera_transform.affine());
     let in_world = camera_rotation * in_view * camera_rotation.inverse();
     // The rotation about a world axis, seen in the handle's space (its rotation part).
-    let space_rotation = Quat::from_mat3a(&space.matrix3).normalize();
+    let space_rotation = rotation_of_space(space);
     let in_space = space_rotation.inverse() * in_world * space_rotation;
     (in_space * rotation).normalize()
+}
+
+/// The rotation of an affine space: the rotation nearest to its linear part (the polar
+/// factor), whatever its scale — uniform (0.01 for centimetre rigs), non-uniform, or sheared by
+/// a scaled parent. `Quat::from_mat3a` is only defined for pure rotations; on a scaled matrix
+/// it turns a 34° drag into 39° (scale 2) or a −90° turn into 2.3° (scale 0.01). A degenerate
+/// space (zero or non-finite scale) has no rotation: the identity.
+pub(crate) fn rotation_of_space(space: &bevy::math::Affine3A) -> Quat {
+    let m = glam::DMat3::from_cols(
+        space.matrix3.x_axis.as_dvec3(),
+        space.matrix3.y_axis.as_dvec3(),
+        space.matrix3.z_axis.as_dvec3(),
+    );
+    // The polar factor does not depend on the scale; normalising keeps Jacobi's tolerances
+    // meaningful at any size.
+    let norm =
+        (m.x_axis.length_squared() + m.y_axis.length_squared() + m.z_axis.length_squared()).sqrt();
+    if !norm.is_finite() || norm < 1e-30 {
+        return Quat::IDENTITY;
+    }
+    let q = crate::deform::best_rotation_exact(&(m * norm.recip())).as_quat();
+    if q.is_finite() {
+        q.normalize()
+    } else {
+        Quat::IDENTITY
+    }
 }
 
 /// World-space motion of a point at `at`'s depth that follows the cursor from `from` to `to`.

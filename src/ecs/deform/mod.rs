@@ -26,7 +26,7 @@ pub struct DeformConfig {
     /// Relative energy decrease below which a solve stops early.
     pub tolerance: f32,
     /// How the iterations are accelerated (L-BFGS by default: it settles in a fraction of the
-    /// plain iterations, see the README's interaction figures). Not reflected (a core type).
+    /// plain iterations, see the interaction figures in docs/benchmarks.md). Not reflected (a core type).
     #[reflect(ignore)]
     pub acceleration: Acceleration,
     /// After the handles stop moving, the plugin keeps iterating in the background with
@@ -35,7 +35,7 @@ pub struct DeformConfig {
     /// have run, so a released pose settles instead of freezing half-converged (0 = never).
     pub settle_iterations: u32,
     /// The iterations that settle a released pose (truncated Newton by default: 7 iterations
-    /// on the 26k armadillo where L-BFGS needs ~167, see the README). Not reflected.
+    /// on the 26k armadillo where L-BFGS needs ~167, see docs/benchmarks.md). Not reflected.
     #[reflect(ignore)]
     pub settle_acceleration: Acceleration,
     /// Where the first solve on a rest pose starts. When the handles move some vertex farther
@@ -49,7 +49,7 @@ pub struct DeformConfig {
     /// first shown as a *preview*: only the vertices near the handles are solved (the rest
     /// held where they are shown), which takes a frame or two where the whole mesh's
     /// factorization takes several (26k armadillo: ~12 against ~45 ms; 104k: ~35–45
-    /// against ~200 ms, see the README). The whole mesh is then factored in the background and solved
+    /// against ~200 ms, see docs/benchmarks.md). The whole mesh is then factored in the background and solved
     /// on from the preview. `None`: always wait for the whole mesh. Not used on a
     /// [`Deformable`] with its own region of interest. Not reflected (a core type).
     #[reflect(ignore)]

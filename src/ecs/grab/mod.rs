@@ -6,7 +6,7 @@ mod plugin;
 
 use std::collections::HashMap;
 
-use bevy::picking::pointer::PointerId;
+use bevy::picking::pointer::{PointerButton, PointerId};
 use bevy::prelude::*;
 
 #[cfg(doc)]
@@ -27,7 +27,7 @@ pub struct Grabbable {
     /// At most this many vertices of the region move, the nearest along the surface: the
     /// grab's first pose waits for the region's factorization, so on a dense mesh the region
     /// shrinks rather than the grab stalling (16 384: a first pose in ~20 ms on 2 cores, see
-    /// the README).
+    /// docs/benchmarks.md).
     pub max_region_vertices: u32,
 }
 
@@ -38,6 +38,19 @@ impl Default for Grabbable {
             region_radius: 0.6,
             max_region_vertices: 16_384,
         }
+    }
+}
+
+/// The pointer button that grabs: a press of it on a [`Grabbable`] starts a grab, its release
+/// ends it. Presses of other buttons (a right-drag for an orbit camera, a middle-click) start
+/// nothing. Primary (the left mouse button) by default.
+#[derive(Resource, Debug, Clone, Copy, PartialEq, Eq, Reflect)]
+#[reflect(Resource, Default)]
+pub struct GrabButton(pub PointerButton);
+
+impl Default for GrabButton {
+    fn default() -> Self {
+        Self(PointerButton::Primary)
     }
 }
 
@@ -98,6 +111,16 @@ impl ActiveGrabs {
     /// The mesh a pointer is grabbing, if any.
     pub fn mesh_of(&self, pointer: PointerId) -> Option<Entity> {
         self.0.get(&pointer).map(|g| g.mesh)
+    }
+
+    /// How many grabs are in progress.
+    pub fn len(&self) -> usize {
+        self.0.len()
+    }
+
+    /// Whether no pointer grabs anything.
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
     }
 }
 

@@ -4,20 +4,19 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use bevy::camera::RenderTarget;
 use bevy::picking::events::{Pointer, Press};
-use bevy::picking::pointer::{PointerAction, PointerButton, PointerId, PointerInput};
+use bevy::picking::pointer::{PointerAction, PointerId, PointerInput};
 use bevy::prelude::*;
-use bevy::window::PrimaryWindow;
 
 use crate::deform::Topology;
-use crate::ecs::character::PosedSkeleton;
+use crate::ecs::character::{GrabAnchor, HandlePositionOnly, PinnedJoints, PosedSkeleton};
 use crate::ecs::control::{arcball_rotation, turned_in_space, view_plane_motion};
 use crate::ecs::deform::{DeformHandle, DeformState, DeformSystems, Deformable, FixedRegion};
 use crate::ecs::scene::DeformableFrom;
 
 use super::{
-    ActiveGrab, ActiveGrabs, GrabEnd, GrabHandle, GrabMove, GrabStart, GrabTwist, Grabbable,
+    ActiveGrab, ActiveGrabs, GrabButton, GrabEnd, GrabHandle, GrabMove, GrabStart, GrabTwist,
+    Grabbable,
 };
 
 /// Adds pointer grabs: press on a [`Grabbable`] deformable, drag, release — the surface under
@@ -41,12 +40,17 @@ use super::{
 /// divided out). The wheel turns a held patch about the camera's view axis ([`GrabTwist`]).
 ///
 /// **Characters.** [`Grabbable`] on a [`Poseable`](crate::ecs::Poseable) character (the
-/// entity that gets the [`PosedSkeleton`]) grabs the *posed* surface: a press ray-casts the
-/// CPU-skinned triangles (Bevy's mesh picking tests the bind pose of skinned meshes), the
-/// patch is found along the welded surface the same way, and the handle is an ordinary
-/// world-space [`DeformHandle`] aimed at the character, so dragging solves a skeleton pose; on
-/// release the handle goes and the character holds its pose. Of a static mesh and a character
-/// under the same press, the nearer one is grabbed.
+/// entity that gets the [`PosedSkeleton`]) grabs the *posed* surface: the pose plugin is a
+/// picking backend that hits the CPU-skinned triangles (Bevy's mesh picking tests the bind
+/// pose of skinned meshes), the patch is found along the welded surface the same way, and the
+/// handle is an ordinary world-space [`DeformHandle`] aimed at the character, so dragging
+/// solves a skeleton pose; on release the handle goes and the character holds its pose. A
+/// character with no [`PinnedJoints`] is anchored while grabbed by a [`GrabAnchor`] (the
+/// surface beyond the region), so a grab bends it rather than carrying it along.
+///
+/// **Which press grabs.** Presses come from bevy_picking's `Pointer<Press>`, so its hit order
+/// decides: UI over a mesh, or another entity in front of it, takes the press. Only the
+/// [`GrabButton`] (primary by default) grabs; its release ends the grab.
 ///
 /// [`DeformPlugin`]: crate::ecs::DeformPlugin
 #[derive(Debug, Clone, Default)]
@@ -55,6 +59,8 @@ pub struct GrabPlugin;
 impl Plugin for GrabPlugin {
     fn build(&self, app: &mut App) {
         app.register_type::<Grabbable>()
+            .register_type::<GrabButton>()
+            .init_resource::<GrabButton>()
             .init_resource::<ActiveGrabs>()
             // Registered here too, so the plugin runs (idle) without a picking plugin.
             .add_message::<Pointer<Press>>()
@@ -81,103 +87,43 @@ impl Plugin for GrabPlugin {
     }
 }
 
-/// A press on a grabbable deformable or posed character starts a grab (the nearer of the
-/// two when both are under the pointer).
+/// A press of the [`GrabButton`] on a grabbable deformable or posed character starts a grab.
+/// Presses come from bevy_picking, so its hit ordering applies: UI over a mesh or a character,
+/// or another entity in front of it, takes the press instead. Characters report hits on their
+/// posed (CPU-skinned) surface through the pose plugin's picking backend.
 fn presses_to_grabs(
     mut presses: MessageReader<Pointer<Press>>,
-    mut inputs: MessageReader<PointerInput>,
+    button: Res<GrabButton>,
     grabbable: Query<(), With<Grabbable>>,
     from: Query<&DeformableFrom>,
-    deformables: Query<(), With<Deformable>>,
-    characters: CharacterTargets,
+    targets: Query<(), Or<(With<Deformable>, With<PosedSkeleton>)>>,
     mut start: MessageWriter<GrabStart>,
 ) {
     let mut nearest: HashMap<PointerId, (f32, GrabStart)> = HashMap::new();
-    let mut offer = |depth: f32, grab: GrabStart| {
-        let better = nearest.get(&grab.pointer).is_none_or(|(d, _)| depth < *d);
-        if better {
-            nearest.insert(grab.pointer, (depth, grab));
-        }
-    };
     for p in presses.read() {
+        if p.event.button != button.0 {
+            continue;
+        }
         let target = p.entity;
         let is_grabbable =
             grabbable.contains(target) || from.get(target).is_ok_and(|f| grabbable.contains(f.0));
-        if let (true, true, Some(point)) = (
-            is_grabbable,
-            deformables.contains(target),
-            p.event.hit.position,
-        ) {
-            let grab = GrabStart {
-                pointer: p.pointer_id,
-                entity: target,
-                point,
-                camera: p.event.hit.camera,
-            };
-            offer(p.event.hit.depth, grab);
-        }
-    }
-    for input in inputs.read() {
-        if matches!(input.action, PointerAction::Press(PointerButton::Primary))
-            && let Some((depth, grab)) = characters.hit(input)
-        {
-            offer(depth, grab);
+        let (true, true, Some(point)) =
+            (is_grabbable, targets.contains(target), p.event.hit.position)
+        else {
+            continue;
+        };
+        let grab = GrabStart {
+            pointer: p.pointer_id,
+            entity: target,
+            point,
+            camera: p.event.hit.camera,
+        };
+        let depth = p.event.hit.depth;
+        if nearest.get(&grab.pointer).is_none_or(|(d, _)| depth < *d) {
+            nearest.insert(grab.pointer, (depth, grab));
         }
     }
     start.write_batch(nearest.into_values().map(|(_, grab)| grab));
-}
-
-/// Grabbable posed characters and the cameras a pointer may look through.
-#[derive(bevy::ecs::system::SystemParam)]
-struct CharacterTargets<'w, 's> {
-    characters: Query<'w, 's, (Entity, &'static PosedSkeleton), With<Grabbable>>,
-    cameras: Query<
-        'w,
-        's,
-        (
-            Entity,
-            &'static Camera,
-            &'static RenderTarget,
-            &'static GlobalTransform,
-        ),
-    >,
-    primary_window: Query<'w, 's, Entity, With<PrimaryWindow>>,
-}
-
-impl CharacterTargets<'_, '_> {
-    /// The nearest posed character under a pointer press, as a grab and its depth.
-    fn hit(&self, input: &PointerInput) -> Option<(f32, GrabStart)> {
-        if self.characters.is_empty() {
-            return None;
-        }
-        let location = &input.location;
-        let (camera, cam, cam_transform) = self
-            .cameras
-            .iter()
-            .filter(|(_, c, target, _)| {
-                c.is_active && location.is_in_viewport(c, target, &self.primary_window)
-            })
-            .max_by_key(|(_, c, _, _)| c.order)
-            .map(|(e, c, _, t)| (e, c, t))?;
-        let ray = cam
-            .viewport_to_world(cam_transform, location.position)
-            .ok()?;
-        self.characters
-            .iter()
-            .filter_map(|(entity, posed)| {
-                let (point, distance) = posed.ray_cast(ray)?;
-                Some((
-                    distance,
-                    GrabStart {
-                        pointer: input.pointer_id,
-                        entity,
-                        point,
-                        camera,
-                    },
-                ))
-            })
-            .min_by(|a, b| a.0.total_cmp(&b.0))
-    }
 }
 
 /// Pointer motion moves grabs (turns them with Shift held), the wheel twists them, a primary
@@ -187,6 +133,7 @@ impl CharacterTargets<'_, '_> {
 /// pointers that grab nothing are ignored later.
 fn pointer_inputs_to_grabs(
     mut inputs: MessageReader<PointerInput>,
+    button: Res<GrabButton>,
     keys: Option<Res<ButtonInput<KeyCode>>>,
     mut moves: MessageWriter<GrabMove>,
     mut twists: MessageWriter<GrabTwist>,
@@ -207,7 +154,9 @@ fn pointer_inputs_to_grabs(
                 });
             }
             // Motion before a press in the same frame is not part of the grab it starts.
-            PointerAction::Press(PointerButton::Primary) => motion.retain(|m| m.pointer != pointer),
+            PointerAction::Press(pressed) if pressed == button.0 => {
+                motion.retain(|m| m.pointer != pointer)
+            }
             PointerAction::Scroll { unit, y, .. } => {
                 let per_step = match unit {
                     bevy::input::mouse::MouseScrollUnit::Line => 10f32.to_radians(),
@@ -218,7 +167,10 @@ fn pointer_inputs_to_grabs(
                     radians: y * per_step,
                 });
             }
-            PointerAction::Release(PointerButton::Primary) | PointerAction::Cancel => {
+            PointerAction::Release(released) if released == button.0 => {
+                ends.write(GrabEnd { pointer });
+            }
+            PointerAction::Cancel => {
                 ends.write(GrabEnd { pointer });
             }
             _ => {}
@@ -302,13 +254,14 @@ fn place_grabs(
     mut commands: Commands,
     mut grabs: ResMut<ActiveGrabs>,
     mut meshes: Query<(&DeformState, &mut Deformable, Has<FixedRegion>)>,
-    characters: Query<&PosedSkeleton>,
+    characters: Query<(&PosedSkeleton, Option<&PinnedJoints>)>,
 ) {
     for grab in grabs.0.values_mut().filter(|g| g.handle.is_none()) {
         let vertices = if grab.character {
-            let Ok(posed) = characters.get(grab.mesh) else {
+            let Ok((posed, pins)) = characters.get(grab.mesh) else {
                 continue;
             };
+            let pinned = pins.is_some_and(|p| !p.0.is_empty());
             // The seed on the surface as posed; distances along the welded bind surface
             // (rigid bones keep them).
             let skinned = posed.model.skin_welded(&posed.pose);
@@ -316,7 +269,12 @@ fn place_grabs(
                 continue;
             };
             let topology = posed.model.topology();
-            let (patch, _) = geodesic_regions_from(topology, seed, &grab.settings);
+            let (patch, region) = geodesic_regions_from(topology, seed, &grab.settings);
+            if !pinned {
+                commands
+                    .entity(grab.mesh)
+                    .insert(anchor_for(posed, &region, seed));
+            }
             render_vertices(topology, &patch)
         } else {
             let Ok((state, mut deformable, has_fixed)) = meshes.get_mut(grab.mesh) else {
@@ -337,17 +295,20 @@ fn place_grabs(
         if vertices.is_empty() {
             continue;
         }
-        let handle = commands
-            .spawn((
-                DeformHandle {
-                    target: grab.mesh,
-                    vertices,
-                    pivot: None,
-                },
-                Transform::IDENTITY,
-                Name::new("grab handle"),
-            ))
-            .id();
+        let mut handle = commands.spawn((
+            DeformHandle {
+                target: grab.mesh,
+                vertices,
+                pivot: None,
+            },
+            Transform::IDENTITY,
+            Name::new("grab handle"),
+        ));
+        if grab.character {
+            // A character's grabbed point follows the pointer; the body decides how it turns.
+            handle.insert(HandlePositionOnly);
+        }
+        let handle = handle.id();
         commands.entity(grab.mesh).insert(GrabHandle(handle));
         grab.handle = Some(handle);
     }
@@ -365,6 +326,7 @@ enum Step {
 /// Moves grabbed handles in their camera's view plane, turns them (Shift: arcball) and
 /// twists them about the view axis (wheel).
 fn move_grabs(
+    mut commands: Commands,
     (mut moves, mut twists): (MessageReader<GrabMove>, MessageReader<GrabTwist>),
     mut grabs: ResMut<ActiveGrabs>,
     cameras: Query<(&Camera, &GlobalTransform)>,
@@ -438,6 +400,10 @@ fn move_grabs(
         if rotation.is_finite() {
             transform.rotation = rotation;
         }
+        if grab.character {
+            // Turning needs the grabbed part's orientation: the handle becomes rigid.
+            commands.entity(handle).remove::<HandlePositionOnly>();
+        }
     }
 }
 
@@ -456,8 +422,40 @@ fn end_grabs(
             && let Some(handle) = grab.handle
         {
             commands.entity(handle).despawn();
-            commands.entity(grab.mesh).remove::<GrabHandle>();
+            commands
+                .entity(grab.mesh)
+                .remove::<(GrabHandle, GrabAnchor)>();
         }
+    }
+}
+
+/// What holds a character while a grab of `region` (welded) bends it (see [`GrabAnchor`]):
+/// the joints the region does not reach, or, for a single chain, the farther half of the
+/// surface from `seed` (and every part not connected to it).
+fn anchor_for(posed: &PosedSkeleton, region: &[u32], seed: usize) -> GrabAnchor {
+    let joints: Vec<Entity> = posed
+        .model
+        .joints_not_reaching(region, 0.1)
+        .into_iter()
+        .filter_map(|j| posed.joints.get(j).copied())
+        .collect();
+    if !joints.is_empty() {
+        return GrabAnchor {
+            joints,
+            vertices: Vec::new(),
+        };
+    }
+    let topology = posed.model.topology();
+    let all = topology.geodesic_distances(&[seed as u32], f64::INFINITY, usize::MAX);
+    let mut held = vec![true; topology.vertex_count()];
+    for (v, _) in &all[..all.len() / 2] {
+        held[*v as usize] = false;
+    }
+    GrabAnchor {
+        joints,
+        vertices: (0..topology.vertex_count() as u32)
+            .filter(|v| held[*v as usize])
+            .collect(),
     }
 }
 

@@ -24,7 +24,7 @@
 //!
 //! The last stdout line is the JSON object.
 
-#[path = "common/rigged_gltf.rs"]
+#[path = "../common/rigged_gltf.rs"]
 mod rigged_gltf;
 
 use std::path::PathBuf;

@@ -4,7 +4,7 @@
 //! cargo run --release --example make_assets
 //! ```
 
-#[path = "common/models.rs"]
+#[path = "../common/models.rs"]
 mod models;
 
 fn main() {

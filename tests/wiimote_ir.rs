@@ -1,0 +1,271 @@
+//! The IR camera: hand-made byte vectors, the camera model and the pointer.
+
+use bevy_wii_deform::wiimote::ir::*;
+use glam::{DQuat, DVec2, DVec3};
+use proptest::prelude::*;
+
+fn dot(x: u16, y: u16) -> Option<IrDot> {
+    Some(IrDot { x, y, size: None })
+}
+
+#[test]
+fn basic_ir_bytes_decode_dots_at_the_corners_one_dot_and_none() {
+    // Pair 1: (0, 0) and (1023, 767); pair 2: (513, 258) and empty.
+    // HI of pair 1 = y1hi·64 + x1hi·16 + y2hi·4 + x2hi = 0 + 0 + 2·4 + 3 = 0x0B.
+    // HI of pair 2: x1 = 513 = 0x201 (hi 2), y1 = 258 = 0x102 (hi 1), the empty dot all ones.
+    let bytes = [
+        0x00,
+        0x00,
+        0x0B,
+        0xFF,
+        0xFF, // pair 1
+        0x01,
+        0x02,
+        0x60 | 0x20 | 0x0F,
+        0xFF,
+        0xFF, // pair 2
+    ];
+    let dots = decode_basic(&bytes).unwrap();
+    assert_eq!(dots, [dot(0, 0), dot(1023, 767), dot(513, 258), None]);
+    // None seen: every byte 0xFF.
+    assert_eq!(decode_basic(&[0xFF; 10]).unwrap(), [None; 4]);
+    // Round trip through the encoder.
+    assert_eq!(encode_basic(&dots), bytes);
+    // Wrong lengths are typed errors.
+    assert!(matches!(
+        decode_basic(&bytes[..9]),
+        Err(IrError::WrongLength {
+            expected: 10,
+            got: 9,
+            ..
+        })
+    ));
+    // x = 1023 with y = 1000 is not an empty slot and lies outside the image.
+    let bad = [
+        0xFF,
+        0xE8,
+        0x30 | 0xC0,
+        0xFF,
+        0xFF,
+        0xFF,
+        0xFF,
+        0xFF,
+        0xFF,
+        0xFF,
+    ];
+    assert!(matches!(
+        decode_basic(&bad),
+        Err(IrError::DotOutOfRange { x: 1023, y: 1000 })
+    ));
+}
+
+#[test]
+fn extended_ir_bytes_decode_positions_and_sizes() {
+    // Dot 0 at (1023, 767) size 15; dot 1 at (0, 0) size 1; dot 2 at (700, 400) size 6.
+    let bytes = [
+        0xFF,
+        0xFF,
+        0x20 | 0x80 | 0x30 | 0x0F, // x hi 3, y hi 2 → 0xBF
+        0x00,
+        0x00,
+        0x01, //
+        0xBC,
+        0x90,
+        0x40 | 0x20 | 0x06, // 700 = 0x2BC, 400 = 0x190
+        0xFF,
+        0xFF,
+        0xFF,
+    ];
+    let dots = decode_extended(&bytes).unwrap();
+    let sized = |x, y, s| {
+        Some(IrDot {
+            x,
+            y,
+            size: Some(s),
+        })
+    };
+    assert_eq!(
+        dots,
+        [
+            sized(1023, 767, 15),
+            sized(0, 0, 1),
+            sized(700, 400, 6),
+            None
+        ]
+    );
+    assert_eq!(encode_extended(&dots), bytes);
+    assert!(decode_extended(&bytes[..11]).is_err());
+}
+
+#[test]
+fn report_0x37_carries_buttons_accelerometer_ir_and_the_extension() {
+    let mut report = vec![0x37, 0x08, 0x04]; // Up (first byte 0x08) and B (second byte 0x04)
+    report.extend([0x80, 0x81, 0x99]); // accelerometer high bits
+    report.extend(encode_basic(&[dot(100, 200), dot(300, 210), None, None]));
+    report.extend([1, 2, 3, 4, 5, 6]);
+    let r = Report37::parse(&report).unwrap();
+    assert_eq!(r.buttons, 0x0408);
+    assert_eq!(r.accel, [0x80 << 2, 0x81 << 2, 0x99 << 2]);
+    assert_eq!(r.dots, [dot(100, 200), dot(300, 210), None, None]);
+    assert_eq!(r.extension, [1, 2, 3, 4, 5, 6]);
+    assert_eq!(
+        Report37::parse(&[0x35; 22]),
+        Err(IrError::NotReport37(0x35))
+    );
+    assert!(matches!(
+        Report37::parse(&report[..20]),
+        Err(IrError::Protocol(_))
+    ));
+}
+
+#[test]
+fn the_init_sequence_writes_the_camera_registers_in_order() {
+    let steps = ir_init_sequence(IrMode::Basic, IrSensitivity::Level3);
+    assert_eq!(
+        steps,
+        vec![
+            IrInitStep::Enable { report: 0x13 },
+            IrInitStep::Enable { report: 0x1A },
+            IrInitStep::Write {
+                address: 0xB00030,
+                bytes: vec![0x08]
+            },
+            IrInitStep::Write {
+                address: 0xB00000,
+                bytes: vec![0x02, 0x00, 0x00, 0x71, 0x01, 0x00, 0xAA, 0x00, 0x64],
+            },
+            IrInitStep::Write {
+                address: 0xB0001A,
+                bytes: vec![0x63, 0x03]
+            },
+            IrInitStep::Write {
+                address: 0xB00033,
+                bytes: vec![1]
+            },
+            IrInitStep::Write {
+                address: 0xB00030,
+                bytes: vec![0x08]
+            },
+        ]
+    );
+    let IrInitStep::Write { bytes, .. } =
+        &ir_init_sequence(IrMode::Extended, IrSensitivity::Max)[5]
+    else {
+        panic!("the mode write");
+    };
+    assert_eq!(bytes, &vec![3]);
+}
+
+proptest! {
+    #[test]
+    fn basic_and_extended_encodings_round_trip(
+        xs in proptest::array::uniform4(proptest::option::of((0u16..1024, 0u16..768, 0u8..16)))
+    ) {
+        let dots = xs.map(|d| d.map(|(x, y, s)| IrDot { x, y, size: Some(s) }));
+        prop_assert_eq!(decode_extended(&encode_extended(&dots)).unwrap(), dots);
+        let plain = dots.map(|d| d.map(|d| IrDot { size: None, ..d }));
+        prop_assert_eq!(decode_basic(&encode_basic(&plain)).unwrap(), plain);
+    }
+
+    /// Random bytes never panic the decoders: a value or a typed error.
+    #[test]
+    fn random_ir_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..40)) {
+        let _ = decode_basic(&bytes);
+        let _ = decode_extended(&bytes);
+        let _ = decode_full(&bytes);
+        let _ = Report37::parse(&bytes);
+    }
+}
+
+/// The orientation (body → room) of a remote at `position` aiming at the room point `target`,
+/// rolled by `roll` about its pointing axis.
+fn aiming(position: DVec3, target: DVec3, roll: f64) -> DQuat {
+    let d = (target - position).normalize();
+    // −Y turned by pitch θ about X then yaw ψ about Z: (sin ψ cos θ, −cos ψ cos θ, −sin θ)…
+    // solve for the pair that gives `d`.
+    let pitch = (-d.z).asin();
+    let yaw = d.x.atan2(-d.y);
+    let q =
+        DQuat::from_rotation_z(yaw) * DQuat::from_rotation_x(pitch) * DQuat::from_rotation_y(roll);
+    assert!(
+        (q * DVec3::NEG_Y - d).length() < 1e-9,
+        "{} vs {d}",
+        q * DVec3::NEG_Y
+    );
+    q
+}
+
+/// The accelerometer's reading (body frame, 1 g up when level) for an orientation.
+fn gravity(q: DQuat) -> DVec3 {
+    q.inverse() * DVec3::Z
+}
+
+#[test]
+fn an_emulated_remote_points_at_known_screen_spots_within_one_percent() {
+    let setup = PointerSetup::default();
+    let camera = IrCamera::default();
+    let spots = [
+        DVec2::new(0.5, 0.5),
+        DVec2::new(0.2, 0.3),
+        DVec2::new(0.8, 0.65),
+        DVec2::new(0.15, 0.6),
+        DVec2::new(0.9, 0.15),
+    ];
+    let (mut in_view, mut cases) = (0, 0);
+    for distance_offset in [0.0, 1.0, -0.5] {
+        let position = DVec3::new(0.0, distance_offset, 0.0);
+        for roll_deg in [0.0f64, 30.0, 90.0, -45.0] {
+            for spot in spots {
+                cases += 1;
+                let q = aiming(position, setup.screen_point(spot), roll_deg.to_radians());
+                let dots = camera.project(&setup, position, q);
+                let seen = dots.iter().flatten().count();
+                let result = setup.pointed_at(&dots, gravity(q));
+                if seen < 2 {
+                    // The camera's 33° × 23° view lost a cluster: the pointer says so.
+                    assert_eq!(result, Err(IrError::BarNotInView(seen)));
+                    continue;
+                }
+                in_view += 1;
+                let got = result.unwrap_or_else(|e| panic!("{spot} rolled {roll_deg}°: {e}"));
+                let error = (got - spot).length();
+                assert!(
+                    error < 0.01,
+                    "aimed at {spot} from {} m, rolled {roll_deg}°: pointer at {got}",
+                    setup.distance + distance_offset
+                );
+            }
+        }
+    }
+    // The bar stays in view for most of these aims (the test is not vacuous).
+    // (Rolled 90°, the 23° axis lies across the screen: some corners lose the bar.)
+    assert!(in_view * 3 >= cases * 2, "{in_view} of {cases} in view");
+    // Ignoring the roll (gravity read as level) puts a 30°-rolled remote's pointer off.
+    let spot = DVec2::new(0.2, 0.3);
+    let q = aiming(DVec3::ZERO, setup.screen_point(spot), 30f64.to_radians());
+    let dots = camera.project(&setup, DVec3::ZERO, q);
+    let unrolled = setup.pointed_at(&dots, DVec3::Z).unwrap();
+    assert!((unrolled - spot).length() > 0.05, "{unrolled}");
+}
+
+#[test]
+fn a_bar_out_of_view_is_a_typed_error_and_the_camera_loses_it() {
+    let setup = PointerSetup::default();
+    // Turned 60° away: both clusters outside the 33° view.
+    let q = DQuat::from_rotation_z(60f64.to_radians());
+    let dots = IrCamera::default().project(&setup, DVec3::ZERO, q);
+    assert_eq!(dots, [None; 4]);
+    assert_eq!(
+        setup.pointed_at(&dots, DVec3::Z),
+        Err(IrError::BarNotInView(0))
+    );
+    // A set-up without a screen is refused.
+    let broken = PointerSetup {
+        screen_width: f64::NAN,
+        ..setup
+    };
+    assert!(matches!(
+        broken.pointed_at(&dots, DVec3::Z),
+        Err(IrError::InvalidSetup(_))
+    ));
+}
