@@ -1414,8 +1414,6 @@ fn a_mouse_drag_moves_a_character_handle_with_the_cursor() {
     );
 }
 
-/// A pointer press at `at` (viewport pixels) on the primary window, or a move/scroll/release.
-
 /// `GrabPlugin` grabs a *posed* character from the raw pointer input (Bevy's picking sees only
 /// the bind pose of skinned meshes): the press picks the CPU-skinned surface, motion drags the
 /// patch in the view plane, the wheel twists it about the view axis, release ends the grab and

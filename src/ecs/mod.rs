@@ -36,7 +36,7 @@ pub use grab::{
     ActiveGrabs, GrabButton, GrabEnd, GrabHandle, GrabMove, GrabPlugin, GrabStart, GrabTwist,
     Grabbable,
 };
-pub use scene::{DeformableFrom, DeformableScene};
+pub use scene::{DeformableFrom, DeformableScene, MESH_WAIT_FRAMES};
 pub use wiimote::{
     ConnectionState, Wiimote, WiimoteButtonChanged, WiimoteCalibration, WiimoteConnected,
     WiimoteDisconnected, WiimoteEmulators, WiimoteFilter, WiimoteLink, WiimoteOrientationChanged,

@@ -483,7 +483,7 @@ impl PointerSetup {
         let (da, db) = (camera.direction(a), camera.direction(b));
         // Distance to the bar from the angle between the clusters.
         let angle = da.angle_between(db);
-        if !(angle > 1e-6) {
+        if angle.is_nan() || angle <= 1e-6 {
             return Err(IrError::BarNotInView(1));
         }
         let range = self.bar_width / 2.0 / (angle / 2.0).tan();

@@ -175,6 +175,10 @@ pub enum PoseableError {
     /// The skin, skeleton or a solve was rejected.
     #[error(transparent)]
     Pose(#[from] PoseError),
+    /// The glTF scene (a `WorldAssetRoot`) this [`Poseable`] is on failed to load: a missing
+    /// or malformed file. The loader's message is kept.
+    #[error("the scene failed to load: {0}")]
+    SceneLoadFailed(String),
     /// A joint entity of the skin does not exist or has no `Transform`.
     #[error("joint entity {0} of the skin is missing")]
     MissingJoint(Entity),

@@ -23,7 +23,7 @@ use super::{
     PoseStatus, Poseable, PoseableError, PosedSkeleton,
 };
 use crate::deform::{Handle as CoreHandle, RigidTransform, centroid};
-use crate::ecs::scene::{SceneSpawned, mark_scene_spawned};
+use crate::ecs::scene::{SceneSpawned, mark_scene_spawned, scene_load_failure};
 use crate::ecs::{DeformHandle, DeformPhase, DeformSystems};
 use crate::pose::{
     CentroidEffector, Joint, JointHandle, JointTransform, ModelSettings, PoseConstraints,
@@ -226,11 +226,12 @@ fn find_skins(
             Entity,
             &Poseable,
             &mut PoseStatus,
-            Has<WorldAssetRoot>,
+            Option<&WorldAssetRoot>,
             Has<SceneSpawned>,
         ),
         Without<PoseState>,
     >,
+    assets: Option<Res<AssetServer>>,
     children: Query<&Children>,
     skins: Query<(&BevySkin, &Mesh3d)>,
     meshes: Res<Assets<Mesh>>,
@@ -239,7 +240,7 @@ fn find_skins(
     globals: Query<&GlobalTransform>,
     mut failed: MessageWriter<PoseFailed>,
 ) {
-    for (entity, poseable, mut status, is_scene, spawned) in &mut new {
+    for (entity, poseable, mut status, scene, spawned) in &mut new {
         if status.phase == DeformPhase::Failed {
             continue;
         }
@@ -250,15 +251,15 @@ fn find_skins(
         let Some(&first) = primitives.first() else {
             // A scene root waits for its instance; any other entity must have its skinned
             // mesh at or below it when `Poseable` is added (as for `Deformable`).
-            if is_scene && !spawned {
-                continue;
-            }
-            fail(
-                entity,
-                PoseableError::NoSkinnedMesh,
-                &mut status,
-                &mut failed,
-            );
+            let error = if scene.is_some() && !spawned {
+                match assets.as_deref().and_then(|a| scene_load_failure(a, scene)) {
+                    Some(message) => PoseableError::SceneLoadFailed(message),
+                    None => continue, // the scene has not spawned yet
+                }
+            } else {
+                PoseableError::NoSkinnedMesh
+            };
+            fail(entity, error, &mut status, &mut failed);
             continue;
         };
         let (skin, _) = skins.get(first).expect("filtered");
@@ -376,7 +377,7 @@ fn find_skins(
         let task = AsyncComputeTaskPool::get()
             .spawn(async move { Ok(SkinnedModel::new(skeleton, &mesh, &reference, settings)?) });
         status.phase = DeformPhase::BuildingTopology;
-        commands.entity(entity).insert(PoseState {
+        commands.entity(entity).try_insert(PoseState {
             building: Some(task),
             joints: order.iter().map(|&old| skin.joints[old]).collect(),
             primitives: offsets,
@@ -420,7 +421,7 @@ fn finish_models(
                 status.phase = DeformPhase::Idle;
                 status.joints = model.skeleton().len();
                 status.vertices = model.topology().vertex_count();
-                commands.entity(entity).insert(PosedSkeleton {
+                commands.entity(entity).try_insert(PosedSkeleton {
                     model: Arc::new(model),
                     joints: state.joints.clone(),
                     primitives: state.primitives.clone(),

@@ -179,6 +179,10 @@ pub enum DeformError {
     /// The solve produced NaN or infinity; the mesh was left unchanged.
     #[error("the solve produced non-finite values; the mesh was left unchanged")]
     NonFinite,
+    /// The glTF scene (a `WorldAssetRoot`) this [`Deformable`] is on failed to load: a
+    /// missing or malformed file. The loader's message is kept.
+    #[error("the scene failed to load: {0}")]
+    SceneLoadFailed(String),
 }
 
 /// Background phase of a deformable.

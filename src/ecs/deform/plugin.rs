@@ -183,9 +183,9 @@ impl DeformState {
     /// the weld and adjacency of this rest pose when it has one ([`Topology::rebased`]).
     pub(crate) fn bake(&self, entity: Entity, commands: &mut Commands) {
         let mut entity = commands.entity(entity);
-        entity.remove::<DeformState>();
+        entity.try_remove::<DeformState>();
         if let Some(topology) = self.topology() {
-            entity.insert(PreviousTopology(topology.clone()));
+            entity.try_insert(PreviousTopology(topology.clone()));
         }
     }
 }
@@ -216,7 +216,7 @@ fn prepare_deformables(
             continue; // not loaded yet
         };
         let previous = previous.map(|p| p.0.clone());
-        commands.entity(entity).remove::<PreviousTopology>();
+        commands.entity(entity).try_remove::<PreviousTopology>();
         let topology = mesh.primitive_topology();
         let triangles = topology == bevy::mesh::PrimitiveTopology::TriangleList;
         // Copy per instance: glTF entities may share one mesh asset.
@@ -228,9 +228,30 @@ fn prepare_deformables(
             .map(|i| i.iter().map(|x| x as u32).collect());
         let normals = match copy.try_attribute(Mesh::ATTRIBUTE_NORMAL) {
             Ok(VertexAttributeValues::Float32x3(v)) => {
-                Some(v.iter().map(|p| Vec3::from_array(*p)).collect())
+                Some(v.iter().map(|p| Vec3::from_array(*p)).collect::<Vec<_>>())
             }
             _ => None,
+        };
+        // A file's NaN or zero normals never reach the mesh: those are recomputed from the
+        // surface (area-weighted face normals).
+        let normals = match (normals, &positions, &indices) {
+            (Some(n), Some(p), i) if n.len() == p.len() && n.iter().any(|v| !is_unit_like(*v)) => {
+                let all: Vec<u32>;
+                let i = match i {
+                    Some(i) => i.as_slice(),
+                    None => {
+                        all = (0..p.len() as u32).collect();
+                        &all
+                    }
+                };
+                let repaired = repair_normals(p, i, &n);
+                copy.insert_attribute(
+                    Mesh::ATTRIBUTE_NORMAL,
+                    repaired.iter().map(|v| v.to_array()).collect::<Vec<_>>(),
+                );
+                Some(repaired)
+            }
+            (n, _, _) => n,
         };
         let tangents = match copy.try_attribute(Mesh::ATTRIBUTE_TANGENT) {
             Ok(VertexAttributeValues::Float32x4(v)) => {
@@ -263,7 +284,7 @@ fn prepare_deformables(
             })
         });
         status.phase = DeformPhase::BuildingTopology;
-        commands.entity(entity).insert(DeformState {
+        commands.entity(entity).try_insert(DeformState {
             rest: None,
             building: Some(task),
             solver: None,
@@ -799,4 +820,38 @@ fn write_back(mut meshes: ResMut<Assets<Mesh>>, mut q: Query<(&Mesh3d, &mut Defo
             let _ = mesh.try_insert_attribute(Mesh::ATTRIBUTE_TANGENT, t);
         }
     }
+}
+
+/// Whether a normal can be used: finite and not (nearly) zero.
+fn is_unit_like(n: Vec3) -> bool {
+    n.is_finite() && n.length_squared() > 1e-12
+}
+
+/// `normals` with every unusable one (NaN, infinite, zero) replaced by the area-weighted
+/// normal of the triangles around its vertex (or +Y where those are degenerate too).
+fn repair_normals(positions: &[Vec3], indices: &[u32], normals: &[Vec3]) -> Vec<Vec3> {
+    let mut summed = vec![Vec3::ZERO; positions.len()];
+    for t in indices.chunks_exact(3) {
+        let [a, b, c] = [t[0], t[1], t[2]].map(|i| i as usize);
+        if a.max(b).max(c) >= positions.len() {
+            continue; // bad indices fail later with a typed error
+        }
+        let face = (positions[b] - positions[a]).cross(positions[c] - positions[a]);
+        if face.is_finite() {
+            for v in [a, b, c] {
+                summed[v] += face;
+            }
+        }
+    }
+    normals
+        .iter()
+        .zip(summed)
+        .map(|(&n, s)| {
+            if is_unit_like(n) {
+                n
+            } else {
+                s.try_normalize().unwrap_or(Vec3::Y)
+            }
+        })
+        .collect()
 }

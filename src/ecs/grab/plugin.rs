@@ -87,6 +87,9 @@ impl Plugin for GrabPlugin {
     }
 }
 
+/// What a press may grab: deformable meshes and posed characters.
+type GrabTargets = Or<(With<Deformable>, With<PosedSkeleton>)>;
+
 /// A press of the [`GrabButton`] on a grabbable deformable or posed character starts a grab.
 /// Presses come from bevy_picking, so its hit ordering applies: UI over a mesh or a character,
 /// or another entity in front of it, takes the press instead. Characters report hits on their
@@ -96,7 +99,7 @@ fn presses_to_grabs(
     button: Res<GrabButton>,
     grabbable: Query<(), With<Grabbable>>,
     from: Query<&DeformableFrom>,
-    targets: Query<(), Or<(With<Deformable>, With<PosedSkeleton>)>>,
+    targets: Query<(), GrabTargets>,
     mut start: MessageWriter<GrabStart>,
 ) {
     let mut nearest: HashMap<PointerId, (f32, GrabStart)> = HashMap::new();
@@ -224,8 +227,8 @@ fn start_grabs(
         if let Some(GrabHandle(handle)) = previous {
             // Bake: the deformed mesh becomes the new rest (prepared again in the background);
             // a character keeps its pose as it is.
-            commands.entity(*handle).despawn();
-            commands.entity(s.entity).remove::<GrabHandle>();
+            commands.entity(*handle).try_despawn();
+            commands.entity(s.entity).try_remove::<GrabHandle>();
             if let (false, Ok(state)) = (character, states.get(s.entity)) {
                 state.bake(s.entity, &mut commands);
             }
@@ -273,7 +276,7 @@ fn place_grabs(
             if !pinned {
                 commands
                     .entity(grab.mesh)
-                    .insert(anchor_for(posed, &region, seed));
+                    .try_insert(anchor_for(posed, &region, seed));
             }
             render_vertices(topology, &patch)
         } else {
@@ -309,7 +312,7 @@ fn place_grabs(
             handle.insert(HandlePositionOnly);
         }
         let handle = handle.id();
-        commands.entity(grab.mesh).insert(GrabHandle(handle));
+        commands.entity(grab.mesh).try_insert(GrabHandle(handle));
         grab.handle = Some(handle);
     }
 }
@@ -402,7 +405,7 @@ fn move_grabs(
         }
         if grab.character {
             // Turning needs the grabbed part's orientation: the handle becomes rigid.
-            commands.entity(handle).remove::<HandlePositionOnly>();
+            commands.entity(handle).try_remove::<HandlePositionOnly>();
         }
     }
 }
@@ -421,10 +424,10 @@ fn end_grabs(
         if grab.character
             && let Some(handle) = grab.handle
         {
-            commands.entity(handle).despawn();
+            commands.entity(handle).try_despawn();
             commands
                 .entity(grab.mesh)
-                .remove::<(GrabHandle, GrabAnchor)>();
+                .try_remove::<(GrabHandle, GrabAnchor)>();
         }
     }
 }

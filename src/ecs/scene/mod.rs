@@ -4,9 +4,11 @@
 //!
 //! glTF splits a mesh into one entity per primitive under node entities that carry the node
 //! transforms, and the scene is spawned some frames after its asset loads; this waits for
-//! that (`WorldInstanceReady`). A target with no mesh below it gets a [`DeformFailed`] with
-//! [`DeformError::NoMeshBelow`] — once the scene has spawned, or at once for an entity that is
-//! not a scene root (its meshes must be below it when the [`Deformable`] is added).
+//! that (`WorldInstanceReady`). A scene that fails to load (a missing or malformed file) gets
+//! a [`DeformFailed`] with `DeformError::SceneLoadFailed` and the loader's message. A target
+//! with no mesh below it gets [`DeformError::NoMeshBelow`] — once the scene has spawned, or,
+//! for an entity that is not a scene root, after [`MESH_WAIT_FRAMES`] frames of waiting for
+//! children that a spawner adds late.
 //!
 //! This file holds the components; `plugin.rs` the systems, which [`DeformPlugin`](crate::ecs::DeformPlugin) adds.
 
@@ -17,8 +19,9 @@ use bevy::prelude::*;
 #[cfg(doc)]
 use crate::ecs::{DeformError, DeformFailed, Deformable};
 
+pub use plugin::MESH_WAIT_FRAMES;
 pub(crate) use plugin::{
-    expand_deformable_ancestors, mark_scene_spawned, sync_deformable_ancestors,
+    expand_deformable_ancestors, mark_scene_spawned, scene_load_failure, sync_deformable_ancestors,
 };
 
 /// On an ancestor whose [`Deformable`] was handed to the mesh primitives below it: those

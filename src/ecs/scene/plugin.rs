@@ -10,12 +10,36 @@ use crate::ecs::deform::{DeformError, DeformFailed, DeformPhase, DeformStatus, D
 /// Marks a scene root [`SceneSpawned`] when its instance is ready.
 pub(crate) fn mark_scene_spawned(ready: On<WorldInstanceReady>, mut commands: Commands) {
     if let Ok(mut entity) = commands.get_entity(ready.entity) {
-        entity.insert(SceneSpawned);
+        entity.try_insert(SceneSpawned);
+    }
+}
+
+/// Frames an ancestor that is not a scene root waits for mesh children to arrive (a spawner
+/// that adds them a frame or a few later) before it fails with `NoMeshBelow`.
+pub const MESH_WAIT_FRAMES: u32 = 30;
+
+/// Why a scene root has nothing below it yet: still loading (`None`), or its load failed.
+pub(crate) fn scene_load_failure(
+    assets: &AssetServer,
+    root: Option<&WorldAssetRoot>,
+) -> Option<String> {
+    use bevy::asset::RecursiveDependencyLoadState;
+    match assets.get_recursive_dependency_load_state(&root?.0)? {
+        // The first line: the loader's message (a backtrace may follow).
+        RecursiveDependencyLoadState::Failed(error) => Some(
+            error
+                .to_string()
+                .lines()
+                .next()
+                .unwrap_or_default()
+                .to_string(),
+        ),
+        _ => None,
     }
 }
 
 /// Hands an ancestor's [`Deformable`] to the mesh primitives below it (see the module docs).
-#[allow(clippy::type_complexity)]
+#[allow(clippy::type_complexity, clippy::too_many_arguments)] // one query per role
 pub(crate) fn expand_deformable_ancestors(
     mut commands: Commands,
     mut roots: Query<
@@ -23,16 +47,18 @@ pub(crate) fn expand_deformable_ancestors(
             Entity,
             &Deformable,
             &mut DeformStatus,
-            Has<WorldAssetRoot>,
+            Option<&WorldAssetRoot>,
             Has<SceneSpawned>,
         ),
         (Without<Mesh3d>, Without<DeformableScene>),
     >,
     children: Query<&Children>,
     meshes: Query<(), With<Mesh3d>>,
+    assets: Option<Res<AssetServer>>,
+    mut waited: Local<bevy::platform::collections::HashMap<Entity, u32>>,
     mut failed: MessageWriter<DeformFailed>,
 ) {
-    for (root, deformable, mut status, is_scene, spawned) in &mut roots {
+    for (root, deformable, mut status, scene, spawned) in &mut roots {
         if status.phase == DeformPhase::Failed {
             continue;
         }
@@ -41,25 +67,43 @@ pub(crate) fn expand_deformable_ancestors(
             .filter(|e| meshes.contains(*e))
             .collect();
         if primitives.is_empty() {
-            if is_scene && !spawned {
-                continue; // the scene has not spawned yet
-            }
-            warn!("Deformable {root}: {}", DeformError::NoMeshBelow);
+            let error = match (scene.is_some(), spawned) {
+                (true, false) => {
+                    match assets.as_deref().and_then(|a| scene_load_failure(a, scene)) {
+                        Some(message) => DeformError::SceneLoadFailed(message),
+                        None => continue, // the scene has not spawned yet
+                    }
+                }
+                (false, _) => {
+                    let frames = waited.entry(root).or_insert(0);
+                    *frames += 1;
+                    if *frames <= MESH_WAIT_FRAMES {
+                        continue; // children may arrive a few frames later
+                    }
+                    DeformError::NoMeshBelow
+                }
+                (true, true) => DeformError::NoMeshBelow,
+            };
+            waited.remove(&root);
+            warn!("Deformable {root}: {error}");
             status.phase = DeformPhase::Failed;
-            status.error = Some(DeformError::NoMeshBelow);
+            status.error = Some(error.clone());
             failed.write(DeformFailed {
                 entity: root,
-                error: DeformError::NoMeshBelow,
+                error,
             });
             continue;
         }
+        waited.remove(&root);
         for &primitive in &primitives {
             commands
                 .entity(primitive)
-                .insert((deformable.clone(), DeformableFrom(root)));
+                .try_insert((deformable.clone(), DeformableFrom(root)));
         }
         status.phase = DeformPhase::Idle;
-        commands.entity(root).insert(DeformableScene { primitives });
+        commands
+            .entity(root)
+            .try_insert(DeformableScene { primitives });
     }
 }
 

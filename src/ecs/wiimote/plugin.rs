@@ -305,6 +305,6 @@ fn receive_wiimote_events(
         }
     }
     for (e, w) in spawned {
-        commands.entity(e).insert(w);
+        commands.entity(e).try_insert(w);
     }
 }

@@ -1,0 +1,282 @@
+//! Broken glTF files, made here, loaded through Bevy's glTF loader as `Deformable` scenes:
+//! each gives a typed error on its entity (or, where the file is still usable, a working mesh
+//! with finite data), and the app keeps running.
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use bevy::prelude::*;
+use bevy::world_serialization::WorldAssetRoot;
+use bevy_wii_deform::prelude::*;
+
+mod common;
+use bevy_wii_deform::ecs::MESH_WAIT_FRAMES;
+
+/// A quad (two triangles) as positions, normals and u16 indices in one buffer.
+fn buffer(positions: &[[f32; 3]], normals: &[[f32; 3]], indices: &[u16]) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    for p in positions.iter().chain(normals) {
+        for v in p {
+            bytes.extend(v.to_le_bytes());
+        }
+    }
+    for i in indices {
+        bytes.extend(i.to_le_bytes());
+    }
+    bytes
+}
+
+const QUAD: [[f32; 3]; 4] = [
+    [0.0, 0.0, 0.0],
+    [1.0, 0.0, 0.0],
+    [1.0, 1.0, 0.0],
+    [0.0, 1.0, 0.0],
+];
+const UP: [[f32; 3]; 4] = [[0.0, 0.0, 1.0]; 4];
+
+/// The glTF JSON of one mesh node referring to `uri` (48 + 48 + 12 bytes).
+fn gltf_json(uri: &str, nodes: &str, scenes: &str) -> String {
+    format!(
+        r#"{{
+  "asset": {{ "version": "2.0" }},
+  "buffers": [{{ "uri": "{uri}", "byteLength": 108 }}],
+  "bufferViews": [
+    {{ "buffer": 0, "byteOffset": 0, "byteLength": 48 }},
+    {{ "buffer": 0, "byteOffset": 48, "byteLength": 48 }},
+    {{ "buffer": 0, "byteOffset": 96, "byteLength": 12 }}
+  ],
+  "accessors": [
+    {{ "bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+       "min": [0.0, 0.0, 0.0], "max": [1.0, 1.0, 0.0] }},
+    {{ "bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC3" }},
+    {{ "bufferView": 2, "componentType": 5123, "count": 6, "type": "SCALAR" }}
+  ],
+  "meshes": [{{ "primitives": [{{ "attributes": {{ "POSITION": 0, "NORMAL": 1 }}, "indices": 2 }}] }}],
+  "nodes": {nodes},
+  "scenes": {scenes},
+  "scene": 0
+}}"#
+    )
+}
+
+const ONE_NODE: &str = r#"[{ "mesh": 0 }]"#;
+const ONE_SCENE: &str = r#"[{ "nodes": [0] }]"#;
+
+/// Writes the test files into a fresh folder; returns it and the files' names with whether
+/// the file is still usable (a deformable that works) rather than broken.
+fn write_files() -> (PathBuf, Vec<(&'static str, bool)>) {
+    let dir =
+        std::env::temp_dir().join(format!("bevy_wii_deform_malformed_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let write = |name: &str, bytes: &[u8]| std::fs::write(dir.join(name), bytes).unwrap();
+    let good = [0u16, 1, 2, 0, 2, 3];
+    write("good.bin", &buffer(&QUAD, &UP, &good));
+    write("far_index.bin", &buffer(&QUAD, &UP, &[0, 1, 2, 0, 2, 40]));
+    let mut nan = QUAD;
+    nan[2][1] = f32::NAN;
+    write("nan.bin", &buffer(&nan, &UP, &good));
+    let mut inf = QUAD;
+    inf[1][0] = f32::INFINITY;
+    write("inf.bin", &buffer(&inf, &UP, &good));
+    write(
+        "bad_normals.bin",
+        &buffer(&QUAD, &[[0.0; 3], [f32::NAN; 3], [0.0; 3], [0.0; 3]], &good),
+    );
+    let json = |uri: &str, nodes: &str, scenes: &str| gltf_json(uri, nodes, scenes).into_bytes();
+    write("good.gltf", &json("good.bin", ONE_NODE, ONE_SCENE));
+    write(
+        "far_index.gltf",
+        &json("far_index.bin", ONE_NODE, ONE_SCENE),
+    );
+    write("nan.gltf", &json("nan.bin", ONE_NODE, ONE_SCENE));
+    write("inf.gltf", &json("inf.bin", ONE_NODE, ONE_SCENE));
+    write(
+        "bad_normals.gltf",
+        &json("bad_normals.bin", ONE_NODE, ONE_SCENE),
+    );
+    write(
+        "missing_bin.gltf",
+        &json("missing.bin", ONE_NODE, ONE_SCENE),
+    );
+    write(
+        "recursive.gltf",
+        &json(
+            "good.bin",
+            r#"[{ "mesh": 0, "children": [1] }, { "children": [0] }]"#,
+            ONE_SCENE,
+        ),
+    );
+    write(
+        "no_scene.gltf",
+        gltf_json("good.bin", ONE_NODE, "[]")
+            .replace("\"scene\": 0", "\"extras\": {}")
+            .as_bytes(),
+    );
+    write(
+        "wrong_types.gltf",
+        &json("good.bin", r#""oops""#, ONE_SCENE),
+    );
+    write("not_json.gltf", b"{ this is not json");
+    let files = vec![
+        ("good.gltf", true),
+        ("bad_normals.gltf", true),
+        ("far_index.gltf", false),
+        ("nan.gltf", false),
+        ("inf.gltf", false),
+        ("missing_bin.gltf", false),
+        ("recursive.gltf", false),
+        ("no_scene.gltf", false),
+        ("wrong_types.gltf", false),
+        ("not_json.gltf", false),
+    ];
+    (dir, files)
+}
+
+fn gltf_app(dir: &Path) -> App {
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        bevy::asset::AssetPlugin {
+            file_path: dir.display().to_string(),
+            ..default()
+        },
+        bevy::mesh::MeshPlugin,
+        bevy::transform::TransformPlugin,
+        bevy::image::ImagePlugin::default(),
+        bevy::world_serialization::WorldSerializationPlugin,
+        bevy::gltf::GltfPlugin::default(),
+        DeformPlugin::default(),
+    ));
+    app.init_asset::<StandardMaterial>();
+    app.finish();
+    app.cleanup();
+    app.insert_resource(bevy::time::TimeUpdateStrategy::ManualDuration(
+        Duration::from_millis(16),
+    ));
+    app
+}
+
+#[test]
+fn malformed_gltf_never_panics() {
+    let (dir, files) = write_files();
+    let mut app = gltf_app(&dir);
+    let roots: Vec<(Entity, &str, bool)> = files
+        .iter()
+        .map(|&(name, usable)| {
+            let scene = app
+                .world()
+                .resource::<AssetServer>()
+                .load(GltfAssetLabel::Scene(0).from_asset(name));
+            let e = app
+                .world_mut()
+                .spawn((
+                    WorldAssetRoot(scene),
+                    Deformable::default(),
+                    Name::new(name),
+                ))
+                .id();
+            (e, name, usable)
+        })
+        .collect();
+    // Every root ends up handed to its meshes (usable) or failed with a reason.
+    let settled = |app: &mut App, e: Entity| -> bool {
+        let world = app.world();
+        let status = world.get::<DeformStatus>(e).unwrap();
+        if status.phase == DeformPhase::Failed {
+            return true;
+        }
+        world.get::<DeformableScene>(e).is_some_and(|s| {
+            s.primitives.iter().all(|&p| {
+                world
+                    .get::<DeformStatus>(p)
+                    .is_some_and(|st| matches!(st.phase, DeformPhase::Idle | DeformPhase::Failed))
+            })
+        })
+    };
+    common::update_until(&mut app, "every file loaded or failed", |a| {
+        roots.iter().all(|&(e, _, _)| settled(a, e))
+    });
+    for _ in 0..10 {
+        app.update(); // keeps running
+    }
+    for &(e, name, usable) in &roots {
+        let world = app.world();
+        let root_error = world.get::<DeformStatus>(e).unwrap().error.clone();
+        let primitive_errors: Vec<DeformError> = world
+            .get::<DeformableScene>(e)
+            .map(|s| {
+                s.primitives
+                    .iter()
+                    .filter_map(|&p| world.get::<DeformStatus>(p).and_then(|st| st.error.clone()))
+                    .collect()
+            })
+            .unwrap_or_default();
+        if usable {
+            assert_eq!(root_error, None, "{name}");
+            assert!(primitive_errors.is_empty(), "{name}: {primitive_errors:?}");
+            // Its mesh data is finite (no NaN reached the mesh).
+            let scene = world.get::<DeformableScene>(e).unwrap();
+            for &p in &scene.primitives {
+                let mesh = world.get::<Mesh3d>(p).unwrap();
+                let mesh = world.resource::<Assets<Mesh>>().get(&mesh.0).unwrap();
+                for attribute in [Mesh::ATTRIBUTE_POSITION, Mesh::ATTRIBUTE_NORMAL] {
+                    if let Some(bevy::mesh::VertexAttributeValues::Float32x3(v)) =
+                        mesh.attribute(attribute)
+                    {
+                        assert!(
+                            v.iter().flatten().all(|x| x.is_finite()),
+                            "{name}: non-finite {attribute:?}"
+                        );
+                    }
+                }
+            }
+        } else {
+            assert!(
+                root_error.is_some() || !primitive_errors.is_empty(),
+                "{name} gave no error"
+            );
+            eprintln!("{name}: {root_error:?} {primitive_errors:?}");
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A `Deformable` on a plain ancestor whose mesh children arrive a few frames later is handed
+/// to them; one whose children never come fails with `NoMeshBelow` after the bounded wait.
+#[test]
+fn late_children_are_waited_for_then_fail_with_the_reason() {
+    let mut app = common::app();
+    app.add_plugins(DeformPlugin::default());
+    let late = app
+        .world_mut()
+        .spawn((Deformable::default(), Transform::default()))
+        .id();
+    let never = app
+        .world_mut()
+        .spawn((Deformable::default(), Transform::default()))
+        .id();
+    for _ in 0..3 {
+        app.update();
+    }
+    let tri = bevy_wii_deform::deform::synth::bar(8, 10, 0.1, 1.0);
+    let mesh = mesh_from_triangles(&tri.positions, &tri.triangles);
+    let mesh = app.world_mut().resource_mut::<Assets<Mesh>>().add(mesh);
+    let child = app
+        .world_mut()
+        .spawn((Mesh3d(mesh), Transform::default(), ChildOf(late)))
+        .id();
+    for _ in 0..(MESH_WAIT_FRAMES + 5) {
+        app.update();
+    }
+    assert_eq!(
+        app.world()
+            .get::<DeformableScene>(late)
+            .map(|s| s.primitives.clone()),
+        Some(vec![child])
+    );
+    assert_eq!(app.world().get::<DeformStatus>(late).unwrap().error, None);
+    let status = app.world().get::<DeformStatus>(never).unwrap();
+    assert_eq!(status.phase, DeformPhase::Failed);
+    assert_eq!(status.error, Some(DeformError::NoMeshBelow));
+}
