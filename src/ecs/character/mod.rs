@@ -77,7 +77,7 @@ impl Default for Poseable {
 /// Joints (entities) of a [`Poseable`] character kept where they are: the feet planted.
 #[derive(Component, Debug, Clone, Default, Reflect, PartialEq)]
 #[reflect(Component, Default)]
-pub struct PinnedJoints(pub Vec<Entity>);
+pub struct PinnedJoints(#[entities] pub Vec<Entity>);
 
 /// A handle that moves a joint (grab the hand joint). Its `Transform` is the joint's target
 /// world transform; at rest it is the joint's world transform (filled in by the plugin with
@@ -86,8 +86,10 @@ pub struct PinnedJoints(pub Vec<Entity>);
 #[reflect(Component)]
 pub struct PoseJointHandle {
     /// The [`Poseable`] character.
+    #[entities]
     pub target: Entity,
     /// The joint entity.
+    #[entities]
     pub joint: Entity,
     /// The joint's world transform when the handle was (re)based.
     pub rest: Option<Transform>,
@@ -121,6 +123,7 @@ impl PoseJointHandle {
 #[reflect(Component, Default)]
 pub struct GrabAnchor {
     /// Joint entities pinned (position and orientation) where they are.
+    #[entities]
     pub joints: Vec<Entity>,
     /// Welded vertex indices of the model kept where they are.
     pub vertices: Vec<u32>,

@@ -31,11 +31,14 @@ pub(crate) use plugin::{turned_in_space, view_plane_motion};
 #[reflect(Component)]
 pub struct WiimoteHandleControl {
     /// Which remote (its entity); `None` = the first connected remote.
+    #[entities]
     pub remote: Option<Entity>,
     /// Camera whose frame defines "right/up/forward"; `None` = the first `Camera3d`.
+    #[entities]
     pub camera: Option<Entity>,
     /// Entity whose `GlobalTransform` defines the handle's space (e.g. the mesh); `None` =
     /// world space.
+    #[entities]
     pub space: Option<Entity>,
     /// Translation speed in world units per second.
     pub speed: f32,
@@ -117,9 +120,11 @@ impl WiimoteHandleControl {
 #[reflect(Component)]
 pub struct MouseHandleControl {
     /// Camera whose view is dragged in; `None` = the first `Camera3d`.
+    #[entities]
     pub camera: Option<Entity>,
     /// Entity whose `GlobalTransform` defines the handle's space (e.g. the mesh); `None` =
     /// world space.
+    #[entities]
     pub space: Option<Entity>,
     /// The button that drags.
     pub button: MouseButton,

@@ -93,6 +93,7 @@ pub struct FixedRegion(pub Vec<u32>);
 #[reflect(Component)]
 pub struct DeformHandle {
     /// The [`Deformable`] mesh entity.
+    #[entities]
     pub target: Entity,
     /// Render vertex indices of the handle.
     pub vertices: Vec<u32>,

@@ -100,8 +100,9 @@ pub struct GrabEnd {
 }
 
 /// On a mesh: the handle entity its last grab created.
-#[derive(Component, Debug, Clone, Copy, PartialEq, Eq)]
-pub struct GrabHandle(pub Entity);
+#[derive(Component, Debug, Clone, Copy, PartialEq, Eq, Reflect)]
+#[reflect(Component)]
+pub struct GrabHandle(#[entities] pub Entity);
 
 /// Grabs in progress, by pointer.
 #[derive(Resource, Debug, Default)]

@@ -59,6 +59,7 @@ pub struct GrabPlugin;
 impl Plugin for GrabPlugin {
     fn build(&self, app: &mut App) {
         app.register_type::<Grabbable>()
+            .register_type::<GrabHandle>()
             .register_type::<GrabButton>()
             .init_resource::<GrabButton>()
             .init_resource::<ActiveGrabs>()

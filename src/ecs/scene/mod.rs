@@ -30,6 +30,7 @@ pub(crate) use plugin::{
 #[reflect(Component, Default)]
 pub struct DeformableScene {
     /// The primitive entities that are deformable because of this ancestor.
+    #[entities]
     pub primitives: Vec<Entity>,
 }
 
@@ -37,7 +38,7 @@ pub struct DeformableScene {
 /// [`Deformable`] follows the ancestor's.
 #[derive(Component, Debug, Clone, Copy, PartialEq, Eq, Reflect)]
 #[reflect(Component)]
-pub struct DeformableFrom(pub Entity);
+pub struct DeformableFrom(#[entities] pub Entity);
 
 /// Marks a scene root whose instance has spawned (set by an observer of
 /// `WorldInstanceReady`).

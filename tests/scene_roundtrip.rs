@@ -1,0 +1,115 @@
+//! A scene saved from the world and loaded back (`DynamicWorld`) keeps every entity reference
+//! of the crate's components pointing at the right (new) entities.
+
+use bevy::ecs::entity::EntityHashMap;
+use bevy::prelude::*;
+use bevy::world_serialization::DynamicWorld;
+use bevy_wii_deform::ecs::{DeformableFrom, DeformableScene, GrabHandle};
+use bevy_wii_deform::prelude::*;
+
+mod common;
+
+/// An app whose type registry knows every component of the crate (no update is run).
+fn registry_app() -> App {
+    let mut app = common::app();
+    app.add_plugins((
+        DeformPlugin::default(),
+        PosePlugin,
+        GrabPlugin,
+        MouseControlPlugin,
+        WiimoteControlPlugin,
+    ));
+    app
+}
+
+#[test]
+fn a_scene_round_trip_keeps_handles_pins_and_controls_pointing_at_the_right_entities() {
+    let mut source = registry_app();
+    let world = source.world_mut();
+    let camera = world.spawn(Name::new("camera")).id();
+    let remote = world.spawn(Name::new("remote")).id();
+    let mesh = world.spawn(Name::new("mesh")).id();
+    let root = world
+        .spawn((
+            Name::new("root"),
+            DeformableScene {
+                primitives: vec![mesh],
+            },
+        ))
+        .id();
+    world.entity_mut(mesh).insert(DeformableFrom(root));
+    let hip = world.spawn(Name::new("hip")).id();
+    let foot = world.spawn(Name::new("foot")).id();
+    let character = world
+        .spawn((Name::new("character"), PinnedJoints(vec![hip, foot])))
+        .id();
+    let handle = world
+        .spawn((
+            Name::new("handle"),
+            DeformHandle {
+                target: mesh,
+                vertices: vec![1, 2, 3],
+                pivot: None,
+            },
+            MouseHandleControl::default()
+                .with_camera(camera)
+                .with_space(mesh),
+            WiimoteHandleControl::default()
+                .with_remote(remote)
+                .with_camera(camera)
+                .with_space(mesh),
+        ))
+        .id();
+    world.entity_mut(mesh).insert(GrabHandle(handle));
+    world.entity_mut(character).insert(GrabAnchor {
+        joints: vec![foot],
+        vertices: vec![7],
+    });
+    let joint_handle = world
+        .spawn((
+            Name::new("joint handle"),
+            PoseJointHandle::new(character, foot),
+        ))
+        .id();
+    let saved = DynamicWorld::from_world(source.world());
+
+    let mut target = registry_app();
+    // Other entities first, so the loaded ones get other ids than in the source.
+    for _ in 0..17 {
+        target.world_mut().spawn_empty();
+    }
+    let mut map = EntityHashMap::default();
+    saved.write_to_world(target.world_mut(), &mut map).unwrap();
+    let new = |e: Entity| *map.get(&e).unwrap();
+    assert_ne!(new(mesh), mesh, "the test needs new ids");
+    let w = target.world();
+    let h = w.get::<DeformHandle>(new(handle)).unwrap();
+    assert_eq!(h.target, new(mesh));
+    assert_eq!(h.vertices, vec![1, 2, 3]);
+    let mouse = w.get::<MouseHandleControl>(new(handle)).unwrap();
+    assert_eq!(
+        (mouse.camera, mouse.space),
+        (Some(new(camera)), Some(new(mesh)))
+    );
+    let wii = w.get::<WiimoteHandleControl>(new(handle)).unwrap();
+    assert_eq!(
+        (wii.remote, wii.camera, wii.space),
+        (Some(new(remote)), Some(new(camera)), Some(new(mesh)))
+    );
+    assert_eq!(
+        w.get::<PinnedJoints>(new(character)).unwrap().0,
+        vec![new(hip), new(foot)]
+    );
+    let jh = w.get::<PoseJointHandle>(new(joint_handle)).unwrap();
+    assert_eq!((jh.target, jh.joint), (new(character), new(foot)));
+    assert_eq!(w.get::<DeformableFrom>(new(mesh)).unwrap().0, new(root));
+    assert_eq!(
+        w.get::<DeformableScene>(new(root)).unwrap().primitives,
+        vec![new(mesh)]
+    );
+    assert_eq!(w.get::<GrabHandle>(new(mesh)).unwrap().0, new(handle));
+    assert_eq!(
+        w.get::<GrabAnchor>(new(character)).unwrap().joints,
+        vec![new(foot)]
+    );
+}
