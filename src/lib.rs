@@ -26,12 +26,13 @@ pub mod prelude {
         DeformPlugin, DeformSolved, DeformStatus, DeformSystems, Deformable, DeformableFrom,
         DeformableScene, FixedRegion, GrabAnchor, GrabButton, GrabEnd, GrabMove, GrabPlugin,
         GrabStart, GrabTwist, Grabbable, MouseControlPlugin, MouseHandleControl, PinnedJoints,
-        PoseFailed, PoseJointHandle, PosePlugin, PoseSolved, PoseStatus, PoseSystems, Poseable,
-        PoseableError, PosedSkeleton, WiiDeformPlugins, Wiimote, WiimoteButtonChanged,
-        WiimoteCalibration, WiimoteConnected, WiimoteControlPlugin, WiimoteDisconnected,
-        WiimoteEmulators, WiimoteFilter, WiimoteHandleControl, WiimoteLink,
-        WiimoteOrientationChanged, WiimotePlugin, WiimoteProblem, WiimoteProblems, WiimoteSettings,
-        WiimoteSource, WiimoteSystems, mesh_from_triangles,
+        PoseEffector, PoseEffectorKind, PoseFailed, PoseJointHandle, PoseLimits, PosePlugin,
+        PoseSolved, PoseStatus, PoseStiffness, PoseSystems, Poseable, PoseableError, PosedSkeleton,
+        SymmetricEditing, WiiDeformPlugins, Wiimote, WiimoteButtonChanged, WiimoteCalibration,
+        WiimoteConnected, WiimoteControlPlugin, WiimoteDisconnected, WiimoteEmulators,
+        WiimoteFilter, WiimoteHandleControl, WiimoteLink, WiimoteOrientationChanged, WiimotePlugin,
+        WiimoteProblem, WiimoteProblems, WiimoteSettings, WiimoteSource, WiimoteSystems,
+        mesh_from_triangles,
     };
     pub use crate::wiimote::{EmulatorConfig, EmulatorControls, FilterKind, RemoteProblem};
 }

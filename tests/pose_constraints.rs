@@ -506,3 +506,53 @@ fn the_humanoid_preset_limits_a_generated_humanoid() {
         assert!(limits.max_violation_deg(&projected) < 1e-6);
     }
 }
+
+#[test]
+fn a_mirrored_effector_gives_a_mirror_symmetric_pose() {
+    // The left wrist pulled to a point, and the same effector mirrored onto the right wrist:
+    // the solved pose is its own mirror image.
+    let rig = mannequin_rig(10);
+    let model = model_of(&rig);
+    let mirror = Mirror::new(&rig.skeleton, &rig.rest);
+    let wrist = rig.skeleton.find("wrist_l").unwrap();
+    let left = Effector {
+        joint: wrist,
+        goal: EffectorGoal::Position(DVec3::new(0.45, 1.3, 0.25)),
+        weight: 1.0,
+    };
+    let frame = rig.skeleton.joints()[0].parent_frame;
+    let right = mirror.mirror_effector(&left, &frame).expect("a partner");
+    assert_eq!(right.joint, rig.skeleton.find("wrist_r").unwrap());
+    // Feet planted (free legs would swing in the energy's null space, either way).
+    let feet = ["ankle_l", "ankle_r"].map(|n| rig.skeleton.find(n).unwrap());
+    let constraints = PoseConstraints {
+        fixed_joints: vec![0, feet[0], feet[1]],
+        effectors: vec![left, right],
+        // Joints nothing pulls on (the head) stay where they were, not wherever the
+        // (not quite symmetric) weight clusters let them drift.
+        stiffness: Some(ReferenceStiffness::uniform(rig.rest.clone(), 0.05)),
+        ..Default::default()
+    };
+    let pose = solve(&model, &rig, &constraints, 40);
+    let mirrored = mirror.mirror(&pose);
+    let (a, b) = (positions(&rig, &pose), positions(&rig, &mirrored));
+    let asymmetry = a
+        .iter()
+        .zip(&b)
+        .map(|(p, q)| (*p - *q).length())
+        .fold(0.0, f64::max);
+    let size = model.topology().bounding_diagonal();
+    assert!(
+        asymmetry < 0.005 * size,
+        "the pose is {asymmetry} from its mirror image"
+    );
+    // And the wrists reached their targets.
+    let reached = (a[wrist] - DVec3::new(0.45, 1.3, 0.25)).length();
+    assert!(reached < 0.02, "{reached}");
+    // An unpaired joint has no mirrored effector.
+    let head = Effector {
+        joint: rig.skeleton.find("head").unwrap(),
+        ..left
+    };
+    assert!(mirror.mirror_effector(&head, &frame).is_none());
+}

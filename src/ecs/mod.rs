@@ -21,8 +21,9 @@ use bevy::app::PluginGroupBuilder;
 use bevy::prelude::*;
 
 pub use character::{
-    GrabAnchor, HandlePositionOnly, PinnedJoints, PoseFailed, PoseJointHandle, PosePlugin,
-    PoseSolved, PoseStatus, PoseSystems, Poseable, PoseableError, PosedSkeleton,
+    GrabAnchor, HandlePositionOnly, PinnedJoints, PoseEffector, PoseEffectorKind, PoseFailed,
+    PoseJointHandle, PoseLimits, PosePlugin, PoseSolved, PoseStatus, PoseStiffness, PoseSystems,
+    Poseable, PoseableError, PosedSkeleton, SymmetricEditing,
 };
 pub use control::{
     MouseControlPlugin, MouseHandleControl, WiimoteControlPlugin, WiimoteHandleControl,

@@ -14,7 +14,9 @@
 
 use std::collections::HashMap;
 
-use glam::{DMat3, DVec3};
+use glam::{DAffine3, DMat3, DVec3};
+
+use super::effectors::{Effector, EffectorGoal};
 
 use super::humanoid::{Side, split_name};
 use super::skeleton::rotation_of;
@@ -90,6 +92,46 @@ impl Mirror {
             reflection,
             correction,
         }
+    }
+
+    /// The effector that mirrors `effector` onto the partner of its joint, for a skeleton whose
+    /// root's parent space is `frame` (world ← character): points reflected across the plane,
+    /// rotations and local axes turned by the rest-pose correction. `None` for an unpaired
+    /// joint (its mirror image is itself).
+    pub fn mirror_effector(&self, effector: &Effector, frame: &DAffine3) -> Option<Effector> {
+        let partner = *self.partner.get(effector.joint)?;
+        if partner == effector.joint {
+            return None;
+        }
+        let to_frame = frame.inverse();
+        let reflect_point =
+            |p: DVec3| frame.transform_point3(self.reflection * to_frame.transform_point3(p));
+        let frame_rotation = DMat3::from_quat(rotation_of(&frame.matrix3));
+        let c = self.correction[partner];
+        let goal = match effector.goal {
+            EffectorGoal::Position(p) => EffectorGoal::Position(reflect_point(p)),
+            EffectorGoal::Orientation(q) => {
+                let r = frame_rotation.transpose() * DMat3::from_quat(q);
+                let mirrored = frame_rotation * (self.reflection * r * c);
+                EffectorGoal::Orientation(rotation_of(&mirrored))
+            }
+            EffectorGoal::Aim { axis, target, up } => EffectorGoal::Aim {
+                axis: c.transpose() * axis,
+                target: reflect_point(target),
+                up: up.map(|(local, world)| {
+                    let world_in_frame = frame_rotation.transpose() * world;
+                    (
+                        c.transpose() * local,
+                        frame_rotation * (self.reflection * world_in_frame),
+                    )
+                }),
+            },
+        };
+        Some(Effector {
+            joint: partner,
+            goal,
+            weight: effector.weight,
+        })
     }
 
     /// Each joint's partner (itself when unpaired).

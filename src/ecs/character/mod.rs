@@ -35,7 +35,7 @@ use std::sync::Arc;
 
 use bevy::prelude::*;
 
-use crate::pose::{PoseError, PoseFile, SkeletonPose, SkinnedModel};
+use crate::pose::{JointLimits, LimitError, PoseError, PoseFile, SkeletonPose, SkinnedModel};
 
 pub use plugin::{PosePlugin, PoseSystems};
 
@@ -139,6 +139,102 @@ pub struct GrabAnchor {
 #[reflect(Component, Default)]
 pub struct HandlePositionOnly;
 
+/// A goal for one joint of a [`Poseable`] character, read from this entity's
+/// `GlobalTransform` every frame: its translation is the point (a position effector, the aim
+/// target), its rotation the orientation. Make it a child of another entity (a door handle,
+/// the player) and the goal follows it. Blended in by `weight` (0 = no effect, 1 = met when
+/// reachable; see [`crate::pose::effectors`]). Several may act on one character at once,
+/// together with handles, pins, limits ([`PoseLimits`]) and stiffness ([`PoseStiffness`]).
+#[derive(Component, Debug, Clone, PartialEq, Reflect)]
+#[reflect(Component)]
+#[require(Transform)]
+pub struct PoseEffector {
+    /// The [`Poseable`] character.
+    #[entities]
+    pub character: Entity,
+    /// The joint entity it acts on.
+    #[entities]
+    pub joint: Entity,
+    /// What it asks of the joint.
+    pub kind: PoseEffectorKind,
+    /// Weight in [0, 1].
+    pub weight: f32,
+}
+
+impl PoseEffector {
+    /// A position effector of weight 1 (the joint's orientation stays free: plant a foot).
+    pub fn position(character: Entity, joint: Entity) -> Self {
+        Self {
+            character,
+            joint,
+            kind: PoseEffectorKind::Position,
+            weight: 1.0,
+        }
+    }
+
+    /// A look-at of weight 1: the joint's local `axis` points at this entity.
+    pub fn look_at(character: Entity, joint: Entity, axis: Vec3) -> Self {
+        Self {
+            character,
+            joint,
+            kind: PoseEffectorKind::Aim { axis, up: None },
+            weight: 1.0,
+        }
+    }
+
+    /// The same effector with another weight.
+    pub fn with_weight(mut self, weight: f32) -> Self {
+        self.weight = weight;
+        self
+    }
+}
+
+/// What a [`PoseEffector`] asks of its joint.
+#[derive(Debug, Clone, Copy, PartialEq, Reflect)]
+pub enum PoseEffectorKind {
+    /// The joint's origin at the effector's position; its orientation free.
+    Position,
+    /// The joint's world rotation equal to the effector's; its position free.
+    Orientation,
+    /// The joint's local `axis` points at the effector's position; with `up`, the joint's local
+    /// `up` turns towards world +Y about the aim.
+    Aim {
+        /// The aiming axis in the joint's frame.
+        axis: Vec3,
+        /// Optional local up axis.
+        up: Option<Vec3>,
+    },
+}
+
+/// Joint limits of a [`Poseable`] character, applied to every solve (see
+/// [`crate::pose::limits`]). Resolved when the character's model is ready; a file that names
+/// a joint the skeleton lacks, or a bad value, fails the character with
+/// [`PoseableError::Limits`] naming the joint.
+#[derive(Component, Debug, Clone)]
+pub enum PoseLimits {
+    /// The humanoid preset chosen by joint names (Mixamo, Rigify, VRM; see
+    /// [`crate::pose::humanoid`]).
+    Humanoid,
+    /// A RON limits file's text, keyed by joint name.
+    Ron(String),
+    /// Limits built in code for this character's skeleton.
+    Custom(Arc<JointLimits>),
+}
+
+/// A pull of every joint towards where it was when the current handles, pins and effectors
+/// were set (the pose on screen: the animation's, or the held pose), in [0, 1]: joints nothing
+/// pulls on stay put. 0 (or no component) leaves them to the shape energy alone.
+#[derive(Component, Debug, Clone, Copy, PartialEq, Reflect)]
+#[reflect(Component)]
+pub struct PoseStiffness(pub f32);
+
+/// Symmetric editing: every [`PoseEffector`] on a joint with a left/right partner (paired by
+/// name, [`crate::pose::mirror`]) drives the partner too, with its goal mirrored across the
+/// character's symmetry plane.
+#[derive(Component, Debug, Clone, Copy, Default, PartialEq, Reflect)]
+#[reflect(Component, Default)]
+pub struct SymmetricEditing;
+
 /// Where a poseable character stands; readable by UIs.
 #[derive(Component, Debug, Clone, Default, Reflect)]
 #[reflect(Component, Default)]
@@ -182,6 +278,9 @@ pub enum PoseableError {
     /// or malformed file. The loader's message is kept.
     #[error("the scene failed to load: {0}")]
     SceneLoadFailed(String),
+    /// The character's [`PoseLimits`] were refused (names the joint).
+    #[error(transparent)]
+    Limits(#[from] LimitError),
     /// A joint entity of the skin does not exist or has no `Transform`.
     #[error("joint entity {0} of the skin is missing")]
     MissingJoint(Entity),

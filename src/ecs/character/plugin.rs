@@ -19,16 +19,19 @@ use glam::DAffine3;
 
 use super::picking::{ignore_bind_pose_picking, pick_posed_characters};
 use super::{
-    GrabAnchor, HandlePositionOnly, PinnedJoints, PoseFailed, PoseJointHandle, PoseSolved,
-    PoseStatus, Poseable, PoseableError, PosedSkeleton,
+    GrabAnchor, HandlePositionOnly, PinnedJoints, PoseEffector, PoseEffectorKind, PoseFailed,
+    PoseJointHandle, PoseLimits, PoseSolved, PoseStatus, PoseStiffness, Poseable, PoseableError,
+    PosedSkeleton, SymmetricEditing,
 };
 use crate::deform::{Handle as CoreHandle, RigidTransform, centroid};
+use crate::ecs::control::rotation_of_space;
 use crate::ecs::scene::{SceneSpawned, mark_scene_spawned, scene_load_failure};
 use crate::ecs::{DeformHandle, DeformPhase, DeformSystems};
 use crate::pose::{
-    CentroidEffector, Joint, JointHandle, JointTransform, ModelSettings, PoseConstraints,
-    PoseSolution, PoseSolveOptions, PoseSolver, PoseSolverSettings, PoseStart, Skeleton,
-    SkeletonPose, SkinnedMesh, SkinnedModel,
+    CentroidEffector, Effector, EffectorGoal, Joint, JointHandle, JointLimits, JointTransform,
+    LimitError, Mirror, ModelSettings, PoseConstraints, PoseSolution, PoseSolveOptions, PoseSolver,
+    PoseSolverSettings, PoseStart, ReferenceStiffness, Skeleton, SkeletonPose, SkinnedMesh,
+    SkinnedModel,
 };
 
 /// Phases of the character systems. Prepare, Request and Poll run in `Update` (Request after
@@ -58,6 +61,9 @@ impl Plugin for PosePlugin {
             .register_type::<PoseStatus>()
             .register_type::<GrabAnchor>()
             .register_type::<HandlePositionOnly>()
+            .register_type::<PoseEffector>()
+            .register_type::<PoseStiffness>()
+            .register_type::<SymmetricEditing>()
             .add_message::<PoseSolved>()
             .add_message::<PoseFailed>()
             .add_observer(mark_scene_spawned)
@@ -108,6 +114,7 @@ struct SetKey {
     pins: Vec<Entity>,
     anchor: GrabAnchor,
     position_only: Vec<Entity>,
+    effectors: Vec<(Entity, Entity)>,
 }
 
 impl SetKey {
@@ -155,6 +162,18 @@ pub(crate) struct PoseState {
     /// The pose the last landed solve wrote: anything else in [`PosedSkeleton::pose`] was put
     /// there by the app (a loaded or reset pose).
     written: Option<SkeletonPose>,
+    /// The character's [`PoseLimits`], resolved against its skeleton.
+    limits: Option<Arc<JointLimits>>,
+    /// Left/right pairs, built when symmetric editing first needs them.
+    mirror: Option<Arc<Mirror>>,
+}
+
+/// The per-character settings a solve reads besides handles and pins.
+#[derive(bevy::ecs::query::QueryData)]
+struct CharacterSettings {
+    limits: Option<Ref<'static, PoseLimits>>,
+    stiffness: Option<Ref<'static, PoseStiffness>>,
+    symmetric: Has<SymmetricEditing>,
 }
 
 fn fail(
@@ -390,6 +409,8 @@ fn find_skins(
             pending: None,
             running: None,
             written: None,
+            limits: None,
+            mirror: None,
         });
     }
 }
@@ -471,15 +492,27 @@ fn request_pose_solves(
         &mut PosedSkeleton,
         Option<Ref<PinnedJoints>>,
         Option<&GrabAnchor>,
+        CharacterSettings,
         &mut PoseState,
         &mut PoseStatus,
     )>,
     mut handles: Query<(Entity, &mut DeformHandle, &mut Transform), Without<PoseJointHandle>>,
     mut joint_handles: Query<(Entity, &mut PoseJointHandle, &mut Transform), Without<DeformHandle>>,
     joints: Query<&Transform, (Without<DeformHandle>, Without<PoseJointHandle>)>,
-    position_only: Query<(), With<HandlePositionOnly>>,
+    (position_only, effectors): (
+        Query<(), With<HandlePositionOnly>>,
+        Query<(Entity, Ref<PoseEffector>, Ref<GlobalTransform>)>,
+    ),
+    mut failed: MessageWriter<PoseFailed>,
 ) {
-    for (entity, poseable, mut posed, pins, anchor, mut state, mut status) in &mut characters {
+    for (entity, poseable, mut posed, pins, anchor, extras, mut state, mut status) in
+        &mut characters
+    {
+        let mut mine_e: Vec<(Entity, Ref<PoseEffector>, Ref<GlobalTransform>)> = effectors
+            .iter()
+            .filter(|(_, e, _)| e.character == entity)
+            .collect();
+        mine_e.sort_by_key(|(e, _, _)| *e);
         let mut mine: Vec<(Entity, Mut<DeformHandle>, Mut<Transform>)> = handles
             .iter_mut()
             .filter(|(_, h, _)| h.target == entity)
@@ -490,7 +523,7 @@ fn request_pose_solves(
             .collect();
         mine.sort_by_key(|(e, _, _)| *e);
         mine_j.sort_by_key(|(e, _, _)| *e);
-        if mine.is_empty() && mine_j.is_empty() {
+        if mine.is_empty() && mine_j.is_empty() && mine_e.is_empty() {
             state.bypass_change_detection().key = None;
             continue; // nothing drives the pose
         }
@@ -501,8 +534,13 @@ fn request_pose_solves(
             .map(|(e, _, _)| *e)
             .filter(|e| position_only.contains(*e))
             .collect();
+        let effector_keys: Vec<(Entity, Entity)> =
+            mine_e.iter().map(|(e, p, _)| (*e, p.joint)).collect();
         let set_changed = !state.key.as_ref().is_some_and(|k| {
-            k.matches(&mine, &mine_j, pinned) && k.anchor == anchor && k.position_only == followers
+            k.matches(&mine, &mine_j, pinned)
+                && k.anchor == anchor
+                && k.position_only == followers
+                && k.effectors == effector_keys
         }) || mine.iter().any(|(_, h, _)| h.pivot.is_none())
             || mine_j.iter().any(|(_, h, _)| h.rest.is_none());
         if set_changed {
@@ -555,76 +593,78 @@ fn request_pose_solves(
                 pins: pinned.to_vec(),
                 anchor,
                 position_only: followers,
+                effectors: effector_keys,
             });
             state.reference = Some(reference);
             state.solver = None;
             state.last = None;
             continue; // the rebased Transforms trigger the solve next frame
         }
+        let effectors_changed = mine_e
+            .iter()
+            .any(|(_, e, g)| e.is_changed() || g.is_changed());
+        let settings_changed = extras.limits.as_ref().is_some_and(|l| l.is_changed())
+            || extras.stiffness.as_ref().is_some_and(|s| s.is_changed());
         let changed = mine.iter().any(|(_, _, t)| t.is_changed())
             || mine_j.iter().any(|(_, _, t)| t.is_changed())
-            || pins.as_ref().is_some_and(|p| p.is_changed());
+            || pins.as_ref().is_some_and(|p| p.is_changed())
+            || effectors_changed
+            || settings_changed;
         if !changed && state.pending.is_none() {
             continue;
         }
-        let to_index = |e: &Entity| posed.joint_index(*e);
+        let limits = match resolve_limits(&posed, extras.limits.as_ref(), &mut state) {
+            Ok(limits) => limits,
+            Err(e) => {
+                fail(entity, e.into(), &mut status, &mut failed);
+                continue;
+            }
+        };
         let mut fixed_joints: Vec<usize> = pins
             .as_ref()
-            .map(|p| p.0.iter().filter_map(to_index).collect())
-            .unwrap_or_default();
-        fixed_joints.extend(anchor.joints.iter().filter_map(to_index));
+            .map(|p| p.0.as_slice())
+            .unwrap_or_default()
+            .iter()
+            .chain(&anchor.joints)
+            .filter_map(|e| posed.joint_index(*e))
+            .collect();
         fixed_joints.sort_unstable();
         fixed_joints.dedup();
-        let model = &posed.model;
-        let follows = |e: &Entity| followers.binary_search(e).is_ok();
-        // A position-only handle: the centroid of its welded vertices, where it was in the
-        // reference pose, moved by the handle's translation.
-        let reference_welded = (!followers.is_empty())
-            .then(|| state.reference.as_ref().map(|r| model.skin_welded(r)))
-            .flatten();
-        let centroid_effectors = mine
+        let (handles, centroid_effectors) =
+            vertex_handles(&posed, state.reference.as_ref(), &mine, &followers);
+        let mut effectors: Vec<Effector> = mine_e
             .iter()
-            .filter(|(e, _, _)| follows(e))
-            .filter_map(|(_, h, t)| {
-                let vertices = model.topology().welded_set(&h.vertices);
-                let at_reference = centroid(reference_welded.as_ref()?, &vertices);
-                let moved = (t.translation - h.pivot?).as_dvec3();
-                Some(CentroidEffector {
-                    vertices,
-                    target: at_reference + moved,
-                    weight: 1.0,
-                })
-            })
+            .filter_map(|(_, e, g)| core_effector(&posed, e, g))
             .collect();
+        if extras.symmetric {
+            let skeleton = posed.model.skeleton();
+            let mirror = state
+                .mirror
+                .get_or_insert_with(|| Arc::new(Mirror::new(skeleton, &skeleton.bind_pose())))
+                .clone();
+            let frame = skeleton.joints()[0].parent_frame;
+            let mirrored: Vec<Effector> = effectors
+                .iter()
+                .filter_map(|e| mirror.mirror_effector(e, &frame))
+                .collect();
+            effectors.extend(mirrored);
+        }
+        let stiffness = extras
+            .stiffness
+            .zip(state.reference.clone())
+            .map(|(k, pose)| ReferenceStiffness::uniform(pose, k.0.clamp(0.0, 1.0) as f64));
         let constraints = PoseConstraints {
             centroid_effectors,
-            handles: mine
-                .iter()
-                .filter(|(e, _, _)| !follows(e))
-                .map(|(_, h, t)| CoreHandle {
-                    vertices: model.topology().welded_set(&h.vertices),
-                    transform: h.rigid_transform(t),
-                })
-                .collect(),
+            handles,
             fixed_vertices: anchor.vertices.clone(),
             fixed_joints,
             joint_handles: mine_j
                 .iter()
-                .filter_map(|(_, h, t)| {
-                    let joint = posed.joint_index(h.joint)?;
-                    let rest = h.rest?;
-                    let rotation = (t.rotation * rest.rotation.inverse())
-                        .as_dquat()
-                        .normalize();
-                    let transform = RigidTransform::new(
-                        rotation,
-                        (t.translation - rest.translation).as_dvec3(),
-                        rest.translation.as_dvec3(),
-                    );
-                    Some(JointHandle { joint, transform })
-                })
+                .filter_map(|(_, h, t)| joint_handle(&posed, h, t))
                 .collect(),
-            ..Default::default()
+            effectors,
+            stiffness,
+            limits,
         };
         let state = state.bypass_change_detection();
         state.pending = Some(constraints);
@@ -633,6 +673,110 @@ fn request_pose_solves(
             spawn_pose_solve(state, &posed, poseable, &mut status);
         }
     }
+}
+
+/// The character's limits, resolved against its skeleton (cached until `PoseLimits` changes).
+fn resolve_limits(
+    posed: &PosedSkeleton,
+    source: Option<&Ref<PoseLimits>>,
+    state: &mut PoseState,
+) -> Result<Option<Arc<JointLimits>>, LimitError> {
+    let Some(source) = source else {
+        state.limits = None;
+        return Ok(None);
+    };
+    if let Some(limits) = state.limits.as_ref().filter(|_| !source.is_changed()) {
+        return Ok(Some(limits.clone()));
+    }
+    let skeleton = posed.model.skeleton();
+    let rest = skeleton.bind_pose();
+    let limits = match &**source {
+        PoseLimits::Humanoid => Arc::new(JointLimits::humanoid(skeleton, &rest).0),
+        PoseLimits::Ron(text) => Arc::new(JointLimits::from_ron(text, skeleton, &rest)?),
+        PoseLimits::Custom(limits) => limits.clone(),
+    };
+    state.limits = Some(limits.clone());
+    Ok(Some(limits))
+}
+
+/// The vertex handles of a character: rigid ones, and position-only ones as centroid
+/// effectors (the centroid of the welded vertices, where it was in the reference pose, moved
+/// by the handle's translation).
+fn vertex_handles(
+    posed: &PosedSkeleton,
+    reference: Option<&SkeletonPose>,
+    handles: &[(Entity, Mut<DeformHandle>, Mut<Transform>)],
+    followers: &[Entity],
+) -> (Vec<CoreHandle>, Vec<CentroidEffector>) {
+    let model = &posed.model;
+    let follows = |e: &Entity| followers.binary_search(e).is_ok();
+    let reference_welded = (!followers.is_empty())
+        .then(|| reference.map(|r| model.skin_welded(r)))
+        .flatten();
+    let centroids = handles
+        .iter()
+        .filter(|(e, _, _)| follows(e))
+        .filter_map(|(_, h, t)| {
+            let vertices = model.topology().welded_set(&h.vertices);
+            let at_reference = centroid(reference_welded.as_ref()?, &vertices);
+            let moved = (t.translation - h.pivot?).as_dvec3();
+            Some(CentroidEffector {
+                vertices,
+                target: at_reference + moved,
+                weight: 1.0,
+            })
+        })
+        .collect();
+    let rigid = handles
+        .iter()
+        .filter(|(e, _, _)| !follows(e))
+        .map(|(_, h, t)| CoreHandle {
+            vertices: model.topology().welded_set(&h.vertices),
+            transform: h.rigid_transform(t),
+        })
+        .collect();
+    (rigid, centroids)
+}
+
+/// A joint handle as the core takes it: the motion from its rest to its `Transform`.
+fn joint_handle(posed: &PosedSkeleton, h: &PoseJointHandle, t: &Transform) -> Option<JointHandle> {
+    let joint = posed.joint_index(h.joint)?;
+    let rest = h.rest?;
+    let rotation = (t.rotation * rest.rotation.inverse())
+        .as_dquat()
+        .normalize();
+    let transform = RigidTransform::new(
+        rotation,
+        (t.translation - rest.translation).as_dvec3(),
+        rest.translation.as_dvec3(),
+    );
+    Some(JointHandle { joint, transform })
+}
+
+/// A [`PoseEffector`] as the core takes it, its goal read from its `GlobalTransform`.
+fn core_effector(
+    posed: &PosedSkeleton,
+    effector: &PoseEffector,
+    global: &GlobalTransform,
+) -> Option<Effector> {
+    let joint = posed.joint_index(effector.joint)?;
+    let point = global.translation().as_dvec3();
+    let goal = match effector.kind {
+        PoseEffectorKind::Position => EffectorGoal::Position(point),
+        PoseEffectorKind::Orientation => {
+            EffectorGoal::Orientation(rotation_of_space(&global.affine()).as_dquat())
+        }
+        PoseEffectorKind::Aim { axis, up } => EffectorGoal::Aim {
+            axis: axis.as_dvec3(),
+            target: point,
+            up: up.map(|u| (u.as_dvec3(), glam::DVec3::Y)),
+        },
+    };
+    Some(Effector {
+        joint,
+        goal,
+        weight: f64::from(effector.weight),
+    })
 }
 
 fn spawn_pose_solve(

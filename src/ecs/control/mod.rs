@@ -14,7 +14,7 @@ mod plugin;
 use bevy::prelude::*;
 
 pub use plugin::{MouseControlPlugin, WiimoteControlPlugin};
-pub(crate) use plugin::{turned_in_space, view_plane_motion};
+pub(crate) use plugin::{rotation_of_space, turned_in_space, view_plane_motion};
 
 /// Drive this handle (`DeformHandle` entity, or any entity with a `Transform`) with a remote.
 ///

@@ -1,0 +1,214 @@
+//! Effectors, limits, stiffness and symmetric editing through the pose plugin: goals read
+//! from entities (and followed as they move), limits from files (bad ones fail by name).
+
+use std::time::Duration;
+
+use bevy::prelude::*;
+use bevy::time::TimeUpdateStrategy;
+
+use bevy_wii_deform::pose::synth_rig::{bar_rig, mannequin_rig};
+use bevy_wii_deform::prelude::*;
+
+mod common;
+use common::{spawn_rig, update_until};
+
+fn app() -> App {
+    let mut app = common::app();
+    app.add_plugins(PosePlugin);
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_millis(
+        16,
+    )));
+    app
+}
+
+/// Updates until the character has had no solve running and none landed for 10 frames.
+fn settle(app: &mut App, e: Entity) {
+    let deadline = std::time::Instant::now() + Duration::from_secs(60);
+    let mut idle = 0;
+    while idle < 10 {
+        assert!(std::time::Instant::now() < deadline, "never settled");
+        let before = common::solves(app, e);
+        app.update();
+        std::thread::yield_now();
+        let status = app.world().get::<PoseStatus>(e).unwrap();
+        idle = if status.phase == DeformPhase::Idle && status.solves == before {
+            idle + 1
+        } else {
+            0
+        };
+    }
+    app.update(); // PostUpdate writes the pose to the joints
+}
+
+fn joint_position(app: &App, joint: Entity) -> Vec3 {
+    app.world()
+        .get::<GlobalTransform>(joint)
+        .unwrap()
+        .translation()
+}
+
+#[test]
+fn a_position_effector_entity_moves_its_joint_and_is_followed() {
+    let mut app = app();
+    let rig = bar_rig(3, 12, 30);
+    let (root, joints, _) = spawn_rig(&mut app, &rig, Vec3::ZERO);
+    app.world_mut().entity_mut(root).insert((
+        Poseable {
+            max_iterations: 8,
+            // Settle until an iteration gains less than 1e-8: the goal is met, not nearly.
+            tolerance: 1e-8,
+            ..default()
+        },
+        PinnedJoints(vec![joints[0]]),
+    ));
+    update_until(&mut app, "the model", |a| {
+        a.world().get::<PosedSkeleton>(root).is_some()
+    });
+    // A moving platform carries the effector (its child): the goal follows the platform.
+    let platform = app
+        .world_mut()
+        .spawn(Transform::from_xyz(0.1, 0.0, 0.0))
+        .id();
+    app.world_mut().spawn((
+        PoseEffector::position(root, joints[2]),
+        Transform::from_xyz(0.05, 0.6, 0.1),
+        ChildOf(platform),
+    ));
+    settle(&mut app, root);
+    // (Joint 2 swings on a radius of 1/3 about joint 1 at y = 1/3: these goals are on reach.)
+    let target = Vec3::new(0.15, 0.6, 0.1);
+    let error = joint_position(&app, joints[2]).distance(target);
+    assert!(error < 1e-3, "joint 2 is {error} from its goal");
+    // The platform moves: the joint follows without anything else changing.
+    app.world_mut()
+        .get_mut::<Transform>(platform)
+        .unwrap()
+        .translation = Vec3::new(-0.1, 0.0, 0.0);
+    settle(&mut app, root);
+    let target = Vec3::new(-0.05, 0.6, 0.1);
+    let error = joint_position(&app, joints[2]).distance(target);
+    assert!(error < 1e-3, "joint 2 is {error} from the moved goal");
+}
+
+#[test]
+fn a_look_at_effector_points_the_top_bone_at_its_entity() {
+    let mut app = app();
+    let rig = bar_rig(3, 12, 30);
+    let (root, joints, _) = spawn_rig(&mut app, &rig, Vec3::ZERO);
+    app.world_mut().entity_mut(root).insert((
+        Poseable {
+            max_iterations: 8,
+            ..default()
+        },
+        PinnedJoints(vec![joints[0], joints[1]]),
+    ));
+    update_until(&mut app, "the model", |a| {
+        a.world().get::<PosedSkeleton>(root).is_some()
+    });
+    let target = Vec3::new(0.6, 1.2, 0.4);
+    app.world_mut().spawn((
+        PoseEffector::look_at(root, joints[2], Vec3::Y),
+        Transform::from_translation(target),
+    ));
+    settle(&mut app, root);
+    let g = app.world().get::<GlobalTransform>(joints[2]).unwrap();
+    let axis = g.affine().matrix3 * Vec3A::Y;
+    let to = Vec3A::from(target - g.translation());
+    let error = axis.angle_between(to).to_degrees();
+    assert!(error < 1.0, "the top bone points {error}° off");
+}
+
+#[test]
+fn limits_from_a_file_naming_a_missing_joint_fail_with_its_name() {
+    let mut app = app();
+    let rig = bar_rig(3, 12, 30);
+    let (root, joints, _) = spawn_rig(&mut app, &rig, Vec3::ZERO);
+    let file =
+        r#"(joints: { "elbow": Hinge(axis: (1.0, 0.0, 0.0), min_deg: 0.0, max_deg: 90.0) })"#;
+    app.world_mut().entity_mut(root).insert((
+        Poseable::default(),
+        PinnedJoints(vec![joints[0]]),
+        PoseLimits::Ron(file.into()),
+    ));
+    update_until(&mut app, "the model", |a| {
+        a.world().get::<PosedSkeleton>(root).is_some()
+    });
+    app.world_mut().spawn((
+        PoseEffector::position(root, joints[2]),
+        Transform::from_xyz(0.3, 0.5, 0.0),
+    ));
+    update_until(&mut app, "the failure", |a| {
+        a.world().get::<PoseStatus>(root).unwrap().error.is_some()
+    });
+    let error = app.world().get::<PoseStatus>(root).unwrap().error.clone();
+    let message = error.as_ref().unwrap().to_string();
+    assert!(message.contains("elbow"), "{message}");
+    assert!(matches!(error, Some(PoseableError::Limits(_))), "{error:?}");
+}
+
+#[test]
+fn a_hinge_limit_holds_under_an_effector_pulling_behind() {
+    let mut app = app();
+    let rig = bar_rig(3, 12, 30);
+    let (root, joints, _) = spawn_rig(&mut app, &rig, Vec3::ZERO);
+    let file =
+        r#"(joints: { "bone1": Hinge(axis: (1.0, 0.0, 0.0), min_deg: 0.0, max_deg: 150.0) })"#;
+    app.world_mut().entity_mut(root).insert((
+        Poseable {
+            max_iterations: 8,
+            ..default()
+        },
+        PinnedJoints(vec![joints[0]]),
+        PoseLimits::Ron(file.into()),
+    ));
+    update_until(&mut app, "the model", |a| {
+        a.world().get::<PosedSkeleton>(root).is_some()
+    });
+    app.world_mut().spawn((
+        PoseEffector::position(root, joints[2]),
+        Transform::from_xyz(0.0, 0.55, -0.15),
+    ));
+    settle(&mut app, root);
+    let r = app.world().get::<Transform>(joints[1]).unwrap().rotation;
+    let r = if r.w < 0.0 { -r } else { r };
+    let angle = (2.0 * r.x.atan2(r.w)).to_degrees();
+    assert!(angle > -0.5, "the elbow bent backwards to {angle}°");
+}
+
+#[test]
+fn symmetric_editing_drives_the_mirror_joint_too() {
+    let mut app = app();
+    let rig = mannequin_rig(10);
+    let (root, joints, _) = spawn_rig(&mut app, &rig, Vec3::ZERO);
+    let find = |n: &str| joints[rig.skeleton.find(n).unwrap()];
+    let pins = vec![find("hips"), find("ankle_l"), find("ankle_r")];
+    app.world_mut().entity_mut(root).insert((
+        Poseable {
+            max_iterations: 8,
+            ..default()
+        },
+        PinnedJoints(pins),
+        SymmetricEditing,
+        PoseStiffness(0.05),
+    ));
+    update_until(&mut app, "the model", |a| {
+        a.world().get::<PosedSkeleton>(root).is_some()
+    });
+    let goal = Vec3::new(0.45, 1.3, 0.25);
+    app.world_mut().spawn((
+        PoseEffector {
+            kind: PoseEffectorKind::Position,
+            ..PoseEffector::position(root, find("wrist_l"))
+        },
+        Transform::from_translation(goal),
+    ));
+    settle(&mut app, root);
+    let left = joint_position(&app, find("wrist_l"));
+    let right = joint_position(&app, find("wrist_r"));
+    assert!(left.distance(goal) < 0.02, "left wrist at {left}");
+    let mirrored_goal = Vec3::new(-goal.x, goal.y, goal.z);
+    assert!(
+        right.distance(mirrored_goal) < 0.02,
+        "right wrist at {right}, mirror goal {mirrored_goal}"
+    );
+}
