@@ -21,6 +21,13 @@
 //!   the full-mesh solver (`ArapSolver`, same welded mesh and constraints, 400 iterations).
 //! * `max_bone_length_error`: largest bone length change / bounding diagonal.
 //! * `handle_error`: mean distance of the handle vertices from their targets / diagonal.
+//! * Full-body constraints, the same drag again with: a position effector on every foot (the
+//!   first `foot`/`ankle` joint of each leg, and a quadruped's `hand` paws) at its bind
+//!   position, a head look-at at a point ahead and to the side, limits on every joint (the
+//!   humanoid preset where names say, else a 45° cone with ±30° twist) and the handle's turn
+//!   pulling against them: `constrained_ms_per_solve` (median of 3-iteration warm solves),
+//!   `max_limit_violation_deg` (after every frame), `effector_error` (mean distance of the feet
+//!   from their targets / diagonal, after converging).
 //!
 //! The last stdout line is the JSON object.
 
@@ -234,6 +241,8 @@ fn main() {
         .expect("full solve");
     let energy_full = arap_energy(model.topology(), &full_solution.positions);
 
+    let constrained = constrained_drag(&model, &bind, &constraints, diagonal);
+
     if !args.json {
         println!(
             "{name}: {} render vertices, {} joints, {} clusters; precompute {precompute_ms:.0} ms; {ms_per_solve:.3} ms/solve; energy {energy_subspace:.5} (full-mesh ARAP {energy_full:.5})",
@@ -243,11 +252,152 @@ fn main() {
         );
     }
     println!(
-        "{{\"model\": \"{name}\", \"render_vertices\": {}, \"welded_vertices\": {}, \"joints\": {}, \"clusters\": {}, \"precompute_ms\": {precompute_ms:.1}, \"ms_per_iteration\": {ms_per_iteration:.4}, \"ms_per_solve\": {ms_per_solve:.4}, \"energy_subspace\": {energy_subspace:.6}, \"energy_full_arap\": {energy_full:.6}, \"max_bone_length_error\": {bone_error:.3e}, \"handle_error\": {handle_error:.3e}, \"converge_iterations\": {}}}",
+        "{{\"model\": \"{name}\", \"render_vertices\": {}, \"welded_vertices\": {}, \"joints\": {}, \"clusters\": {}, \"precompute_ms\": {precompute_ms:.1}, \"ms_per_iteration\": {ms_per_iteration:.4}, \"ms_per_solve\": {ms_per_solve:.4}, \"energy_subspace\": {energy_subspace:.6}, \"energy_full_arap\": {energy_full:.6}, \"max_bone_length_error\": {bone_error:.3e}, \"handle_error\": {handle_error:.3e}, \"converge_iterations\": {}, \"constrained_ms_per_solve\": {:.4}, \"max_limit_violation_deg\": {:.4}, \"effector_error\": {:.3e}}}",
         mesh.positions.len(),
         model.topology().vertex_count(),
         model.skeleton().len(),
         model.cluster_count(),
-        converged.stats.iterations
+        converged.stats.iterations,
+        constrained.ms_per_solve,
+        constrained.max_violation_deg,
+        constrained.effector_error,
     );
+}
+
+/// Figures of the drag under full-body constraints.
+struct Constrained {
+    ms_per_solve: f64,
+    max_violation_deg: f64,
+    effector_error: f64,
+}
+
+/// The joints a character stands on: the first `foot`/`ankle` joint of each chain, and
+/// `hand` paws when there are fewer than four (a quadruped's front legs).
+fn standing_joints(skeleton: &Skeleton) -> Vec<usize> {
+    let named = |j: usize, words: &[&str]| {
+        let n = skeleton.joints()[j].name.to_lowercase();
+        words.iter().any(|w| n.contains(w))
+    };
+    let first_of = |words: &[&str]| -> Vec<usize> {
+        (0..skeleton.len())
+            .filter(|&j| named(j, words))
+            .filter(|&j| skeleton.joints()[j].parent.is_none_or(|p| !named(p, words)))
+            .collect()
+    };
+    let mut feet = first_of(&["foot", "ankle"]);
+    if feet.len() < 4 {
+        feet.extend(first_of(&["hand"]));
+    }
+    feet
+}
+
+/// Limits on every joint: the humanoid preset where names say, a 45° cone elsewhere.
+fn limits_everywhere(skeleton: &Skeleton, bind: &SkeletonPose) -> JointLimits {
+    let (mut limits, _) = JointLimits::humanoid(skeleton, bind);
+    for j in 0..skeleton.len() {
+        if !limits.is_limited(j) {
+            limits
+                .set(j, JointLimit::cone_deg((45.0, 45.0), (-30.0, 30.0)))
+                .expect("valid limit");
+        }
+    }
+    limits
+}
+
+/// The drag of `base` again with feet effectors, a head look-at and limits everywhere.
+fn constrained_drag(
+    model: &Arc<SkinnedModel>,
+    bind: &SkeletonPose,
+    base: &PoseConstraints,
+    diagonal: f64,
+) -> Constrained {
+    let skeleton = model.skeleton();
+    let globals = skeleton.global_transforms(bind);
+    let feet = standing_joints(skeleton);
+    let mut effectors: Vec<Effector> = feet
+        .iter()
+        .map(|&j| Effector {
+            joint: j,
+            goal: EffectorGoal::Position(globals[j].translation),
+            weight: 1.0,
+        })
+        .collect();
+    if let Some(head) = (0..skeleton.len())
+        .find(|&j| skeleton.joints()[j].name.to_lowercase().contains("head"))
+    {
+        let frame = DQuat::from_mat3(&globals[head].matrix3.mul_scalar(
+            1.0 / globals[head].matrix3.x_axis.length().max(1e-12),
+        ));
+        effectors.push(Effector {
+            joint: head,
+            goal: EffectorGoal::Aim {
+                axis: frame.inverse() * DVec3::Z,
+                target: globals[head].translation + DVec3::new(0.3, 0.1, 1.0) * diagonal,
+                up: None,
+            },
+            weight: 1.0,
+        });
+    }
+    let limits = Arc::new(limits_everywhere(skeleton, bind));
+    let mut constraints = PoseConstraints {
+        fixed_vertices: Vec::new(),
+        effectors,
+        limits: Some(limits.clone()),
+        ..base.clone()
+    };
+    let target = base.handles[0].transform;
+    let solver = PoseSolver::new(model.clone(), &constraints, bind, PoseSolverSettings::default())
+        .expect("constrained solver");
+    let three = PoseSolveOptions {
+        max_iterations: 3,
+        tolerance: 0.0,
+    };
+    let frames = 30;
+    let mut last: Option<PoseSolution> = None;
+    let mut solve_ms = Vec::new();
+    let mut max_violation_deg = 0.0f64;
+    for f in 1..=frames {
+        let s = f as f64 / frames as f64;
+        // The handle keeps the unconstrained drag's full target: it pulls against the limits.
+        constraints.handles[0].transform = RigidTransform::new(
+            DQuat::IDENTITY.slerp(target.rotation, s),
+            target.translation * s,
+            target.pivot,
+        );
+        let t = Instant::now();
+        let start = last
+            .as_ref()
+            .map_or(PoseStart::Pose(bind), PoseStart::Warm);
+        let solved = solver
+            .solve(&constraints, &three, start, &|| false)
+            .expect("constrained solve");
+        solve_ms.push(t.elapsed().as_secs_f64() * 1e3);
+        max_violation_deg = max_violation_deg.max(limits.max_violation_deg(&solved.pose));
+        last = Some(solved);
+    }
+    let converged = solver
+        .solve(
+            &constraints,
+            &PoseSolveOptions {
+                max_iterations: 300,
+                tolerance: 1e-12,
+            },
+            PoseStart::Warm(last.as_ref().expect("frames")),
+            &|| false,
+        )
+        .expect("converge");
+    max_violation_deg = max_violation_deg.max(limits.max_violation_deg(&converged.pose));
+    let now = skeleton.global_transforms(&converged.pose);
+    let effector_error = feet
+        .iter()
+        .map(|&j| now[j].translation.distance(globals[j].translation))
+        .sum::<f64>()
+        / feet.len().max(1) as f64
+        / diagonal;
+    solve_ms.sort_by(f64::total_cmp);
+    Constrained {
+        ms_per_solve: solve_ms[solve_ms.len() / 2],
+        max_violation_deg,
+        effector_error,
+    }
 }
