@@ -322,12 +322,14 @@ fn constrained_drag(
             weight: 1.0,
         })
         .collect();
-    if let Some(head) = (0..skeleton.len())
-        .find(|&j| skeleton.joints()[j].name.to_lowercase().contains("head"))
+    if let Some(head) =
+        (0..skeleton.len()).find(|&j| skeleton.joints()[j].name.to_lowercase().contains("head"))
     {
-        let frame = DQuat::from_mat3(&globals[head].matrix3.mul_scalar(
-            1.0 / globals[head].matrix3.x_axis.length().max(1e-12),
-        ));
+        let frame = DQuat::from_mat3(
+            &globals[head]
+                .matrix3
+                .mul_scalar(1.0 / globals[head].matrix3.x_axis.length().max(1e-12)),
+        );
         effectors.push(Effector {
             joint: head,
             goal: EffectorGoal::Aim {
@@ -346,8 +348,13 @@ fn constrained_drag(
         ..base.clone()
     };
     let target = base.handles[0].transform;
-    let solver = PoseSolver::new(model.clone(), &constraints, bind, PoseSolverSettings::default())
-        .expect("constrained solver");
+    let solver = PoseSolver::new(
+        model.clone(),
+        &constraints,
+        bind,
+        PoseSolverSettings::default(),
+    )
+    .expect("constrained solver");
     let three = PoseSolveOptions {
         max_iterations: 3,
         tolerance: 0.0,
@@ -365,9 +372,7 @@ fn constrained_drag(
             target.pivot,
         );
         let t = Instant::now();
-        let start = last
-            .as_ref()
-            .map_or(PoseStart::Pose(bind), PoseStart::Warm);
+        let start = last.as_ref().map_or(PoseStart::Pose(bind), PoseStart::Warm);
         let solved = solver
             .solve(&constraints, &three, start, &|| false)
             .expect("constrained solve");
