@@ -398,7 +398,14 @@ fn an_emulated_remote_turns_a_handle_and_a_disconnect_keeps_the_pose() {
         "handle turned {}° for 40°",
         angle.to_degrees()
     );
-    assert!(axis.y.abs() > 0.99, "turned about {axis}");
+    // About +Y (the remote's top axis), the same way: a reversed turn is 80° off. (The
+    // filter's tilt estimate of the emulated sensors leaves the axis ~1° off vertical.)
+    let want = Quat::from_rotation_y(40f32.to_radians());
+    assert!(
+        rot.angle_between(want) < 2f32.to_radians(),
+        "turned {}° about {axis}",
+        angle.to_degrees()
+    );
     // Disconnect mid-drag (B still held): the state shows it, the last pose is kept.
     controls.set_connected(false);
     common::update_until(&mut app, "the disconnect", |a| {
@@ -956,7 +963,7 @@ fn the_remote_turns_a_handle_one_to_one_in_camera_space_and_translates_only_whil
     let speed = WiimoteHandleControl::default().speed;
     let expected = camera_rotation * Vec3::X * speed * 0.1;
     assert!(
-        (moved - expected).length() < 0.15 * expected.length(),
+        (moved - expected).length() < 0.01 * expected.length(),
         "{moved} vs {expected}"
     );
     // Home ends the grab.
@@ -1394,15 +1401,27 @@ fn a_mouse_drag_moves_a_character_handle_with_the_cursor() {
     );
     // Let the pose settle; the top follows the drag sideways (the pinned root cannot let it
     // translate exactly: the bar bends), the root stays.
-    for _ in 0..200 {
+    let mut idle = 0;
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while idle < 10 {
+        assert!(Instant::now() < deadline, "never settled");
+        let before = common::solves(&app, root);
         app.update();
         std::thread::yield_now();
+        let status = app.world().get::<PoseStatus>(root).unwrap();
+        idle = if status.phase == DeformPhase::Idle && status.solves == before {
+            idle + 1
+        } else {
+            0
+        };
     }
     let posed = app.world().get::<PosedSkeleton>(root).unwrap();
     let skinned = posed.skinned_positions();
     let centroid = top.iter().map(|&i| skinned[i as usize]).sum::<Vec3>() / top.len() as f32;
+    // A rigid handle on a bar whose root is pinned: the sideways drag needs the bar to turn,
+    // so the top gets most of the way, not all (it stops near 93 %).
     assert!(
-        (centroid - pivot).dot(drag.normalize()) > 0.6 * drag.length(),
+        (centroid - pivot).dot(drag.normalize()) > 0.85 * drag.length(),
         "top centroid moved {}",
         centroid - pivot
     );
@@ -1514,7 +1533,7 @@ fn the_pointer_grabs_a_posed_character_drags_twists_and_releases() {
         .sum::<Vec3>()
         / patch.vertices.len() as f32;
     assert!(
-        (centroid - pivot).dot(drag.normalize()) > 0.6 * drag.length(),
+        (centroid - pivot).dot(drag.normalize()) > 0.9 * drag.length(),
         "the grabbed top moved {}",
         centroid - pivot
     );
