@@ -103,7 +103,7 @@ fn a_character_grab_without_pins_bends_it() {
         rotate: false,
     });
     // Let the solves converge (a held drag keeps solving while iterations run out).
-    settle_pose(&mut app, fox);
+    common::settle_pose(&mut app, fox);
     let moved = patch_centroid(&app) - start;
     let drag = Vec3::Y * 0.1 * size;
     assert!(
@@ -125,22 +125,4 @@ fn a_character_grab_without_pins_bends_it() {
     app.update();
     app.update();
     assert!(app.world().get::<GrabAnchor>(fox).is_none());
-}
-
-/// Updates until the character has had no solve in flight and none landed for 20 frames.
-fn settle_pose(app: &mut App, e: Entity) {
-    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
-    let mut idle_frames = 0;
-    while idle_frames < 20 {
-        assert!(std::time::Instant::now() < deadline, "never settled");
-        let before = common::solves(app, e);
-        app.update();
-        std::thread::yield_now();
-        let status = app.world().get::<PoseStatus>(e).unwrap();
-        idle_frames = if status.phase == DeformPhase::Idle && status.solves == before {
-            idle_frames + 1
-        } else {
-            0
-        };
-    }
 }

@@ -1401,20 +1401,7 @@ fn a_mouse_drag_moves_a_character_handle_with_the_cursor() {
     );
     // Let the pose settle; the top follows the drag sideways (the pinned root cannot let it
     // translate exactly: the bar bends), the root stays.
-    let mut idle = 0;
-    let deadline = Instant::now() + Duration::from_secs(60);
-    while idle < 10 {
-        assert!(Instant::now() < deadline, "never settled");
-        let before = common::solves(&app, root);
-        app.update();
-        std::thread::yield_now();
-        let status = app.world().get::<PoseStatus>(root).unwrap();
-        idle = if status.phase == DeformPhase::Idle && status.solves == before {
-            idle + 1
-        } else {
-            0
-        };
-    }
+    common::settle_pose(&mut app, root);
     let posed = app.world().get::<PosedSkeleton>(root).unwrap();
     let skinned = posed.skinned_positions();
     let centroid = top.iter().map(|&i| skinned[i as usize]).sum::<Vec3>() / top.len() as f32;

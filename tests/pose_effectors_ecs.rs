@@ -10,7 +10,7 @@ use bevy_wii_deform::pose::synth_rig::{bar_rig, mannequin_rig};
 use bevy_wii_deform::prelude::*;
 
 mod common;
-use common::{spawn_rig, update_until};
+use common::{settle_pose, spawn_rig, update_until};
 
 fn app() -> App {
     let mut app = common::app();
@@ -19,25 +19,6 @@ fn app() -> App {
         16,
     )));
     app
-}
-
-/// Updates until the character has had no solve running and none landed for 10 frames.
-fn settle(app: &mut App, e: Entity) {
-    let deadline = std::time::Instant::now() + Duration::from_secs(60);
-    let mut idle = 0;
-    while idle < 10 {
-        assert!(std::time::Instant::now() < deadline, "never settled");
-        let before = common::solves(app, e);
-        app.update();
-        std::thread::yield_now();
-        let status = app.world().get::<PoseStatus>(e).unwrap();
-        idle = if status.phase == DeformPhase::Idle && status.solves == before {
-            idle + 1
-        } else {
-            0
-        };
-    }
-    app.update(); // PostUpdate writes the pose to the joints
 }
 
 fn joint_position(app: &App, joint: Entity) -> Vec3 {
@@ -74,7 +55,7 @@ fn a_position_effector_entity_moves_its_joint_and_is_followed() {
         Transform::from_xyz(0.05, 0.6, 0.1),
         ChildOf(platform),
     ));
-    settle(&mut app, root);
+    settle_pose(&mut app, root);
     // (Joint 2 swings on a radius of 1/3 about joint 1 at y = 1/3: these goals are on reach.)
     let target = Vec3::new(0.15, 0.6, 0.1);
     let error = joint_position(&app, joints[2]).distance(target);
@@ -84,7 +65,7 @@ fn a_position_effector_entity_moves_its_joint_and_is_followed() {
         .get_mut::<Transform>(platform)
         .unwrap()
         .translation = Vec3::new(-0.1, 0.0, 0.0);
-    settle(&mut app, root);
+    settle_pose(&mut app, root);
     let target = Vec3::new(-0.05, 0.6, 0.1);
     let error = joint_position(&app, joints[2]).distance(target);
     assert!(error < 1e-3, "joint 2 is {error} from the moved goal");
@@ -110,7 +91,7 @@ fn a_look_at_effector_points_the_top_bone_at_its_entity() {
         PoseEffector::look_at(root, joints[2], Vec3::Y),
         Transform::from_translation(target),
     ));
-    settle(&mut app, root);
+    settle_pose(&mut app, root);
     let g = app.world().get::<GlobalTransform>(joints[2]).unwrap();
     let axis = g.affine().matrix3 * Vec3A::Y;
     let to = Vec3A::from(target - g.translation());
@@ -168,7 +149,7 @@ fn a_hinge_limit_holds_under_an_effector_pulling_behind() {
         PoseEffector::position(root, joints[2]),
         Transform::from_xyz(0.0, 0.55, -0.15),
     ));
-    settle(&mut app, root);
+    settle_pose(&mut app, root);
     let r = app.world().get::<Transform>(joints[1]).unwrap().rotation;
     let r = if r.w < 0.0 { -r } else { r };
     let angle = (2.0 * r.x.atan2(r.w)).to_degrees();
@@ -202,7 +183,7 @@ fn symmetric_editing_drives_the_mirror_joint_too() {
         },
         Transform::from_translation(goal),
     ));
-    settle(&mut app, root);
+    settle_pose(&mut app, root);
     let left = joint_position(&app, find("wrist_l"));
     let right = joint_position(&app, find("wrist_r"));
     assert!(left.distance(goal) < 0.02, "left wrist at {left}");

@@ -238,6 +238,69 @@ fn ellipse_value(c: (f64, f64), a: (f64, f64)) -> f64 {
     term(c.0, a.0) + term(c.1, a.1)
 }
 
+impl Resolved {
+    /// The nearest allowed rotation to `delta` (from the rest rotation) by swing–twist: twist
+    /// clamped, swing scaled back onto its ellipse; a hinge keeps only its own rotation.
+    fn project(&self, delta: DQuat) -> DQuat {
+        match *self {
+            Resolved::Hinge { axis, min, max } => {
+                let (angle, _) = swing_twist(delta, axis);
+                DQuat::from_axis_angle(axis, angle.clamp(min, max))
+            }
+            Resolved::SwingTwist {
+                axis,
+                e1,
+                e2,
+                swing,
+                twist,
+            } => {
+                let (angle, swing_q) = swing_twist(delta, axis);
+                let twist_q = DQuat::from_axis_angle(axis, angle.clamp(twist.0, twist.1));
+                let c = swing_components(swing_q, e1, e2);
+                if ellipse_value(c, swing) <= 1.0 {
+                    return swing_q * twist_q;
+                }
+                let keep = |c: f64, a: f64| if a > 1e-12 { c } else { 0.0 };
+                let c = (keep(c.0, swing.0), keep(c.1, swing.1));
+                let v = ellipse_value(c, swing);
+                let k = if v > 0.0 { v.sqrt().recip() } else { 0.0 };
+                DQuat::from_scaled_axis((e1 * c.0 + e2 * c.1) * k) * twist_q
+            }
+        }
+    }
+
+    /// By how much `delta` exceeds the limit, radians (0 inside).
+    fn excess(&self, delta: DQuat) -> f64 {
+        match *self {
+            Resolved::Hinge { axis, min, max } => {
+                let (angle, swing) = swing_twist(delta, axis);
+                let off_axis = swing.angle_between(DQuat::IDENTITY);
+                off_axis + (angle - max).max(min - angle).max(0.0)
+            }
+            Resolved::SwingTwist {
+                axis,
+                e1,
+                e2,
+                swing,
+                twist,
+            } => {
+                let (angle, swing_q) = swing_twist(delta, axis);
+                let c = swing_components(swing_q, e1, e2);
+                let value = ellipse_value(c, swing);
+                let magnitude = (c.0 * c.0 + c.1 * c.1).sqrt();
+                let swing_excess = if value <= 1.0 {
+                    0.0
+                } else if value.is_finite() {
+                    magnitude * (1.0 - value.sqrt().recip())
+                } else {
+                    magnitude
+                };
+                swing_excess + (angle - twist.1).max(twist.0 - angle).max(0.0)
+            }
+        }
+    }
+}
+
 impl JointLimits {
     /// No limits yet, measured from `rest` (usually the skeleton's bind pose).
     pub fn new(skeleton: &Skeleton, rest: &SkeletonPose) -> Self {
@@ -355,34 +418,7 @@ impl JointLimits {
                 continue;
             };
             let delta = (self.rest[j].inverse() * local.rotation).normalize();
-            let projected = match *limit {
-                Resolved::Hinge { axis, min, max } => {
-                    let (angle, _) = swing_twist(delta, axis);
-                    DQuat::from_axis_angle(axis, angle.clamp(min, max))
-                }
-                Resolved::SwingTwist {
-                    axis,
-                    e1,
-                    e2,
-                    swing,
-                    twist,
-                } => {
-                    let (angle, swing_q) = swing_twist(delta, axis);
-                    let twist_q = DQuat::from_axis_angle(axis, angle.clamp(twist.0, twist.1));
-                    let c = swing_components(swing_q, e1, e2);
-                    let value = ellipse_value(c, swing);
-                    let swing_q = if value <= 1.0 {
-                        swing_q
-                    } else {
-                        let keep = |c: f64, a: f64| if a > 1e-12 { c } else { 0.0 };
-                        let c = (keep(c.0, swing.0), keep(c.1, swing.1));
-                        let v = ellipse_value(c, swing);
-                        let k = if v > 0.0 { v.sqrt().recip() } else { 0.0 };
-                        DQuat::from_scaled_axis((e1 * c.0 + e2 * c.1) * k)
-                    };
-                    swing_q * twist_q
-                }
-            };
+            let projected = limit.project(delta);
             local.rotation = (self.rest[j] * projected).normalize();
         }
     }
@@ -396,33 +432,7 @@ impl JointLimits {
                 continue;
             };
             let delta = (self.rest[j].inverse() * local.rotation).normalize();
-            let excess = match *limit {
-                Resolved::Hinge { axis, min, max } => {
-                    let (angle, swing) = swing_twist(delta, axis);
-                    let off_axis = swing.angle_between(DQuat::IDENTITY);
-                    off_axis + (angle - max).max(min - angle).max(0.0)
-                }
-                Resolved::SwingTwist {
-                    axis,
-                    e1,
-                    e2,
-                    swing,
-                    twist,
-                } => {
-                    let (angle, swing_q) = swing_twist(delta, axis);
-                    let c = swing_components(swing_q, e1, e2);
-                    let value = ellipse_value(c, swing);
-                    let magnitude = (c.0 * c.0 + c.1 * c.1).sqrt();
-                    let swing_excess = if value <= 1.0 {
-                        0.0
-                    } else if value.is_finite() {
-                        magnitude * (1.0 - value.sqrt().recip())
-                    } else {
-                        magnitude
-                    };
-                    swing_excess + (angle - twist.1).max(twist.0 - angle).max(0.0)
-                }
-            };
+            let excess = limit.excess(delta);
             worst = worst.max(excess.to_degrees());
         }
         worst

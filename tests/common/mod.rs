@@ -299,3 +299,25 @@ pub fn model_of(rig: &SyntheticRig) -> std::sync::Arc<bevy_wii_deform::pose::Ski
         .unwrap(),
     )
 }
+
+/// Updates until the character has had no solve running and none landed for 10 frames (a
+/// generous wall-clock deadline guards against a hang), then once more so `PostUpdate` writes
+/// the pose to the joints.
+pub fn settle_pose(app: &mut App, character: Entity) {
+    use bevy_wii_deform::prelude::DeformPhase;
+    let deadline = Instant::now() + Duration::from_secs(60);
+    let mut idle = 0;
+    while idle < 10 {
+        assert!(Instant::now() < deadline, "the pose never settled");
+        let before = solves(app, character);
+        app.update();
+        std::thread::yield_now();
+        let status = app.world().get::<PoseStatus>(character).unwrap();
+        idle = if status.phase == DeformPhase::Idle && status.solves == before {
+            idle + 1
+        } else {
+            0
+        };
+    }
+    app.update();
+}
