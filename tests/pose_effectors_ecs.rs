@@ -10,7 +10,7 @@ use bevy_wii_deform::pose::synth_rig::{bar_rig, mannequin_rig};
 use bevy_wii_deform::prelude::*;
 
 mod common;
-use common::{settle_pose, spawn_rig, update_until};
+use common::{posed_rig, settle_pose, update_until};
 
 fn app() -> App {
     let mut app = common::app();
@@ -32,18 +32,16 @@ fn joint_position(app: &App, joint: Entity) -> Vec3 {
 fn a_position_effector_entity_moves_its_joint_and_is_followed() {
     let mut app = app();
     let rig = bar_rig(3, 12, 30);
-    let (root, joints, _) = spawn_rig(&mut app, &rig, Vec3::ZERO);
-    app.world_mut().entity_mut(root).insert((
-        Poseable {
-            max_iterations: 8,
-            // Settle until an iteration gains less than 1e-8: the goal is met, not nearly.
-            tolerance: 1e-8,
-            ..default()
-        },
-        PinnedJoints(vec![joints[0]]),
-    ));
-    update_until(&mut app, "the model", |a| {
-        a.world().get::<PosedSkeleton>(root).is_some()
+    let (root, joints) = posed_rig(&mut app, &rig, |joints: &[Entity]| {
+        (
+            Poseable {
+                max_iterations: 8,
+                // Settle until an iteration gains less than 1e-8: the goal is met, not nearly.
+                tolerance: 1e-8,
+                ..default()
+            },
+            PinnedJoints(vec![joints[0]]),
+        )
     });
     // A moving platform carries the effector (its child): the goal follows the platform.
     let platform = app
@@ -75,16 +73,14 @@ fn a_position_effector_entity_moves_its_joint_and_is_followed() {
 fn a_look_at_effector_points_the_top_bone_at_its_entity() {
     let mut app = app();
     let rig = bar_rig(3, 12, 30);
-    let (root, joints, _) = spawn_rig(&mut app, &rig, Vec3::ZERO);
-    app.world_mut().entity_mut(root).insert((
-        Poseable {
-            max_iterations: 8,
-            ..default()
-        },
-        PinnedJoints(vec![joints[0], joints[1]]),
-    ));
-    update_until(&mut app, "the model", |a| {
-        a.world().get::<PosedSkeleton>(root).is_some()
+    let (root, joints) = posed_rig(&mut app, &rig, |joints: &[Entity]| {
+        (
+            Poseable {
+                max_iterations: 8,
+                ..default()
+            },
+            PinnedJoints(vec![joints[0], joints[1]]),
+        )
     });
     let target = Vec3::new(0.6, 1.2, 0.4);
     app.world_mut().spawn((
@@ -103,16 +99,14 @@ fn a_look_at_effector_points_the_top_bone_at_its_entity() {
 fn limits_from_a_file_naming_a_missing_joint_fail_with_its_name() {
     let mut app = app();
     let rig = bar_rig(3, 12, 30);
-    let (root, joints, _) = spawn_rig(&mut app, &rig, Vec3::ZERO);
     let file =
         r#"(joints: { "elbow": Hinge(axis: (1.0, 0.0, 0.0), min_deg: 0.0, max_deg: 90.0) })"#;
-    app.world_mut().entity_mut(root).insert((
-        Poseable::default(),
-        PinnedJoints(vec![joints[0]]),
-        PoseLimits::Ron(file.into()),
-    ));
-    update_until(&mut app, "the model", |a| {
-        a.world().get::<PosedSkeleton>(root).is_some()
+    let (root, joints) = posed_rig(&mut app, &rig, |joints: &[Entity]| {
+        (
+            Poseable::default(),
+            PinnedJoints(vec![joints[0]]),
+            PoseLimits::Ron(file.into()),
+        )
     });
     app.world_mut().spawn((
         PoseEffector::position(root, joints[2]),
@@ -131,19 +125,17 @@ fn limits_from_a_file_naming_a_missing_joint_fail_with_its_name() {
 fn a_hinge_limit_holds_under_an_effector_pulling_behind() {
     let mut app = app();
     let rig = bar_rig(3, 12, 30);
-    let (root, joints, _) = spawn_rig(&mut app, &rig, Vec3::ZERO);
     let file =
         r#"(joints: { "bone1": Hinge(axis: (1.0, 0.0, 0.0), min_deg: 0.0, max_deg: 150.0) })"#;
-    app.world_mut().entity_mut(root).insert((
-        Poseable {
-            max_iterations: 8,
-            ..default()
-        },
-        PinnedJoints(vec![joints[0]]),
-        PoseLimits::Ron(file.into()),
-    ));
-    update_until(&mut app, "the model", |a| {
-        a.world().get::<PosedSkeleton>(root).is_some()
+    let (root, joints) = posed_rig(&mut app, &rig, |joints: &[Entity]| {
+        (
+            Poseable {
+                max_iterations: 8,
+                ..default()
+            },
+            PinnedJoints(vec![joints[0]]),
+            PoseLimits::Ron(file.into()),
+        )
     });
     app.world_mut().spawn((
         PoseEffector::position(root, joints[2]),
@@ -160,21 +152,20 @@ fn a_hinge_limit_holds_under_an_effector_pulling_behind() {
 fn symmetric_editing_drives_the_mirror_joint_too() {
     let mut app = app();
     let rig = mannequin_rig(10);
-    let (root, joints, _) = spawn_rig(&mut app, &rig, Vec3::ZERO);
-    let find = |n: &str| joints[rig.skeleton.find(n).unwrap()];
-    let pins = vec![find("hips"), find("ankle_l"), find("ankle_r")];
-    app.world_mut().entity_mut(root).insert((
-        Poseable {
-            max_iterations: 8,
-            ..default()
-        },
-        PinnedJoints(pins),
-        SymmetricEditing,
-        PoseStiffness(0.05),
-    ));
-    update_until(&mut app, "the model", |a| {
-        a.world().get::<PosedSkeleton>(root).is_some()
+    let (root, joints) = posed_rig(&mut app, &rig, |joints: &[Entity]| {
+        let find = |n: &str| joints[rig.skeleton.find(n).unwrap()];
+        let pins = vec![find("hips"), find("ankle_l"), find("ankle_r")];
+        (
+            Poseable {
+                max_iterations: 8,
+                ..default()
+            },
+            PinnedJoints(pins),
+            SymmetricEditing,
+            PoseStiffness(0.05),
+        )
     });
+    let find = |n: &str| joints[rig.skeleton.find(n).unwrap()];
     let goal = Vec3::new(0.45, 1.3, 0.25);
     app.world_mut().spawn((
         PoseEffector {

@@ -321,3 +321,20 @@ pub fn settle_pose(app: &mut App, character: Entity) {
     }
     app.update();
 }
+
+/// Spawns `rig` at the origin as a character with the components `settings` makes from its
+/// joint entities (a `Poseable`, pins, …), and updates until its model is built. Returns the
+/// root and the joint entities.
+pub fn posed_rig<B: Bundle>(
+    app: &mut App,
+    rig: &SyntheticRig,
+    settings: impl FnOnce(&[Entity]) -> B,
+) -> (Entity, Vec<Entity>) {
+    use bevy_wii_deform::prelude::PosedSkeleton;
+    let (root, joints, _) = spawn_rig(app, rig, Vec3::ZERO);
+    app.world_mut().entity_mut(root).insert(settings(&joints));
+    update_until(app, "the model", |a| {
+        a.world().get::<PosedSkeleton>(root).is_some()
+    });
+    (root, joints)
+}
