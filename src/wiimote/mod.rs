@@ -32,7 +32,6 @@ pub mod protocol;
 mod rng;
 mod session;
 mod transport;
-mod vqf;
 
 pub use diagnosis::{LinuxDevices, OpenErrorKind, RemoteProblem};
 pub use emulator::{
@@ -40,7 +39,7 @@ pub use emulator::{
 };
 pub use filter::{
     Calibration, CalibrationPhase, FilterKind, FusionFilter, ImuSample, OrientationFilter,
-    PaperFilter, RawIntegration, StillnessBias, snap_tilt,
+    PaperFilter, RawIntegration, StillnessBias, VqfFilter, snap_tilt,
 };
 pub use manager::{
     ManagerConfig, ManagerEvent, RemoteCommand, RemoteId, RemoteSource, WiimoteManager,
@@ -57,4 +56,3 @@ pub use session::{
 #[cfg(feature = "hidapi")]
 pub use transport::{DeviceInfo, HidTransport, discover};
 pub use transport::{Transport, TransportError};
-pub use vqf::VqfFilter;

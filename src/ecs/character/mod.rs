@@ -28,8 +28,10 @@
 //! Set [`PosedSkeleton::pose`] yourself (e.g. from a [`crate::pose::PoseFile`]) to load a
 //! pose; the next solve starts from it.
 
+mod constraints;
 mod picking;
 mod plugin;
+mod prepare;
 
 use std::sync::Arc;
 

@@ -5,8 +5,6 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use bevy::app::AnimationSystems;
-use bevy::mesh::VertexAttributeValues;
-use bevy::mesh::skinning::{SkinnedMesh as BevySkin, SkinnedMeshInverseBindposes};
 use bevy::picking::PickingSystems;
 use bevy::picking::backend::PointerHits;
 use bevy::picking::backend::ray::RayMap;
@@ -14,24 +12,22 @@ use bevy::prelude::*;
 use bevy::tasks::futures::check_ready;
 use bevy::tasks::{AsyncComputeTaskPool, Task};
 use bevy::transform::TransformSystems;
-use bevy::world_serialization::WorldAssetRoot;
-use glam::DAffine3;
 
-use super::picking::{ignore_bind_pose_picking, pick_posed_characters};
-use super::{
-    GrabAnchor, HandlePositionOnly, PinnedJoints, PoseEffector, PoseEffectorKind, PoseFailed,
-    PoseJointHandle, PoseLimits, PoseSolved, PoseStatus, PoseStiffness, Poseable, PoseableError,
-    PosedSkeleton, SymmetricEditing,
+use super::constraints::{
+    SetKey, core_effector, joint_handle, rebase, resolve_limits, vertex_handles,
 };
-use crate::deform::{Handle as CoreHandle, RigidTransform, centroid};
-use crate::ecs::control::rotation_of_space;
-use crate::ecs::scene::{SceneSpawned, mark_scene_spawned, scene_load_failure};
+use super::picking::{ignore_bind_pose_picking, pick_posed_characters};
+use super::prepare::{find_skins, finish_models, joint_transform};
+use super::{
+    GrabAnchor, HandlePositionOnly, PinnedJoints, PoseEffector, PoseFailed, PoseJointHandle,
+    PoseLimits, PoseSolved, PoseStatus, PoseStiffness, Poseable, PoseableError, PosedSkeleton,
+    SymmetricEditing,
+};
+use crate::ecs::scene::mark_scene_spawned;
 use crate::ecs::{DeformHandle, DeformPhase, DeformSystems};
 use crate::pose::{
-    CentroidEffector, Effector, EffectorGoal, Joint, JointHandle, JointLimits, JointTransform,
-    LimitError, Mirror, ModelSettings, PoseConstraints, PoseSolution, PoseSolveOptions, PoseSolver,
-    PoseSolverSettings, PoseStart, ReferenceStiffness, Skeleton, SkeletonPose, SkinnedMesh,
-    SkinnedModel,
+    Effector, JointLimits, JointTransform, Mirror, PoseConstraints, PoseSolution, PoseSolveOptions,
+    PoseSolver, PoseSolverSettings, PoseStart, ReferenceStiffness, SkeletonPose, SkinnedModel,
 };
 
 /// Phases of the character systems. Prepare, Request and Poll run in `Update` (Request after
@@ -106,66 +102,30 @@ impl Plugin for PosePlugin {
     }
 }
 
-/// Which handles and pins a solver was built for.
-#[derive(Debug, Clone, Default)]
-struct SetKey {
-    handles: Vec<(Entity, Vec<u32>)>,
-    joint_handles: Vec<(Entity, Entity)>,
-    pins: Vec<Entity>,
-    anchor: GrabAnchor,
-    position_only: Vec<Entity>,
-    effectors: Vec<(Entity, Entity)>,
-}
-
-impl SetKey {
-    /// True when the handles and pins now are the ones this key was made from (compared in
-    /// place: this runs every frame).
-    fn matches(
-        &self,
-        handles: &[(Entity, Mut<DeformHandle>, Mut<Transform>)],
-        joint_handles: &[(Entity, Mut<PoseJointHandle>, Mut<Transform>)],
-        pins: &[Entity],
-    ) -> bool {
-        self.pins == pins
-            && self.handles.len() == handles.len()
-            && self
-                .handles
-                .iter()
-                .zip(handles)
-                .all(|((e, v), (f, h, _))| e == f && *v == h.vertices)
-            && self.joint_handles.len() == joint_handles.len()
-            && self
-                .joint_handles
-                .iter()
-                .zip(joint_handles)
-                .all(|((e, j), (f, h, _))| e == f && *j == h.joint)
-    }
-}
-
 type SolveResult = Result<(Arc<PoseSolver>, PoseSolution, f64), PoseableError>;
 
 /// Internal per-character state.
 #[derive(Component)]
 pub(crate) struct PoseState {
-    building: Option<Task<Result<SkinnedModel, PoseableError>>>,
-    joints: Vec<Entity>,
-    primitives: Vec<(Entity, u32)>,
-    key: Option<SetKey>,
-    reference: Option<SkeletonPose>,
-    solver: Option<Arc<PoseSolver>>,
-    last: Option<Arc<PoseSolution>>,
-    task: Option<Task<SolveResult>>,
-    requested: Arc<AtomicU64>,
-    pending: Option<PoseConstraints>,
+    pub(super) building: Option<Task<Result<SkinnedModel, PoseableError>>>,
+    pub(super) joints: Vec<Entity>,
+    pub(super) primitives: Vec<(Entity, u32)>,
+    pub(super) key: Option<SetKey>,
+    pub(super) reference: Option<SkeletonPose>,
+    pub(super) solver: Option<Arc<PoseSolver>>,
+    pub(super) last: Option<Arc<PoseSolution>>,
+    pub(super) task: Option<Task<SolveResult>>,
+    pub(super) requested: Arc<AtomicU64>,
+    pub(super) pending: Option<PoseConstraints>,
     /// The constraints of the running solve (re-queued while the pose is still settling).
-    running: Option<PoseConstraints>,
+    pub(super) running: Option<PoseConstraints>,
     /// The pose the last landed solve wrote: anything else in [`PosedSkeleton::pose`] was put
     /// there by the app (a loaded or reset pose).
-    written: Option<SkeletonPose>,
+    pub(super) written: Option<SkeletonPose>,
     /// The character's [`PoseLimits`], resolved against its skeleton.
-    limits: Option<Arc<JointLimits>>,
+    pub(super) limits: Option<Arc<JointLimits>>,
     /// Left/right pairs, built when symmetric editing first needs them.
-    mirror: Option<Arc<Mirror>>,
+    pub(super) mirror: Option<Arc<Mirror>>,
 }
 
 /// The per-character settings a solve reads besides handles and pins.
@@ -176,7 +136,7 @@ struct CharacterSettings {
     symmetric: Has<SymmetricEditing>,
 }
 
-fn fail(
+pub(super) fn fail(
     entity: Entity,
     error: PoseableError,
     status: &mut PoseStatus,
@@ -186,301 +146,6 @@ fn fail(
     status.phase = DeformPhase::Failed;
     status.error = Some(error.clone());
     failed.write(PoseFailed { entity, error });
-}
-
-fn affine(t: &GlobalTransform) -> DAffine3 {
-    let a = t.affine();
-    DAffine3::from_mat3_translation(
-        glam::Mat3::from(a.matrix3).as_dmat3(),
-        Vec3::from(a.translation).as_dvec3(),
-    )
-}
-
-fn joint_transform(t: &Transform) -> JointTransform {
-    JointTransform {
-        translation: t.translation.as_dvec3(),
-        rotation: t.rotation.as_dquat().normalize(),
-        scale: t.scale.as_dvec3(),
-    }
-}
-
-/// Reads positions, indices and skin attributes of one primitive.
-fn skinned_mesh_of(mesh: &Mesh) -> Result<SkinnedMesh, PoseableError> {
-    if mesh.primitive_topology() != bevy::mesh::PrimitiveTopology::TriangleList {
-        return Err(PoseableError::NotTriangleList);
-    }
-    let positions = match mesh.try_attribute(Mesh::ATTRIBUTE_POSITION) {
-        Ok(VertexAttributeValues::Float32x3(v)) => {
-            v.iter().map(|p| Vec3::from_array(*p)).collect::<Vec<_>>()
-        }
-        _ => return Err(PoseableError::MissingAttribute("Float32x3 positions")),
-    };
-    let joint_indices = match mesh.try_attribute(Mesh::ATTRIBUTE_JOINT_INDEX) {
-        Ok(VertexAttributeValues::Uint16x4(v)) => v.clone(),
-        _ => return Err(PoseableError::MissingAttribute("Uint16x4 joint indices")),
-    };
-    let joint_weights = match mesh.try_attribute(Mesh::ATTRIBUTE_JOINT_WEIGHT) {
-        Ok(VertexAttributeValues::Float32x4(v)) => v.clone(),
-        _ => return Err(PoseableError::MissingAttribute("Float32x4 joint weights")),
-    };
-    let indices = match mesh.try_indices() {
-        Ok(i) => i.iter().map(|x| x as u32).collect(),
-        Err(_) => (0..positions.len() as u32).collect(),
-    };
-    Ok(SkinnedMesh {
-        positions,
-        indices,
-        joint_indices,
-        joint_weights,
-    })
-}
-
-/// Finds the skinned primitives and joints of new [`Poseable`]s and starts building their
-/// models in the background.
-#[allow(clippy::too_many_arguments, clippy::type_complexity)]
-fn find_skins(
-    mut commands: Commands,
-    mut new: Query<
-        (
-            Entity,
-            &Poseable,
-            &mut PoseStatus,
-            Option<&WorldAssetRoot>,
-            Has<SceneSpawned>,
-        ),
-        Without<PoseState>,
-    >,
-    assets: Option<Res<AssetServer>>,
-    children: Query<&Children>,
-    skins: Query<(&BevySkin, &Mesh3d)>,
-    meshes: Res<Assets<Mesh>>,
-    bindposes: Res<Assets<SkinnedMeshInverseBindposes>>,
-    joints: Query<(&Transform, Option<&ChildOf>, Option<&Name>)>,
-    globals: Query<&GlobalTransform>,
-    mut failed: MessageWriter<PoseFailed>,
-) {
-    for (entity, poseable, mut status, scene, spawned) in &mut new {
-        if status.phase == DeformPhase::Failed {
-            continue;
-        }
-        let primitives: Vec<Entity> = std::iter::once(entity)
-            .chain(children.iter_descendants(entity))
-            .filter(|e| skins.contains(*e))
-            .collect();
-        let Some(&first) = primitives.first() else {
-            // A scene root waits for its instance; any other entity must have its skinned
-            // mesh at or below it when `Poseable` is added (as for `Deformable`).
-            let error = if scene.is_some() && !spawned {
-                match assets.as_deref().and_then(|a| scene_load_failure(a, scene)) {
-                    Some(message) => PoseableError::SceneLoadFailed(message),
-                    None => continue, // the scene has not spawned yet
-                }
-            } else {
-                PoseableError::NoSkinnedMesh
-            };
-            fail(entity, error, &mut status, &mut failed);
-            continue;
-        };
-        let (skin, _) = skins.get(first).expect("filtered");
-        let Some(ibp) = bindposes.get(&skin.inverse_bindposes) else {
-            continue; // loading
-        };
-        let members: Vec<Entity> = primitives
-            .iter()
-            .copied()
-            .filter(|&p| skins.get(p).is_ok_and(|(s, _)| s.joints == skin.joints))
-            .collect();
-        let loaded = members
-            .iter()
-            .all(|&p| skins.get(p).is_ok_and(|(_, m)| meshes.contains(&m.0)));
-        if !loaded {
-            continue; // a mesh asset is still loading
-        }
-        let mut mesh = SkinnedMesh::default();
-        let mut offsets = Vec::new();
-        let mut result: Result<(), PoseableError> = Ok(());
-        for &p in &members {
-            let (_, mesh3d) = skins.get(p).expect("filtered");
-            let asset = meshes.get(&mesh3d.0).expect("checked loaded above");
-            match skinned_mesh_of(asset) {
-                Ok(part) => {
-                    let base = mesh.positions.len() as u32;
-                    offsets.push((p, base));
-                    mesh.indices.extend(part.indices.iter().map(|i| i + base));
-                    mesh.positions.extend(part.positions);
-                    mesh.joint_indices.extend(part.joint_indices);
-                    mesh.joint_weights.extend(part.joint_weights);
-                }
-                Err(e) => {
-                    result = Err(e);
-                    break;
-                }
-            }
-        }
-        if let Err(e) = result {
-            fail(entity, e, &mut status, &mut failed);
-            continue;
-        }
-        // The skeleton: parents are the nearest joint ancestors; a root's parent frame is its
-        // parent entity's world transform.
-        let mut list = Vec::with_capacity(skin.joints.len());
-        let mut reference = Vec::with_capacity(skin.joints.len());
-        let mut missing = None;
-        for (k, &j) in skin.joints.iter().enumerate() {
-            let Ok((transform, child_of, name)) = joints.get(j) else {
-                missing = Some(j);
-                break;
-            };
-            let mut up = child_of.map(|c| c.parent());
-            let mut parent = None;
-            while let Some(p) = up {
-                if let Some(index) = skin.joints.iter().position(|&x| x == p) {
-                    parent = Some(index);
-                    break;
-                }
-                up = joints
-                    .get(p)
-                    .ok()
-                    .and_then(|(_, c, _)| c.map(|c| c.parent()));
-            }
-            let parent_frame = match (parent, child_of) {
-                (None, Some(c)) => globals
-                    .get(c.parent())
-                    .map(affine)
-                    .unwrap_or(DAffine3::IDENTITY),
-                _ => DAffine3::IDENTITY,
-            };
-            let inverse_bind = ibp
-                .get(k)
-                .map(|m| DAffine3::from_mat4(m.as_dmat4()))
-                .unwrap_or(DAffine3::IDENTITY);
-            list.push(Joint {
-                name: name.map_or_else(|| format!("joint{k}"), |n| n.as_str().to_string()),
-                parent,
-                parent_frame,
-                inverse_bind,
-            });
-            reference.push(joint_transform(transform));
-        }
-        if let Some(j) = missing {
-            fail(
-                entity,
-                PoseableError::MissingJoint(j),
-                &mut status,
-                &mut failed,
-            );
-            continue;
-        }
-        let sorted = Skeleton::sorted(list);
-        let (skeleton, order) = match sorted {
-            Ok(s) => s,
-            Err(e) => {
-                fail(entity, e.into(), &mut status, &mut failed);
-                continue;
-            }
-        };
-        let mut new_index = vec![u16::MAX; order.len()];
-        for (new, &old) in order.iter().enumerate() {
-            new_index[old] = new as u16;
-        }
-        for ji in &mut mesh.joint_indices {
-            *ji = ji.map(|j| new_index.get(j as usize).copied().unwrap_or(u16::MAX));
-        }
-        let reference = SkeletonPose {
-            local: order.iter().map(|&old| reference[old]).collect(),
-        };
-        let settings = ModelSettings {
-            clusters: poseable.clusters.max(1) as usize,
-            ..Default::default()
-        };
-        let task = AsyncComputeTaskPool::get()
-            .spawn(async move { Ok(SkinnedModel::new(skeleton, &mesh, &reference, settings)?) });
-        status.phase = DeformPhase::BuildingTopology;
-        commands.entity(entity).try_insert(PoseState {
-            building: Some(task),
-            joints: order.iter().map(|&old| skin.joints[old]).collect(),
-            primitives: offsets,
-            key: None,
-            reference: None,
-            solver: None,
-            last: None,
-            task: None,
-            requested: Arc::new(AtomicU64::new(0)),
-            pending: None,
-            running: None,
-            written: None,
-            limits: None,
-            mirror: None,
-        });
-    }
-}
-
-/// Collects built models; inserts [`PosedSkeleton`] with the joints' current pose.
-fn finish_models(
-    mut commands: Commands,
-    mut building: Query<(Entity, &mut PoseState, &mut PoseStatus)>,
-    joints: Query<&Transform>,
-    mut failed: MessageWriter<PoseFailed>,
-) {
-    for (entity, mut state, mut status) in &mut building {
-        let Some(task) = state.building.as_mut() else {
-            continue;
-        };
-        let Some(result) = check_ready(task) else {
-            continue;
-        };
-        state.building = None;
-        match result {
-            Ok(model) => {
-                let pose = SkeletonPose {
-                    local: state
-                        .joints
-                        .iter()
-                        .map(|&j| joints.get(j).map(joint_transform).unwrap_or_default())
-                        .collect(),
-                };
-                status.phase = DeformPhase::Idle;
-                status.joints = model.skeleton().len();
-                status.vertices = model.topology().vertex_count();
-                commands.entity(entity).try_insert(PosedSkeleton {
-                    model: Arc::new(model),
-                    joints: state.joints.clone(),
-                    primitives: state.primitives.clone(),
-                    pose,
-                });
-            }
-            Err(e) => fail(entity, e, &mut status, &mut failed),
-        }
-    }
-}
-
-/// Rebases the handles of a character to `reference`: vertex handles' pivots to the world
-/// centroid of their skinned vertices, joint handles' rests to the joint's world transform;
-/// each `Transform` to its rest.
-fn rebase(
-    posed: &PosedSkeleton,
-    reference: &SkeletonPose,
-    handles: &mut [(Entity, Mut<DeformHandle>, Mut<Transform>)],
-    joint_handles: &mut [(Entity, Mut<PoseJointHandle>, Mut<Transform>)],
-) {
-    let model = &posed.model;
-    let skinned = model.skin_render(reference);
-    for (_, h, t) in handles.iter_mut() {
-        let c = centroid(&skinned, &h.vertices);
-        h.pivot = Some(c.as_vec3());
-        **t = Transform::from_translation(c.as_vec3());
-    }
-    let globals = model.skeleton().global_transforms(reference);
-    for (_, h, t) in joint_handles.iter_mut() {
-        let Some(j) = posed.joint_index(h.joint) else {
-            continue;
-        };
-        let (_, rotation, translation) = globals[j].to_scale_rotation_translation();
-        let rest = Transform::from_translation(translation.as_vec3())
-            .with_rotation(rotation.as_quat().normalize());
-        h.rest = Some(rest);
-        **t = rest;
-    }
 }
 
 /// Starts a solve when a character's handles, pins or pose changed (latest wins).
@@ -613,7 +278,7 @@ fn request_pose_solves(
         if !changed && state.pending.is_none() {
             continue;
         }
-        let limits = match resolve_limits(&posed, extras.limits.as_ref(), &mut state) {
+        let limits = match resolve_limits(&posed, extras.limits.as_ref(), &mut state.limits) {
             Ok(limits) => limits,
             Err(e) => {
                 fail(entity, e.into(), &mut status, &mut failed);
@@ -673,110 +338,6 @@ fn request_pose_solves(
             spawn_pose_solve(state, &posed, poseable, &mut status);
         }
     }
-}
-
-/// The character's limits, resolved against its skeleton (cached until `PoseLimits` changes).
-fn resolve_limits(
-    posed: &PosedSkeleton,
-    source: Option<&Ref<PoseLimits>>,
-    state: &mut PoseState,
-) -> Result<Option<Arc<JointLimits>>, LimitError> {
-    let Some(source) = source else {
-        state.limits = None;
-        return Ok(None);
-    };
-    if let Some(limits) = state.limits.as_ref().filter(|_| !source.is_changed()) {
-        return Ok(Some(limits.clone()));
-    }
-    let skeleton = posed.model.skeleton();
-    let rest = skeleton.bind_pose();
-    let limits = match &**source {
-        PoseLimits::Humanoid => Arc::new(JointLimits::humanoid(skeleton, &rest).0),
-        PoseLimits::Ron(text) => Arc::new(JointLimits::from_ron(text, skeleton, &rest)?),
-        PoseLimits::Custom(limits) => limits.clone(),
-    };
-    state.limits = Some(limits.clone());
-    Ok(Some(limits))
-}
-
-/// The vertex handles of a character: rigid ones, and position-only ones as centroid
-/// effectors (the centroid of the welded vertices, where it was in the reference pose, moved
-/// by the handle's translation).
-fn vertex_handles(
-    posed: &PosedSkeleton,
-    reference: Option<&SkeletonPose>,
-    handles: &[(Entity, Mut<DeformHandle>, Mut<Transform>)],
-    followers: &[Entity],
-) -> (Vec<CoreHandle>, Vec<CentroidEffector>) {
-    let model = &posed.model;
-    let follows = |e: &Entity| followers.binary_search(e).is_ok();
-    let reference_welded = (!followers.is_empty())
-        .then(|| reference.map(|r| model.skin_welded(r)))
-        .flatten();
-    let centroids = handles
-        .iter()
-        .filter(|(e, _, _)| follows(e))
-        .filter_map(|(_, h, t)| {
-            let vertices = model.topology().welded_set(&h.vertices);
-            let at_reference = centroid(reference_welded.as_ref()?, &vertices);
-            let moved = (t.translation - h.pivot?).as_dvec3();
-            Some(CentroidEffector {
-                vertices,
-                target: at_reference + moved,
-                weight: 1.0,
-            })
-        })
-        .collect();
-    let rigid = handles
-        .iter()
-        .filter(|(e, _, _)| !follows(e))
-        .map(|(_, h, t)| CoreHandle {
-            vertices: model.topology().welded_set(&h.vertices),
-            transform: h.rigid_transform(t),
-        })
-        .collect();
-    (rigid, centroids)
-}
-
-/// A joint handle as the core takes it: the motion from its rest to its `Transform`.
-fn joint_handle(posed: &PosedSkeleton, h: &PoseJointHandle, t: &Transform) -> Option<JointHandle> {
-    let joint = posed.joint_index(h.joint)?;
-    let rest = h.rest?;
-    let rotation = (t.rotation * rest.rotation.inverse())
-        .as_dquat()
-        .normalize();
-    let transform = RigidTransform::new(
-        rotation,
-        (t.translation - rest.translation).as_dvec3(),
-        rest.translation.as_dvec3(),
-    );
-    Some(JointHandle { joint, transform })
-}
-
-/// A [`PoseEffector`] as the core takes it, its goal read from its `GlobalTransform`.
-fn core_effector(
-    posed: &PosedSkeleton,
-    effector: &PoseEffector,
-    global: &GlobalTransform,
-) -> Option<Effector> {
-    let joint = posed.joint_index(effector.joint)?;
-    let point = global.translation().as_dvec3();
-    let goal = match effector.kind {
-        PoseEffectorKind::Position => EffectorGoal::Position(point),
-        PoseEffectorKind::Orientation => {
-            EffectorGoal::Orientation(rotation_of_space(&global.affine()).as_dquat())
-        }
-        PoseEffectorKind::Aim { axis, up } => EffectorGoal::Aim {
-            axis: axis.as_dvec3(),
-            target: point,
-            up: up.map(|u| (u.as_dvec3(), glam::DVec3::Y)),
-        },
-    };
-    Some(Effector {
-        joint,
-        goal,
-        weight: f64::from(effector.weight),
-    })
 }
 
 fn spawn_pose_solve(

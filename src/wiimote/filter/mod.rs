@@ -14,8 +14,10 @@
 
 use std::collections::VecDeque;
 
-use super::vqf::VqfFilter;
+mod vqf;
+
 use glam::{DQuat, DVec3};
+pub use vqf::VqfFilter;
 
 /// Radians per degree.
 const RAD: f64 = std::f64::consts::PI / 180.0;
@@ -100,7 +102,7 @@ impl FilterKind {
             FilterKind::Raw => Box::new(RawIntegration::default()),
             FilterKind::Paper => Box::new(PaperFilter::default()),
             FilterKind::Fusion => Box::new(FusionFilter::default()),
-            FilterKind::Vqf => Box::new(super::vqf::VqfFilter::default()),
+            FilterKind::Vqf => Box::new(VqfFilter::default()),
         }
     }
 

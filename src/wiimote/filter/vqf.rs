@@ -15,7 +15,7 @@
 use glam::{DQuat, DVec3};
 use vqf_rs::{Params, VQF};
 
-use super::filter::{Calibration, CalibrationPhase, ImuSample, OrientationFilter};
+use super::{Calibration, CalibrationPhase, ImuSample, OrientationFilter};
 
 /// Radians per degree.
 const DEG: f64 = std::f64::consts::PI / 180.0;

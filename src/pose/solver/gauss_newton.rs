@@ -1,0 +1,356 @@
+//! The numeric kernel of the pose solver: the Gauss–Newton system in the bone parameters
+//! (twist generators, their closed-form quadratic blocks summed over subtrees), the hinge
+//! restriction of that system, and the damped Cholesky solve of a Levenberg–Marquardt step.
+
+use glam::{DAffine3, DMat3, DMat4, DVec3};
+
+use super::super::effectors::skew;
+use super::super::limits::JointLimits;
+use super::{ParamKind, PoseSolver};
+
+impl PoseSolver {
+    /// Restricts each hinge joint's own rotation parameter to its hinge axis (world `a`):
+    /// `H ← TᵀHT + (I − T)·s`, `g ← Tᵀg` with `T = a aᵀ` on that parameter's block, so the
+    /// step turns a hinge about its axis only.
+    pub(super) fn restrict_hinges(
+        &self,
+        limits: &JointLimits,
+        globals: &[DAffine3],
+        h: &mut [f64],
+        g: &mut [f64],
+    ) {
+        let np = g.len();
+        for (p, &(j, kind)) in self.params.iter().enumerate() {
+            let (ParamKind::Rotation, Some(axis)) = (kind, limits.hinge_axis(j)) else {
+                continue;
+            };
+            let a = (super::super::skeleton::rotation_of(&globals[j].matrix3) * axis).normalize();
+            let t = [a.x, a.y, a.z];
+            let proj = |v: &[f64]| -> [f64; 3] {
+                let d = v[0] * t[0] + v[1] * t[1] + v[2] * t[2];
+                [d * t[0], d * t[1], d * t[2]]
+            };
+            let scale = (0..3).map(|k| h[(3 * p + k) * np + 3 * p + k]).sum::<f64>() / 3.0;
+            // Rows of the block row p, then columns of the block column p.
+            for col in 0..np {
+                let v = [
+                    h[(3 * p) * np + col],
+                    h[(3 * p + 1) * np + col],
+                    h[(3 * p + 2) * np + col],
+                ];
+                let w = proj(&v);
+                for k in 0..3 {
+                    h[(3 * p + k) * np + col] = w[k];
+                }
+            }
+            for row in 0..np {
+                let v = [
+                    h[row * np + 3 * p],
+                    h[row * np + 3 * p + 1],
+                    h[row * np + 3 * p + 2],
+                ];
+                let w = proj(&v);
+                for k in 0..3 {
+                    h[row * np + 3 * p + k] = w[k];
+                }
+            }
+            for r in 0..3 {
+                for c in 0..3 {
+                    let identity = if r == c { 1.0 } else { 0.0 };
+                    h[(3 * p + r) * np + 3 * p + c] +=
+                        (identity - t[r] * t[c]) * scale.abs().max(1e-12);
+                }
+            }
+            let w = proj(&g[3 * p..3 * p + 3]);
+            g[3 * p..3 * p + 3].copy_from_slice(&w);
+        }
+    }
+
+    /// The Gauss–Newton model of the objective in the bone parameters (rotation increments,
+    /// root translations; 3 numbers each): `f(θ) ≈ f + gᵀθ + ½ θᵀHθ`, as `(H, g)`.
+    pub(super) fn gauss_newton_system(
+        &self,
+        x: &[f64],
+        b: &[f64],
+        globals: &[DAffine3],
+    ) -> (Vec<f64>, Vec<f64>) {
+        let skeleton = self.model.skeleton();
+        let joints = skeleton.len();
+        let params = &self.params;
+        // S̄_k rows (4 × 4 homogeneous) from X.
+        let s_bar: Vec<[[f64; 4]; 4]> = (0..joints)
+            .map(|k| {
+                let mut s = [[0.0; 4]; 4];
+                for (r, row) in s.iter_mut().enumerate().take(3) {
+                    for (p, v) in row.iter_mut().enumerate() {
+                        *v = x[(4 * k + p) * 3 + r];
+                    }
+                }
+                s[3][3] = 1.0;
+                s
+            })
+            .collect();
+        let qx = self.q_times(x);
+        // Gradient per joint: g_k[g] = 2 tr(G_g S̄_k Γ_k), Γ = QX − B.
+        let mut gsum: Vec<[f64; 6]> = (0..joints)
+            .map(|k| {
+                let mut p = [[0.0; 3]; 4];
+                for (r, pr) in p.iter_mut().enumerate() {
+                    for (c, v) in pr.iter_mut().enumerate() {
+                        *v = (0..4)
+                            .map(|m| {
+                                let row = (4 * k + m) * 3 + c;
+                                s_bar[k][r][m] * (qx[row] - b[row])
+                            })
+                            .sum();
+                    }
+                }
+                let mut g = [0.0; 6];
+                for (gi, generator) in GENERATORS.iter().enumerate() {
+                    g[gi] = 2.0
+                        * generator
+                            .iter()
+                            .map(|&(i, p_, a)| a * p[p_][i])
+                            .sum::<f64>();
+                }
+                g
+            })
+            .collect();
+        for k in (0..joints).rev() {
+            if let Some(p) = skeleton.joints()[k].parent {
+                let gk = gsum[k];
+                for (a, v) in gsum[p].iter_mut().zip(gk) {
+                    *a += v;
+                }
+            }
+        }
+        // Hessian blocks M_kl[g][h] = tr(G_g N_kl G_hᵀ), N_kl = S̄_k Q_kl S̄_lᵀ, summed over
+        // subtrees: Z[a][b] = Σ_{k∈sub(a), l∈sub(b)} M_kl.
+        let s_mat: Vec<DMat4> = s_bar
+            .iter()
+            .map(|s| DMat4::from_cols_array_2d(s).transpose())
+            .collect();
+        let mut z = vec![TwistBlock::ZERO; joints * joints];
+        for &(k, l, ref q_kl) in &self.q_blocks {
+            let n = s_mat[k] * *q_kl * s_mat[l].transpose();
+            z[k * joints + l] = TwistBlock::of(&n);
+        }
+        for l in (0..joints).rev() {
+            if let Some(p) = skeleton.joints()[l].parent {
+                for k in 0..joints {
+                    let v = z[k * joints + l];
+                    z[k * joints + p].add(&v);
+                }
+            }
+        }
+        for k in (0..joints).rev() {
+            if let Some(p) = skeleton.joints()[k].parent {
+                for l in 0..joints {
+                    let v = z[k * joints + l];
+                    z[p * joints + l].add(&v);
+                }
+            }
+        }
+        // Parameter maps A (6 × 3): rotation about o: [I; [o]×]; root translation: [0; I].
+        let np = params.len() * 3;
+        let mut h = vec![0.0; np * np];
+        let mut g = vec![0.0; np];
+        let cross = |j: usize, kind: ParamKind| match kind {
+            ParamKind::Rotation => Some(skew(globals[j].translation)),
+            ParamKind::Translation => None,
+        };
+        let maps: Vec<Option<DMat3>> = params.iter().map(|&(j, kind)| cross(j, kind)).collect();
+        for (pa, &(ja, kind_a)) in params.iter().enumerate() {
+            let (gw, gv) = (
+                DVec3::new(gsum[ja][0], gsum[ja][1], gsum[ja][2]),
+                DVec3::new(gsum[ja][3], gsum[ja][4], gsum[ja][5]),
+            );
+            // A_aᵀ g = g_ω + [o]×ᵀ g_v (rotation) or g_v (translation).
+            let ga = match (kind_a, maps[pa]) {
+                (ParamKind::Rotation, Some(o)) => gw + o.transpose() * gv,
+                _ => gv,
+            };
+            g[pa * 3..pa * 3 + 3].copy_from_slice(&ga.to_array());
+            // H is symmetric: fill the upper triangle of blocks and mirror it.
+            for (pb, &(jb, _)) in params.iter().enumerate().skip(pa) {
+                let TwistBlock { ww, wv, vw, vv } = z[ja * joints + jb];
+                // Z A_b = [Z_ωω + Z_ωv Ob ; Z_vω + Z_vv Ob] (rotation) or [Z_ωv; Z_vv].
+                let (top, bottom) = match maps[pb] {
+                    Some(ob) => (ww + wv * ob, vw + vv * ob),
+                    None => (wv, vv),
+                };
+                let hab = match maps[pa] {
+                    Some(oa) => top + oa.transpose() * bottom,
+                    None => bottom,
+                };
+                for r in 0..3 {
+                    for c in 0..3 {
+                        let v = 2.0 * hab.col(c)[r];
+                        h[(pa * 3 + r) * np + pb * 3 + c] = v;
+                        h[(pb * 3 + c) * np + pa * 3 + r] = v;
+                    }
+                }
+            }
+        }
+        (h, g)
+    }
+}
+
+/// The 6 twist generators (ω_x, ω_y, ω_z, v_x, v_y, v_z) as 3 × 4 matrices, listed as
+/// (row, column, value) non-zeros: `dS = Σ ξ_g G_g S̄`.
+const GENERATORS: [&[(usize, usize, f64)]; 6] = [
+    &[(1, 2, -1.0), (2, 1, 1.0)],
+    &[(0, 2, 1.0), (2, 0, -1.0)],
+    &[(0, 1, -1.0), (1, 0, 1.0)],
+    &[(0, 3, 1.0)],
+    &[(1, 3, 1.0)],
+    &[(2, 3, 1.0)],
+];
+
+/// The 6 × 6 quadratic form `M[g][h] = tr(G_g N G_hᵀ)` of the twist generators (ω then v)
+/// for a 4 × 4 `N`, as four 3 × 3 blocks. With `N = [[N₃, n], [mᵀ, n₃₃]]` it is, in closed
+/// form, `M_ωω = tr(N₃) I − N₃ᵀ`, `M_ωv = [n]×`, `M_vω = −[m]×`, `M_vv = n₃₃ I`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct TwistBlock {
+    ww: DMat3,
+    wv: DMat3,
+    vw: DMat3,
+    vv: DMat3,
+}
+
+impl TwistBlock {
+    const ZERO: Self = Self {
+        ww: DMat3::ZERO,
+        wv: DMat3::ZERO,
+        vw: DMat3::ZERO,
+        vv: DMat3::ZERO,
+    };
+
+    fn of(n: &DMat4) -> Self {
+        let n3 = DMat3::from_mat4(*n);
+        let col = n.w_axis.truncate();
+        let row = DVec3::new(n.x_axis.w, n.y_axis.w, n.z_axis.w);
+        let trace = n3.x_axis.x + n3.y_axis.y + n3.z_axis.z;
+        Self {
+            ww: DMat3::from_diagonal(DVec3::splat(trace)) - n3.transpose(),
+            wv: skew(col),
+            vw: -skew(row),
+            vv: DMat3::from_diagonal(DVec3::splat(n.w_axis.w)),
+        }
+    }
+
+    fn add(&mut self, o: &Self) {
+        self.ww += o.ww;
+        self.wv += o.wv;
+        self.vw += o.vw;
+        self.vv += o.vv;
+    }
+}
+
+/// Solves `(H + μ·diag(H) + ε I) x = −g` (Marquardt's scaling, so rotations and
+/// translations of any scale are damped alike) by Cholesky, returned as per-parameter
+/// 3-vectors; raises the damping until the matrix factors. All zeros if it never does.
+pub(super) fn solve_damped(h: &[f64], g: &[f64], mu: f64) -> Vec<DVec3> {
+    let n = g.len();
+    let scale = (0..n)
+        .map(|i| h[i * n + i])
+        .fold(0.0f64, f64::max)
+        .max(1e-300);
+    let mut a = vec![0.0; n * n];
+    let mut mu = mu;
+    for _ in 0..12 {
+        a.copy_from_slice(h);
+        for i in 0..n {
+            a[i * n + i] += mu * h[i * n + i] + 1e-12 * scale;
+        }
+        if cholesky_in_place(&mut a, n) {
+            let mut x: Vec<f64> = g.iter().map(|v| -v).collect();
+            // L y = b, Lᵀ x = y
+            for i in 0..n {
+                let mut s = x[i];
+                for k in 0..i {
+                    s -= a[i * n + k] * x[k];
+                }
+                x[i] = s / a[i * n + i];
+            }
+            for i in (0..n).rev() {
+                let mut s = x[i];
+                for k in i + 1..n {
+                    s -= a[k * n + i] * x[k];
+                }
+                x[i] = s / a[i * n + i];
+            }
+            if x.iter().all(|v| v.is_finite()) {
+                return x
+                    .chunks_exact(3)
+                    .map(|c| DVec3::new(c[0], c[1], c[2]))
+                    .collect();
+            }
+        }
+        mu = mu.max(1e-9) * 100.0;
+    }
+    vec![DVec3::ZERO; n / 3]
+}
+
+/// Lower Cholesky factor in place (row-major, lower triangle); false if not positive definite.
+fn cholesky_in_place(a: &mut [f64], n: usize) -> bool {
+    for j in 0..n {
+        let mut d = a[j * n + j];
+        for k in 0..j {
+            d -= a[j * n + k] * a[j * n + k];
+        }
+        if d.is_nan() || d <= 0.0 {
+            return false;
+        }
+        let d = d.sqrt();
+        a[j * n + j] = d;
+        for i in j + 1..n {
+            let mut s = a[i * n + j];
+            for k in 0..j {
+                s -= a[i * n + k] * a[j * n + k];
+            }
+            a[i * n + j] = s / d;
+        }
+    }
+    true
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The closed form of [`TwistBlock`] equals `tr(G_g N G_hᵀ)` computed from the
+    /// generators.
+    #[test]
+    fn twist_block_closed_form_matches_the_generators() {
+        let n = DMat4::from_cols_array(&std::array::from_fn(|i| ((i * 7 + 3) % 11) as f64 - 4.5));
+        let at = |p: usize, q: usize| n.col(q)[p];
+        let block = TwistBlock::of(&n);
+        let get = |g: usize, h: usize| {
+            let m = match (g < 3, h < 3) {
+                (true, true) => block.ww,
+                (true, false) => block.wv,
+                (false, true) => block.vw,
+                (false, false) => block.vv,
+            };
+            m.col(h % 3)[g % 3]
+        };
+        for (g, gg) in GENERATORS.iter().enumerate() {
+            for (h, gh) in GENERATORS.iter().enumerate() {
+                let mut direct = 0.0;
+                for &(i, p, a) in gg.iter() {
+                    for &(i2, q, b) in gh.iter() {
+                        if i == i2 {
+                            direct += a * b * at(p, q);
+                        }
+                    }
+                }
+                assert!(
+                    (direct - get(g, h)).abs() < 1e-12,
+                    "({g}, {h}): {direct} vs {}",
+                    get(g, h)
+                );
+            }
+        }
+    }
+}
