@@ -1,6 +1,10 @@
 //! The IR camera: hand-made byte vectors, the camera model and the pointer.
 
 use bevy_wii_deform::wiimote::ir::*;
+use bevy_wii_deform::wiimote::{
+    EmulatedRemote, EmulatorConfig, MotionPlusState, Session, SessionConfig, SessionError,
+    SessionEvent,
+};
 use glam::{DQuat, DVec2, DVec3};
 use proptest::prelude::*;
 
@@ -268,4 +272,39 @@ fn a_bar_out_of_view_is_a_typed_error_and_the_camera_loses_it() {
         broken.pointed_at(&dots, DVec3::Z),
         Err(IrError::InvalidSetup(_))
     ));
+}
+
+fn connected(config: EmulatorConfig) -> Session<EmulatedRemote> {
+    let mut s = Session::new(EmulatedRemote::new(config), SessionConfig::default());
+    s.connect().expect("handshake");
+    s
+}
+
+#[test]
+fn the_init_sequence_reaches_the_emulated_camera_and_a_silent_camera_is_a_typed_error() {
+    // The emulated camera takes the sequence; its mode register reads back.
+    let mut s = connected(EmulatorConfig::default());
+    s.enable_ir(IrMode::Basic, IrSensitivity::Level3)
+        .expect("the camera answers");
+    // A unit whose camera does not answer: a typed error, and the session keeps posing with
+    // the MotionPlus alone.
+    let mut s = connected(EmulatorConfig {
+        camera: false,
+        ..Default::default()
+    });
+    let error = s
+        .enable_ir(IrMode::Basic, IrSensitivity::Level3)
+        .expect_err("a silent camera");
+    assert!(matches!(error, SessionError::Camera(_)), "{error:?}");
+    assert!(error.to_string().contains("IR camera"), "{error}");
+    assert_eq!(s.motion_plus_state(), MotionPlusState::Active);
+    let _ = s.drain_events().count();
+    for _ in 0..50 {
+        s.poll(20).expect("still connected");
+    }
+    assert!(
+        s.drain_events()
+            .any(|e| matches!(e, SessionEvent::Orientation(_))),
+        "no orientation after the camera failed"
+    );
 }

@@ -11,6 +11,7 @@ use std::collections::VecDeque;
 use glam::{DQuat, DVec3};
 
 use super::filter::{Calibration, FilterKind, ImuSample, OrientationFilter};
+use super::ir::{IR_MODE_REGISTER, IrInitStep, IrMode, IrSensitivity, ir_init_sequence};
 use super::protocol::{
     AccelCalibration, AddressSpace, Buttons, ExtensionData, ExtensionId, InputReport,
     MotionPlusCalibration, NunchukFrame, OutputReport, ReadReply, Status, classify_extension,
@@ -73,6 +74,9 @@ pub enum SessionError {
         /// Error code.
         code: u8,
     },
+    /// The IR camera did not take its initialisation (the inner error says how).
+    #[error("the IR camera did not answer: {0}")]
+    Camera(Box<SessionError>),
     /// Not a Wii Remote (Balance Board, Pro Controller).
     #[error("unsupported device: {0}")]
     UnsupportedDevice(&'static str),
@@ -318,6 +322,44 @@ impl<T: Transport> Session<T> {
             ack: true,
             rumble: self.rumble,
         })
+    }
+
+    /// Turns the IR camera on (`PROTOCOL.md` §17.2: pixel clock, logic, control, the two
+    /// sensitivity blocks, the mode, control again) and reads the mode register back. A
+    /// remote whose camera does not answer gives [`SessionError::Camera`]; the session keeps
+    /// running (MotionPlus posing is unaffected), so a caller can carry on without a pointer.
+    pub fn enable_ir(
+        &mut self,
+        mode: IrMode,
+        sensitivity: IrSensitivity,
+    ) -> Result<(), SessionError> {
+        let camera = |e: SessionError| SessionError::Camera(Box::new(e));
+        for step in ir_init_sequence(mode, sensitivity) {
+            let report = match step {
+                IrInitStep::Enable { report } => OutputReport::Flag {
+                    id: report,
+                    enable: true,
+                    ack: true,
+                    rumble: self.rumble,
+                },
+                IrInitStep::Write { address, bytes } => OutputReport::WriteMemory {
+                    space: AddressSpace::Registers,
+                    address,
+                    data: bytes,
+                    rumble: self.rumble,
+                },
+            };
+            self.command(report).map_err(camera)?;
+        }
+        let read = self
+            .read_memory(AddressSpace::Registers, IR_MODE_REGISTER, 1)
+            .map_err(camera)?;
+        if read.first() != Some(&mode.register_value()) {
+            return Err(SessionError::Camera(Box::new(SessionError::Timeout(
+                "the IR mode register to read back its mode",
+            ))));
+        }
+        Ok(())
     }
 
     /// Writes one report, honouring the write spacing; never waits for an answer.

@@ -124,6 +124,9 @@ pub struct EmulatorConfig {
     /// Emulates a remote the OS lists but refuses to open (the manager reports this as a
     /// [`crate::wiimote::RemoteProblem`] and retries); `None` opens normally.
     pub open_error: Option<crate::wiimote::OpenErrorKind>,
+    /// The IR camera (I2C device 0xB0) answers register writes and reads (`PROTOCOL.md` §17);
+    /// `false` emulates a unit whose camera does not answer (error 7, as for an absent device).
+    pub camera: bool,
 }
 
 impl Default for EmulatorConfig {
@@ -147,6 +150,7 @@ impl Default for EmulatorConfig {
             battery: 0x68,
             sensors: SensorModel::default(),
             open_error: None,
+            camera: true,
         }
     }
 }

@@ -56,6 +56,8 @@ pub struct EmulatedRemote {
     mp: MpPhase,
     mp_last_mode: u8,
     mp_regs: [u8; 256],
+    /// The IR camera's registers (0xB0xxxx), as the host wrote them.
+    camera_regs: [u8; 256],
     ext_initialized: bool,
     ext_line: bool,
     garbage_left: u32,
@@ -111,6 +113,7 @@ impl EmulatedRemote {
             mp: MpPhase::Absent,
             mp_last_mode: 0,
             mp_regs: [0; 256],
+            camera_regs: [0; 256],
             ext_initialized: false,
             ext_line: false,
             garbage_left: 0,

@@ -165,7 +165,9 @@ impl EmulatedRemote {
                     }
                 }
             },
-            0xB0 | 0xA2 => {}
+            0xB0 if !self.config.camera => return Err(7),
+            0xB0 => regs.copy_from_slice(&self.camera_regs),
+            0xA2 => {}
             _ => return Err(7),
         }
         let start = offset as usize;
@@ -233,7 +235,16 @@ impl EmulatedRemote {
                     0
                 }
             },
-            0xB0 | 0xA2 => 0,
+            0xB0 if !self.config.camera => 7,
+            0xB0 => {
+                for (i, b) in data.iter().enumerate() {
+                    if let Some(r) = self.camera_regs.get_mut(offset as usize + i) {
+                        *r = *b;
+                    }
+                }
+                0
+            }
+            0xA2 => 0,
             _ => 7,
         }
     }
