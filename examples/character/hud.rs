@@ -3,15 +3,33 @@
 use bevy::prelude::*;
 use bevy_wii_deform::prelude::*;
 
+use crate::Args;
 use crate::files::LastMessage;
 use crate::scene::Character;
+
+/// The model's credits, from its glTF `asset.copyright` (none when the file has none).
+#[derive(Resource, Default)]
+struct Credits(Option<String>);
+
+/// Reads `asset.copyright` of the glTF at `path` (relative to the asset folder, `..`).
+fn credits_of(path: &str) -> Option<String> {
+    let file = std::path::Path::new("..").join(path);
+    let gltf = gltf::Gltf::open(&file).ok()?;
+    gltf.document.as_json().asset.copyright.clone()
+}
 
 /// A text overlay: keys, solver status, the last save/load message, the asset's credits.
 pub struct HudPlugin;
 
 impl Plugin for HudPlugin {
     fn build(&self, app: &mut App) {
-        app.add_systems(Startup, spawn_hud)
+        let credits = Credits(
+            app.world()
+                .get_resource::<Args>()
+                .and_then(|a| credits_of(&a.model)),
+        );
+        app.insert_resource(credits)
+            .add_systems(Startup, spawn_hud)
             .add_systems(Update, update_hud);
     }
 }
@@ -40,17 +58,21 @@ fn update_hud(
     mut text: Single<&mut Text, With<Hud>>,
     character: Query<(&PoseStatus, Option<&PinnedJoints>), With<Character>>,
     message: Res<LastMessage>,
+    credits: Res<Credits>,
 ) {
     let Some((status, pins)) = character.iter().next() else {
         return;
     };
     let pinned = pins.map_or(0, |p| p.0.len());
-    let line = format!(
+    let mut line = format!(
         "drag the character to pose it | F feet pins ({pinned} pinned) | S save | L load | R reset\n\
-         {} joints, {} vertices | last solve {} iterations, {:.2} ms | {}\n\
-         Fox: PixelMannen (CC0), rigging/animation @tomkranis (CC-BY 4.0)",
+         {} joints, {} vertices | last solve {} iterations, {:.2} ms | {}",
         status.joints, status.vertices, status.iterations, status.solve_ms, message.0
     );
+    if let Some(credits) = &credits.0 {
+        line.push('\n');
+        line.push_str(credits);
+    }
     if text.0 != line {
         text.0 = line;
     }

@@ -10,14 +10,20 @@ pub struct ScenePlugin;
 
 impl Plugin for ScenePlugin {
     fn build(&self, app: &mut App) {
-        app.add_systems(Startup, setup)
-            .add_systems(Update, (frame_camera, pin_feet_once));
+        app.add_systems(Startup, setup).add_systems(
+            Update,
+            (frame_camera, ground_under_character, pin_feet_once),
+        );
     }
 }
 
 /// The poseable character (the scene root).
 #[derive(Component)]
 pub struct Character;
+
+/// The ground plane.
+#[derive(Component)]
+struct Ground;
 
 fn setup(
     mut commands: Commands,
@@ -41,9 +47,28 @@ fn setup(
     commands.spawn((
         Mesh3d(meshes.add(Plane3d::default().mesh().size(1000.0, 1000.0))),
         MeshMaterial3d(materials.add(Color::srgb(0.3, 0.35, 0.3))),
+        Ground,
     ));
     let scene = assets.load(GltfAssetLabel::Scene(0).from_asset(args.model.clone()));
     commands.spawn((WorldAssetRoot(scene), Poseable::default(), Character));
+}
+
+/// Puts the ground under the character's lowest posed point once it is known: rigs from other
+/// exporters often have their origin at the hips, not at the feet as the Fox has.
+fn ground_under_character(
+    character: Query<&PosedSkeleton, (With<Character>, Added<PosedSkeleton>)>,
+    mut ground: Single<&mut Transform, With<Ground>>,
+) {
+    for posed in &character {
+        let lowest = posed
+            .skinned_positions()
+            .iter()
+            .map(|p| p.y)
+            .fold(f32::MAX, f32::min);
+        if lowest.is_finite() {
+            ground.translation.y = lowest;
+        }
+    }
 }
 
 /// Frames the camera on the character once its skinned positions are known.
