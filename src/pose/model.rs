@@ -254,6 +254,21 @@ impl SkinnedModel {
         skin_positions(&m, &self.bind, &self.influences)
     }
 
+    /// The centroid of the welded vertices `welded` skinned in `pose` (only those vertices are
+    /// skinned); the origin for an empty set.
+    pub fn skinned_centroid(&self, pose: &SkeletonPose, welded: &[u32]) -> DVec3 {
+        if welded.is_empty() {
+            return DVec3::ZERO;
+        }
+        let m = self.skeleton.skinning_matrices(pose);
+        let bind: Vec<DVec3> = welded.iter().map(|&v| self.bind[v as usize]).collect();
+        let influences: Vec<VertexInfluences> = welded
+            .iter()
+            .map(|&v| self.influences[v as usize])
+            .collect();
+        skin_positions(&m, &bind, &influences).iter().sum::<DVec3>() / welded.len() as f64
+    }
+
     /// Skinned positions of the render vertices in `pose` (what the GPU draws; ray-cast these
     /// to pick the posed mesh).
     pub fn skin_render(&self, pose: &SkeletonPose) -> Vec<DVec3> {

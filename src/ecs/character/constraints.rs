@@ -116,15 +116,12 @@ pub(super) fn vertex_handles(
 ) -> (Vec<CoreHandle>, Vec<CentroidEffector>) {
     let model = &posed.model;
     let follows = |e: &Entity| followers.binary_search(e).is_ok();
-    let reference_welded = (!followers.is_empty())
-        .then(|| reference.map(|r| model.skin_welded(r)))
-        .flatten();
     let centroids = handles
         .iter()
         .filter(|(e, _, _)| follows(e))
         .filter_map(|(_, h, t)| {
             let vertices = model.topology().welded_set(&h.vertices);
-            let at_reference = centroid(reference_welded.as_ref()?, &vertices);
+            let at_reference = model.skinned_centroid(reference?, &vertices);
             let moved = (t.translation - h.pivot?).as_dvec3();
             Some(CentroidEffector {
                 vertices,

@@ -373,10 +373,14 @@ impl PosedSkeleton {
     /// what a click picks, where Bevy 0.19's mesh ray cast would test the bind pose of a
     /// skinned mesh. Returns the hit point and its distance along `ray`.
     pub fn ray_cast(&self, ray: Ray3d) -> Option<(Vec3, f32)> {
-        let topology = self.model.topology();
-        let skinned = self.model.skin_welded(&self.pose);
+        self.ray_cast_skinned(&self.model.skin_welded(&self.pose), ray)
+    }
+
+    /// [`PosedSkeleton::ray_cast`] against welded positions already skinned in the current
+    /// pose (`model.skin_welded(&pose)`), so several rays share one skinning.
+    pub fn ray_cast_skinned(&self, skinned: &[glam::DVec3], ray: Ray3d) -> Option<(Vec3, f32)> {
         let mut best: Option<f32> = None;
-        for t in topology.triangles() {
+        for t in self.model.topology().triangles() {
             let [a, b, c] = t.map(|i| skinned[i as usize].as_vec3());
             let (e1, e2) = (b - a, c - a);
             let p = ray.direction.cross(e2);

@@ -24,20 +24,25 @@ pub(super) fn pick_posed_characters(
     characters: Query<(Entity, &PosedSkeleton, Option<&Pickable>)>,
     mut hits: MessageWriter<PointerHits>,
 ) {
-    if characters.is_empty() {
+    if characters.is_empty() || rays.iter().next().is_none() {
         return;
     }
+    // Each character is skinned once per frame, whatever the number of pointers and cameras.
+    let posed: Vec<(Entity, &PosedSkeleton, Vec<glam::DVec3>)> = characters
+        .iter()
+        .filter(|(_, _, pickable)| pickable.is_none_or(|p| p.is_hoverable))
+        .map(|(entity, posed, _)| (entity, posed, posed.model.skin_welded(&posed.pose)))
+        .collect();
     for (&ray_id, &ray) in rays.iter() {
         let Ok(camera) = cameras.get(ray_id.camera) else {
             continue;
         };
-        let picks: Vec<(Entity, HitData)> = characters
+        let picks: Vec<(Entity, HitData)> = posed
             .iter()
-            .filter(|(_, _, pickable)| pickable.is_none_or(|p| p.is_hoverable))
-            .filter_map(|(entity, posed, _)| {
-                let (point, depth) = posed.ray_cast(ray)?;
+            .filter_map(|(entity, posed, skinned)| {
+                let (point, depth) = posed.ray_cast_skinned(skinned, ray)?;
                 Some((
-                    entity,
+                    *entity,
                     HitData::new(ray_id.camera, depth, Some(point), None),
                 ))
             })
@@ -51,7 +56,7 @@ pub(super) fn pick_posed_characters(
 /// Keeps Bevy's mesh picking off a newly posed character's skinned meshes (their bind pose).
 pub(super) fn ignore_bind_pose_picking(
     mut commands: Commands,
-    posed: Query<&PosedSkeleton, Changed<PosedSkeleton>>,
+    posed: Query<&PosedSkeleton, Added<PosedSkeleton>>,
     pickable: Query<(), With<Pickable>>,
 ) {
     for skeleton in &posed {

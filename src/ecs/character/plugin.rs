@@ -128,6 +128,12 @@ pub(crate) struct PoseState {
     pub(super) mirror: Option<Arc<Mirror>>,
 }
 
+/// A character grabbed with no anchor (compared in place every frame, never allocated).
+static NO_ANCHOR: GrabAnchor = GrabAnchor {
+    joints: Vec::new(),
+    vertices: Vec::new(),
+};
+
 /// The per-character settings a solve reads besides handles and pins.
 #[derive(bevy::ecs::query::QueryData)]
 struct CharacterSettings {
@@ -193,7 +199,7 @@ fn request_pose_solves(
             continue; // nothing drives the pose
         }
         let pinned = pins.as_ref().map_or(&[][..], |p| &p.0[..]);
-        let anchor = anchor.cloned().unwrap_or_default();
+        let anchor = anchor.unwrap_or(&NO_ANCHOR);
         let followers: Vec<Entity> = mine
             .iter()
             .map(|(e, _, _)| *e)
@@ -203,7 +209,7 @@ fn request_pose_solves(
             mine_e.iter().map(|(e, p, _)| (*e, p.joint)).collect();
         let set_changed = !state.key.as_ref().is_some_and(|k| {
             k.matches(&mine, &mine_j, pinned)
-                && k.anchor == anchor
+                && k.anchor == *anchor
                 && k.position_only == followers
                 && k.effectors == effector_keys
         }) || mine.iter().any(|(_, h, _)| h.pivot.is_none())
@@ -256,7 +262,7 @@ fn request_pose_solves(
                     .collect(),
                 joint_handles: mine_j.iter().map(|(e, h, _)| (*e, h.joint)).collect(),
                 pins: pinned.to_vec(),
-                anchor,
+                anchor: anchor.clone(),
                 position_only: followers,
                 effectors: effector_keys,
             });

@@ -236,15 +236,8 @@ fn prepare_deformables(
         // surface (area-weighted face normals).
         let normals = match (normals, &positions, &indices) {
             (Some(n), Some(p), i) if n.len() == p.len() && n.iter().any(|v| !is_unit_like(*v)) => {
-                let all: Vec<u32>;
-                let i = match i {
-                    Some(i) => i.as_slice(),
-                    None => {
-                        all = (0..p.len() as u32).collect();
-                        &all
-                    }
-                };
-                let repaired = repair_normals(p, i, &n);
+                let unindexed = || (0..p.len() as u32).collect::<Vec<_>>();
+                let repaired = repair_normals(p, &i.clone().unwrap_or_else(unindexed), &n);
                 copy.insert_attribute(
                     Mesh::ATTRIBUTE_NORMAL,
                     repaired.iter().map(|v| v.to_array()).collect::<Vec<_>>(),

@@ -46,7 +46,8 @@ use super::{
 /// handle is an ordinary world-space [`DeformHandle`] aimed at the character, so dragging
 /// solves a skeleton pose; on release the handle goes and the character holds its pose. A
 /// character with no [`PinnedJoints`] is anchored while grabbed by a [`GrabAnchor`] (the
-/// surface beyond the region), so a grab bends it rather than carrying it along.
+/// joints the grab's region does not reach), so a grab bends it rather than carrying it
+/// along.
 ///
 /// **Which press grabs.** Presses come from bevy_picking's `Pointer<Press>`, so its hit order
 /// decides: UI over a mesh, or another entity in front of it, takes the press. Only the
