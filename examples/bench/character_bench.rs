@@ -141,55 +141,22 @@ fn main() {
     .expect("solver");
     let precompute_ms = model_ms + t1.elapsed().as_secs_f64() * 1e3;
 
-    // A 30-frame drag, 3 warm iterations per frame.
-    let frames = 30;
-    let three = PoseSolveOptions {
-        max_iterations: 3,
-        tolerance: 0.0,
-    };
-    let mut last: Option<PoseSolution> = None;
-    let mut solve_ms = Vec::new();
     let mut iterations = 0;
     let mut rejected = 0;
-    for f in 1..=frames {
-        let s = f as f64 / frames as f64;
-        constraints.handles[0].transform = RigidTransform::new(
-            DQuat::IDENTITY.slerp(target.rotation, s),
-            target.translation * s,
-            pivot,
-        );
-        let t = Instant::now();
-        let start = last
-            .as_ref()
-            .map_or(PoseStart::Pose(&bind), PoseStart::Warm);
-        let solved = solver
-            .solve(&constraints, &three, start, &|| false)
-            .expect("solve");
-        solve_ms.push(t.elapsed().as_secs_f64() * 1e3);
+    let (mut solve_ms, last) = drag(&solver, &mut constraints, target, &bind, |solved| {
         iterations += solved.stats.iterations;
         rejected += solved.stats.rejected_steps;
-        last = Some(solved);
-    }
+    });
     let total_ms: f64 = solve_ms.iter().sum();
     solve_ms.sort_by(f64::total_cmp);
     let ms_per_solve = solve_ms[solve_ms.len() / 2];
     let ms_per_iteration = total_ms / iterations.max(1) as f64;
 
-    let converged = solver
-        .solve(
-            &constraints,
-            &PoseSolveOptions {
-                max_iterations: 300,
-                tolerance: 1e-12,
-            },
-            PoseStart::Warm(last.as_ref().expect("30 frames")),
-            &|| false,
-        )
-        .expect("converge");
+    let converged = converge(&solver, &constraints, &last);
     let energy_subspace = model.full_arap_energy(&converged.pose);
     if std::env::var("BENCH_DEBUG").is_ok() {
         let e = &converged.stats.energies;
-        let w = &last.as_ref().unwrap().stats;
+        let w = &last.stats;
         eprintln!(
             "last drag solve: local {:.3} ms global {:.3} ms (systems {:.3} ms) rejected {}",
             w.local_s * 1e3,
@@ -199,7 +166,7 @@ fn main() {
         );
         eprintln!(
             "drag: {iterations} iterations, {rejected} rejected trial steps, final drag energy {:?}",
-            last.as_ref().unwrap().stats.energies.last()
+            last.stats.energies.last()
         );
         eprintln!(
             "converge energies: first {:?} … last {:?}",
@@ -355,42 +322,12 @@ fn constrained_drag(
         PoseSolverSettings::default(),
     )
     .expect("constrained solver");
-    let three = PoseSolveOptions {
-        max_iterations: 3,
-        tolerance: 0.0,
-    };
-    let frames = 30;
-    let mut last: Option<PoseSolution> = None;
-    let mut solve_ms = Vec::new();
     let mut max_violation_deg = 0.0f64;
-    for f in 1..=frames {
-        let s = f as f64 / frames as f64;
-        // The handle keeps the unconstrained drag's full target: it pulls against the limits.
-        constraints.handles[0].transform = RigidTransform::new(
-            DQuat::IDENTITY.slerp(target.rotation, s),
-            target.translation * s,
-            target.pivot,
-        );
-        let t = Instant::now();
-        let start = last.as_ref().map_or(PoseStart::Pose(bind), PoseStart::Warm);
-        let solved = solver
-            .solve(&constraints, &three, start, &|| false)
-            .expect("constrained solve");
-        solve_ms.push(t.elapsed().as_secs_f64() * 1e3);
+    // The handle keeps the unconstrained drag's full target: it pulls against the limits.
+    let (mut solve_ms, last) = drag(&solver, &mut constraints, target, bind, |solved| {
         max_violation_deg = max_violation_deg.max(limits.max_violation_deg(&solved.pose));
-        last = Some(solved);
-    }
-    let converged = solver
-        .solve(
-            &constraints,
-            &PoseSolveOptions {
-                max_iterations: 300,
-                tolerance: 1e-12,
-            },
-            PoseStart::Warm(last.as_ref().expect("frames")),
-            &|| false,
-        )
-        .expect("converge");
+    });
+    let converged = converge(&solver, &constraints, &last);
     max_violation_deg = max_violation_deg.max(limits.max_violation_deg(&converged.pose));
     let now = skeleton.global_transforms(&converged.pose);
     let effector_error = feet
@@ -405,4 +342,59 @@ fn constrained_drag(
         max_violation_deg,
         effector_error,
     }
+}
+
+/// A 30-frame drag of handle 0 from rest to `target`, 3 warm-started iterations per frame,
+/// starting in `bind`; `each` sees every frame's solution. Returns each frame's solve time
+/// (ms, frame order) and the last solution.
+fn drag(
+    solver: &PoseSolver,
+    constraints: &mut PoseConstraints,
+    target: RigidTransform,
+    bind: &SkeletonPose,
+    mut each: impl FnMut(&PoseSolution),
+) -> (Vec<f64>, PoseSolution) {
+    let frames = 30;
+    let three = PoseSolveOptions {
+        max_iterations: 3,
+        tolerance: 0.0,
+    };
+    let mut last: Option<PoseSolution> = None;
+    let mut solve_ms = Vec::with_capacity(frames);
+    for f in 1..=frames {
+        let s = f as f64 / frames as f64;
+        constraints.handles[0].transform = RigidTransform::new(
+            DQuat::IDENTITY.slerp(target.rotation, s),
+            target.translation * s,
+            target.pivot,
+        );
+        let t = Instant::now();
+        let start = last.as_ref().map_or(PoseStart::Pose(bind), PoseStart::Warm);
+        let solved = solver
+            .solve(constraints, &three, start, &|| false)
+            .expect("solve");
+        solve_ms.push(t.elapsed().as_secs_f64() * 1e3);
+        each(&solved);
+        last = Some(solved);
+    }
+    (solve_ms, last.expect("30 frames"))
+}
+
+/// The pose a drag settles into: 300 warm iterations from its last frame.
+fn converge(
+    solver: &PoseSolver,
+    constraints: &PoseConstraints,
+    last: &PoseSolution,
+) -> PoseSolution {
+    solver
+        .solve(
+            constraints,
+            &PoseSolveOptions {
+                max_iterations: 300,
+                tolerance: 1e-12,
+            },
+            PoseStart::Warm(last),
+            &|| false,
+        )
+        .expect("converge")
 }
