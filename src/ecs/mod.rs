@@ -21,7 +21,7 @@ use bevy::app::PluginGroupBuilder;
 use bevy::prelude::*;
 
 pub use character::{
-    GrabAnchor, HandlePositionOnly, PinnedJoints, PoseEffector, PoseEffectorKind, PoseFailed,
+    GrabAnchor, HandlePositionOnly, JointMask, PinnedJoints, PoseBlend, PoseBlendMode, PoseEffector, PoseEffectorKind, PoseFailed,
     PoseJointHandle, PoseLimits, PosePlugin, PoseSolved, PoseStatus, PoseStiffness, PoseSystems,
     Poseable, PoseableError, PosedSkeleton, SymmetricEditing,
 };

@@ -37,8 +37,11 @@
 //! assert!(max_bone_length_error(model.skeleton(), &rig.rest, &solved.pose) < 1e-9);
 //! ```
 
+pub mod blend;
+pub mod clip;
 pub mod effectors;
 mod file;
+pub mod gltf_clip;
 pub mod humanoid;
 pub mod limits;
 pub mod mirror;
@@ -48,7 +51,10 @@ mod solver;
 pub mod synth_rig;
 
 pub use effectors::{CentroidEffector, Effector, EffectorGoal, ReferenceStiffness};
-pub use file::{PoseFile, PoseFileError, write_gltf_pose_clip};
+pub use blend::{BlendMode, additive_layer_for, blend_joint, blend_pose};
+pub use clip::{ClipError, KeyInterpolation, PoseClip, PoseKey};
+pub use file::{PoseFile, PoseFileError};
+pub use gltf_clip::{read_gltf_clip, write_gltf_clip, write_gltf_pose_clip};
 pub use humanoid::{HumanoidRole, Side, humanoid_role};
 pub use limits::{JointLimit, JointLimits, LimitError};
 pub use mirror::{Mirror, mirror_partners};

@@ -24,10 +24,13 @@
 //!   pose is written every frame after the animation systems, so it wins over the clip on
 //!   every joint; with `hold_pose: false` it is written only when it changes and the playing
 //!   clip takes the joints back on the next frame.
+//! * **Blended over a playing clip**: a [`PoseBlend`] mixes the pose with the clip by a
+//!   weight, or adds it on top (additive), on all joints or a [`JointMask`].
 //!
 //! Set [`PosedSkeleton::pose`] yourself (e.g. from a [`crate::pose::PoseFile`]) to load a
 //! pose; the next solve starts from it.
 
+mod blend;
 mod constraints;
 mod picking;
 mod plugin;
@@ -39,6 +42,7 @@ use bevy::prelude::*;
 
 use crate::pose::{JointLimits, LimitError, PoseError, PoseFile, SkeletonPose, SkinnedModel};
 
+pub use blend::{JointMask, PoseBlend, PoseBlendMode};
 pub use plugin::{PosePlugin, PoseSystems};
 
 /// Makes a rigged character poseable. Put it on the glTF scene root (`WorldAssetRoot`), any

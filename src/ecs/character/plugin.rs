@@ -16,10 +16,11 @@ use bevy::transform::TransformSystems;
 use super::constraints::{
     SetKey, core_effector, joint_handle, rebase, resolve_limits, vertex_handles,
 };
+use super::blend::BlendMemory;
 use super::picking::{ignore_bind_pose_picking, pick_posed_characters};
 use super::prepare::{find_skins, finish_models, joint_transform};
 use super::{
-    GrabAnchor, HandlePositionOnly, PinnedJoints, PoseEffector, PoseFailed, PoseJointHandle,
+    GrabAnchor, HandlePositionOnly, PinnedJoints, PoseBlend, PoseBlendMode, PoseEffector, PoseFailed, PoseJointHandle,
     PoseLimits, PoseSolved, PoseStatus, PoseStiffness, Poseable, PoseableError, PosedSkeleton,
     SymmetricEditing,
 };
@@ -28,6 +29,7 @@ use crate::ecs::{DeformHandle, DeformPhase, DeformSystems};
 use crate::pose::{
     Effector, JointLimits, JointTransform, Mirror, PoseConstraints, PoseSolution, PoseSolveOptions,
     PoseSolver, PoseSolverSettings, PoseStart, ReferenceStiffness, SkeletonPose, SkinnedModel,
+    additive_layer_for, blend_pose,
 };
 
 /// Phases of the character systems. Prepare, Request and Poll run in `Update` (Request after
@@ -126,6 +128,11 @@ pub(crate) struct PoseState {
     pub(super) limits: Option<Arc<JointLimits>>,
     /// Left/right pairs, built when symmetric editing first needs them.
     pub(super) mirror: Option<Arc<Mirror>>,
+    /// The blend layer's memory of the animation ([`PoseBlend`]).
+    pub(super) blend: BlendMemory,
+    /// Where the next solve starts when not from [`PosedSkeleton::pose`] (an additive layer
+    /// solves from the pose on screen).
+    pub(super) start: Option<SkeletonPose>,
 }
 
 /// A character grabbed with no anchor (compared in place every frame, never allocated).
@@ -140,6 +147,15 @@ struct CharacterSettings {
     limits: Option<Ref<'static, PoseLimits>>,
     stiffness: Option<Ref<'static, PoseStiffness>>,
     symmetric: Has<SymmetricEditing>,
+    blend: Option<&'static PoseBlend>,
+}
+
+impl CharacterSettingsItem<'_, '_> {
+    /// An additive blend layer: solves start from the pose on screen, results become the
+    /// layer over the animation.
+    fn additive(&self) -> bool {
+        self.blend.is_some_and(|b| b.mode == PoseBlendMode::Additive)
+    }
 }
 
 pub(super) fn fail(
@@ -214,24 +230,33 @@ fn request_pose_solves(
                 && k.effectors == effector_keys
         }) || mine.iter().any(|(_, h, _)| h.pivot.is_none())
             || mine_j.iter().any(|(_, h, _)| h.rest.is_none());
+        // What is on screen: the joints as they are now (the held pose, whatever a playing or
+        // paused clip left on them, or the clip plus an additive layer).
+        let on_screen = || SkeletonPose {
+            local: posed
+                .joints
+                .iter()
+                .zip(&posed.pose.local)
+                .map(|(&j, held)| {
+                    let now = joints.get(j).map(joint_transform).ok();
+                    now.filter(JointTransform::is_valid).unwrap_or(*held)
+                })
+                .collect(),
+        };
         if set_changed {
-            // The reference is what is on screen: the joints as they are now (the held pose,
-            // or whatever a playing or paused clip left on them).
-            let on_screen = SkeletonPose {
-                local: posed
-                    .joints
-                    .iter()
-                    .zip(&posed.pose.local)
-                    .map(|(&j, held)| {
-                        let now = joints.get(j).map(joint_transform).ok();
-                        now.filter(JointTransform::is_valid).unwrap_or(*held)
-                    })
-                    .collect(),
+            // The reference is what is on screen; an override blend's layer is its own pose
+            // (the screen shows it mixed with the clip).
+            let reference = if extras.additive() {
+                on_screen()
+            } else {
+                if extras.blend.is_none() {
+                    let now = on_screen();
+                    if now != posed.pose {
+                        posed.pose = now;
+                    }
+                }
+                posed.pose.clone()
             };
-            if on_screen != posed.pose {
-                posed.pose = on_screen;
-            }
-            let reference = posed.pose.clone();
             // A handle that turned rigid (a grab being turned) keeps its target: its world
             // position and the turn just given to it, now about the patch as it is on screen.
             let turned: Vec<(Entity, Transform)> = state
@@ -280,7 +305,8 @@ fn request_pose_solves(
             || mine_j.iter().any(|(_, _, t)| t.is_changed())
             || pins.as_ref().is_some_and(|p| p.is_changed())
             || effectors_changed
-            || settings_changed;
+            || settings_changed
+            || extras.additive() && state.blend.moved;
         if !changed && state.pending.is_none() {
             continue;
         }
@@ -337,8 +363,10 @@ fn request_pose_solves(
             stiffness,
             limits,
         };
+        let start = extras.additive().then(on_screen);
         let state = state.bypass_change_detection();
         state.pending = Some(constraints);
+        state.start = start;
         state.requested.fetch_add(1, Ordering::Relaxed);
         if state.task.is_none() {
             spawn_pose_solve(state, &posed, poseable, &mut status);
@@ -361,12 +389,12 @@ fn spawn_pose_solve(
     state.running = Some(constraints.clone());
     let model = posed.model.clone();
     let reuse = state.solver.clone().filter(|s| s.accepts(&constraints));
-    let warm = if reuse.is_some() {
+    let warm = if reuse.is_some() && state.start.is_none() {
         state.last.clone()
     } else {
         None
     };
-    let current = posed.pose.clone();
+    let current = state.start.take().unwrap_or_else(|| posed.pose.clone());
     let options = PoseSolveOptions {
         max_iterations: poseable.max_iterations.max(1),
         tolerance: poseable.tolerance.max(0.0) as f64,
@@ -406,11 +434,12 @@ fn poll_pose_solves(
         &mut PosedSkeleton,
         &mut PoseState,
         &mut PoseStatus,
+        Option<&PoseBlend>,
     )>,
     mut solved: MessageWriter<PoseSolved>,
     mut failed: MessageWriter<PoseFailed>,
 ) {
-    for (entity, poseable, mut posed, mut state, mut status) in &mut characters {
+    for (entity, poseable, mut posed, mut state, mut status, blend) in &mut characters {
         let state = state.bypass_change_detection();
         let Some(task) = state.task.as_mut() else {
             continue;
@@ -452,8 +481,14 @@ fn poll_pose_solves(
                 } else {
                     DeformPhase::Idle
                 };
-                posed.pose = solution.pose.clone();
-                state.written = Some(solution.pose.clone());
+                let pose = match blend {
+                    Some(b) if b.mode == PoseBlendMode::Additive => {
+                        additive_layer(&posed, &state.blend, b, &solution.pose)
+                    }
+                    _ => solution.pose.clone(),
+                };
+                posed.pose = pose.clone();
+                state.written = Some(pose);
                 state.solver = Some(solver);
                 state.last = Some(Arc::new(solution));
                 solved.write(PoseSolved {
@@ -477,30 +512,107 @@ fn poll_pose_solves(
     }
 }
 
-/// Writes each character's pose to its joints (every frame with `hold_pose`, else when it
-/// changed).
+/// The additive layer that shows `full` over the animation the blend last read.
+fn additive_layer(
+    posed: &PosedSkeleton,
+    memory: &BlendMemory,
+    blend: &PoseBlend,
+    full: &SkeletonPose,
+) -> SkeletonPose {
+    let skeleton = posed.model.skeleton();
+    let reference = memory
+        .reference
+        .clone()
+        .unwrap_or_else(|| blend.reference_pose(skeleton));
+    let animated = memory.animated_pose();
+    let local = full
+        .local
+        .iter()
+        .enumerate()
+        .map(|(j, f)| match (animated.local.get(j), reference.local.get(j)) {
+            (Some(a), Some(r)) => additive_layer_for(a, f, r),
+            _ => *f,
+        })
+        .collect();
+    SkeletonPose { local }
+}
+
+/// Writes each character's pose to its joints: blended over the animation with a
+/// [`PoseBlend`] (every frame), else every frame with `hold_pose` or when it changed.
 fn apply_poses(
-    characters: Query<(&Poseable, Ref<PosedSkeleton>)>,
+    mut characters: Query<(
+        &Poseable,
+        Ref<PosedSkeleton>,
+        Option<Ref<PoseBlend>>,
+        &mut PoseState,
+    )>,
     mut joints: Query<&mut Transform>,
 ) {
-    for (poseable, posed) in &characters {
-        if !poseable.hold_pose && !posed.is_changed() {
+    for (poseable, posed, blend, mut state) in &mut characters {
+        let state = state.bypass_change_detection();
+        let Some(blend) = blend else {
+            state.blend.clear();
+            if poseable.hold_pose || posed.is_changed() {
+                write_pose(&posed.joints, &posed.pose, &mut joints, None);
+            }
+            continue;
+        };
+        let memory = &mut state.blend;
+        let current: Vec<Option<Transform>> = posed
+            .joints
+            .iter()
+            .map(|&j| joints.get(j).ok().copied())
+            .collect();
+        memory.read_animation(&current);
+        let animated = memory.animated_pose();
+        let skeleton = posed.model.skeleton();
+        if blend.is_changed() || memory.mask.is_none() && blend.mask.is_some() {
+            memory.mask = blend
+                .mask
+                .as_ref()
+                .map(|m| m.selects(skeleton, &posed.joints));
+            memory.reference = None;
+        }
+        let reference = memory
+            .reference
+            .get_or_insert_with(|| blend.reference_pose(skeleton));
+        let out = blend_pose(
+            &animated,
+            &posed.pose,
+            reference,
+            blend.mode.into(),
+            f64::from(blend.weight),
+            memory.mask.as_deref(),
+        );
+        write_pose(&posed.joints, &out, &mut joints, Some(&mut memory.written));
+    }
+}
+
+/// Writes local transforms to the joint entities (skipping invalid ones); `written` records
+/// what each joint holds afterwards.
+fn write_pose(
+    entities: &[Entity],
+    pose: &SkeletonPose,
+    joints: &mut Query<&mut Transform>,
+    mut written: Option<&mut Vec<Transform>>,
+) {
+    for (k, (&j, t)) in entities.iter().zip(&pose.local).enumerate() {
+        if !t.is_valid() {
             continue;
         }
-        for (&j, t) in posed.joints.iter().zip(&posed.pose.local) {
-            if !t.is_valid() {
-                continue;
-            }
-            if let Ok(mut transform) = joints.get_mut(j) {
-                let new = Transform {
-                    translation: t.translation.as_vec3(),
-                    rotation: t.rotation.as_quat().normalize(),
-                    scale: t.scale.as_vec3(),
-                };
-                if *transform != new {
-                    *transform = new;
-                }
-            }
+        let Ok(mut transform) = joints.get_mut(j) else {
+            continue;
+        };
+        let new = Transform {
+            translation: t.translation.as_vec3(),
+            rotation: t.rotation.as_quat().normalize(),
+            scale: t.scale.as_vec3(),
+        };
+        if *transform != new {
+            *transform = new;
+        }
+        if let Some(slot) = written.as_deref_mut().and_then(|w| w.get_mut(k)) {
+            *slot = new;
         }
     }
 }

@@ -244,6 +244,8 @@ pub(super) fn find_skins(
             written: None,
             limits: None,
             mirror: None,
+            blend: Default::default(),
+            start: None,
         });
     }
 }
