@@ -384,7 +384,9 @@ fn check_key(key: &mut PoseKey, joints: Option<usize>) -> Result<(), ClipError> 
                 joint: j.to_string(),
             });
         }
-        t.rotation = t.rotation / length;
+        if (length - 1.0).abs() > 1e-12 {
+            t.rotation = t.rotation / length;
+        }
     }
     Ok(())
 }

@@ -338,3 +338,73 @@ pub fn posed_rig<B: Bundle>(
     });
     (root, joints)
 }
+
+/// The entity holding the loaded scene's `AnimationPlayer`.
+pub fn animation_player(app: &mut App) -> Entity {
+    let w = app.world_mut();
+    let mut q = w.query_filtered::<Entity, With<AnimationPlayer>>();
+    q.iter(w).next().expect("the scene has an AnimationPlayer")
+}
+
+/// Waits for `clip` to load, gives `player` a graph of it and plays it (paused at 0); returns
+/// the clip's node for [`show_clip_at`].
+pub fn play_clip(
+    app: &mut App,
+    player: Entity,
+    clip: Handle<AnimationClip>,
+) -> AnimationNodeIndex {
+    let waiting = clip.clone();
+    update_until(app, "the clip", move |a| {
+        a.world()
+            .resource::<Assets<AnimationClip>>()
+            .get(&waiting)
+            .is_some()
+    });
+    let (graph, node) = AnimationGraph::from_clip(clip);
+    let graph = app
+        .world_mut()
+        .resource_mut::<Assets<AnimationGraph>>()
+        .add(graph);
+    app.world_mut()
+        .entity_mut(player)
+        .insert(AnimationGraphHandle(graph));
+    app.world_mut()
+        .get_mut::<AnimationPlayer>(player)
+        .unwrap()
+        .stop_all()
+        .play(node)
+        .pause();
+    node
+}
+
+/// Seeks the paused clip `node` of `player` to `time` and updates twice, so the animation
+/// systems have written the joints.
+pub fn show_clip_at(app: &mut App, player: Entity, node: AnimationNodeIndex, time: f32) {
+    for _ in 0..2 {
+        app.world_mut()
+            .get_mut::<AnimationPlayer>(player)
+            .unwrap()
+            .animation_mut(node)
+            .expect("the clip plays")
+            .set_seek_time(time)
+            .pause();
+        app.update();
+    }
+}
+
+/// The angle between two rotations, radians (stable near zero, where `acos` of the dot
+/// product loses half the digits).
+pub fn angle_between(a: Quat, b: Quat) -> f32 {
+    let (a, b) = (a.normalize(), b.normalize());
+    let b = if a.dot(b) < 0.0 { -b } else { b };
+    4.0 * (a - b).length().atan2((a + b).length())
+}
+
+/// Name, parent and animation-root flag of an entity: what `PosedSkeleton::joint_paths` asks.
+pub fn node_of(world: &World, e: Entity) -> (Option<String>, Option<Entity>, bool) {
+    (
+        world.get::<Name>(e).map(|n| n.as_str().to_string()),
+        world.get::<ChildOf>(e).map(|c| c.parent()),
+        world.get::<AnimationPlayer>(e).is_some(),
+    )
+}

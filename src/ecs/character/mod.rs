@@ -345,20 +345,18 @@ impl PosedSkeleton {
         PoseFile::from_pose(self.model.skeleton(), &self.pose)
     }
 
-    /// The pose as tracks for [`crate::pose::write_gltf_pose_clip`]: per joint, the names
-    /// from the animation root (the entity with the `AnimationPlayer`, included) down to the
-    /// joint — the path Bevy's glTF loader keys clips by — and its local transform.
-    /// `node(e)` gives an entity's name, its parent, and whether it is the animation root
-    /// (e.g. from `Name`, `ChildOf` and `Has<AnimationPlayer>`); without a root the path
-    /// runs up to the first unnamed ancestor.
-    pub fn clip_tracks(
+    /// Per joint, the names from the animation root (the entity with the `AnimationPlayer`,
+    /// included) down to the joint: the path Bevy's glTF loader keys clips by, and what
+    /// [`crate::pose::write_gltf_clip`] needs. `node(e)` gives an entity's name, its parent,
+    /// and whether it is the animation root (e.g. from `Name`, `ChildOf` and
+    /// `Has<AnimationPlayer>`); without a root the path runs up to the first unnamed ancestor.
+    pub fn joint_paths(
         &self,
         node: impl Fn(Entity) -> (Option<String>, Option<Entity>, bool),
-    ) -> Vec<(Vec<String>, crate::pose::JointTransform)> {
+    ) -> Vec<Vec<String>> {
         self.joints
             .iter()
-            .zip(&self.pose.local)
-            .map(|(&joint, t)| {
+            .map(|&joint| {
                 let mut path = Vec::new();
                 let mut at = Some(joint);
                 while let Some(e) = at {
@@ -368,8 +366,20 @@ impl PosedSkeleton {
                     at = if is_root { None } else { parent };
                 }
                 path.reverse();
-                (path, *t)
+                path
             })
+            .collect()
+    }
+
+    /// The current pose as tracks for [`crate::pose::write_gltf_pose_clip`]: each joint's
+    /// path ([`PosedSkeleton::joint_paths`]) and local transform.
+    pub fn clip_tracks(
+        &self,
+        node: impl Fn(Entity) -> (Option<String>, Option<Entity>, bool),
+    ) -> Vec<(Vec<String>, crate::pose::JointTransform)> {
+        self.joint_paths(node)
+            .into_iter()
+            .zip(self.pose.local.iter().copied())
             .collect()
     }
 

@@ -62,6 +62,7 @@ impl Plugin for PosePlugin {
             .register_type::<PoseEffector>()
             .register_type::<PoseStiffness>()
             .register_type::<SymmetricEditing>()
+            .register_type::<PoseBlend>()
             .add_message::<PoseSolved>()
             .add_message::<PoseFailed>()
             .add_observer(mark_scene_spawned)
