@@ -25,14 +25,14 @@ pub mod prelude {
         ConnectionState, DeformConfig, DeformError, DeformFailed, DeformHandle, DeformPhase,
         DeformPlugin, DeformSolved, DeformStatus, DeformSystems, Deformable, DeformableFrom,
         DeformableScene, FixedRegion, GrabAnchor, GrabButton, GrabEnd, GrabMove, GrabPlugin,
-        GrabStart, GrabTwist, Grabbable, MouseControlPlugin, MouseHandleControl, PinnedJoints,
-        PoseEffector, PoseEffectorKind, PoseFailed, PoseJointHandle, PoseLimits, PosePlugin,
-        PoseSolved, PoseStatus, PoseStiffness, PoseSystems, Poseable, PoseableError, PosedSkeleton,
-        SymmetricEditing, WiiDeformPlugins, Wiimote, WiimoteButtonChanged, WiimoteCalibration,
-        WiimoteConnected, WiimoteControlPlugin, WiimoteDisconnected, WiimoteEmulators,
-        WiimoteFilter, WiimoteHandleControl, WiimoteLink, WiimoteOrientationChanged, WiimotePlugin,
-        WiimoteProblem, WiimoteProblems, WiimoteSettings, WiimoteSource, WiimoteSystems,
-        mesh_from_triangles,
+        GrabStart, GrabTwist, Grabbable, JointMask, MouseControlPlugin, MouseHandleControl,
+        PinnedJoints, PoseBlend, PoseBlendMode, PoseEffector, PoseEffectorKind, PoseFailed,
+        PoseJointHandle, PoseLimits, PosePlugin, PoseSolved, PoseStatus, PoseStiffness,
+        PoseSystems, Poseable, PoseableError, PosedSkeleton, SymmetricEditing, WiiDeformPlugins,
+        Wiimote, WiimoteButtonChanged, WiimoteCalibration, WiimoteConnected, WiimoteControlPlugin,
+        WiimoteDisconnected, WiimoteEmulators, WiimoteFilter, WiimoteHandleControl, WiimoteLink,
+        WiimoteOrientationChanged, WiimotePlugin, WiimoteProblem, WiimoteProblems, WiimoteSettings,
+        WiimoteSource, WiimoteSystems, mesh_from_triangles,
     };
     pub use crate::wiimote::{EmulatorConfig, EmulatorControls, FilterKind, RemoteProblem};
 }

@@ -17,7 +17,8 @@ use common::{angle_between, animation_player, node_of, play_clip, show_clip_at};
 /// `pose` with joint `j` turned by `angle` about `axis` (in its parent's frame).
 fn turned(pose: &SkeletonPose, j: usize, axis: DVec3, angle: f64) -> SkeletonPose {
     let mut out = pose.clone();
-    out.local[j].rotation = (DQuat::from_axis_angle(axis, angle) * out.local[j].rotation).normalize();
+    out.local[j].rotation =
+        (DQuat::from_axis_angle(axis, angle) * out.local[j].rotation).normalize();
     out
 }
 
@@ -33,12 +34,24 @@ fn clip_keys_stay_sorted_and_refuse_bad_input() {
     let rest = rig.rest.clone();
     let mut clip = PoseClip::new();
     let bent = turned(&rest, 1, DVec3::Z, 0.5);
-    assert_eq!(clip.set_key(1.0, bent.clone(), KeyInterpolation::Linear), Ok(0));
-    assert_eq!(clip.set_key(0.0, rest.clone(), KeyInterpolation::Linear), Ok(0));
-    assert_eq!(clip.set_key(0.5, rest.clone(), KeyInterpolation::Step), Ok(1));
+    assert_eq!(
+        clip.set_key(1.0, bent.clone(), KeyInterpolation::Linear),
+        Ok(0)
+    );
+    assert_eq!(
+        clip.set_key(0.0, rest.clone(), KeyInterpolation::Linear),
+        Ok(0)
+    );
+    assert_eq!(
+        clip.set_key(0.5, rest.clone(), KeyInterpolation::Step),
+        Ok(1)
+    );
     assert_eq!(clip.times(), vec![0.0, 0.5, 1.0]);
     // Same time: replaced, not added.
-    assert_eq!(clip.set_key(0.5, bent.clone(), KeyInterpolation::Step), Ok(1));
+    assert_eq!(
+        clip.set_key(0.5, bent.clone(), KeyInterpolation::Step),
+        Ok(1)
+    );
     assert_eq!(clip.keys().len(), 3);
     assert_eq!(clip.keys()[1].pose, bent);
 
@@ -187,8 +200,18 @@ fn a_three_key_clip_plays_back_through_bevys_loader() {
     let skeleton = posed.model.skeleton();
     let joint = |name: &str| skeleton.find(name).expect(name);
     let k0 = posed.pose.clone();
-    let k1 = turned(&turned(&k0, joint("b_Neck_04"), DVec3::X, 0.6), joint("b_Tail01_012"), DVec3::Y, 0.8);
-    let k2 = turned(&turned(&k1, joint("b_Neck_04"), DVec3::Y, -0.7), joint("b_LeftLeg01_015"), DVec3::Z, 0.5);
+    let k1 = turned(
+        &turned(&k0, joint("b_Neck_04"), DVec3::X, 0.6),
+        joint("b_Tail01_012"),
+        DVec3::Y,
+        0.8,
+    );
+    let k2 = turned(
+        &turned(&k1, joint("b_Neck_04"), DVec3::Y, -0.7),
+        joint("b_LeftLeg01_015"),
+        DVec3::Z,
+        0.5,
+    );
     let world = app.world();
     let paths = posed.joint_paths(|e| node_of(world, e));
     // Let the clip drive the joints.
@@ -219,8 +242,7 @@ fn a_three_key_clip_plays_back_through_bevys_loader() {
         let file = out.join(format!("clip{n}.glb"));
         std::fs::write(&file, glb).unwrap();
         let handle: Handle<AnimationClip> = app.world().resource::<AssetServer>().load(
-            GltfAssetLabel::Animation(0)
-                .from_asset(bevy::asset::AssetPath::from_path_buf(file)),
+            GltfAssetLabel::Animation(0).from_asset(bevy::asset::AssetPath::from_path_buf(file)),
         );
         let node = play_clip(&mut app, player, handle);
         for t in [0.0f32, 0.25, 0.5, 0.75, 1.0] {
@@ -249,10 +271,11 @@ fn the_foxs_walk_imports_and_exports_unchanged() {
     let (skeleton, base) = fox_skeleton(&bytes);
     let walk = read_gltf_clip(&bytes, None, Some("Walk"), &skeleton, &base).unwrap();
     assert_eq!(walk.keys().len(), 18, "the Walk's keyframes");
-    assert!(walk
-        .keys()
-        .iter()
-        .all(|k| k.interpolation == KeyInterpolation::Linear));
+    assert!(
+        walk.keys()
+            .iter()
+            .all(|k| k.interpolation == KeyInterpolation::Linear)
+    );
     let paths: Vec<Vec<String>> = skeleton
         .joints()
         .iter()
@@ -274,7 +297,10 @@ fn the_foxs_walk_imports_and_exports_unchanged() {
     }
     assert!(worst < 1e-5, "the re-exported Walk differs by {worst}");
     // And the Walk moves: a clip of constant poses would pass the above trivially.
-    let (first, mid) = (walk.sample(0.0).unwrap(), walk.sample(walk.duration() / 2.0).unwrap());
+    let (first, mid) = (
+        walk.sample(0.0).unwrap(),
+        walk.sample(walk.duration() / 2.0).unwrap(),
+    );
     let moved = first
         .local
         .iter()
@@ -295,7 +321,8 @@ fn bad_clip_files_give_typed_errors() {
     let (skeleton, base) = fox_skeleton(&bytes);
     let mut clip = PoseClip::new();
     let k1 = turned(&base, 5, DVec3::X, 0.4);
-    clip.set_key(0.0, base.clone(), KeyInterpolation::Linear).unwrap();
+    clip.set_key(0.0, base.clone(), KeyInterpolation::Linear)
+        .unwrap();
     clip.set_key(1.0, k1, KeyInterpolation::Linear).unwrap();
     let paths: Vec<Vec<String>> = skeleton
         .joints()
@@ -348,13 +375,26 @@ fn mixed_interpolations_export_as_a_resampled_linear_clip() {
     let rig = bar_rig(3, 4, 8);
     let rest = rig.rest.clone();
     let mut clip = PoseClip::new();
-    clip.set_key(0.0, rest.clone(), KeyInterpolation::Step).unwrap();
-    clip.set_key(1.0, turned(&rest, 1, DVec3::Z, 0.8), KeyInterpolation::CubicSpline)
+    clip.set_key(0.0, rest.clone(), KeyInterpolation::Step)
         .unwrap();
-    clip.set_key(2.0, turned(&rest, 1, DVec3::Z, -0.4), KeyInterpolation::Linear)
-        .unwrap();
-    clip.set_key(3.0, turned(&rest, 2, DVec3::X, 0.3), KeyInterpolation::Linear)
-        .unwrap();
+    clip.set_key(
+        1.0,
+        turned(&rest, 1, DVec3::Z, 0.8),
+        KeyInterpolation::CubicSpline,
+    )
+    .unwrap();
+    clip.set_key(
+        2.0,
+        turned(&rest, 1, DVec3::Z, -0.4),
+        KeyInterpolation::Linear,
+    )
+    .unwrap();
+    clip.set_key(
+        3.0,
+        turned(&rest, 2, DVec3::X, 0.3),
+        KeyInterpolation::Linear,
+    )
+    .unwrap();
     let paths: Vec<Vec<String>> = rig
         .skeleton
         .joints()

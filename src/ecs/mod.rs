@@ -21,9 +21,10 @@ use bevy::app::PluginGroupBuilder;
 use bevy::prelude::*;
 
 pub use character::{
-    GrabAnchor, HandlePositionOnly, JointMask, PinnedJoints, PoseBlend, PoseBlendMode, PoseEffector, PoseEffectorKind, PoseFailed,
-    PoseJointHandle, PoseLimits, PosePlugin, PoseSolved, PoseStatus, PoseStiffness, PoseSystems,
-    Poseable, PoseableError, PosedSkeleton, SymmetricEditing,
+    GrabAnchor, HandlePositionOnly, JointMask, PinnedJoints, PoseBlend, PoseBlendMode,
+    PoseEffector, PoseEffectorKind, PoseFailed, PoseJointHandle, PoseLimits, PosePlugin,
+    PoseSolved, PoseStatus, PoseStiffness, PoseSystems, Poseable, PoseableError, PosedSkeleton,
+    SymmetricEditing,
 };
 pub use control::{
     MouseControlPlugin, MouseHandleControl, WiimoteControlPlugin, WiimoteHandleControl,

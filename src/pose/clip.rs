@@ -336,7 +336,9 @@ impl PoseClip {
     }
 
     fn index_at(&self, time: f32) -> Result<usize, usize> {
-        let i = self.keys.partition_point(|k| k.time < time - KEY_TIME_EPSILON);
+        let i = self
+            .keys
+            .partition_point(|k| k.time < time - KEY_TIME_EPSILON);
         match self.keys.get(i) {
             Some(k) if (k.time - time).abs() <= KEY_TIME_EPSILON => Ok(i),
             _ => Err(i),

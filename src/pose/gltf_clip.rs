@@ -152,10 +152,12 @@ pub fn read_gltf_clip(
     skeleton: &Skeleton,
     base: &SkeletonPose,
 ) -> Result<PoseClip, ClipError> {
-    skeleton.check_pose(base).map_err(|_| ClipError::PoseLength {
-        got: base.local.len(),
-        expected: skeleton.len(),
-    })?;
+    skeleton
+        .check_pose(base)
+        .map_err(|_| ClipError::PoseLength {
+            got: base.local.len(),
+            expected: skeleton.len(),
+        })?;
     let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| ClipError::Gltf(e.to_string()))?;
     let buffers = read_buffers(&gltf, folder)?;
     let found = gltf
@@ -581,7 +583,8 @@ impl ImportedChannel {
             });
         }
         if property == Property::Rotation
-            && let Some(k) = (0..times.len()).find(|&k| raw[k * per_key + per_key / 2].length() < 1e-9)
+            && let Some(k) =
+                (0..times.len()).find(|&k| raw[k * per_key + per_key / 2].length() < 1e-9)
         {
             return Err(ClipError::NonFiniteKey {
                 time: times[k],
@@ -621,7 +624,10 @@ impl ImportedChannel {
         match self.interpolation {
             Interpolation::Step => a,
             Interpolation::Linear if self.property == Property::Rotation => {
-                let (a, b) = (DQuat::from_vec4(a).normalize(), DQuat::from_vec4(b).normalize());
+                let (a, b) = (
+                    DQuat::from_vec4(a).normalize(),
+                    DQuat::from_vec4(b).normalize(),
+                );
                 DVec4::from(a.slerp(b, s))
             }
             Interpolation::Linear => a.lerp(b, s),

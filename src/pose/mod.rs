@@ -50,9 +50,9 @@ mod skeleton;
 mod solver;
 pub mod synth_rig;
 
-pub use effectors::{CentroidEffector, Effector, EffectorGoal, ReferenceStiffness};
 pub use blend::{BlendMode, additive_layer_for, blend_joint, blend_pose};
 pub use clip::{ClipError, KeyInterpolation, PoseClip, PoseKey};
+pub use effectors::{CentroidEffector, Effector, EffectorGoal, ReferenceStiffness};
 pub use file::{PoseFile, PoseFileError};
 pub use gltf_clip::{read_gltf_clip, write_gltf_clip, write_gltf_pose_clip};
 pub use humanoid::{HumanoidRole, Side, humanoid_role};

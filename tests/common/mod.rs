@@ -258,17 +258,34 @@ pub fn fox_app<M>(dir: &std::path::Path, plugins: impl bevy::app::Plugins<M>) ->
     app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_millis(
         16,
     )));
-    // Materials (and so textures) are not needed to pose; the test app has no renderer.
-    let scene = app
+    // The whole file is loaded once and kept (its clips too): loading a part of it later
+    // with other settings would load the file again and respawn the scene.
+    let file: Handle<bevy::gltf::Gltf> = app
         .world()
         .resource::<AssetServer>()
         .load_builder()
         .with_settings(|s: &mut bevy::gltf::GltfLoaderSettings| {
+            // Materials (and so textures) are not needed to pose; no renderer here.
             s.load_materials = bevy::asset::RenderAssetUsages::empty();
             s.load_cameras = false;
             s.load_lights = false;
         })
-        .load(GltfAssetLabel::Scene(0).from_asset("Fox.glb"));
+        .load("Fox.glb");
+    let waiting = file.clone();
+    update_until(&mut app, "Fox.glb", move |a| {
+        a.world()
+            .resource::<Assets<bevy::gltf::Gltf>>()
+            .get(&waiting)
+            .is_some()
+    });
+    let scene = app
+        .world()
+        .resource::<Assets<bevy::gltf::Gltf>>()
+        .get(&file)
+        .unwrap()
+        .scenes[0]
+        .clone();
+    app.insert_resource(FoxFile(file));
     let root = app
         .world_mut()
         .spawn((
@@ -285,6 +302,17 @@ pub fn fox_app<M>(dir: &std::path::Path, plugins: impl bevy::app::Plugins<M>) ->
     assert_eq!(app.world().get::<PoseStatus>(root).unwrap().error, None);
     (app, root)
 }
+
+/// Animation `index` of the Fox loaded by [`fox_app`] (0 Survey, 1 Walk, 2 Run).
+pub fn fox_clip(app: &App, index: usize) -> Handle<AnimationClip> {
+    let file = &app.world().resource::<FoxFile>().0;
+    let gltf = app.world().resource::<Assets<bevy::gltf::Gltf>>().get(file);
+    gltf.expect("fox_app loaded the file").animations[index].clone()
+}
+
+/// Keeps the Fox's glTF file (and so every asset in it) loaded.
+#[derive(Resource)]
+pub struct FoxFile(pub Handle<bevy::gltf::Gltf>);
 
 /// The skinned model of a generated rig (default settings).
 pub fn model_of(rig: &SyntheticRig) -> std::sync::Arc<bevy_wii_deform::pose::SkinnedModel> {
@@ -348,11 +376,7 @@ pub fn animation_player(app: &mut App) -> Entity {
 
 /// Waits for `clip` to load, gives `player` a graph of it and plays it (paused at 0); returns
 /// the clip's node for [`show_clip_at`].
-pub fn play_clip(
-    app: &mut App,
-    player: Entity,
-    clip: Handle<AnimationClip>,
-) -> AnimationNodeIndex {
+pub fn play_clip(app: &mut App, player: Entity, clip: Handle<AnimationClip>) -> AnimationNodeIndex {
     let waiting = clip.clone();
     update_until(app, "the clip", move |a| {
         a.world()

@@ -175,7 +175,8 @@ impl BlendMemory {
     /// keeping the remembered value of a joint that still holds what the blend wrote.
     pub(super) fn read_animation(&mut self, current: &[Option<Transform>]) {
         self.animated.resize(current.len(), Transform::IDENTITY);
-        self.written.resize(current.len(), Transform::from_scale(Vec3::NAN));
+        self.written
+            .resize(current.len(), Transform::from_scale(Vec3::NAN));
         self.moved = false;
         for (j, now) in current.iter().enumerate() {
             let Some(now) = *now else { continue };

@@ -13,16 +13,16 @@ use bevy::tasks::futures::check_ready;
 use bevy::tasks::{AsyncComputeTaskPool, Task};
 use bevy::transform::TransformSystems;
 
+use super::blend::BlendMemory;
 use super::constraints::{
     SetKey, core_effector, joint_handle, rebase, resolve_limits, vertex_handles,
 };
-use super::blend::BlendMemory;
 use super::picking::{ignore_bind_pose_picking, pick_posed_characters};
 use super::prepare::{find_skins, finish_models, joint_transform};
 use super::{
-    GrabAnchor, HandlePositionOnly, PinnedJoints, PoseBlend, PoseBlendMode, PoseEffector, PoseFailed, PoseJointHandle,
-    PoseLimits, PoseSolved, PoseStatus, PoseStiffness, Poseable, PoseableError, PosedSkeleton,
-    SymmetricEditing,
+    GrabAnchor, HandlePositionOnly, PinnedJoints, PoseBlend, PoseBlendMode, PoseEffector,
+    PoseFailed, PoseJointHandle, PoseLimits, PoseSolved, PoseStatus, PoseStiffness, Poseable,
+    PoseableError, PosedSkeleton, SymmetricEditing,
 };
 use crate::ecs::scene::mark_scene_spawned;
 use crate::ecs::{DeformHandle, DeformPhase, DeformSystems};
@@ -155,7 +155,8 @@ impl CharacterSettingsItem<'_, '_> {
     /// An additive blend layer: solves start from the pose on screen, results become the
     /// layer over the animation.
     fn additive(&self) -> bool {
-        self.blend.is_some_and(|b| b.mode == PoseBlendMode::Additive)
+        self.blend
+            .is_some_and(|b| b.mode == PoseBlendMode::Additive)
     }
 }
 
@@ -347,9 +348,11 @@ fn request_pose_solves(
                 .collect();
             effectors.extend(mirrored);
         }
+        // An additive layer holds what nothing pulls on where the animation puts it now.
+        let start = extras.additive().then(on_screen);
         let stiffness = extras
             .stiffness
-            .zip(state.reference.clone())
+            .zip(start.clone().or_else(|| state.reference.clone()))
             .map(|(k, pose)| ReferenceStiffness::uniform(pose, k.0.clamp(0.0, 1.0) as f64));
         let constraints = PoseConstraints {
             centroid_effectors,
@@ -364,7 +367,6 @@ fn request_pose_solves(
             stiffness,
             limits,
         };
-        let start = extras.additive().then(on_screen);
         let state = state.bypass_change_detection();
         state.pending = Some(constraints);
         state.start = start;
@@ -530,10 +532,12 @@ fn additive_layer(
         .local
         .iter()
         .enumerate()
-        .map(|(j, f)| match (animated.local.get(j), reference.local.get(j)) {
-            (Some(a), Some(r)) => additive_layer_for(a, f, r),
-            _ => *f,
-        })
+        .map(
+            |(j, f)| match (animated.local.get(j), reference.local.get(j)) {
+                (Some(a), Some(r)) => additive_layer_for(a, f, r),
+                _ => *f,
+            },
+        )
         .collect();
     SkeletonPose { local }
 }

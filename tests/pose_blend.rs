@@ -1,0 +1,224 @@
+//! The blend layer over a playing clip: the Fox's own "Walk" through Bevy's loader, a pose
+//! blended over it by weight (override), added on top (additive), on a joint mask; and a
+//! look-at that keeps looking while the walk plays.
+
+use bevy::prelude::*;
+use bevy_wii_deform::pose::{BlendMode, JointTransform, SkeletonPose, blend_pose, read_gltf_clip};
+use bevy_wii_deform::prelude::*;
+use glam::{DQuat, DVec3};
+
+mod common;
+use common::{angle_between, animation_player, play_clip, settle_pose, show_clip_at};
+
+fn joint(t: f64) -> JointTransform {
+    JointTransform {
+        translation: DVec3::new(t, 2.0 * t, 0.5),
+        rotation: DQuat::from_axis_angle(DVec3::new(1.0, 2.0, 0.5).normalize(), t),
+        scale: DVec3::ONE,
+    }
+}
+
+/// The per-joint math: weight 0 is the animation, 1 the pose, 0.5 halfway (equal angles to
+/// both); additive with the pose at the reference changes nothing; a mask keeps the clip.
+#[test]
+fn blending_weights_modes_and_masks_on_plain_poses() {
+    let animated = SkeletonPose {
+        local: vec![joint(0.1), joint(0.4)],
+    };
+    let pose = SkeletonPose {
+        local: vec![joint(1.2), joint(-0.6)],
+    };
+    let reference = SkeletonPose {
+        local: vec![joint(0.0), joint(0.0)],
+    };
+    let blend =
+        |mode, w, mask: Option<&[bool]>| blend_pose(&animated, &pose, &reference, mode, w, mask);
+    assert_eq!(blend(BlendMode::Override, 0.0, None), animated);
+    let full = blend(BlendMode::Override, 1.0, None);
+    for (a, b) in full.local.iter().zip(&pose.local) {
+        assert!(a.rotation.angle_between(b.rotation) < 1e-9);
+        assert!(a.translation.distance(b.translation) < 1e-12);
+    }
+    let half = blend(BlendMode::Override, 0.5, None);
+    for ((h, a), p) in half.local.iter().zip(&animated.local).zip(&pose.local) {
+        let (to_a, to_p) = (
+            h.rotation.angle_between(a.rotation),
+            h.rotation.angle_between(p.rotation),
+        );
+        assert!((to_a - to_p).abs() < 1e-9 && to_a > 0.1, "{to_a} vs {to_p}");
+        assert!(
+            h.translation
+                .distance((a.translation + p.translation) / 2.0)
+                < 1e-12
+        );
+    }
+    // Additive: the pose at the reference leaves the animation; a pose adds its difference.
+    let unchanged = blend_pose(
+        &animated,
+        &reference,
+        &reference,
+        BlendMode::Additive,
+        1.0,
+        None,
+    );
+    for (u, a) in unchanged.local.iter().zip(&animated.local) {
+        assert!(u.rotation.angle_between(a.rotation) < 1e-9);
+        assert!(u.translation.distance(a.translation) < 1e-12);
+    }
+    let added = blend(BlendMode::Additive, 1.0, None);
+    for ((o, a), p) in added.local.iter().zip(&animated.local).zip(&pose.local) {
+        let delta = reference.local[0].rotation.inverse() * p.rotation;
+        assert!(o.rotation.angle_between(a.rotation * delta) < 1e-9);
+    }
+    // A mask: joint 1 keeps the animation.
+    let masked = blend(BlendMode::Override, 1.0, Some(&[true, false]));
+    assert_eq!(masked.local[1], animated.local[1]);
+    assert!(
+        masked.local[0]
+            .rotation
+            .angle_between(pose.local[0].rotation)
+            < 1e-9
+    );
+}
+
+/// The Fox walking (Bevy's loader plays its "Walk", paused at 0.3 s) with a pose set on the
+/// character: the joints are the clip's sample at weight 0, the pose at 1, the halfway slerp
+/// at 0.5; additive with a pose equal to the reference leaves the clip; a masked-out joint
+/// keeps the clip.
+#[test]
+fn a_pose_blends_over_the_foxs_walk() {
+    let Some(dir) = common::shared::shared_asset("models") else {
+        return;
+    };
+    let (mut app, root) = common::fox_app(&dir, PosePlugin);
+    let posed = app.world().get::<PosedSkeleton>(root).unwrap().clone();
+    let skeleton = posed.model.skeleton().clone();
+    // The clip's sample at 0.3 s, read from the file (what the player should write).
+    let bytes = std::fs::read(dir.join("Fox.glb")).unwrap();
+    let walk = read_gltf_clip(&bytes, None, Some("Walk"), &skeleton, &posed.pose).unwrap();
+    let at = 0.3;
+    let clip_pose = walk.sample(at).unwrap();
+    // A pose far from the walk: the neck and a leg turned.
+    let mut pose = posed.pose.clone();
+    let neck = skeleton.find("b_Neck_04").unwrap();
+    let leg = skeleton.find("b_LeftLeg01_015").unwrap();
+    pose.local[neck].rotation = DQuat::from_rotation_x(0.9) * pose.local[neck].rotation;
+    pose.local[leg].rotation = DQuat::from_rotation_z(0.7) * pose.local[leg].rotation;
+    app.world_mut().get_mut::<PosedSkeleton>(root).unwrap().pose = pose.clone();
+
+    let player = animation_player(&mut app);
+    let handle = common::fox_clip(&app, 1);
+    let node = play_clip(&mut app, player, handle);
+    let joints_now = |app: &App| -> Vec<Quat> {
+        posed
+            .joints
+            .iter()
+            .map(|&j| app.world().get::<Transform>(j).unwrap().rotation)
+            .collect()
+    };
+    let worst = |got: &[Quat], want: &SkeletonPose| -> f32 {
+        got.iter()
+            .zip(&want.local)
+            .map(|(g, w)| angle_between(*g, w.rotation.as_quat()))
+            .fold(0.0, f32::max)
+    };
+    let check = |app: &mut App, blend: PoseBlend, want: &SkeletonPose, what: &str| {
+        app.world_mut().entity_mut(root).insert(blend);
+        show_clip_at(app, player, node, at);
+        let error = worst(&joints_now(app), want);
+        assert!(error < 1e-5, "{what}: a joint is {error} rad off");
+    };
+    check(&mut app, PoseBlend::overriding(0.0), &clip_pose, "weight 0");
+    check(&mut app, PoseBlend::overriding(1.0), &pose, "weight 1");
+    let halfway = blend_pose(&clip_pose, &pose, &pose, BlendMode::Override, 0.5, None);
+    check(&mut app, PoseBlend::overriding(0.5), &halfway, "weight 0.5");
+    // The halfway pose is neither end (the check above can fail).
+    assert!(worst(&joints_now(&app), &clip_pose) > 0.2);
+    // Additive with the pose equal to its reference: the clip unchanged.
+    app.world_mut().get_mut::<PosedSkeleton>(root).unwrap().pose = skeleton.bind_pose();
+    check(
+        &mut app,
+        PoseBlend::additive(1.0),
+        &clip_pose,
+        "additive, zero pose",
+    );
+    // A mask on the neck (with children): the leg keeps the clip, the neck takes the pose.
+    app.world_mut().get_mut::<PosedSkeleton>(root).unwrap().pose = pose.clone();
+    let mask = JointMask::names(["b_Neck_04"], true);
+    let selected = mask.selects(&skeleton, &posed.joints);
+    let mut want = clip_pose.clone();
+    for (j, on) in selected.iter().enumerate() {
+        if *on {
+            want.local[j] = pose.local[j];
+        }
+    }
+    assert!(selected[neck] && !selected[leg]);
+    check(
+        &mut app,
+        PoseBlend::overriding(1.0).with_mask(mask),
+        &want,
+        "masked",
+    );
+    // Removing the blend hands the joints back to the held pose (hold_pose).
+    app.world_mut().entity_mut(root).remove::<PoseBlend>();
+    show_clip_at(&mut app, player, node, at);
+    assert!(worst(&joints_now(&app), &pose) < 1e-5);
+}
+
+/// Additive look-at while the Fox walks: at three phases of the walk the head points at the
+/// target (within 1°) once the layer has settled over the clip, and the legs still walk.
+#[test]
+fn an_additive_look_at_follows_the_target_while_the_fox_walks() {
+    let Some(dir) = common::shared::shared_asset("models") else {
+        return;
+    };
+    let (mut app, root) = common::fox_app(&dir, PosePlugin);
+    let posed = app.world().get::<PosedSkeleton>(root).unwrap().clone();
+    let skeleton = posed.model.skeleton().clone();
+    let head = posed.joints[skeleton.find("b_Head_05").unwrap()];
+    let leg = posed.joints[skeleton.find("b_LeftLeg01_015").unwrap()];
+    let player = animation_player(&mut app);
+    let handle = common::fox_clip(&app, 1);
+    let node = play_clip(&mut app, player, handle);
+    app.world_mut()
+        .entity_mut(root)
+        .insert((PoseBlend::additive(1.0), PoseStiffness(0.5)));
+    show_clip_at(&mut app, player, node, 0.1);
+    // A target up and to the side of where the head's bone axis (+Y) points now.
+    let g = app.world().get::<GlobalTransform>(head).unwrap();
+    let size = posed.model.topology().bounding_diagonal() as f32;
+    let axis = (g.affine().matrix3 * Vec3A::Y).normalize();
+    let side = axis.cross(Vec3A::Y).normalize_or(Vec3A::X);
+    let target = Vec3::from(g.translation_vec3a() + (axis + side * 0.5 + Vec3A::Y * 0.3) * size);
+    let aim_error = |app: &App| {
+        let g = app.world().get::<GlobalTransform>(head).unwrap();
+        let axis = g.affine().matrix3 * Vec3A::Y;
+        axis.angle_between(Vec3A::from(target) - g.translation_vec3a())
+            .to_degrees()
+    };
+    let before = aim_error(&app);
+    assert!(
+        before > 15.0,
+        "the target must be off the head's axis ({before}°)"
+    );
+    app.world_mut().spawn((
+        PoseEffector::look_at(root, head, Vec3::Y),
+        Transform::from_translation(target),
+    ));
+    let mut legs = Vec::new();
+    for phase in [0.1, 0.35, 0.6] {
+        show_clip_at(&mut app, player, node, phase);
+        settle_pose(&mut app, root);
+        let error = aim_error(&app);
+        assert!(
+            error < 1.0,
+            "at {phase} s of the walk the head is {error}° off"
+        );
+        legs.push(app.world().get::<Transform>(leg).unwrap().rotation);
+    }
+    let swing = legs
+        .iter()
+        .map(|q| angle_between(*q, legs[0]))
+        .fold(0.0, f32::max);
+    assert!(swing > 0.1, "the leg stopped walking (swings {swing} rad)");
+}
