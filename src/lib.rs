@@ -11,6 +11,7 @@
 
 pub mod deform;
 pub mod ecs;
+pub mod history;
 pub mod pose;
 pub mod wiimote;
 
@@ -28,11 +29,12 @@ pub mod prelude {
         GrabStart, GrabTwist, Grabbable, JointMask, MouseControlPlugin, MouseHandleControl,
         PinnedJoints, PoseBlend, PoseBlendMode, PoseEffector, PoseEffectorKind, PoseFailed,
         PoseJointHandle, PoseLimits, PosePlugin, PoseSolved, PoseStatus, PoseStiffness,
-        PoseSystems, Poseable, PoseableError, PosedSkeleton, SymmetricEditing, WiiDeformPlugins,
-        Wiimote, WiimoteButtonChanged, WiimoteCalibration, WiimoteConnected, WiimoteControlPlugin,
-        WiimoteDisconnected, WiimoteEmulators, WiimoteFilter, WiimoteHandleControl, WiimoteLink,
-        WiimoteOrientationChanged, WiimotePlugin, WiimoteProblem, WiimoteProblems, WiimoteSettings,
-        WiimoteSource, WiimoteSystems, mesh_from_triangles,
+        PoseSystems, PoseTimeline, Poseable, PoseableError, PosedSkeleton, SymmetricEditing,
+        WiiDeformPlugins, Wiimote, WiimoteButtonChanged, WiimoteCalibration, WiimoteConnected,
+        WiimoteControlPlugin, WiimoteDisconnected, WiimoteEmulators, WiimoteFilter,
+        WiimoteHandleControl, WiimoteLink, WiimoteOrientationChanged, WiimotePlugin,
+        WiimoteProblem, WiimoteProblems, WiimoteSettings, WiimoteSource, WiimoteSystems,
+        mesh_from_triangles,
     };
     pub use crate::wiimote::{EmulatorConfig, EmulatorControls, FilterKind, RemoteProblem};
 }

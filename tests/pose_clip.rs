@@ -22,11 +22,7 @@ fn turned(pose: &SkeletonPose, j: usize, axis: DVec3, angle: f64) -> SkeletonPos
     out
 }
 
-/// The angle between two rotations (stable near zero).
-fn rotation_error(a: DQuat, b: DQuat) -> f64 {
-    let b = if a.dot(b) < 0.0 { -b } else { b };
-    4.0 * (a - b).length().atan2((a + b).length())
-}
+use bevy_wii_deform::pose::rotation_angle as rotation_error;
 
 #[test]
 fn clip_keys_stay_sorted_and_refuse_bad_input() {

@@ -27,7 +27,7 @@ pub struct LastMessage(pub String);
 
 /// The pose the character was loaded in.
 #[derive(Component)]
-struct InitialPose(SkeletonPose);
+pub struct InitialPose(pub SkeletonPose);
 
 fn remember_initial_pose(
     mut commands: Commands,
@@ -40,8 +40,24 @@ fn remember_initial_pose(
     }
 }
 
-fn directory() -> PathBuf {
+/// Where poses and clips are saved.
+pub fn directory() -> PathBuf {
     PathBuf::from("poses")
+}
+
+/// Name, parent and animation-root flag of an entity: what `PosedSkeleton::joint_paths` asks.
+pub fn node_of(
+    names: &Query<(Option<&Name>, Option<&ChildOf>, Has<AnimationPlayer>)>,
+    e: Entity,
+) -> (Option<String>, Option<Entity>, bool) {
+    match names.get(e) {
+        Ok((name, parent, root)) => (
+            name.map(|n| n.as_str().to_string()),
+            parent.map(|p| p.parent()),
+            root,
+        ),
+        Err(_) => (None, None, false),
+    }
 }
 
 /// Writes `pose.ron` and `pose.glb` for the character.
@@ -55,14 +71,7 @@ pub fn save(
         .pose_file()
         .save(&dir.join("pose.ron"))
         .map_err(|e| e.to_string())?;
-    let tracks = posed.clip_tracks(|e| match world_names.get(e) {
-        Ok((name, parent, root)) => (
-            name.map(|n| n.as_str().to_string()),
-            parent.map(|p| p.parent()),
-            root,
-        ),
-        Err(_) => (None, None, false),
-    });
+    let tracks = posed.clip_tracks(|e| node_of(world_names, e));
     let glb = write_gltf_pose_clip("pose", &tracks).map_err(|e| e.to_string())?;
     std::fs::write(dir.join("pose.glb"), glb).map_err(|e| e.to_string())?;
     Ok(format!(

@@ -10,21 +10,35 @@
 //! * **F**: pin / unpin the feet (the joints nearest the ground; pinned at start).
 //! * **S** / **L**: save the pose (RON + a one-keyframe glTF clip) to `poses/` / load the RON.
 //! * **R**: back to the pose the character was loaded in.
+//! * **Timeline** (bottom panel): scrub, play/loop, set/delete/move keys (step, linear or
+//!   cubic), import one of the model's own clips, export the clip to `poses/clip.glb`.
+//! * **Poses** (right panel): the pose library in `poses/library/`: apply, apply mirrored,
+//!   blend two, save the current pose by name. **Ctrl+Z / Ctrl+Y**: undo / redo.
+//! * **`--author-demo OUT.glb`**: poses the character by three scripted grabs, keys them at
+//!   0, 0.5 and 1 s, exports the clip, plays it back through Bevy's glTF loader and prints
+//!   the playback error as JSON (see [`authoring`]).
 //! * **`--remote`**: a Wii Remote (MotionPlus) drives a handle on the head: hold B and turn
 //!   the remote to turn the head 1:1, D-pad to move it (`--remote emulated` for the built-in
 //!   emulator).
 //!
-//! The app is four plugins, one per job: [`scene::ScenePlugin`] (camera, light, the
-//! character), [`grab::CharacterGrabPlugin`], [`files::PoseFilesPlugin`] and
-//! [`hud::HudPlugin`]; [`unattended::UnattendedPlugin`] scripts a grab for screenshots.
+//! The app is plugins, one per job: [`scene::ScenePlugin`] (camera, light, the
+//! character), [`grab::CharacterGrabPlugin`], [`files::PoseFilesPlugin`],
+//! [`timeline::TimelinePlugin`], [`history::UndoPlugin`], [`ui::UiPlugin`] (the panels) and
+//! [`hud::HudPlugin`]; [`unattended::UnattendedPlugin`] scripts a grab for screenshots and
+//! [`authoring::AuthorDemoPlugin`] the `--author-demo` check.
 //!
 //! Fox: model by PixelMannen (CC0), rigging and animation by @tomkranis (CC-BY 4.0), from the
 //! glTF Sample Assets.
 
+mod authoring;
 mod files;
 mod grab;
+mod history;
 mod hud;
+mod library;
 mod scene;
+mod timeline;
+mod ui;
 mod unattended;
 
 use bevy::prelude::*;
@@ -41,6 +55,8 @@ pub struct Args {
     pub frames: u32,
     /// `--remote [emulated]`: drive a head handle with a Wii Remote.
     pub remote: Option<WiimotePlugin>,
+    /// `--author-demo OUT.glb`: author a three-key clip by script, export, play back, exit.
+    pub author_demo: Option<String>,
 }
 
 impl Args {
@@ -52,10 +68,16 @@ impl Args {
                 .and_then(|i| args.get(i + 1))
                 .cloned()
         };
-        let model = args
-            .iter()
-            .find(|a| a.ends_with(".glb") || a.ends_with(".gltf"))
-            .cloned()
+        let author_demo = value("--author-demo");
+        let model = value("--model")
+            .or_else(|| {
+                args.iter()
+                    .find(|a| {
+                        (a.ends_with(".glb") || a.ends_with(".gltf"))
+                            && Some(*a) != author_demo.as_ref()
+                    })
+                    .cloned()
+            })
             .unwrap_or_else(|| "shared/models/Fox.glb".into());
         Self {
             model,
@@ -63,6 +85,7 @@ impl Args {
             frames: value("--frames")
                 .and_then(|v| v.parse().ok())
                 .unwrap_or(120),
+            author_demo,
             remote: args.iter().any(|a| a == "--remote").then(|| {
                 if value("--remote").as_deref() == Some("emulated") {
                     WiimotePlugin::emulated()
@@ -92,8 +115,12 @@ fn main() {
         scene::ScenePlugin,
         grab::CharacterGrabPlugin,
         files::PoseFilesPlugin,
+        timeline::TimelinePlugin,
+        history::UndoPlugin,
+        ui::UiPlugin,
         hud::HudPlugin,
         unattended::UnattendedPlugin,
+        authoring::AuthorDemoPlugin,
     ))
     .run();
 }

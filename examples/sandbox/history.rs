@@ -1,6 +1,7 @@
 //! Undo and redo: paint strokes, selection edits, and pose drags by either control.
 
 use bevy::prelude::*;
+use bevy_wii_deform::history::UndoStack;
 use bevy_wii_deform::prelude::*;
 
 use crate::selection::{RegionsChanged, Selection};
@@ -40,36 +41,9 @@ pub fn snapshot(selection: &Selection, model: &Model, transforms: &Query<&Transf
     }
 }
 
-/// Undo and redo stacks.
-#[derive(Resource, Default)]
-pub struct History {
-    undo: Vec<Snapshot>,
-    redo: Vec<Snapshot>,
-}
-
-impl History {
-    /// Records the state before an edit; a new edit drops the redo stack.
-    pub fn checkpoint(&mut self, before: Snapshot) {
-        self.undo.push(before);
-        self.redo.clear();
-    }
-
-    /// Forgets everything (a new model).
-    pub fn clear(&mut self) {
-        self.undo.clear();
-        self.redo.clear();
-    }
-
-    /// There is something to undo.
-    pub fn can_undo(&self) -> bool {
-        !self.undo.is_empty()
-    }
-
-    /// There is something to redo.
-    pub fn can_redo(&self) -> bool {
-        !self.redo.is_empty()
-    }
-}
+/// Undo and redo stacks of snapshots.
+#[derive(Resource, Default, Deref, DerefMut)]
+pub struct History(UndoStack<Snapshot>);
 
 /// Undo or redo, from the panel or the keyboard.
 #[derive(Message, Debug, Clone, Copy, PartialEq, Eq)]
@@ -131,13 +105,11 @@ fn apply_history(
                 .and_then(|h| transforms.get(h).ok().copied())
                 .unwrap_or_default(),
         };
-        let h = &mut *history;
-        let (from, to) = match command {
-            HistoryCommand::Undo => (&mut h.undo, &mut h.redo),
-            HistoryCommand::Redo => (&mut h.redo, &mut h.undo),
+        let target = match command {
+            HistoryCommand::Undo => history.undo(current),
+            HistoryCommand::Redo => history.redo(current),
         };
-        let Some(target) = from.pop() else { continue };
-        to.push(current);
+        let Some(target) = target else { continue };
         if target.selection != selection.labels {
             selection.labels = target.selection;
             regions.write(RegionsChanged {

@@ -23,8 +23,8 @@ use bevy::prelude::*;
 pub use character::{
     GrabAnchor, HandlePositionOnly, JointMask, PinnedJoints, PoseBlend, PoseBlendMode,
     PoseEffector, PoseEffectorKind, PoseFailed, PoseJointHandle, PoseLimits, PosePlugin,
-    PoseSolved, PoseStatus, PoseStiffness, PoseSystems, Poseable, PoseableError, PosedSkeleton,
-    SymmetricEditing,
+    PoseSolved, PoseStatus, PoseStiffness, PoseSystems, PoseTimeline, Poseable, PoseableError,
+    PosedSkeleton, SymmetricEditing,
 };
 pub use control::{
     MouseControlPlugin, MouseHandleControl, WiimoteControlPlugin, WiimoteHandleControl,

@@ -35,6 +35,9 @@ pub enum PoseFileError {
     /// The clip could not be serialised.
     #[error("could not write the clip: {0}")]
     Serialize(String),
+    /// A pose library name that is not a plain file name.
+    #[error("{0:?} is not a pose name (letters, digits, spaces, '-', '_', '.')")]
+    BadName(String),
 }
 
 /// One joint's local transform in a [`PoseFile`].
@@ -144,7 +147,7 @@ impl PoseFile {
     }
 }
 
-fn io_error(path: &Path, e: std::io::Error) -> PoseFileError {
+pub(super) fn io_error(path: &Path, e: std::io::Error) -> PoseFileError {
     PoseFileError::Io {
         path: path.display().to_string(),
         message: e.to_string(),

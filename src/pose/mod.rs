@@ -43,6 +43,7 @@ pub mod effectors;
 mod file;
 pub mod gltf_clip;
 pub mod humanoid;
+pub mod library;
 pub mod limits;
 pub mod mirror;
 mod model;
@@ -51,11 +52,12 @@ mod solver;
 pub mod synth_rig;
 
 pub use blend::{BlendMode, additive_layer_for, blend_joint, blend_pose};
-pub use clip::{ClipError, KeyInterpolation, PoseClip, PoseKey};
+pub use clip::{ClipError, KEY_TIME_EPSILON, KeyInterpolation, PoseClip, PoseKey};
 pub use effectors::{CentroidEffector, Effector, EffectorGoal, ReferenceStiffness};
 pub use file::{PoseFile, PoseFileError};
 pub use gltf_clip::{read_gltf_clip, write_gltf_clip, write_gltf_pose_clip};
 pub use humanoid::{HumanoidRole, Side, humanoid_role};
+pub use library::PoseLibrary;
 pub use limits::{JointLimit, JointLimits, LimitError};
 pub use mirror::{Mirror, mirror_partners};
 pub use model::{ModelSettings, SkinnedMesh, SkinnedModel};
@@ -183,4 +185,12 @@ pub fn max_bone_length_error(skeleton: &Skeleton, a: &SkeletonPose, b: &Skeleton
         }
     }
     worst
+}
+
+/// The angle (radians, in [0, π]) of the rotation from `a` to `b`: `q` and `-q` are the same
+/// rotation. Stable near zero, where `2 acos |a · b|` loses half its digits.
+pub fn rotation_angle(a: glam::DQuat, b: glam::DQuat) -> f64 {
+    let (a, b) = (a.normalize(), b.normalize());
+    let b = if a.dot(b) < 0.0 { -b } else { b };
+    4.0 * (a - b).length().atan2((a + b).length())
 }

@@ -419,9 +419,7 @@ pub fn show_clip_at(app: &mut App, player: Entity, node: AnimationNodeIndex, tim
 /// The angle between two rotations, radians (stable near zero, where `acos` of the dot
 /// product loses half the digits).
 pub fn angle_between(a: Quat, b: Quat) -> f32 {
-    let (a, b) = (a.normalize(), b.normalize());
-    let b = if a.dot(b) < 0.0 { -b } else { b };
-    4.0 * (a - b).length().atan2((a + b).length())
+    bevy_wii_deform::pose::rotation_angle(a.as_dquat(), b.as_dquat()) as f32
 }
 
 /// Name, parent and animation-root flag of an entity: what `PosedSkeleton::joint_paths` asks.

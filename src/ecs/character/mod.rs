@@ -35,6 +35,7 @@ mod constraints;
 mod picking;
 mod plugin;
 mod prepare;
+mod timeline;
 
 use std::sync::Arc;
 
@@ -44,6 +45,7 @@ use crate::pose::{JointLimits, LimitError, PoseError, PoseFile, SkeletonPose, Sk
 
 pub use blend::{JointMask, PoseBlend, PoseBlendMode};
 pub use plugin::{PosePlugin, PoseSystems};
+pub use timeline::PoseTimeline;
 
 /// Makes a rigged character poseable. Put it on the glTF scene root (`WorldAssetRoot`), any
 /// ancestor of the skinned mesh, or the skinned mesh entity itself; the plugin finds the

@@ -21,8 +21,8 @@ use super::picking::{ignore_bind_pose_picking, pick_posed_characters};
 use super::prepare::{find_skins, finish_models, joint_transform};
 use super::{
     GrabAnchor, HandlePositionOnly, PinnedJoints, PoseBlend, PoseBlendMode, PoseEffector,
-    PoseFailed, PoseJointHandle, PoseLimits, PoseSolved, PoseStatus, PoseStiffness, Poseable,
-    PoseableError, PosedSkeleton, SymmetricEditing,
+    PoseFailed, PoseJointHandle, PoseLimits, PoseSolved, PoseStatus, PoseStiffness, PoseTimeline,
+    Poseable, PoseableError, PosedSkeleton, SymmetricEditing,
 };
 use crate::ecs::scene::mark_scene_spawned;
 use crate::ecs::{DeformHandle, DeformPhase, DeformSystems};
@@ -32,7 +32,7 @@ use crate::pose::{
     additive_layer_for, blend_pose,
 };
 
-/// Phases of the character systems. Prepare, Request and Poll run in `Update` (Request after
+/// Phases of the character systems. Prepare, Request, Poll and Timeline run in `Update` (Request after
 /// [`DeformSystems::Request`], so handle controls ordered before that set are seen the same
 /// frame); Apply runs in `PostUpdate` after `AnimationSystems`, before transform propagation.
 #[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -43,6 +43,9 @@ pub enum PoseSystems {
     Request,
     /// Collect finished solves.
     Poll,
+    /// Show each [`PoseTimeline`]'s pose at its time (after Poll: a timeline that changed this
+    /// frame wins over a solve that landed).
+    Timeline,
     /// Write the pose to the joint `Transform`s.
     Apply,
 }
@@ -72,6 +75,7 @@ impl Plugin for PosePlugin {
                     PoseSystems::Prepare,
                     PoseSystems::Request,
                     PoseSystems::Poll,
+                    PoseSystems::Timeline,
                 )
                     .chain()
                     .after(DeformSystems::Request),
@@ -90,6 +94,7 @@ impl Plugin for PosePlugin {
                         .in_set(PoseSystems::Prepare),
                     request_pose_solves.in_set(PoseSystems::Request),
                     poll_pose_solves.in_set(PoseSystems::Poll),
+                    show_timelines.in_set(PoseSystems::Timeline),
                 ),
             )
             .add_systems(PostUpdate, apply_poses.in_set(PoseSystems::Apply))
@@ -511,6 +516,23 @@ fn poll_pose_solves(
         }
         if state.pending.is_some() {
             spawn_pose_solve(state, &posed, poseable, &mut status);
+        }
+    }
+}
+
+/// Advances playing timelines; writes the pose of every timeline that changed.
+fn show_timelines(time: Res<Time>, mut characters: Query<(&mut PoseTimeline, &mut PosedSkeleton)>) {
+    for (mut timeline, mut posed) in &mut characters {
+        if timeline.playing {
+            timeline.advance(time.delta_secs());
+        }
+        if !timeline.is_changed() {
+            continue;
+        }
+        if let Some(pose) = timeline.pose_now(&posed)
+            && pose != posed.pose
+        {
+            posed.pose = pose;
         }
     }
 }
