@@ -463,3 +463,150 @@ fn bin_chunk_start(glb: &[u8]) -> usize {
     let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
     12 + 8 + json_len + 8
 }
+
+/// A `PoseTimeline` on a character shows its clip: scrubbed to a time, the joints take the
+/// clip's pose there; playing, the time advances with the (manual) clock and the joints
+/// follow; a clip file naming joints the character lacks is refused and nothing changes.
+#[test]
+fn a_timeline_shows_its_clip_on_the_character() {
+    use std::time::Duration;
+    let mut app = common::app();
+    app.add_plugins(PosePlugin);
+    app.insert_resource(bevy::time::TimeUpdateStrategy::ManualDuration(
+        Duration::from_millis(20),
+    ));
+    let rig = bar_rig(3, 6, 12);
+    let (root, joints) = common::posed_rig(&mut app, &rig, |_: &[Entity]| Poseable::default());
+    let rest = app.world().get::<PosedSkeleton>(root).unwrap().pose.clone();
+    let mut clip = PoseClip::new();
+    clip.set_key(0.0, rest.clone(), KeyInterpolation::Linear)
+        .unwrap();
+    clip.set_key(
+        1.0,
+        turned(&rest, 1, DVec3::Z, 1.0),
+        KeyInterpolation::Linear,
+    )
+    .unwrap();
+    let timeline = PoseTimeline {
+        clip: clip.clone(),
+        time: 0.5,
+        ..Default::default()
+    };
+    app.world_mut().entity_mut(root).insert(timeline);
+    app.update();
+    let joint_error = |app: &App, t: f32| {
+        let want = clip.sample(t).unwrap();
+        joints
+            .iter()
+            .zip(&want.local)
+            .map(|(&j, w)| {
+                let now = app.world().get::<Transform>(j).unwrap().rotation;
+                rotation_error(now.as_dquat(), w.rotation)
+            })
+            .fold(0.0, f64::max)
+    };
+    assert!(joint_error(&app, 0.5) < 1e-6);
+    assert!(
+        joint_error(&app, 0.0) > 0.4,
+        "the scrubbed pose is not the first key"
+    );
+    // Play: 10 frames of 20 ms.
+    app.world_mut()
+        .get_mut::<PoseTimeline>(root)
+        .unwrap()
+        .playing = true;
+    for _ in 0..10 {
+        app.update();
+    }
+    let t = app.world().get::<PoseTimeline>(root).unwrap().time;
+    assert!((t - 0.7).abs() < 0.021, "played to {t} s");
+    assert!(joint_error(&app, t) < 1e-6);
+    // A bad file: refused, the timeline and the pose unchanged.
+    app.world_mut()
+        .get_mut::<PoseTimeline>(root)
+        .unwrap()
+        .playing = false;
+    app.update();
+    let before = app.world().get::<PoseTimeline>(root).unwrap().clone();
+    let pose_before = app.world().get::<PosedSkeleton>(root).unwrap().pose.clone();
+    let mut paths: Vec<Vec<String>> = rig
+        .skeleton
+        .joints()
+        .iter()
+        .map(|j| vec![j.name.clone()])
+        .collect();
+    paths[1] = vec!["Elsewhere".into()]; // the joint the clip turns
+    let file = std::env::temp_dir().join(format!("bad_clip_{}.glb", std::process::id()));
+    std::fs::write(
+        &file,
+        write_gltf_clip(&clip, "x", &paths, Some(&rest)).unwrap(),
+    )
+    .unwrap();
+    let posed = app.world().get::<PosedSkeleton>(root).unwrap().clone();
+    let mut timeline = app.world_mut().get_mut::<PoseTimeline>(root).unwrap();
+    assert_eq!(
+        timeline.import_gltf(&file, None, &posed),
+        Err(ClipError::UnknownJoint("Elsewhere".into()))
+    );
+    app.update();
+    assert_eq!(*app.world().get::<PoseTimeline>(root).unwrap(), before);
+    assert_eq!(
+        app.world().get::<PosedSkeleton>(root).unwrap().pose,
+        pose_before
+    );
+}
+
+/// The pose library: saved poses are listed by name, load back exactly, apply mirrored
+/// (mirroring twice gives the pose back), and refuse names that are not file names.
+#[test]
+fn the_pose_library_saves_lists_and_loads_poses() {
+    use bevy_wii_deform::pose::synth_rig::mannequin_rig;
+    use bevy_wii_deform::pose::{Mirror, PoseFile, PoseFileError, PoseLibrary};
+    let folder = std::env::temp_dir().join(format!("pose_library_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&folder);
+    let library = PoseLibrary::new(&folder);
+    assert_eq!(
+        library.names(),
+        Ok(vec![]),
+        "a missing folder is an empty library"
+    );
+    let rig = mannequin_rig(10);
+    let skeleton = &rig.skeleton;
+    let arm = skeleton.find("shoulder_l").expect("the left shoulder");
+    let wave = turned(&rig.rest, arm, DVec3::Z, 0.8);
+    library
+        .save("wave", &PoseFile::from_pose(skeleton, &wave))
+        .unwrap();
+    library
+        .save("rest pose", &PoseFile::from_pose(skeleton, &rig.rest))
+        .unwrap();
+    assert_eq!(library.names().unwrap(), vec!["rest pose", "wave"]);
+    let loaded = library
+        .load("wave")
+        .unwrap()
+        .apply(skeleton, &rig.rest)
+        .unwrap();
+    for (a, b) in loaded.local.iter().zip(&wave.local) {
+        assert!(rotation_error(a.rotation, b.rotation) < 1e-12);
+    }
+    let mirror = Mirror::new(skeleton, &rig.rest);
+    let mirrored = mirror.mirror(&loaded);
+    assert!(
+        rotation_error(mirrored.local[arm].rotation, loaded.local[arm].rotation) > 0.1,
+        "the mirrored pose moved the other arm"
+    );
+    let back = mirror.mirror(&mirrored);
+    for (a, b) in back.local.iter().zip(&loaded.local) {
+        assert!(rotation_error(a.rotation, b.rotation) < 1e-9);
+    }
+    for bad in ["", "../escape", ".hidden", "a/b"] {
+        assert_eq!(
+            library.save(bad, &PoseFile::default()),
+            Err(PoseFileError::BadName(bad.into()))
+        );
+    }
+    assert!(matches!(
+        library.load("missing"),
+        Err(PoseFileError::Io { .. })
+    ));
+}

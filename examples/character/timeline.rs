@@ -99,10 +99,11 @@ pub fn timeline_ui(ui: &mut egui::Ui, p: &mut TimelinePanel) {
             timeline.looping = looping;
         }
         let mut time = timeline.time;
+        ui.spacing_mut().slider_width = 480.0;
         let slider = egui::Slider::new(&mut time, 0.0..=end)
             .text("s")
             .step_by(0.01);
-        if ui.add_sized([420.0, 18.0], slider).changed() {
+        if ui.add(slider).changed() {
             timeline.time = time;
             timeline.playing = false;
         }
