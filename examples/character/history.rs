@@ -126,7 +126,7 @@ fn record_edits(
     let Some((posed, timeline, pins, status)) = character.iter().next() else {
         return;
     };
-    let busy = grabs.is_some_and(|g| g.len() > 0)
+    let busy = grabs.is_some_and(|g| !g.is_empty())
         || status.phase == DeformPhase::Solving
         || timeline.playing;
     if !busy {

@@ -242,7 +242,7 @@ impl PoseClip {
     pub fn sample(&self, time: f32) -> Option<SkeletonPose> {
         let first = self.keys.first()?;
         let last = self.keys.last()?;
-        if self.keys.len() == 1 || !(time > first.time) {
+        if self.keys.len() == 1 || time.is_nan() || time <= first.time {
             return Some(first.pose.clone());
         }
         if time >= last.time {
@@ -387,7 +387,7 @@ fn check_key(key: &mut PoseKey, joints: Option<usize>) -> Result<(), ClipError> 
             });
         }
         if (length - 1.0).abs() > 1e-12 {
-            t.rotation = t.rotation / length;
+            t.rotation /= length;
         }
     }
     Ok(())

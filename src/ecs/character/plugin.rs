@@ -434,16 +434,19 @@ fn spawn_pose_solve(
     }));
 }
 
+/// What [`poll_pose_solves`] reads and writes of a character.
+type PolledCharacter = (
+    Entity,
+    &'static Poseable,
+    &'static mut PosedSkeleton,
+    &'static mut PoseState,
+    &'static mut PoseStatus,
+    Option<&'static PoseBlend>,
+);
+
 /// Stores finished solves in [`PosedSkeleton::pose`]; starts the pending one.
 fn poll_pose_solves(
-    mut characters: Query<(
-        Entity,
-        &Poseable,
-        &mut PosedSkeleton,
-        &mut PoseState,
-        &mut PoseStatus,
-        Option<&PoseBlend>,
-    )>,
+    mut characters: Query<PolledCharacter>,
     mut solved: MessageWriter<PoseSolved>,
     mut failed: MessageWriter<PoseFailed>,
 ) {
@@ -564,17 +567,17 @@ fn additive_layer(
     SkeletonPose { local }
 }
 
+/// What [`apply_poses`] reads and writes of a character.
+type AppliedCharacter = (
+    &'static Poseable,
+    Ref<'static, PosedSkeleton>,
+    Option<Ref<'static, PoseBlend>>,
+    &'static mut PoseState,
+);
+
 /// Writes each character's pose to its joints: blended over the animation with a
 /// [`PoseBlend`] (every frame), else every frame with `hold_pose` or when it changed.
-fn apply_poses(
-    mut characters: Query<(
-        &Poseable,
-        Ref<PosedSkeleton>,
-        Option<Ref<PoseBlend>>,
-        &mut PoseState,
-    )>,
-    mut joints: Query<&mut Transform>,
-) {
+fn apply_poses(mut characters: Query<AppliedCharacter>, mut joints: Query<&mut Transform>) {
     for (poseable, posed, blend, mut state) in &mut characters {
         let state = state.bypass_change_detection();
         let Some(blend) = blend else {
