@@ -1,5 +1,6 @@
-//! `--screenshot PATH --frames N`: once the character is ready, grabs the highest point of the
-//! head region and drags it sideways and up over 30 frames, saves frame N, exits.
+//! `--screenshot PATH --frames N`: once the character is ready, keys its pose at 0 s, grabs the
+//! highest point of the head region and drags it sideways and up over 30 frames, keys the
+//! result at 1 s, saves frame N, exits.
 
 use bevy::prelude::*;
 use bevy::render::view::screenshot::{Screenshot, save_to_disk};
@@ -29,7 +30,7 @@ fn script(
     mut commands: Commands,
     mut state: Local<Script>,
     args: Res<Args>,
-    character: Query<(Entity, &PosedSkeleton), With<Character>>,
+    mut character: Query<(Entity, &PosedSkeleton, Option<&mut PoseTimeline>), With<Character>>,
     mut handles: Query<(&DeformHandle, &mut Transform)>,
     mut exit: MessageWriter<AppExit>,
 ) {
@@ -38,10 +39,17 @@ fn script(
     };
     state.frame += 1;
     let frame = state.frame;
-    let Some((entity, posed)) = character.iter().next() else {
+    let Some((entity, posed, timeline)) = character.iter_mut().next() else {
         return;
     };
     let start = *state.start.get_or_insert(frame + 10);
+    let shot = start.max(args.frames);
+    if let Some(mut timeline) = timeline
+        && (frame == start || frame + 5 == shot)
+    {
+        timeline.time = if frame == start { 0.0 } else { 1.0 };
+        let _ = timeline.set_key(posed);
+    }
     if frame == start {
         let top = top_point(posed);
         let size = posed.model.topology().bounding_diagonal() as f32;
@@ -60,12 +68,12 @@ fn script(
             transform.translation = target;
         }
     }
-    if frame == start.max(args.frames) {
+    if frame == shot {
         commands
             .spawn(Screenshot::primary_window())
             .observe(save_to_disk(path));
     }
-    if frame == start.max(args.frames) + 15 {
+    if frame == shot + 15 {
         exit.write(AppExit::Success);
     }
 }

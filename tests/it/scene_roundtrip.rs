@@ -7,7 +7,7 @@ use bevy::world_serialization::DynamicWorld;
 use bevy_wii_deform::ecs::{DeformableFrom, DeformableScene, GrabHandle};
 use bevy_wii_deform::prelude::*;
 
-mod common;
+use crate::common;
 
 /// An app whose type registry knows every component of the crate (no update is run).
 fn registry_app() -> App {

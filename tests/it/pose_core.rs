@@ -6,7 +6,7 @@ use bevy_wii_deform::pose::synth_rig::{SyntheticRig, bar_rig, mannequin_rig};
 use bevy_wii_deform::pose::*;
 use glam::{DAffine3, DQuat, DVec3, Vec3};
 
-mod common;
+use crate::common;
 use common::model_of;
 
 /// The bar rig posed by forward kinematics: joint 1 bent 35° about z, joint 2 25° about x.

@@ -13,7 +13,7 @@ use bevy_wii_deform::wiimote::protocol::Buttons;
 use bevy_wii_deform::wiimote::{FnMotion, Still};
 use glam::{DQuat, DVec3};
 
-mod common;
+use crate::common;
 use common::{app, cursor_to, pointer, spawn_camera, to_screen};
 
 fn bar_mesh() -> (Mesh, deform::TriMesh) {

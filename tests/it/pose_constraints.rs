@@ -9,7 +9,7 @@ use bevy_wii_deform::pose::synth_rig::{SyntheticRig, bar_rig, mannequin_rig};
 use bevy_wii_deform::pose::*;
 use glam::{DQuat, DVec3};
 
-mod common;
+use crate::common;
 use common::model_of;
 
 fn solve(

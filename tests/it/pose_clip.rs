@@ -11,7 +11,7 @@ use bevy_wii_deform::pose::{
 use bevy_wii_deform::prelude::*;
 use glam::{DQuat, DVec3, DVec4};
 
-mod common;
+use crate::common;
 use common::{angle_between, animation_player, node_of, play_clip, show_clip_at};
 
 /// `pose` with joint `j` turned by `angle` about `axis` (in its parent's frame).

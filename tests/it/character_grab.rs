@@ -7,7 +7,7 @@ use bevy::prelude::*;
 use bevy_wii_deform::ecs::{GrabAnchor, GrabHandle};
 use bevy_wii_deform::prelude::*;
 
-mod common;
+use crate::common;
 use common::{spawn_camera, to_screen, update_until};
 
 #[test]

@@ -7,7 +7,7 @@ use bevy_wii_deform::pose::{BlendMode, JointTransform, SkeletonPose, blend_pose,
 use bevy_wii_deform::prelude::*;
 use glam::{DQuat, DVec3};
 
-mod common;
+use crate::common;
 use common::{angle_between, animation_player, play_clip, settle_pose, show_clip_at};
 
 fn joint(t: f64) -> JointTransform {

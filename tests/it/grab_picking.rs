@@ -10,7 +10,7 @@ use bevy_wii_deform::deform::synth;
 use bevy_wii_deform::ecs::ActiveGrabs;
 use bevy_wii_deform::prelude::*;
 
-mod common;
+use crate::common;
 use common::{app, picking_plugins, pointer, spawn_camera, to_screen};
 
 /// A headless app with picking, deformation, posing and grabs, and a camera.

@@ -9,7 +9,7 @@ use bevy::time::TimeUpdateStrategy;
 use bevy_wii_deform::pose::synth_rig::{bar_rig, mannequin_rig};
 use bevy_wii_deform::prelude::*;
 
-mod common;
+use crate::common;
 use common::{posed_rig, settle_pose, update_until};
 
 fn app() -> App {

@@ -10,7 +10,7 @@ use bevy_wii_deform::deform::synth;
 use bevy_wii_deform::ecs::{GrabHandle, GrabTwist, arcball_rotation};
 use bevy_wii_deform::prelude::*;
 
-mod common;
+use crate::common;
 use common::{app, cursor_to, spawn_camera, to_screen};
 
 /// The three spaces of the issue: scale 0.01, 2 and (1, 2, 0.5), each rotated.

@@ -9,7 +9,7 @@ use bevy::prelude::*;
 use bevy::world_serialization::WorldAssetRoot;
 use bevy_wii_deform::prelude::*;
 
-mod common;
+use crate::common;
 use bevy_wii_deform::ecs::MESH_WAIT_FRAMES;
 
 /// A quad (two triangles) as positions, normals and u16 indices in one buffer.

@@ -10,7 +10,7 @@ use bevy_wii_deform::pose::synth_rig::bar_rig;
 use bevy_wii_deform::pose::{JointTransform, SkeletonPose};
 use bevy_wii_deform::prelude::*;
 
-mod common;
+use crate::common;
 use common::{drive_solves, spawn_handle, spawn_rig, update_until};
 
 fn app() -> App {

@@ -1,0 +1,21 @@
+//! The integration tests, one module per behaviour, in one test binary: Bevy is linked once
+//! instead of once per file (each link is ~1.7 GB with debug info and half a minute on two
+//! cores). Run one module with `cargo test --test it pose_clip::`.
+
+mod common;
+
+mod character_grab;
+mod deform_core;
+mod grab_picking;
+mod input_turns;
+mod malformed_gltf;
+mod plugins;
+mod pose_blend;
+mod pose_clip;
+mod pose_constraints;
+mod pose_core;
+mod pose_ecs;
+mod pose_effectors_ecs;
+mod scene_roundtrip;
+mod wiimote_device;
+mod wiimote_ir;
