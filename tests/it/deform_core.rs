@@ -1,7 +1,6 @@
 //! Integration tests of the deformation core against independent references.
 
-#[path = "common/shared.rs"]
-mod shared;
+use crate::common::shared;
 
 use std::sync::Arc;
 

@@ -3,8 +3,7 @@
 
 use std::sync::Arc;
 
-#[path = "common/shared.rs"]
-mod shared;
+use crate::common::shared;
 
 use bevy_wii_deform::wiimote::protocol::*;
 use bevy_wii_deform::wiimote::*;
