@@ -75,9 +75,47 @@ enum Job {
 struct Loaded {
     name: String,
     mesh: TriMesh,
+    look: Look,
     task: Option<(String, tasks::Task)>,
     target: Option<Result<Vec<DVec3>, String>>,
 }
+
+/// What a glTF model looks like, kept while its merged mesh is edited: texture coordinates
+/// per vertex (when any primitive has them) and the material of its first primitive that has
+/// one (a model whose primitives use several materials is drawn with that one).
+#[derive(Default)]
+struct Look {
+    uvs: Option<Vec<[f32; 2]>>,
+    material: Option<Handle<StandardMaterial>>,
+}
+
+/// A glTF scene's primitives merged into one mesh, with their look.
+#[derive(Default)]
+struct Merged {
+    mesh: TriMesh,
+    uvs: Vec<[f32; 2]>,
+    any_uvs: bool,
+    material: Option<Handle<StandardMaterial>>,
+    /// Primitives that are not triangle lists with positions.
+    skipped: usize,
+}
+
+impl Merged {
+    fn look(&self) -> Look {
+        Look {
+            uvs: self.any_uvs.then(|| self.uvs.clone()),
+            material: self.material.clone(),
+        }
+    }
+}
+
+/// A node of a spawned glTF scene, as the merge reads it.
+type SceneNode = (
+    Option<&'static Transform>,
+    Option<&'static Mesh3d>,
+    Option<&'static MeshMaterial3d<StandardMaterial>>,
+    Option<&'static Children>,
+);
 
 /// On a glTF scene root spawned by the loader: what it is loaded for.
 #[derive(Component)]
@@ -149,7 +187,7 @@ fn start_loading(
         loading.job = Some(Job::Scene(root));
     } else {
         let name = request.name.clone();
-        let read = move || read_model(&name);
+        let read = move || read_model(&name).map(|m| (m, Look::default()));
         loading.job = Some(Job::Prepare(prepare(request, read)));
     }
 }
@@ -157,10 +195,10 @@ fn start_loading(
 /// Normalises the mesh and solves the challenge target in the background.
 fn prepare(
     request: Request,
-    read: impl FnOnce() -> Result<TriMesh, String> + Send + 'static,
+    read: impl FnOnce() -> Result<(TriMesh, Look), String> + Send + 'static,
 ) -> Task<Result<Loaded, String>> {
     AsyncComputeTaskPool::get().spawn(async move {
-        let mut mesh = read()?;
+        let (mut mesh, look) = read()?;
         if !models::MODELS.contains(&request.name.as_str()) {
             mesh = normalise(mesh);
         }
@@ -168,6 +206,7 @@ fn prepare(
         Ok(Loaded {
             name: request.name,
             mesh,
+            look,
             task: request.task,
             target,
         })
@@ -213,7 +252,7 @@ fn merge_spawned_scene(
     ready: On<WorldInstanceReady>,
     mut commands: Commands,
     imports: Query<&SceneImport>,
-    nodes: Query<(Option<&Transform>, Option<&Mesh3d>, Option<&Children>)>,
+    nodes: Query<SceneNode>,
     meshes: Res<Assets<Mesh>>,
     mut loading: ResMut<Loading>,
 ) {
@@ -221,43 +260,37 @@ fn merge_spawned_scene(
         return;
     };
     let request = import.0.clone();
-    let mut merged = TriMesh::default();
-    let mut skipped = 0;
-    if let Ok((_, _, Some(children))) = nodes.get(ready.entity) {
+    let mut merged = Merged::default();
+    if let Ok((_, _, _, Some(children))) = nodes.get(ready.entity) {
         for &child in children {
-            merge_below(
-                child,
-                DAffine3::IDENTITY,
-                &nodes,
-                &meshes,
-                &mut merged,
-                &mut skipped,
-            );
+            merge_below(child, DAffine3::IDENTITY, &nodes, &meshes, &mut merged);
         }
     }
     commands.entity(ready.entity).despawn();
     let name = request.name.clone();
-    let read = move || match (merged.positions.is_empty(), skipped) {
+    let read = move || match (merged.mesh.positions.is_empty(), merged.skipped) {
         (true, 0) => Err(format!("{name}: no meshes in the scene")),
-        (true, _) => Err(format!(
+        (true, skipped) => Err(format!(
             "{name}: {skipped} primitive(s), none a triangle list with positions"
         )),
-        (false, _) => Ok(merged),
+        (false, _) => {
+            let look = merged.look();
+            Ok((merged.mesh, look))
+        }
     };
     loading.job = Some(Job::Prepare(prepare(request, read)));
 }
 
-/// Appends the triangle primitives at and below `entity`; `parent` is the transform from the
-/// parent's space to the scene root's.
+/// Appends the triangle primitives at and below `entity` (positions, texture coordinates, the
+/// first material); `parent` is the transform from the parent's space to the scene root's.
 fn merge_below(
     entity: Entity,
     parent: DAffine3,
-    nodes: &Query<(Option<&Transform>, Option<&Mesh3d>, Option<&Children>)>,
+    nodes: &Query<SceneNode>,
     meshes: &Assets<Mesh>,
-    out: &mut TriMesh,
-    skipped: &mut usize,
+    out: &mut Merged,
 ) {
-    let Ok((transform, mesh, children)) = nodes.get(entity) else {
+    let Ok((transform, mesh, material, children)) = nodes.get(entity) else {
         return;
     };
     let local = transform.map_or(DAffine3::IDENTITY, |t| {
@@ -266,19 +299,32 @@ fn merge_below(
     });
     let to_root = parent * local;
     if let Some(mesh) = mesh {
-        match meshes.get(&mesh.0).and_then(triangles_of) {
+        let mesh = meshes.get(&mesh.0);
+        match mesh.and_then(triangles_of) {
             Some((positions, triangles)) => {
-                let base = out.positions.len() as u32;
-                out.positions
+                let base = out.mesh.positions.len() as u32;
+                out.mesh
+                    .positions
                     .extend(positions.iter().map(|p| to_root.transform_point3(*p)));
-                out.triangles
+                out.mesh
+                    .triangles
                     .extend(triangles.iter().map(|t| t.map(|i| base + i)));
+                match mesh.and_then(|m| m.attribute(Mesh::ATTRIBUTE_UV_0)) {
+                    Some(VertexAttributeValues::Float32x2(uv)) if uv.len() == positions.len() => {
+                        out.uvs.extend_from_slice(uv);
+                        out.any_uvs = true;
+                    }
+                    _ => out.uvs.resize(out.mesh.positions.len(), [0.0; 2]),
+                }
+                if out.material.is_none() {
+                    out.material = material.map(|m| m.0.clone());
+                }
             }
-            None => *skipped += 1,
+            None => out.skipped += 1,
         }
     }
     for &child in children.into_iter().flatten() {
-        merge_below(child, to_root, nodes, meshes, out, skipped);
+        merge_below(child, to_root, nodes, meshes, out);
     }
 }
 
@@ -356,11 +402,11 @@ fn finish_loading(
     }
     let mut bevy_mesh = mesh_from_triangles(&loaded.mesh.positions, &loaded.mesh.triangles);
     bevy_mesh.insert_attribute(Mesh::ATTRIBUTE_COLOR, selection_colors(&labels));
-    let material = parts.materials.add(StandardMaterial {
-        base_color: Color::WHITE,
-        perceptual_roughness: 0.6,
-        ..default()
-    });
+    if let Some(uvs) = loaded.look.uvs.clone() {
+        bevy_mesh.insert_attribute(Mesh::ATTRIBUTE_UV_0, uvs);
+    }
+    let material = material_of(&loaded.look, &parts.materials);
+    let material = parts.materials.add(material);
     let entity = commands
         .spawn((
             Mesh3d(parts.meshes.add(bevy_mesh)),
@@ -390,6 +436,20 @@ fn finish_loading(
         task.map(|((key, task), target)| TaskTarget { key, task, target }),
     ));
     regions.write(RegionsChanged { pose: None });
+}
+
+/// The model's own material (its textures, colours, roughness) when it has one, else a plain
+/// white one; the selection's vertex colours tint it either way.
+fn material_of(look: &Look, materials: &Assets<StandardMaterial>) -> StandardMaterial {
+    look.material
+        .as_ref()
+        .and_then(|h| materials.get(h))
+        .cloned()
+        .unwrap_or(StandardMaterial {
+            base_color: Color::WHITE,
+            perceptual_roughness: 0.6,
+            ..default()
+        })
 }
 
 /// What `finish_loading` resets or fills besides the model.
@@ -435,19 +495,14 @@ mod tests {
         world.spawn((Mesh3d(tri), ChildOf(child)));
         world.spawn((Mesh3d(line), ChildOf(child)));
         let (merged, skipped) = world
-            .run_system_once(
-                move |nodes: Query<(Option<&Transform>, Option<&Mesh3d>, Option<&Children>)>,
-                      meshes: Res<Assets<Mesh>>| {
-                    let mut out = TriMesh::default();
-                    let mut skipped = 0;
-                    let children = nodes.get(root).unwrap().2.unwrap();
-                    for &c in children {
-                        let identity = DAffine3::IDENTITY;
-                        merge_below(c, identity, &nodes, &meshes, &mut out, &mut skipped);
-                    }
-                    (out, skipped)
-                },
-            )
+            .run_system_once(move |nodes: Query<SceneNode>, meshes: Res<Assets<Mesh>>| {
+                let mut out = Merged::default();
+                let children = nodes.get(root).unwrap().3.unwrap();
+                for &c in children {
+                    merge_below(c, DAffine3::IDENTITY, &nodes, &meshes, &mut out);
+                }
+                (out.mesh, out.skipped)
+            })
             .unwrap();
         assert_eq!(skipped, 1);
         assert_eq!(merged.triangles, vec![[0, 1, 2], [3, 4, 5]]);
@@ -462,6 +517,115 @@ mod tests {
         ];
         for (p, e) in merged.positions.iter().zip(expected) {
             assert!(p.distance(DVec3::from_array(e)) < 1e-6, "{p} vs {e:?}");
+        }
+    }
+
+    /// The Fox through Bevy's glTF loader, merged as the sandbox merges a scene: its texture
+    /// coordinates come along (one per vertex) and the Fox's material — its base-colour
+    /// texture — is the merged mesh's.
+    #[test]
+    fn the_sandbox_keeps_gltf_materials() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/models");
+        if !dir.join("Fox.glb").exists() {
+            assert!(std::env::var_os("CI").is_none(), "CI always has ../shared");
+            eprintln!("SKIPPED: ../shared/models/Fox.glb is absent");
+            return;
+        }
+        let mut app = App::new();
+        app.add_plugins((
+            MinimalPlugins,
+            bevy::asset::AssetPlugin {
+                file_path: dir.display().to_string(),
+                ..default()
+            },
+            bevy::mesh::MeshPlugin,
+            bevy::transform::TransformPlugin,
+            bevy::image::ImagePlugin::default(),
+            bevy::world_serialization::WorldSerializationPlugin,
+            bevy::animation::AnimationPlugin,
+            bevy::gltf::GltfPlugin::default(),
+        ));
+        app.init_asset::<StandardMaterial>()
+            .register_type::<MeshMaterial3d<StandardMaterial>>();
+        app.finish();
+        app.cleanup();
+        // What the renderer's PBR plugin does for the app: glTF materials as
+        // `StandardMaterial`s on the mesh entities (the test has no renderer).
+        app.world_mut()
+            .resource_mut::<bevy::gltf::extensions::GltfExtensionHandlers>()
+            .0
+            .write_blocking()
+            .push(Box::new(StandardMaterials));
+        let scene = app
+            .world()
+            .resource::<AssetServer>()
+            .load(GltfAssetLabel::Scene(0).from_asset("Fox.glb"));
+        let root = app.world_mut().spawn(WorldAssetRoot(scene)).id();
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+        while app.world().get::<Children>(root).is_none() {
+            assert!(std::time::Instant::now() < deadline, "the Fox never spawned");
+            app.update();
+            std::thread::yield_now();
+        }
+        let merged = app
+            .world_mut()
+            .run_system_once(move |nodes: Query<SceneNode>, meshes: Res<Assets<Mesh>>| {
+                let mut out = Merged::default();
+                for &c in nodes.get(root).unwrap().3.unwrap() {
+                    merge_below(c, DAffine3::IDENTITY, &nodes, &meshes, &mut out);
+                }
+                out
+            })
+            .unwrap();
+        let look = merged.look();
+        let uvs = look.uvs.as_ref().expect("the Fox's texture coordinates");
+        assert_eq!(uvs.len(), merged.mesh.positions.len());
+        assert!(uvs.iter().any(|uv| uv[0] != 0.0 || uv[1] != 0.0));
+        let materials = app.world().resource::<Assets<StandardMaterial>>();
+        let material = material_of(&look, materials);
+        assert!(
+            material.base_color_texture.is_some(),
+            "the Fox's base-colour texture is on the merged mesh's material"
+        );
+    }
+
+    /// Turns each glTF material into a `StandardMaterial` on its meshes (see the test above).
+    #[derive(Clone)]
+    struct StandardMaterials;
+
+    impl bevy::gltf::extensions::GltfExtensionHandler for StandardMaterials {
+        fn dyn_clone(&self) -> Box<dyn bevy::gltf::extensions::ErasedGltfExtensionHandler> {
+            Box::new(self.clone())
+        }
+
+        fn on_material(
+            &mut self,
+            load_context: &mut bevy::asset::LoadContext<'_>,
+            _gltf_material: &gltf::Material,
+            _material: Handle<bevy::gltf::GltfMaterial>,
+            material_asset: &bevy::gltf::GltfMaterial,
+            material_label: &str,
+        ) {
+            let standard = StandardMaterial {
+                base_color: material_asset.base_color,
+                base_color_texture: material_asset.base_color_texture.clone(),
+                ..default()
+            };
+            load_context.add_labeled_asset(format!("{material_label}/test"), standard);
+        }
+
+        fn on_spawn_mesh_and_material(
+            &mut self,
+            load_context: &mut bevy::asset::LoadContext<'_>,
+            _primitive: &gltf::Primitive,
+            _mesh: &gltf::Mesh,
+            _material: &gltf::Material,
+            entity: &mut EntityWorldMut,
+            material_label: &str,
+        ) {
+            let label = format!("{material_label}/test");
+            let handle = load_context.get_label_handle::<StandardMaterial>(label);
+            entity.insert(MeshMaterial3d(handle));
         }
     }
 }
