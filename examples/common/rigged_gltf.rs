@@ -1,6 +1,6 @@
 //! Reads a rigged glTF (`.glb`/`.gltf`) with the `gltf` crate into the pose core's types,
-//! without Bevy: the first skinned mesh node's primitives, its skin's joints (parents from
-//! the node hierarchy, non-joint ancestors folded into the roots' parent frames). Used by
+//! without Bevy: the primitives of every mesh node bound to the first skin, that skin's joints
+//! (parents from the node hierarchy, non-joint ancestors folded into the roots' parent frames). Used by
 //! the benchmark; an app uses Bevy's loader and `Poseable` instead.
 
 use std::path::Path;
@@ -16,7 +16,7 @@ pub struct RiggedGltf {
     pub mesh: SkinnedMesh,
 }
 
-/// Loads the first skinned mesh of `path`.
+/// Loads the first skin of `path` and every mesh bound to it.
 pub fn load(path: &Path) -> Result<RiggedGltf, String> {
     let (document, buffers, _) = gltf::import(path).map_err(|e| e.to_string())?;
     let mut parent = vec![None; document.nodes().len()];
@@ -86,8 +86,16 @@ pub fn load(path: &Path) -> Result<RiggedGltf, String> {
     for (new, &old) in order.iter().enumerate() {
         new_index[old] = new as u16;
     }
+    // Every mesh node bound to this skin (body, head and legs exported as separate nodes are
+    // one character), in node order, as the pose plugin builds the model.
+    let skin_index = skin.index();
+    let primitives = document
+        .nodes()
+        .filter(|n| n.skin().is_some_and(|s| s.index() == skin_index))
+        .filter_map(|n| n.mesh())
+        .flat_map(|m| m.primitives().collect::<Vec<_>>());
     let mut mesh = SkinnedMesh::default();
-    for primitive in node.mesh().expect("checked").primitives() {
+    for primitive in primitives {
         let reader = primitive.reader(|b| Some(&buffers[b.index()]));
         let base = mesh.positions.len() as u32;
         let positions: Vec<Vec3> = reader

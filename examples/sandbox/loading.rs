@@ -563,7 +563,10 @@ mod tests {
         let root = app.world_mut().spawn(WorldAssetRoot(scene)).id();
         let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
         while app.world().get::<Children>(root).is_none() {
-            assert!(std::time::Instant::now() < deadline, "the Fox never spawned");
+            assert!(
+                std::time::Instant::now() < deadline,
+                "the Fox never spawned"
+            );
             app.update();
             std::thread::yield_now();
         }

@@ -5,6 +5,7 @@
 mod common;
 
 mod character_grab;
+mod character_nodes;
 mod deform_core;
 mod grab_picking;
 mod input_turns;

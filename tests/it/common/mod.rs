@@ -232,6 +232,17 @@ pub fn picking_plugins() -> (
 /// with `plugins` (which must include `PosePlugin`), a `Poseable` on the scene root, updated
 /// until its model is built. Returns the app and the root.
 pub fn fox_app<M>(dir: &std::path::Path, plugins: impl bevy::app::Plugins<M>) -> (App, Entity) {
+    character_app(dir, "Fox.glb", plugins)
+}
+
+/// A headless app that loads the rigged glTF `file` in `dir` through Bevy's own glTF loader
+/// with `plugins` (which must include `PosePlugin`), a `Poseable` on the scene root, updated
+/// until its model is built. Returns the app and the root.
+pub fn character_app<M>(
+    dir: &std::path::Path,
+    file: &str,
+    plugins: impl bevy::app::Plugins<M>,
+) -> (App, Entity) {
     use bevy::time::TimeUpdateStrategy;
     use bevy_wii_deform::prelude::{Poseable, PosedSkeleton};
     let mut app = App::new();
@@ -260,6 +271,7 @@ pub fn fox_app<M>(dir: &std::path::Path, plugins: impl bevy::app::Plugins<M>) ->
     )));
     // The whole file is loaded once and kept (its clips too): loading a part of it later
     // with other settings would load the file again and respawn the scene.
+    let path = file;
     let file: Handle<bevy::gltf::Gltf> = app
         .world()
         .resource::<AssetServer>()
@@ -270,9 +282,9 @@ pub fn fox_app<M>(dir: &std::path::Path, plugins: impl bevy::app::Plugins<M>) ->
             s.load_cameras = false;
             s.load_lights = false;
         })
-        .load("Fox.glb");
+        .load(path.to_string());
     let waiting = file.clone();
-    update_until(&mut app, "Fox.glb", move |a| {
+    update_until(&mut app, "the glTF file", move |a| {
         a.world()
             .resource::<Assets<bevy::gltf::Gltf>>()
             .get(&waiting)
@@ -293,7 +305,7 @@ pub fn fox_app<M>(dir: &std::path::Path, plugins: impl bevy::app::Plugins<M>) ->
             Poseable::default(),
         ))
         .id();
-    update_until(&mut app, "the Fox's model", |a| {
+    update_until(&mut app, "the character's model", |a| {
         a.world().get::<PosedSkeleton>(root).is_some()
             || a.world()
                 .get::<PoseStatus>(root)

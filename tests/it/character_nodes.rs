@@ -1,0 +1,279 @@
+//! Rigged characters as converters export them: a humanoid whose mesh is split over three
+//! mesh nodes (body, head, legs) sharing one skin, its origin at the hips (as FBX conversions
+//! often come out), written as a glTF file and loaded through Bevy's own glTF loader.
+
+use bevy::prelude::*;
+use bevy_wii_deform::deform::glb_container;
+use bevy_wii_deform::pose::synth_rig::{SyntheticRig, mannequin_rig};
+use bevy_wii_deform::prelude::*;
+use glam::DVec3;
+use serde_json::json;
+
+use crate::common::{self, drive_solves, settle_pose, spawn_handle};
+
+/// The parts the mesh is split into, by the height of each triangle's centroid (bind pose,
+/// feet at y = 0): legs below the hips, the head above the neck, the body between.
+fn part_of(y: f64) -> usize {
+    match y {
+        y if y < 0.9 => 2,
+        y if y > 1.45 => 1,
+        _ => 0,
+    }
+}
+
+const PARTS: [&str; 3] = ["body", "head", "legs"];
+
+/// Writes `rig` as a binary glTF: the joint nodes under a root node, three mesh nodes
+/// sharing one skin, everything moved so that the hips are at the origin.
+fn three_node_glb(rig: &SyntheticRig) -> (Vec<u8>, [usize; 3]) {
+    let hips = rig.rest.local[0].translation;
+    let mesh = &rig.mesh;
+    let mut bin: Vec<u8> = Vec::new();
+    let mut views = Vec::new();
+    let mut accessors = Vec::new();
+    let mut push = |bytes: Vec<u8>, accessor: serde_json::Value| {
+        while bin.len() % 4 != 0 {
+            bin.push(0);
+        }
+        views.push(json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": bytes.len()}));
+        bin.extend(bytes);
+        let mut a = accessor;
+        a["bufferView"] = json!(views.len() - 1);
+        accessors.push(a);
+        accessors.len() - 1
+    };
+    let mut meshes = Vec::new();
+    let mut counts = [0usize; 3];
+    for (part, count) in counts.iter_mut().enumerate() {
+        let mut index_of = vec![u32::MAX; mesh.positions.len()];
+        let mut vertices: Vec<usize> = Vec::new();
+        let mut indices: Vec<u32> = Vec::new();
+        for t in mesh.indices.chunks_exact(3) {
+            let y = t
+                .iter()
+                .map(|&i| f64::from(mesh.positions[i as usize].y))
+                .sum::<f64>()
+                / 3.0;
+            if part_of(y) != part {
+                continue;
+            }
+            for &i in t {
+                if index_of[i as usize] == u32::MAX {
+                    index_of[i as usize] = vertices.len() as u32;
+                    vertices.push(i as usize);
+                }
+                indices.push(index_of[i as usize]);
+            }
+        }
+        *count = vertices.len();
+        let positions: Vec<[f32; 3]> = vertices
+            .iter()
+            .map(|&v| (mesh.positions[v].as_dvec3() - hips).as_vec3().to_array())
+            .collect();
+        let (lo, hi) = positions
+            .iter()
+            .fold(([f32::MAX; 3], [f32::MIN; 3]), |(l, h), p| {
+                (
+                    [l[0].min(p[0]), l[1].min(p[1]), l[2].min(p[2])],
+                    [h[0].max(p[0]), h[1].max(p[1]), h[2].max(p[2])],
+                )
+            });
+        let n = vertices.len();
+        // Smooth normals, as exporters write them (without, Bevy's loader would split every
+        // triangle for flat normals).
+        let mut normals = vec![glam::Vec3::ZERO; n];
+        for t in indices.chunks_exact(3) {
+            let [a, b, c] = [0, 1, 2].map(|k| glam::Vec3::from_array(positions[t[k] as usize]));
+            let area_normal = (b - a).cross(c - a);
+            for &i in t {
+                normals[i as usize] += area_normal;
+            }
+        }
+        let normal = push(
+            normals
+                .iter()
+                .flat_map(|v| v.normalize_or(glam::Vec3::Y).to_array())
+                .flat_map(|f| f.to_le_bytes())
+                .collect(),
+            json!({"componentType": 5126, "count": n, "type": "VEC3"}),
+        );
+        let position = push(
+            positions
+                .iter()
+                .flatten()
+                .flat_map(|f| f.to_le_bytes())
+                .collect(),
+            json!({"componentType": 5126, "count": n, "type": "VEC3", "min": lo, "max": hi}),
+        );
+        let joints = push(
+            vertices
+                .iter()
+                .flat_map(|&v| mesh.joint_indices[v])
+                .flat_map(|j| j.to_le_bytes())
+                .collect(),
+            json!({"componentType": 5123, "count": n, "type": "VEC4"}),
+        );
+        let weights = push(
+            vertices
+                .iter()
+                .flat_map(|&v| mesh.joint_weights[v])
+                .flat_map(|w| w.to_le_bytes())
+                .collect(),
+            json!({"componentType": 5126, "count": n, "type": "VEC4"}),
+        );
+        let index = push(
+            indices.iter().flat_map(|i| i.to_le_bytes()).collect(),
+            json!({"componentType": 5125, "count": indices.len(), "type": "SCALAR"}),
+        );
+        meshes.push(json!({"name": PARTS[part], "primitives": [{
+            "attributes": {"POSITION": position, "NORMAL": normal, "JOINTS_0": joints, "WEIGHTS_0": weights},
+            "indices": index,
+        }]}));
+    }
+    let joints = rig.skeleton.joints();
+    let inverse_binds: Vec<u8> = joints
+        .iter()
+        .flat_map(|j| {
+            // Bind-space positions moved by -hips: the inverse bind follows.
+            let m = j.inverse_bind * glam::DAffine3::from_translation(hips);
+            glam::Mat4::from(m.as_affine3a()).to_cols_array()
+        })
+        .flat_map(|f| f.to_le_bytes())
+        .collect();
+    let ibm = push(
+        inverse_binds,
+        json!({"componentType": 5126, "count": joints.len(), "type": "MAT4"}),
+    );
+    let mut nodes: Vec<serde_json::Value> = joints
+        .iter()
+        .enumerate()
+        .map(|(j, joint)| {
+            let t = if joint.parent.is_some() {
+                rig.rest.local[j].translation
+            } else {
+                DVec3::ZERO // the root joint at the origin: the hips
+            };
+            let children: Vec<usize> = rig.skeleton.children(j).to_vec();
+            let mut node = json!({"name": joint.name, "translation": t.as_vec3().to_array()});
+            if !children.is_empty() {
+                node["children"] = json!(children);
+            }
+            node
+        })
+        .collect();
+    let first_part = nodes.len();
+    for (part, name) in PARTS.iter().enumerate() {
+        nodes.push(json!({"name": name, "mesh": part, "skin": 0}));
+    }
+    nodes.push(
+        json!({"name": "Character", "children": [0, first_part, first_part + 1, first_part + 2]}),
+    );
+    let root = nodes.len() - 1;
+    let document = json!({
+        "asset": {"version": "2.0", "generator": "bevy_wii_deform tests"},
+        "scene": 0,
+        "scenes": [{"nodes": [root]}],
+        "nodes": nodes,
+        "meshes": meshes,
+        "skins": [{"joints": (0..joints.len()).collect::<Vec<_>>(), "inverseBindMatrices": ibm, "skeleton": 0}],
+        "accessors": accessors,
+        "bufferViews": views,
+        "buffers": [{"byteLength": bin.len()}],
+    });
+    (
+        glb_container(serde_json::to_vec(&document).unwrap(), bin),
+        counts,
+    )
+}
+
+/// The model holds all three nodes' vertices, and a drag on the head bends the body (its
+/// vertices by the neck go a quarter of the way or more) with the seams between the nodes
+/// closed, while the pinned feet stay (within 1e-3 of the size) and the head follows the drag
+/// (within 10 %).
+#[test]
+fn a_character_of_several_mesh_nodes_poses_as_one() {
+    let rig = mannequin_rig(12);
+    let (glb, counts) = three_node_glb(&rig);
+    assert!(
+        counts.iter().all(|&c| c > 20),
+        "each part has vertices: {counts:?}"
+    );
+    let dir = std::env::temp_dir().join(format!("character_nodes_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("humanoid.glb"), glb).unwrap();
+    let (mut app, root) = common::character_app(&dir, "humanoid.glb", PosePlugin);
+    let posed = app.world().get::<PosedSkeleton>(root).unwrap().clone();
+    assert_eq!(posed.primitives.len(), 3, "one model from the three nodes");
+    let drawn = posed.skinned_positions();
+    assert_eq!(drawn.len(), counts.iter().sum::<usize>());
+    let skeleton = posed.model.skeleton();
+    let joint = |name: &str| posed.joints[skeleton.find(name).expect(name)];
+    let feet = vec![joint("ankle_l"), joint("ankle_r")];
+    app.world_mut()
+        .entity_mut(root)
+        .insert(PinnedJoints(feet.clone()));
+    let world_of =
+        |app: &App, e: Entity| app.world().get::<GlobalTransform>(e).unwrap().translation();
+    let feet_before: Vec<Vec3> = feet.iter().map(|&f| world_of(&app, f)).collect();
+    // The head: the highest vertices as drawn (the origin is at the hips: the head is at
+    // y ≈ 0.6-0.8 here, the feet below zero).
+    let size = posed.model.topology().bounding_diagonal() as f32;
+    let top = drawn.iter().map(|p| p.y).fold(f32::MIN, f32::max);
+    let head: Vec<u32> = (0..drawn.len() as u32)
+        .filter(|&i| drawn[i as usize].y > top - 0.1)
+        .collect();
+    assert!(
+        drawn.iter().any(|p| p.y < -0.5),
+        "the feet are below the origin"
+    );
+    let (handle, pivot) = spawn_handle(&mut app, root, head.clone(), ());
+    let shift = Vec3::new(0.12, -0.05, 0.0);
+    app.world_mut()
+        .get_mut::<Transform>(handle)
+        .unwrap()
+        .translation = pivot + shift;
+    drive_solves(&mut app, root, handle, 20);
+    settle_pose(&mut app, root);
+    let now = app
+        .world()
+        .get::<PosedSkeleton>(root)
+        .unwrap()
+        .skinned_positions();
+    let moved = head
+        .iter()
+        .map(|&i| now[i as usize] - drawn[i as usize])
+        .sum::<Vec3>()
+        / head.len() as f32;
+    assert!(
+        moved.distance(shift) < 0.1 * shift.length(),
+        "the head moved {moved}, the drag was {shift}"
+    );
+    for (f, before) in feet.iter().zip(&feet_before) {
+        let d = world_of(&app, *f).distance(*before);
+        assert!(d < 1e-3 * size, "a pinned foot moved {d} (size {size})");
+    }
+    // The body carries the head: its vertices near the neck moved with the drag, and the
+    // seams between the nodes stay closed (a vertex on a seam is in two nodes: both copies
+    // end up at one place).
+    let body = posed.primitives[0].1 as usize..posed.primitives[1].1 as usize;
+    let body_moved = body
+        .clone()
+        .map(|i| (now[i] - drawn[i]).dot(shift.normalize()))
+        .fold(f32::MIN, f32::max);
+    assert!(
+        body_moved > 0.25 * shift.length(),
+        "the body did not bend towards the drag (at most {body_moved})"
+    );
+    let mut seams = 0;
+    let mut worst_gap = 0.0f32;
+    for i in 0..drawn.len() {
+        for j in i + 1..drawn.len() {
+            if drawn[i].distance(drawn[j]) < 1e-6 {
+                seams += 1;
+                worst_gap = worst_gap.max(now[i].distance(now[j]));
+            }
+        }
+    }
+    assert!(seams > 10, "the parts share seam vertices ({seams})");
+    assert!(worst_gap < 1e-5, "a seam opened by {worst_gap}");
+}
