@@ -19,4 +19,5 @@ mod pose_ecs;
 mod pose_effectors_ecs;
 mod scene_roundtrip;
 mod wiimote_device;
+mod wiimote_ecs;
 mod wiimote_ir;
