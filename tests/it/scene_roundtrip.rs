@@ -113,3 +113,23 @@ fn a_scene_round_trip_keeps_handles_pins_and_controls_pointing_at_the_right_enti
         vec![new(foot)]
     );
 }
+
+/// `DeformConfig`'s accelerations (core types) are reflected: applying another config through
+/// reflection changes them, and its reflected fields name them.
+#[test]
+fn deform_config_reflects_its_accelerations() {
+    use bevy::reflect::structs::Struct;
+    use bevy_wii_deform::deform::Acceleration;
+    let mut app = common::app();
+    app.add_plugins(DeformPlugin::default());
+    let mut config = app.world().resource::<DeformConfig>().clone();
+    let mut other = config.clone();
+    other.acceleration = Acceleration::Anderson { depth: 5 };
+    other.settle_acceleration = Acceleration::None;
+    assert_ne!(config.acceleration, other.acceleration);
+    config.apply(other.as_partial_reflect());
+    assert_eq!(config.acceleration, Acceleration::Anderson { depth: 5 });
+    assert_eq!(config.settle_acceleration, Acceleration::None);
+    assert!(config.field("acceleration").is_some());
+    assert!(config.field("settle_acceleration").is_some());
+}

@@ -10,12 +10,37 @@ mod plugin;
 use bevy::asset::RenderAssetUsages;
 use bevy::mesh::{Indices, VertexAttributeValues};
 use bevy::prelude::*;
+use bevy::reflect::reflect_remote;
 use glam::DVec3;
 
 use crate::deform::{Acceleration, MeshError, PreviewRegion, RigidTransform, SolveError, centroid};
 
 pub(crate) use plugin::DeformState;
 pub use plugin::{DeformPlugin, DeformSystems};
+
+/// [`Acceleration`] (a core type, no Bevy) as the reflection of [`DeformConfig`] sees it, so
+/// inspectors and scenes show and edit it.
+#[reflect_remote(Acceleration)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum AccelerationReflect {
+    /// Plain local/global.
+    None,
+    /// Anderson acceleration.
+    Anderson {
+        /// Previous iterates combined.
+        depth: usize,
+    },
+    /// L-BFGS.
+    Lbfgs {
+        /// Curvature pairs kept.
+        depth: usize,
+    },
+    /// Truncated Newton.
+    Newton {
+        /// Conjugate-gradient steps per iteration at most.
+        max_cg: u32,
+    },
+}
 
 /// Project-wide deformation defaults, mirrored from [`DeformPlugin`]; change at run time.
 #[derive(Resource, Debug, Clone, Reflect)]
@@ -26,8 +51,8 @@ pub struct DeformConfig {
     /// Relative energy decrease below which a solve stops early.
     pub tolerance: f32,
     /// How the iterations are accelerated (L-BFGS by default: it settles in a fraction of the
-    /// plain iterations, see the interaction figures in docs/benchmarks.md). Not reflected (a core type).
-    #[reflect(ignore)]
+    /// plain iterations, see the interaction figures in docs/benchmarks.md).
+    #[reflect(remote = AccelerationReflect)]
     pub acceleration: Acceleration,
     /// After the handles stop moving, the plugin keeps iterating in the background with
     /// [`Self::settle_acceleration`] (warm-started solves of one Newton iteration, or
@@ -35,8 +60,8 @@ pub struct DeformConfig {
     /// have run, so a released pose settles instead of freezing half-converged (0 = never).
     pub settle_iterations: u32,
     /// The iterations that settle a released pose (truncated Newton by default: 7 iterations
-    /// on the 26k armadillo where L-BFGS needs ~167, see docs/benchmarks.md). Not reflected.
-    #[reflect(ignore)]
+    /// on the 26k armadillo where L-BFGS needs ~167, see docs/benchmarks.md).
+    #[reflect(remote = AccelerationReflect)]
     pub settle_acceleration: Acceleration,
     /// Where the first solve on a rest pose starts. When the handles move some vertex farther
     /// than this fraction of the mesh's bounding diagonal from rest (a loaded pose, a scripted
