@@ -9,7 +9,7 @@ use bevy::prelude::*;
 use bevy::tasks::{AsyncComputeTaskPool, Task, futures::check_ready};
 use bevy::window::FileDragAndDrop;
 use bevy::world_serialization::{WorldAssetRoot, WorldInstanceReady};
-use bevy_wii_deform::deform::TriMesh;
+use bevy_wii_deform::deform::{Topology, TriMesh};
 use bevy_wii_deform::prelude::*;
 use glam::{DAffine3, DVec3};
 
@@ -98,6 +98,8 @@ struct Merged {
     material: Option<Handle<StandardMaterial>>,
     /// Primitives that are not triangle lists with positions.
     skipped: usize,
+    /// Why primitives are broken.
+    errors: Vec<String>,
 }
 
 impl Merged {
@@ -200,6 +202,10 @@ fn prepare(
     AsyncComputeTaskPool::get().spawn(async move {
         let (mut mesh, look) = read()?;
         if !models::MODELS.contains(&request.name.as_str()) {
+            // A file: checked before it replaces the model (NaN or infinite positions, indices
+            // out of range, degenerate meshes get their reason on the status line).
+            Topology::new(&mesh.positions, &mesh.triangles)
+                .map_err(|e| format!("{}: {e}", request.name))?;
             mesh = normalise(mesh);
         }
         let target = request.task.as_ref().map(|(_, t)| t.target_pose(&mesh));
@@ -269,6 +275,7 @@ fn merge_spawned_scene(
     commands.entity(ready.entity).despawn();
     let name = request.name.clone();
     let read = move || match (merged.mesh.positions.is_empty(), merged.skipped) {
+        _ if !merged.errors.is_empty() => Err(format!("{name}: {}", merged.errors[0])),
         (true, 0) => Err(format!("{name}: no meshes in the scene")),
         (true, skipped) => Err(format!(
             "{name}: {skipped} primitive(s), none a triangle list with positions"
@@ -301,7 +308,8 @@ fn merge_below(
     if let Some(mesh) = mesh {
         let mesh = meshes.get(&mesh.0);
         match mesh.and_then(triangles_of) {
-            Some((positions, triangles)) => {
+            Some(Err(e)) => out.errors.push(e),
+            Some(Ok((positions, triangles))) => {
                 let base = out.mesh.positions.len() as u32;
                 out.mesh
                     .positions
@@ -328,8 +336,9 @@ fn merge_below(
     }
 }
 
-/// Positions and triangles of a triangle-list mesh with CPU-side positions.
-fn triangles_of(mesh: &Mesh) -> Option<(Vec<DVec3>, Vec<[u32; 3]>)> {
+/// Positions and triangles of a triangle-list mesh with CPU-side positions (`None`: not one);
+/// an index past the vertices is an error.
+fn triangles_of(mesh: &Mesh) -> Option<Result<(Vec<DVec3>, Vec<[u32; 3]>), String>> {
     if mesh.primitive_topology() != PrimitiveTopology::TriangleList {
         return None;
     }
@@ -342,13 +351,17 @@ fn triangles_of(mesh: &Mesh) -> Option<(Vec<DVec3>, Vec<[u32; 3]>)> {
         Some(Indices::U32(i)) => i.clone(),
         None => (0..n).collect(),
     };
+    if let Some(bad) = indices.iter().find(|&&i| i >= n) {
+        return Some(Err(format!(
+            "a primitive's index {bad} is past its {n} vertices"
+        )));
+    }
     let triangles = indices
         .chunks_exact(3)
-        .filter(|t| t.iter().all(|&i| i < n))
         .map(|t| [t[0], t[1], t[2]])
         .collect();
     let positions = p.iter().map(|q| Vec3::from_array(*q).as_dvec3()).collect();
-    Some((positions, triangles))
+    Some(Ok((positions, triangles)))
 }
 
 /// Normalises a model to stand on y = 0 with height ~1.8 (imported meshes vary wildly).
@@ -629,6 +642,73 @@ mod tests {
             let label = format!("{material_label}/test");
             let handle = load_context.get_label_handle::<StandardMaterial>(label);
             entity.insert(MeshMaterial3d(handle));
+        }
+    }
+
+    /// Broken glTF files loaded into the sandbox as a user drops them: each ends with a
+    /// message naming the file on the status line (the model kept), usable ones load, and
+    /// the app keeps running.
+    #[test]
+    fn broken_gltf_files_reach_the_status_line_and_the_app_runs_on() {
+        let (dir, files) = crate::broken_gltf::write_files("sandbox_broken_gltf");
+        let mut app = App::new();
+        app.add_plugins((
+            MinimalPlugins,
+            bevy::asset::AssetPlugin {
+                unapproved_path_mode: bevy::asset::UnapprovedPathMode::Allow,
+                ..default()
+            },
+            bevy::mesh::MeshPlugin,
+            bevy::transform::TransformPlugin,
+            bevy::image::ImagePlugin::default(),
+            bevy::world_serialization::WorldSerializationPlugin,
+            bevy::animation::AnimationPlugin,
+            bevy::gltf::GltfPlugin::default(),
+        ));
+        app.init_asset::<StandardMaterial>()
+            .init_resource::<Model>()
+            .init_resource::<StatusLine>()
+            .init_resource::<Selection>()
+            .init_resource::<History>()
+            .init_resource::<crate::camera::OrbitCamera>()
+            .insert_resource(TaskList(Vec::new()))
+            .add_message::<FileDragAndDrop>()
+            .add_message::<RegionsChanged>()
+            .add_message::<ChallengeSetup>()
+            .add_plugins(LoadingPlugin);
+        app.finish();
+        app.cleanup();
+        for (name, usable) in files {
+            let path = dir.join(name).display().to_string();
+            app.world_mut().write_message(LoadModel(path.clone()));
+            let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+            loop {
+                app.update();
+                let loading = app.world().resource::<Loading>();
+                if loading.job.is_none() && loading.queued.is_none() {
+                    break;
+                }
+                assert!(
+                    std::time::Instant::now() < deadline,
+                    "{name} never finished"
+                );
+                std::thread::yield_now();
+            }
+            let status = app.world().resource::<StatusLine>().0.clone();
+            let model = app.world().resource::<Model>().name.clone();
+            if usable {
+                assert_eq!(model, path, "{name} should load: {status}");
+            } else {
+                assert!(
+                    status.contains(name),
+                    "{name}: the status line says {status:?}"
+                );
+                assert_ne!(model, path, "{name} was loaded as a model");
+            }
+        }
+        // Still running.
+        for _ in 0..5 {
+            app.update();
         }
     }
 }

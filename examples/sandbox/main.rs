@@ -27,6 +27,9 @@
 //! Modes are Bevy [`States`]: [`EditMode`] (paint or pose), [`InputMethod`] (mouse or Wii
 //! Remote) and `ChallengeState` (off, running, done).
 
+#[cfg(test)]
+#[path = "../common/broken_gltf.rs"]
+mod broken_gltf;
 mod camera;
 mod challenge;
 mod files;

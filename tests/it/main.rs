@@ -2,6 +2,8 @@
 //! instead of once per file (each link is ~1.7 GB with debug info and half a minute on two
 //! cores). Run one module with `cargo test --test it pose_clip::`.
 
+#[path = "../../examples/common/broken_gltf.rs"]
+mod broken_gltf;
 mod common;
 
 mod character_grab;
