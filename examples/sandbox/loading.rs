@@ -336,9 +336,12 @@ fn merge_below(
     }
 }
 
+/// A primitive's positions and triangles.
+type Primitive = (Vec<DVec3>, Vec<[u32; 3]>);
+
 /// Positions and triangles of a triangle-list mesh with CPU-side positions (`None`: not one);
 /// an index past the vertices is an error.
-fn triangles_of(mesh: &Mesh) -> Option<Result<(Vec<DVec3>, Vec<[u32; 3]>), String>> {
+fn triangles_of(mesh: &Mesh) -> Option<Result<Primitive, String>> {
     if mesh.primitive_topology() != PrimitiveTopology::TriangleList {
         return None;
     }
