@@ -32,7 +32,7 @@ fn three_node_glb(rig: &SyntheticRig) -> (Vec<u8>, [usize; 3]) {
     let mut views = Vec::new();
     let mut accessors = Vec::new();
     let mut push = |bytes: Vec<u8>, accessor: serde_json::Value| {
-        while bin.len() % 4 != 0 {
+        while !bin.len().is_multiple_of(4) {
             bin.push(0);
         }
         views.push(json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": bytes.len()}));
