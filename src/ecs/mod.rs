@@ -4,28 +4,23 @@
 //! | plugin | what it adds | system sets |
 //! |---|---|---|
 //! | [`DeformPlugin`] | ARAP on [`Deformable`] meshes moved by [`DeformHandle`]s, solved in the `AsyncComputeTaskPool`, written back to the mesh asset | [`DeformSystems`] (`Update`: Prepare → Request → Poll → Writeback) |
-//! | [`WiimotePlugin`] | one entity per remote with a [`Wiimote`] component, messages, [`WiimoteHandleControl`] | [`WiimoteSystems`] (`PreUpdate`: Receive; `Update`: Control, before `DeformSystems::Request`) |
-//!
-//! | [`PosePlugin`] | posing rigged characters ([`Poseable`]): skinning-space ARAP solved for a skeleton pose, written to the joints | [`PoseSystems`] (`Update`: Prepare → Request → Poll after `DeformSystems::Request`; `PostUpdate`: Apply after `AnimationSystems`) |
+//! | [`PosePlugin`] | posing rigged characters ([`Poseable`]): skinning-space ARAP solved for a skeleton pose, written to the joints, blended over clips ([`PoseBlend`]), clips authored on a [`PoseTimeline`] | [`PoseSystems`] (`Update`: Prepare → Request → Poll → Timeline after `DeformSystems::Request`; `PostUpdate`: Apply after `AnimationSystems`, before propagation) |
+//! | [`GrabPlugin`] | press, drag, release on [`Grabbable`] meshes and characters through bevy_picking | runs before `DeformSystems::Request` |
+//! | [`MouseControlPlugin`] | [`MouseHandleControl`]: arcball and view-plane drags of a handle | `Update`, before `DeformSystems::Request` |
+//! | [`WiimotePlugin`], [`WiimoteControlPlugin`] | one entity per remote with a [`Wiimote`] component, messages; [`WiimoteHandleControl`] | [`WiimoteSystems`] (`PreUpdate`: Receive; `Update`: Control, before `DeformSystems::Request`) |
 //!
 //! [`WiiDeformPlugins`] adds them all.
 
-mod character;
 mod control;
 mod deform;
 mod grab;
+mod pose;
 mod scene;
 mod wiimote;
 
 use bevy::app::PluginGroupBuilder;
 use bevy::prelude::*;
 
-pub use character::{
-    GrabAnchor, HandlePositionOnly, JointMask, PinnedJoints, PoseBlend, PoseBlendMode,
-    PoseEffector, PoseEffectorKind, PoseFailed, PoseJointHandle, PoseLimits, PosePlugin,
-    PoseSolved, PoseStatus, PoseStiffness, PoseSystems, PoseTimeline, Poseable, PoseableError,
-    PosedSkeleton, SymmetricEditing,
-};
 pub use control::{
     MouseControlPlugin, MouseHandleControl, WiimoteControlPlugin, WiimoteHandleControl,
     arcball_rotation,
@@ -37,6 +32,12 @@ pub use deform::{
 pub use grab::{
     ActiveGrabs, GrabButton, GrabEnd, GrabHandle, GrabMove, GrabPlugin, GrabStart, GrabTwist,
     Grabbable,
+};
+pub use pose::{
+    GrabAnchor, HandlePositionOnly, JointMask, PinnedJoints, PoseBlend, PoseBlendMode,
+    PoseEffector, PoseEffectorKind, PoseFailed, PoseJointHandle, PoseLimits, PosePlugin,
+    PoseSolved, PoseStatus, PoseStiffness, PoseSystems, PoseTimeline, Poseable, PoseableError,
+    PosedSkeleton, SymmetricEditing,
 };
 pub use scene::{DeformableFrom, DeformableScene, MESH_WAIT_FRAMES};
 pub use wiimote::{

@@ -9,9 +9,9 @@ use bevy::picking::pointer::{PointerAction, PointerId, PointerInput};
 use bevy::prelude::*;
 
 use crate::deform::Topology;
-use crate::ecs::character::{GrabAnchor, HandlePositionOnly, PinnedJoints, PosedSkeleton};
 use crate::ecs::control::{arcball_rotation, turned_in_space, view_plane_motion};
 use crate::ecs::deform::{DeformHandle, DeformState, DeformSystems, Deformable, FixedRegion};
+use crate::ecs::pose::{GrabAnchor, HandlePositionOnly, PinnedJoints, PosedSkeleton};
 use crate::ecs::scene::DeformableFrom;
 
 use super::{
