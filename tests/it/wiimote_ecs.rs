@@ -1,8 +1,9 @@
-//! Two emulated Wii Remotes in one app, paced by the app's clock: each turns only its own
-//! handle, and Home recentres only the remote it is pressed on.
+//! `WiimotePlugin` + `WiimoteControlPlugin` headless with emulated remotes paced by the app's
+//! clock: turning a handle 1:1 in camera space, disconnects, a remote that cannot be opened,
+//! two remotes each on its own handle, Home's recentre.
 
 use std::sync::Arc;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use bevy::prelude::*;
 use bevy_wii_deform::prelude::*;
@@ -10,6 +11,7 @@ use bevy_wii_deform::wiimote::protocol::Buttons;
 use bevy_wii_deform::wiimote::{EmulatorClock, FnMotion, Still};
 use glam::{DQuat, DVec3};
 
+use crate::common::bar::*;
 use crate::common::{self, app};
 
 /// Two emulated remotes sharing the app's clock (10 ms per update), connected and
@@ -205,5 +207,265 @@ fn home_recentres_only_the_remote_it_is_pressed_on() {
     assert!(
         (now - 30.0).abs() < 1.5,
         "30° after the recentre reads {now}°"
+    );
+}
+
+/// A bar with a Wii Remote-controlled handle and one emulated remote paced by the app's clock
+/// (10 ms per update): no wall-clock sleeps, the remote's samples follow the stepped time.
+fn wiimote_app() -> (App, Entity, Entity) {
+    let mut app = app();
+    app.insert_resource(bevy::time::TimeUpdateStrategy::ManualDuration(
+        Duration::from_millis(10),
+    ));
+    let clock = bevy_wii_deform::wiimote::EmulatorClock::new();
+    app.add_plugins((
+        DeformPlugin::default(),
+        WiimotePlugin {
+            source: WiimoteSource::Emulator(vec![EmulatorConfig {
+                clock: Some(clock),
+                ..default()
+            }]),
+            ..default()
+        },
+        WiimoteControlPlugin,
+    ));
+    let (e, handle, _) = spawn_bar(&mut app);
+    app.world_mut()
+        .entity_mut(handle)
+        .insert(WiimoteHandleControl::default());
+    (app, e, handle)
+}
+
+/// The remote entity's state, once there is one.
+fn remote_state(app: &mut App) -> Option<Wiimote> {
+    let mut q = app.world_mut().query::<&Wiimote>();
+    q.iter(app.world()).next().cloned()
+}
+
+/// Steps the app until the remote has delivered samples up to `t` seconds (its own clock).
+fn update_until_sample(app: &mut App, t: f64) {
+    common::update_until(app, "the remote's samples", |a| {
+        remote_state(a).is_some_and(|w| w.timestamp_us as f64 * 1e-6 >= t)
+    });
+}
+
+#[test]
+fn an_emulated_remote_turns_a_handle_and_a_disconnect_keeps_the_pose() {
+    let (mut app, e, handle) = wiimote_app();
+    let controls = app.world().resource::<WiimoteEmulators>().0[0].clone();
+    controls.set_motion(Arc::new(Still(DQuat::IDENTITY)));
+    // Connect and calibrate at rest.
+    common::update_until(&mut app, "a calibrated remote", |a| {
+        remote_state(a).is_some_and(|w| {
+            w.connection == ConnectionState::Connected
+                && w.motion_plus
+                && matches!(w.calibration, WiimoteCalibration::Calibrated(_))
+        })
+    });
+    let remote = {
+        let mut q = app.world_mut().query_filtered::<Entity, With<Wiimote>>();
+        q.single(app.world()).expect("one remote entity")
+    };
+    // Grab with B, then yaw the remote (about its top axis = Bevy +Y) by 40° over 1 s of its
+    // own time, and hold still.
+    controls.set_buttons(Buttons(Buttons::B));
+    common::update_until(&mut app, "the grab", |a| {
+        a.world()
+            .get::<WiimoteHandleControl>(handle)
+            .unwrap()
+            .is_grabbing()
+    });
+    let t0 = remote_state(&mut app).unwrap().timestamp_us as f64 * 1e-6 + 0.1;
+    controls.set_motion(Arc::new(FnMotion(move |t: f64| {
+        let angle = ((t - t0) / 1.0).clamp(0.0, 1.0) * 40f64.to_radians();
+        (DQuat::from_rotation_z(angle), DVec3::ZERO)
+    })));
+    update_until_sample(&mut app, t0 + 1.5);
+    app.update();
+    let rot = app.world().get::<Transform>(handle).unwrap().rotation;
+    let (axis, angle) = rot.to_axis_angle();
+    // 1:1 within 1° (a gain of 0.9 would be 4° short).
+    assert!(
+        (angle.to_degrees() - 40.0).abs() < 1.0,
+        "handle turned {}° for 40°",
+        angle.to_degrees()
+    );
+    // About +Y (the remote's top axis), the same way: a reversed turn is 80° off. (The
+    // filter's tilt estimate of the emulated sensors leaves the axis ~1° off vertical.)
+    let want = Quat::from_rotation_y(40f32.to_radians());
+    assert!(
+        rot.angle_between(want) < 2f32.to_radians(),
+        "turned {}° about {axis}",
+        angle.to_degrees()
+    );
+    // Disconnect mid-drag (B still held): the state shows it, the last pose is kept.
+    controls.set_connected(false);
+    common::update_until(&mut app, "the disconnect", |a| {
+        a.world().get::<Wiimote>(remote).unwrap().connection == ConnectionState::Disconnected
+    });
+    let before = app.world().get::<Transform>(handle).unwrap().rotation;
+    for _ in 0..50 {
+        app.update();
+    }
+    assert_eq!(
+        app.world().get::<Transform>(handle).unwrap().rotation,
+        before
+    );
+    assert!(
+        !app.world()
+            .get::<WiimoteHandleControl>(handle)
+            .unwrap()
+            .is_grabbing()
+    );
+    for p in positions(&app, e) {
+        assert!(p.is_finite());
+    }
+    // It comes back on the same entity.
+    controls.set_connected(true);
+    common::update_until(&mut app, "the reconnect", |a| {
+        a.world().get::<Wiimote>(remote).unwrap().connection == ConnectionState::Connected
+    });
+}
+
+#[derive(Resource, Default)]
+struct SeenProblems(Vec<WiimoteProblem>);
+
+fn collect_problems(mut reader: MessageReader<WiimoteProblem>, mut seen: ResMut<SeenProblems>) {
+    seen.0.extend(reader.read().cloned());
+}
+
+#[test]
+fn a_remote_that_cannot_be_opened_reaches_a_message_and_its_entity() {
+    use bevy_wii_deform::wiimote::{EmulatorConfig, OpenErrorKind, RemoteProblem};
+    let mut app = app();
+    app.add_plugins(WiimotePlugin {
+        source: WiimoteSource::Emulator(vec![EmulatorConfig {
+            open_error: Some(OpenErrorKind::PermissionDenied),
+            ..Default::default()
+        }]),
+        ..Default::default()
+    });
+    app.init_resource::<SeenProblems>()
+        .add_systems(Update, collect_problems);
+    let expected = RemoteProblem::PermissionDenied {
+        node: "emulator:0".into(),
+    };
+    // The manager's thread reports at once; updates (no sleeping) until the message is read.
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while app.world().resource::<SeenProblems>().0.is_empty() {
+        assert!(Instant::now() < deadline, "no WiimoteProblem message");
+        app.update();
+        std::thread::yield_now();
+    }
+    app.update();
+    let seen = &app.world().resource::<SeenProblems>().0;
+    assert_eq!(seen.len(), 1, "reported once: {seen:?}");
+    assert_eq!(seen[0].problem, expected);
+    let entity = seen[0]
+        .entity
+        .expect("the problem names its remote's entity");
+    let remote = app.world().get::<Wiimote>(entity).expect("remote entity");
+    assert_eq!(remote.connection, ConnectionState::Unusable);
+    assert_eq!(remote.problems, vec![expected.clone()]);
+    assert_eq!(
+        app.world().resource::<WiimoteProblems>().0,
+        vec![expected.clone()]
+    );
+    assert!(expected.to_string().contains("udev"), "{expected}");
+}
+
+#[test]
+fn the_remote_turns_a_handle_one_to_one_in_camera_space_and_translates_only_while_grabbing() {
+    use bevy::time::TimeUpdateStrategy;
+    let mut app = app();
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_millis(
+        10,
+    )));
+    app.add_plugins(WiimoteControlPlugin);
+    // A camera turned 90° about Y (its right is world −Z): the remote's motion is mapped
+    // through the camera's frame, so this checks that mapping too.
+    let camera_rotation = Quat::from_rotation_y(std::f32::consts::FRAC_PI_2);
+    app.world_mut().spawn((
+        Camera3d::default(),
+        Transform::from_rotation(camera_rotation),
+    ));
+    let start = Quat::from_rotation_x(0.3);
+    let remote = app
+        .world_mut()
+        .spawn(Wiimote {
+            connection: ConnectionState::Connected,
+            orientation: start,
+            ..default()
+        })
+        .id();
+    let handle = app
+        .world_mut()
+        .spawn((Transform::default(), WiimoteHandleControl::default()))
+        .id();
+    let set = |app: &mut App, orientation: Quat, buttons: u16| {
+        let mut w = app.world_mut().get_mut::<Wiimote>(remote).unwrap();
+        w.orientation = orientation;
+        w.buttons = buttons;
+    };
+    app.update();
+    // Turning without B does nothing.
+    set(&mut app, Quat::from_rotation_y(0.5) * start, 0);
+    app.update();
+    assert_eq!(
+        app.world().get::<Transform>(handle).unwrap().rotation,
+        Quat::IDENTITY
+    );
+    // Grab, then turn the remote 40° about its world Y (relative to the grab).
+    set(&mut app, start, Buttons::B);
+    app.update();
+    let turn = Quat::from_rotation_y(40f32.to_radians());
+    set(&mut app, turn * start, Buttons::B);
+    app.update();
+    let got = app.world().get::<Transform>(handle).unwrap().rotation;
+    let want = camera_rotation * turn * camera_rotation.inverse();
+    let (axis, angle) = got.to_axis_angle();
+    assert!(
+        (angle.to_degrees() - 40.0).abs() < 0.4,
+        "turned {}° for a 40° turn of the remote",
+        angle.to_degrees()
+    );
+    assert!(got.angle_between(want) < 0.2f32.to_radians(), "axis {axis}");
+    // Released: the remote turns on, the handle keeps its pose (ratchet).
+    set(&mut app, Quat::from_rotation_y(1.2) * start, 0);
+    app.update();
+    assert!(
+        app.world()
+            .get::<Transform>(handle)
+            .unwrap()
+            .rotation
+            .angle_between(got)
+            < 1e-6
+    );
+    // D-pad right without B: no motion; with B: along the camera's right, speed × time.
+    set(&mut app, start, Buttons::RIGHT);
+    app.update();
+    assert_eq!(
+        app.world().get::<Transform>(handle).unwrap().translation,
+        Vec3::ZERO
+    );
+    set(&mut app, start, Buttons::RIGHT | Buttons::B);
+    for _ in 0..10 {
+        app.update();
+    }
+    let moved = app.world().get::<Transform>(handle).unwrap().translation;
+    let speed = WiimoteHandleControl::default().speed;
+    let expected = camera_rotation * Vec3::X * speed * 0.1;
+    assert!(
+        (moved - expected).length() < 0.01 * expected.length(),
+        "{moved} vs {expected}"
+    );
+    // Home ends the grab.
+    set(&mut app, start, Buttons::B | Buttons::HOME);
+    app.update();
+    assert!(
+        !app.world()
+            .get::<WiimoteHandleControl>(handle)
+            .unwrap()
+            .is_grabbing()
     );
 }

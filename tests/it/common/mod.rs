@@ -1,6 +1,7 @@
 //! Helpers shared by the integration tests.
 #![allow(dead_code)] // each test crate uses some of them
 
+pub mod bar;
 pub mod shared;
 
 use bevy::asset::RenderAssetUsages;
