@@ -1,324 +1,10 @@
-//! The deformation plugin: its system sets, and the systems that prepare meshes, start
-//! solves, collect them and write them back.
+//! Solving: constraints from handles and regions, background solves (latest wins), previews
+//! of large meshes, the whole-mesh factorization, settling a released pose.
 
-use std::sync::Arc;
-use std::sync::atomic::{AtomicU64, Ordering};
-
-use bevy::asset::RenderAssetUsages;
-use bevy::mesh::VertexAttributeValues;
-use bevy::prelude::*;
-use bevy::tasks::futures::check_ready;
-use bevy::tasks::{AsyncComputeTaskPool, Task};
-
-use super::{
-    DeformConfig, DeformError, DeformFailed, DeformHandle, DeformPhase, DeformSolved, DeformStatus,
-    Deformable, FixedRegion, mesh_positions,
-};
-use crate::deform::{
-    Acceleration, ArapSolver, Constraints, Handle as CoreHandle, InitialGuess, Preview,
-    PreviewRegion, Solution, SolveError, SolveOptions, SolveStats, SolverSettings, Topology,
-    WeightMode, centroid,
-};
-
-/// Ordered phases of the deformation systems, all in `Update` (chained in this order).
-#[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum DeformSystems {
-    /// New [`Deformable`] meshes: copy the mesh asset per instance and start building the
-    /// topology in the background.
-    Prepare,
-    /// Collect handle transforms and fixed regions; start a solve task when something changed
-    /// and none is running (latest wins: a running stale solve is cancelled at its next
-    /// iteration). Put systems that move handles *before* this set.
-    Request,
-    /// Poll finished tasks; send [`DeformSolved`] / [`DeformFailed`].
-    Poll,
-    /// Write solved positions, normals and tangents into the mesh assets (before
-    /// `PostUpdate`, so bounds and extraction see them this frame).
-    Writeback,
-}
-/// Adds ARAP deformation of [`Deformable`] meshes driven by [`DeformHandle`] entities.
-#[derive(Debug, Clone)]
-pub struct DeformPlugin {
-    /// Default iterations per solve (warm-started solves need few).
-    pub max_iterations: u32,
-    /// Default tolerance.
-    pub tolerance: f32,
-    /// Default acceleration ([`DeformConfig::acceleration`]).
-    pub acceleration: Acceleration,
-    /// Default settling budget ([`DeformConfig::settle_iterations`]).
-    pub settle_iterations: u32,
-    /// Default settling iterations ([`DeformConfig::settle_acceleration`]).
-    pub settle_acceleration: Acceleration,
-    /// Default start rule ([`DeformConfig::laplacian_start_displacement`]).
-    pub laplacian_start_displacement: f32,
-    /// Default first pose of a new constraint set on a large mesh ([`DeformConfig::preview`]).
-    pub preview: Option<PreviewRegion>,
-}
-
-impl Default for DeformPlugin {
-    fn default() -> Self {
-        Self {
-            max_iterations: 4,
-            tolerance: 1e-3,
-            acceleration: Acceleration::Lbfgs { depth: 8 },
-            settle_iterations: 40,
-            settle_acceleration: Acceleration::Newton { max_cg: 30 },
-            laplacian_start_displacement: 0.05,
-            preview: Some(PreviewRegion::default()),
-        }
-    }
-}
-
-impl Plugin for DeformPlugin {
-    fn build(&self, app: &mut App) {
-        app.insert_resource(DeformConfig {
-            max_iterations: self.max_iterations,
-            tolerance: self.tolerance,
-            acceleration: self.acceleration,
-            settle_iterations: self.settle_iterations,
-            settle_acceleration: self.settle_acceleration,
-            laplacian_start_displacement: self.laplacian_start_displacement,
-            preview: self.preview,
-        })
-        .register_type::<Deformable>()
-        .register_type::<FixedRegion>()
-        .register_type::<DeformHandle>()
-        .register_type::<DeformStatus>()
-        .register_type::<DeformConfig>()
-        .register_type::<crate::ecs::scene::DeformableScene>()
-        .register_type::<crate::ecs::scene::DeformableFrom>()
-        .add_observer(crate::ecs::scene::mark_scene_spawned)
-        .add_message::<DeformSolved>()
-        .add_message::<DeformFailed>()
-        .configure_sets(
-            Update,
-            (
-                DeformSystems::Prepare,
-                DeformSystems::Request,
-                DeformSystems::Poll,
-                DeformSystems::Writeback,
-            )
-                .chain(),
-        )
-        .add_systems(
-            Update,
-            (
-                (
-                    crate::ecs::scene::expand_deformable_ancestors,
-                    crate::ecs::scene::sync_deformable_ancestors,
-                    prepare_deformables,
-                )
-                    .chain()
-                    .in_set(DeformSystems::Prepare),
-                request_solves.in_set(DeformSystems::Request),
-                poll_tasks.in_set(DeformSystems::Poll),
-                write_back.in_set(DeformSystems::Writeback),
-            ),
-        );
-    }
-}
-/// Rest data of a prepared mesh.
-struct Rest {
-    topology: Arc<Topology>,
-    normals: Option<Vec<Vec3>>,
-    tangents: Option<Vec<Vec4>>,
-}
-
-/// What a solve task produced.
-struct Solved {
-    solver: Arc<ArapSolver>,
-    solution: Arc<Solution>,
-    pose: RenderPose,
-    /// The preview `solver` belongs to, when the pose is one ([`DeformConfig::preview`]).
-    preview: Option<Arc<Preview>>,
-}
-
-struct SolveOutput {
-    result: Result<Solved, SolveError>,
-    ms: f64,
-    /// The constraints solved for (a settling solve reuses them).
-    constraints: Constraints,
-    /// The solve ran all its iterations without meeting the tolerance or being cancelled.
-    unsettled: bool,
-}
-
-/// Render-ordered attributes ready to copy into the mesh.
-struct RenderPose {
-    positions: Vec<[f32; 3]>,
-    normals: Option<Vec<[f32; 3]>>,
-    tangents: Option<Vec<[f32; 4]>>,
-}
-
-/// Internal per-deformable state (not reflected).
-#[derive(Component)]
-pub(crate) struct DeformState {
-    rest: Option<Arc<Rest>>,
-    building: Option<Task<Result<Rest, DeformError>>>,
-    solver: Option<Arc<ArapSolver>>,
-    last: Option<Arc<Solution>>,
-    task: Option<Task<SolveOutput>>,
-    requested: Arc<AtomicU64>,
-    pending: Option<Constraints>,
-    ready: Option<RenderPose>,
-    attempted: bool,
-    /// Settling iterations left since the handles last changed.
-    settle_left: u32,
-    /// The preview of the current constraint sets and its solver, while the whole mesh is
-    /// factored ([`DeformConfig::preview`]).
-    preview: Option<(Arc<Preview>, Arc<ArapSolver>)>,
-    /// The whole mesh's factorization after a preview, in the background, and the
-    /// constraints it is for.
-    factoring: Option<(Constraints, Task<Result<ArapSolver, SolveError>>)>,
-    /// The constraints of the latest solve started (what a finished factorization resumes).
-    latest: Option<Constraints>,
-}
-
-impl DeformState {
-    /// The welded topology of the rest pose, once prepared.
-    pub(crate) fn topology(&self) -> Option<&Arc<Topology>> {
-        self.rest.as_ref().map(|r| &r.topology)
-    }
-
-    /// Makes the mesh's current pose its rest pose: the deformable is prepared again, keeping
-    /// the weld and adjacency of this rest pose when it has one ([`Topology::rebased`]).
-    pub(crate) fn bake(&self, entity: Entity, commands: &mut Commands) {
-        let mut entity = commands.entity(entity);
-        entity.try_remove::<DeformState>();
-        if let Some(topology) = self.topology() {
-            entity.try_insert(PreviousTopology(topology.clone()));
-        }
-    }
-}
-
-/// The topology of a baked rest pose, reused (same weld and adjacency, new weights) when the
-/// deformable is prepared again.
-#[derive(Component)]
-struct PreviousTopology(Arc<Topology>);
-
-#[allow(clippy::type_complexity)]
-fn prepare_deformables(
-    mut commands: Commands,
-    mut meshes: ResMut<Assets<Mesh>>,
-    mut new: Query<
-        (
-            Entity,
-            &mut Mesh3d,
-            &mut DeformStatus,
-            Option<&PreviousTopology>,
-        ),
-        (With<Deformable>, Without<DeformState>),
-    >,
-    mut building: Query<(Entity, &mut DeformState, &mut DeformStatus)>,
-    mut failed: MessageWriter<DeformFailed>,
-) {
-    for (entity, mut mesh3d, mut status, previous) in &mut new {
-        let Some(mesh) = meshes.get(&mesh3d.0) else {
-            continue; // not loaded yet
-        };
-        let previous = previous.map(|p| p.0.clone());
-        commands.entity(entity).try_remove::<PreviousTopology>();
-        let topology = mesh.primitive_topology();
-        let triangles = topology == bevy::mesh::PrimitiveTopology::TriangleList;
-        // Copy per instance: glTF entities may share one mesh asset.
-        let mut copy = mesh.clone();
-        let positions = mesh_positions(&copy);
-        let indices: Option<Vec<u32>> = copy
-            .try_indices()
-            .ok()
-            .map(|i| i.iter().map(|x| x as u32).collect());
-        let normals = match copy.try_attribute(Mesh::ATTRIBUTE_NORMAL) {
-            Ok(VertexAttributeValues::Float32x3(v)) => {
-                Some(v.iter().map(|p| Vec3::from_array(*p)).collect::<Vec<_>>())
-            }
-            _ => None,
-        };
-        // A file's NaN or zero normals never reach the mesh: those are recomputed from the
-        // surface (area-weighted face normals).
-        let normals = match (normals, &positions, &indices) {
-            (Some(n), Some(p), i) if n.len() == p.len() && n.iter().any(|v| !is_unit_like(*v)) => {
-                let unindexed = || (0..p.len() as u32).collect::<Vec<_>>();
-                let repaired = repair_normals(p, &i.clone().unwrap_or_else(unindexed), &n);
-                copy.insert_attribute(
-                    Mesh::ATTRIBUTE_NORMAL,
-                    repaired.iter().map(|v| v.to_array()).collect::<Vec<_>>(),
-                );
-                Some(repaired)
-            }
-            (n, _, _) => n,
-        };
-        let tangents = match copy.try_attribute(Mesh::ATTRIBUTE_TANGENT) {
-            Ok(VertexAttributeValues::Float32x4(v)) => {
-                Some(v.iter().map(|p| Vec4::from_array(*p)).collect())
-            }
-            _ => None,
-        };
-        copy.asset_usage = RenderAssetUsages::default();
-        mesh3d.0 = meshes.add(copy);
-        let task = AsyncComputeTaskPool::get().spawn(async move {
-            if !triangles {
-                return Err(DeformError::NotTriangleList(format!("{topology:?}")));
-            }
-            let positions = positions.ok_or(DeformError::NoPositions)?;
-            let indices = match indices {
-                Some(i) => i,
-                None => (0..positions.len() as u32).collect(),
-            };
-            // A baked pose of the same mesh keeps its weld; anything else is built afresh.
-            let topology = match previous.map(|p| p.rebased(&positions, &indices)) {
-                Some(Ok(rebased)) => rebased,
-                _ => Topology::from_render_mesh(&positions, &indices)?,
-            };
-            // Here, off the path of a first grab: every constraint set restricts it.
-            topology.prepare_elimination_order();
-            Ok(Rest {
-                topology: Arc::new(topology),
-                normals,
-                tangents,
-            })
-        });
-        status.phase = DeformPhase::BuildingTopology;
-        commands.entity(entity).try_insert(DeformState {
-            rest: None,
-            building: Some(task),
-            solver: None,
-            last: None,
-            task: None,
-            requested: Arc::new(AtomicU64::new(0)),
-            pending: None,
-            ready: None,
-            attempted: false,
-            settle_left: 0,
-            preview: None,
-            factoring: None,
-            latest: None,
-        });
-    }
-    for (entity, mut state, mut status) in &mut building {
-        let state = state.bypass_change_detection();
-        let Some(task) = state.building.as_mut() else {
-            continue;
-        };
-        if let Some(result) = check_ready(task) {
-            state.building = None;
-            match result {
-                Ok(rest) => {
-                    status.vertices = rest.topology.vertex_count();
-                    status.phase = DeformPhase::Idle;
-                    state.rest = Some(Arc::new(rest));
-                }
-                Err(error) => {
-                    warn!("Deformable {entity}: {error}");
-                    status.phase = DeformPhase::Failed;
-                    status.error = Some(error.clone());
-                    failed.write(DeformFailed { entity, error });
-                }
-            }
-        }
-    }
-}
+use super::*;
 
 /// Builds core constraints (welded indices) for one deformable.
-fn build_constraints(
+pub(super) fn build_constraints(
     topology: &Topology,
     fixed: Option<&FixedRegion>,
     handles: &[(&DeformHandle, &Transform)],
@@ -337,7 +23,7 @@ fn build_constraints(
 }
 
 #[allow(clippy::type_complexity)]
-fn request_solves(
+pub(super) fn request_solves(
     config: Res<DeformConfig>,
     mut deformables: Query<(
         Entity,
@@ -417,7 +103,7 @@ fn request_solves(
 
 /// Starts a solve of the pending constraints (`settling`: the handles have not changed since
 /// the last solve, which did not converge).
-fn spawn_solve(
+pub(super) fn spawn_solve(
     state: &mut DeformState,
     rest: &Arc<Rest>,
     deformable: &Deformable,
@@ -548,7 +234,7 @@ const SETTLED_ENERGY: f64 = 1e-14;
 
 /// Whether a solve stopped short of convergence: it ran all its iterations (no cancel, no
 /// tolerance stop) and its last iteration still lowered the energy noticeably.
-fn still_converging(stats: &SolveStats, options: &SolveOptions) -> bool {
+pub(super) fn still_converging(stats: &SolveStats, options: &SolveOptions) -> bool {
     if stats.iterations < options.max_iterations || stats.cancelled {
         return false;
     }
@@ -565,7 +251,7 @@ fn still_converging(stats: &SolveStats, options: &SolveOptions) -> bool {
 }
 
 /// The solver settings a [`Deformable`] asks for (welded region-of-interest mask).
-fn solver_settings(deformable: &Deformable, topology: &Topology) -> SolverSettings {
+pub(super) fn solver_settings(deformable: &Deformable, topology: &Topology) -> SolverSettings {
     SolverSettings {
         weights: if deformable.raw_cotangent_weights {
             WeightMode::RawCotangent
@@ -584,7 +270,7 @@ fn solver_settings(deformable: &Deformable, topology: &Topology) -> SolverSettin
 }
 
 /// Positions, rotated rest normals and tangents in render order (f32), validated finite.
-fn render_pose(rest: &Rest, solution: &Solution) -> RenderPose {
+pub(super) fn render_pose(rest: &Rest, solution: &Solution) -> RenderPose {
     let map = rest.topology.render_to_welded();
     let positions: Vec<[f32; 3]> = map
         .iter()
@@ -613,7 +299,7 @@ fn render_pose(rest: &Rest, solution: &Solution) -> RenderPose {
     }
 }
 
-fn finite(pose: &RenderPose) -> bool {
+pub(super) fn finite(pose: &RenderPose) -> bool {
     pose.positions.iter().flatten().all(|x| x.is_finite())
         && pose
             .normals
@@ -629,7 +315,7 @@ fn finite(pose: &RenderPose) -> bool {
             .all(|x| x.is_finite())
 }
 
-fn poll_tasks(
+pub(super) fn poll_tasks(
     config: Res<DeformConfig>,
     mut deformables: Query<(Entity, &Deformable, &mut DeformState, &mut DeformStatus)>,
     mut solved: MessageWriter<DeformSolved>,
@@ -713,7 +399,11 @@ fn poll_tasks(
 
 /// After a preview of `constraints`: factor the whole mesh for them in the background,
 /// unless that is done or under way.
-fn factor_whole_mesh(state: &mut DeformState, deformable: &Deformable, constraints: &Constraints) {
+pub(super) fn factor_whole_mesh(
+    state: &mut DeformState,
+    deformable: &Deformable,
+    constraints: &Constraints,
+) {
     let Some(rest) = state.rest.clone() else {
         return;
     };
@@ -738,7 +428,7 @@ fn factor_whole_mesh(state: &mut DeformState, deformable: &Deformable, constrain
 
 /// A finished whole-mesh factorization replaces the preview and solves the latest
 /// constraints from the displayed pose (at once, or when the running solve lands).
-fn poll_factoring(
+pub(super) fn poll_factoring(
     entity: Entity,
     deformable: &Deformable,
     config: &DeformConfig,
@@ -781,70 +471,4 @@ fn poll_factoring(
             failed.write(DeformFailed { entity, error });
         }
     }
-}
-
-/// Number of values of a vertex attribute, if present.
-fn attribute_len(mesh: &Mesh, id: bevy::mesh::MeshVertexAttribute) -> Option<usize> {
-    mesh.try_attribute(id).ok().map(|v| v.len())
-}
-
-fn write_back(mut meshes: ResMut<Assets<Mesh>>, mut q: Query<(&Mesh3d, &mut DeformState)>) {
-    for (mesh3d, mut state) in &mut q {
-        let state = state.bypass_change_detection();
-        let Some(pose) = state.ready.take() else {
-            continue;
-        };
-        let Some(mut mesh) = meshes.get_mut(&mesh3d.0) else {
-            continue;
-        };
-        // The worker built whole attribute buffers: move them in (no per-vertex copy on the
-        // main thread), but only over attributes of the same length.
-        if attribute_len(&mesh, Mesh::ATTRIBUTE_POSITION) == Some(pose.positions.len()) {
-            let _ = mesh.try_insert_attribute(Mesh::ATTRIBUTE_POSITION, pose.positions);
-        }
-        if let Some(n) = pose.normals
-            && attribute_len(&mesh, Mesh::ATTRIBUTE_NORMAL) == Some(n.len())
-        {
-            let _ = mesh.try_insert_attribute(Mesh::ATTRIBUTE_NORMAL, n);
-        }
-        if let Some(t) = pose.tangents
-            && attribute_len(&mesh, Mesh::ATTRIBUTE_TANGENT) == Some(t.len())
-        {
-            let _ = mesh.try_insert_attribute(Mesh::ATTRIBUTE_TANGENT, t);
-        }
-    }
-}
-
-/// Whether a normal can be used: finite and not (nearly) zero.
-fn is_unit_like(n: Vec3) -> bool {
-    n.is_finite() && n.length_squared() > 1e-12
-}
-
-/// `normals` with every unusable one (NaN, infinite, zero) replaced by the area-weighted
-/// normal of the triangles around its vertex (or +Y where those are degenerate too).
-fn repair_normals(positions: &[Vec3], indices: &[u32], normals: &[Vec3]) -> Vec<Vec3> {
-    let mut summed = vec![Vec3::ZERO; positions.len()];
-    for t in indices.chunks_exact(3) {
-        let [a, b, c] = [t[0], t[1], t[2]].map(|i| i as usize);
-        if a.max(b).max(c) >= positions.len() {
-            continue; // bad indices fail later with a typed error
-        }
-        let face = (positions[b] - positions[a]).cross(positions[c] - positions[a]);
-        if face.is_finite() {
-            for v in [a, b, c] {
-                summed[v] += face;
-            }
-        }
-    }
-    normals
-        .iter()
-        .zip(summed)
-        .map(|(&n, s)| {
-            if is_unit_like(n) {
-                n
-            } else {
-                s.try_normalize().unwrap_or(Vec3::Y)
-            }
-        })
-        .collect()
 }

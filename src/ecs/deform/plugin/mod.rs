@@ -1,0 +1,203 @@
+//! The deformation plugin: its system sets, and the systems that prepare meshes, start
+//! solves, collect them and write them back.
+
+mod prepare;
+mod solve;
+mod writeback;
+
+use prepare::*;
+use solve::*;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use writeback::*;
+
+use bevy::asset::RenderAssetUsages;
+use bevy::mesh::VertexAttributeValues;
+use bevy::prelude::*;
+use bevy::tasks::futures::check_ready;
+use bevy::tasks::{AsyncComputeTaskPool, Task};
+
+use super::{
+    DeformConfig, DeformError, DeformFailed, DeformHandle, DeformPhase, DeformSolved, DeformStatus,
+    Deformable, FixedRegion, mesh_positions,
+};
+use crate::deform::{
+    Acceleration, ArapSolver, Constraints, Handle as CoreHandle, InitialGuess, Preview,
+    PreviewRegion, Solution, SolveError, SolveOptions, SolveStats, SolverSettings, Topology,
+    WeightMode, centroid,
+};
+
+/// Ordered phases of the deformation systems, all in `Update` (chained in this order).
+#[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum DeformSystems {
+    /// New [`Deformable`] meshes: copy the mesh asset per instance and start building the
+    /// topology in the background.
+    Prepare,
+    /// Collect handle transforms and fixed regions; start a solve task when something changed
+    /// and none is running (latest wins: a running stale solve is cancelled at its next
+    /// iteration). Put systems that move handles *before* this set.
+    Request,
+    /// Poll finished tasks; send [`DeformSolved`] / [`DeformFailed`].
+    Poll,
+    /// Write solved positions, normals and tangents into the mesh assets (before
+    /// `PostUpdate`, so bounds and extraction see them this frame).
+    Writeback,
+}
+/// Adds ARAP deformation of [`Deformable`] meshes driven by [`DeformHandle`] entities.
+#[derive(Debug, Clone)]
+pub struct DeformPlugin {
+    /// Default iterations per solve (warm-started solves need few).
+    pub max_iterations: u32,
+    /// Default tolerance.
+    pub tolerance: f32,
+    /// Default acceleration ([`DeformConfig::acceleration`]).
+    pub acceleration: Acceleration,
+    /// Default settling budget ([`DeformConfig::settle_iterations`]).
+    pub settle_iterations: u32,
+    /// Default settling iterations ([`DeformConfig::settle_acceleration`]).
+    pub settle_acceleration: Acceleration,
+    /// Default start rule ([`DeformConfig::laplacian_start_displacement`]).
+    pub laplacian_start_displacement: f32,
+    /// Default first pose of a new constraint set on a large mesh ([`DeformConfig::preview`]).
+    pub preview: Option<PreviewRegion>,
+}
+
+impl Default for DeformPlugin {
+    fn default() -> Self {
+        Self {
+            max_iterations: 4,
+            tolerance: 1e-3,
+            acceleration: Acceleration::Lbfgs { depth: 8 },
+            settle_iterations: 40,
+            settle_acceleration: Acceleration::Newton { max_cg: 30 },
+            laplacian_start_displacement: 0.05,
+            preview: Some(PreviewRegion::default()),
+        }
+    }
+}
+
+impl Plugin for DeformPlugin {
+    fn build(&self, app: &mut App) {
+        app.insert_resource(DeformConfig {
+            max_iterations: self.max_iterations,
+            tolerance: self.tolerance,
+            acceleration: self.acceleration,
+            settle_iterations: self.settle_iterations,
+            settle_acceleration: self.settle_acceleration,
+            laplacian_start_displacement: self.laplacian_start_displacement,
+            preview: self.preview,
+        })
+        .register_type::<Deformable>()
+        .register_type::<FixedRegion>()
+        .register_type::<DeformHandle>()
+        .register_type::<DeformStatus>()
+        .register_type::<DeformConfig>()
+        .register_type::<crate::ecs::scene::DeformableScene>()
+        .register_type::<crate::ecs::scene::DeformableFrom>()
+        .add_observer(crate::ecs::scene::mark_scene_spawned)
+        .add_message::<DeformSolved>()
+        .add_message::<DeformFailed>()
+        .configure_sets(
+            Update,
+            (
+                DeformSystems::Prepare,
+                DeformSystems::Request,
+                DeformSystems::Poll,
+                DeformSystems::Writeback,
+            )
+                .chain(),
+        )
+        .add_systems(
+            Update,
+            (
+                (
+                    crate::ecs::scene::expand_deformable_ancestors,
+                    crate::ecs::scene::sync_deformable_ancestors,
+                    prepare_deformables,
+                )
+                    .chain()
+                    .in_set(DeformSystems::Prepare),
+                request_solves.in_set(DeformSystems::Request),
+                poll_tasks.in_set(DeformSystems::Poll),
+                write_back.in_set(DeformSystems::Writeback),
+            ),
+        );
+    }
+}
+/// Rest data of a prepared mesh.
+struct Rest {
+    topology: Arc<Topology>,
+    normals: Option<Vec<Vec3>>,
+    tangents: Option<Vec<Vec4>>,
+}
+
+/// What a solve task produced.
+struct Solved {
+    solver: Arc<ArapSolver>,
+    solution: Arc<Solution>,
+    pose: RenderPose,
+    /// The preview `solver` belongs to, when the pose is one ([`DeformConfig::preview`]).
+    preview: Option<Arc<Preview>>,
+}
+
+struct SolveOutput {
+    result: Result<Solved, SolveError>,
+    ms: f64,
+    /// The constraints solved for (a settling solve reuses them).
+    constraints: Constraints,
+    /// The solve ran all its iterations without meeting the tolerance or being cancelled.
+    unsettled: bool,
+}
+
+/// Render-ordered attributes ready to copy into the mesh.
+struct RenderPose {
+    positions: Vec<[f32; 3]>,
+    normals: Option<Vec<[f32; 3]>>,
+    tangents: Option<Vec<[f32; 4]>>,
+}
+
+/// Internal per-deformable state (not reflected).
+#[derive(Component)]
+pub(crate) struct DeformState {
+    rest: Option<Arc<Rest>>,
+    building: Option<Task<Result<Rest, DeformError>>>,
+    solver: Option<Arc<ArapSolver>>,
+    last: Option<Arc<Solution>>,
+    task: Option<Task<SolveOutput>>,
+    requested: Arc<AtomicU64>,
+    pending: Option<Constraints>,
+    ready: Option<RenderPose>,
+    attempted: bool,
+    /// Settling iterations left since the handles last changed.
+    settle_left: u32,
+    /// The preview of the current constraint sets and its solver, while the whole mesh is
+    /// factored ([`DeformConfig::preview`]).
+    preview: Option<(Arc<Preview>, Arc<ArapSolver>)>,
+    /// The whole mesh's factorization after a preview, in the background, and the
+    /// constraints it is for.
+    factoring: Option<(Constraints, Task<Result<ArapSolver, SolveError>>)>,
+    /// The constraints of the latest solve started (what a finished factorization resumes).
+    latest: Option<Constraints>,
+}
+
+impl DeformState {
+    /// The welded topology of the rest pose, once prepared.
+    pub(crate) fn topology(&self) -> Option<&Arc<Topology>> {
+        self.rest.as_ref().map(|r| &r.topology)
+    }
+
+    /// Makes the mesh's current pose its rest pose: the deformable is prepared again, keeping
+    /// the weld and adjacency of this rest pose when it has one ([`Topology::rebased`]).
+    pub(crate) fn bake(&self, entity: Entity, commands: &mut Commands) {
+        let mut entity = commands.entity(entity);
+        entity.try_remove::<DeformState>();
+        if let Some(topology) = self.topology() {
+            entity.try_insert(PreviousTopology(topology.clone()));
+        }
+    }
+}
+
+/// The topology of a baked rest pose, reused (same weld and adjacency, new weights) when the
+/// deformable is prepared again.
+#[derive(Component)]
+struct PreviousTopology(Arc<Topology>);
