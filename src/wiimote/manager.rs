@@ -422,6 +422,9 @@ fn forward<T: Transport>(id: RemoteId, session: &mut Session<T>, tx: &Sender<Man
             SessionEvent::MotionPlus(state) => ManagerEvent::MotionPlus { id, state },
             SessionEvent::Nunchuk(frame) => ManagerEvent::Nunchuk { id, frame },
             SessionEvent::Imu(_) => continue,
+            // The manager does not start the IR camera (yet): the pointer's ECS side is to
+            // come, and a camera streaming costs report bandwidth for nothing.
+            SessionEvent::Ir { .. } => continue,
         };
         send(tx, m);
     }

@@ -35,7 +35,8 @@ mod transport;
 
 pub use diagnosis::{LinuxDevices, OpenErrorKind, RemoteProblem};
 pub use emulator::{
-    EmulatedRemote, EmulatorClock, EmulatorConfig, EmulatorControls, SensorModel, Variant,
+    EmulatedBar, EmulatedRemote, EmulatorClock, EmulatorConfig, EmulatorControls, SensorModel,
+    Variant,
 };
 pub use filter::{
     Calibration, CalibrationPhase, FilterKind, FusionFilter, ImuSample, OrientationFilter,

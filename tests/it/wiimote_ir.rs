@@ -308,3 +308,74 @@ fn the_init_sequence_reaches_the_emulated_camera_and_a_silent_camera_is_a_typed_
         "no orientation after the camera failed"
     );
 }
+
+/// The emulated camera streams the bar's dots in report 0x37 once the session started it
+/// (none before): the dots are the camera model's projection of the emulated pose, the pointer
+/// lands within 1 % of where the remote aims, and the MotionPlus keeps streaming beside them.
+#[test]
+fn an_emulated_remote_streams_the_bar_in_report_0x37_and_points_where_it_aims() {
+    use bevy_wii_deform::wiimote::{EmulatedBar, EmulatorControls, Still};
+    use std::sync::Arc;
+    let setup = PointerSetup::default();
+    let position = DVec3::new(0.1, 0.3, 0.0);
+    let spot = DVec2::new(0.3, 0.4);
+    let q = aiming(position, setup.screen_point(spot), 20f64.to_radians());
+    let controls = EmulatorControls::default();
+    controls.set_motion(Arc::new(Still(q)));
+    let config = EmulatorConfig {
+        sensor_bar: Some(EmulatedBar {
+            setup,
+            position,
+            noise_px: 0.0,
+        }),
+        ..Default::default()
+    };
+    let mut s = Session::new(
+        EmulatedRemote::with_controls(config, controls),
+        SessionConfig::default(),
+    );
+    s.connect().expect("handshake");
+    let run = |s: &mut Session<EmulatedRemote>| {
+        for _ in 0..40 {
+            s.poll(20).expect("poll");
+        }
+        s.drain_events().collect::<Vec<_>>()
+    };
+    let before = run(&mut s);
+    assert!(
+        !before.iter().any(|e| matches!(e, SessionEvent::Ir { .. })),
+        "dots before the camera was started"
+    );
+    s.enable_ir(IrMode::Basic, IrSensitivity::Level3)
+        .expect("the camera answers");
+    let after = run(&mut s);
+    let dots: Vec<IrDots> = after
+        .iter()
+        .filter_map(|e| match e {
+            SessionEvent::Ir { dots, .. } => Some(*dots),
+            _ => None,
+        })
+        .collect();
+    assert!(dots.len() > 20, "{} IR reports", dots.len());
+    let expected = IrCamera::default().project(&setup, position, q);
+    let last = dots.last().unwrap();
+    for (got, want) in last.iter().zip(&expected) {
+        assert_eq!(
+            got.map(|d| (d.x, d.y)),
+            want.map(|d| (d.x, d.y)),
+            "the streamed dots are the projection"
+        );
+    }
+    let pointer = setup.pointed_at(last, gravity(q)).expect("the bar in view");
+    assert!(
+        (pointer - spot).length() < 0.01,
+        "aimed at {spot}, the pointer is at {pointer}"
+    );
+    assert!(
+        after
+            .iter()
+            .any(|e| matches!(e, SessionEvent::Orientation(_))),
+        "the MotionPlus stopped streaming"
+    );
+    assert_eq!(s.motion_plus_state(), MotionPlusState::Active);
+}

@@ -127,6 +127,21 @@ pub struct EmulatorConfig {
     /// The IR camera (I2C device 0xB0) answers register writes and reads (`PROTOCOL.md` §17);
     /// `false` emulates a unit whose camera does not answer (error 7, as for an absent device).
     pub camera: bool,
+    /// What the camera sees: a sensor bar and where the remote stands (`None`: no bar, every
+    /// dot slot empty). Dots are projected from the emulated pose into report 0x36/0x37
+    /// (basic) or 0x33 (extended) once the camera's mode register is set.
+    pub sensor_bar: Option<EmulatedBar>,
+}
+
+/// The sensor bar an emulated remote's camera sees.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EmulatedBar {
+    /// The bar and screen (room frame of the emulated motion).
+    pub setup: crate::wiimote::ir::PointerSetup,
+    /// Where the remote is, relative to the nominal standing point.
+    pub position: glam::DVec3,
+    /// Gaussian pixel noise per coordinate before quantisation (σ, pixels).
+    pub noise_px: f64,
 }
 
 impl Default for EmulatorConfig {
@@ -151,6 +166,7 @@ impl Default for EmulatorConfig {
             sensors: SensorModel::default(),
             open_error: None,
             camera: true,
+            sensor_bar: None,
         }
     }
 }

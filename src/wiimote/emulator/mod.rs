@@ -30,7 +30,7 @@ mod reports;
 mod sensors;
 
 pub use clock::EmulatorClock;
-pub use config::{EmulatorConfig, SensorModel, Variant};
+pub use config::{EmulatedBar, EmulatorConfig, SensorModel, Variant};
 pub use controls::EmulatorControls;
 
 /// The emulated remote. Implements [`Transport`]; give it to a session like a hidapi device.

@@ -6,6 +6,7 @@ use glam::DMat3;
 
 use super::reports::MpPhase;
 use super::{EmulatedRemote, SensorModel};
+use crate::wiimote::ir::{IR_MODE_REGISTER, IrCamera, encode_basic, encode_extended};
 use crate::wiimote::motion::{self, Motion};
 use crate::wiimote::protocol::{
     AccelCalibration, AccelRaw, GyroRange, MotionPlusCalibration, MotionPlusFrame,
@@ -215,6 +216,7 @@ impl EmulatedRemote {
         };
         let ba = encode_buttons_accel(buttons, accel);
         let bb = buttons.to_bytes();
+        let (basic, extended) = self.ir_bytes(sample_t, &*motion);
         let mut r = vec![self.mode];
         match self.mode {
             0x30 => r.extend_from_slice(&bb),
@@ -226,7 +228,7 @@ impl EmulatedRemote {
             }
             0x33 => {
                 r.extend_from_slice(&ba);
-                r.extend_from_slice(&[0xFF; 12]);
+                r.extend_from_slice(&extended);
             }
             0x34 => {
                 r.extend_from_slice(&bb);
@@ -240,13 +242,13 @@ impl EmulatedRemote {
             }
             0x36 => {
                 r.extend_from_slice(&bb);
-                r.extend_from_slice(&[0xFF; 10]);
+                r.extend_from_slice(&basic);
                 r.extend_from_slice(&ext);
                 r.extend_from_slice(&[0; 3]);
             }
             0x37 => {
                 r.extend_from_slice(&ba);
-                r.extend_from_slice(&[0xFF; 10]);
+                r.extend_from_slice(&basic);
                 r.extend_from_slice(&ext);
             }
             _ => {
@@ -255,5 +257,25 @@ impl EmulatedRemote {
             }
         }
         r
+    }
+
+    /// The camera's bytes for this sample, basic (10) and extended (12): the sensor bar's
+    /// clusters projected from the emulated pose, when the camera is on (its mode register
+    /// set by the host) and sees a bar; empty slots (0xFF) otherwise.
+    fn ir_bytes(&mut self, sample_t: f64, motion: &dyn Motion) -> ([u8; 10], [u8; 12]) {
+        let mode = self.camera_regs[(IR_MODE_REGISTER & 0xFF) as usize];
+        let on = self.config.camera && matches!(mode, 1 | 3 | 5);
+        let Some(bar) = self.config.sensor_bar.filter(|_| on) else {
+            return ([0xFF; 10], [0xFF; 12]);
+        };
+        let orientation = motion.orientation(sample_t);
+        let rng = &mut self.rng;
+        let dots = IrCamera::default().project_with_noise(
+            &bar.setup,
+            bar.position,
+            orientation,
+            &mut |_| rng.normal() * bar.noise_px,
+        );
+        (encode_basic(&dots), encode_extended(&dots))
     }
 }

@@ -1,4 +1,5 @@
-//! Orientation filters: gyro integration with drift control, one trait, three methods.
+//! Orientation filters: gyro integration with drift control, one trait, three methods. What
+//! each is and what limits it: `docs/design/filters.md`.
 //!
 //! * [`RawIntegration`] — integrates the calibrated rates, no bias removal (reference only).
 //! * [`PaperFilter`] — exactly the paper's method (`PROTOCOL.md` §12.2): bias from the first

@@ -177,6 +177,9 @@ pub enum InputReport {
         /// First 6 extension bytes, if the report carries them (classify with
         /// [`classify_extension`], which needs to know whether a MotionPlus is active).
         extension: Option<[u8; 6]>,
+        /// The IR camera's bytes, if the report carries them: 12 extended-mode bytes in 0x33,
+        /// 10 basic-mode bytes in 0x36 and 0x37 (decode with [`crate::wiimote::ir`]).
+        ir: Option<Vec<u8>>,
     },
 }
 
@@ -244,11 +247,18 @@ impl InputReport {
                     Some(e) if e.len() >= 6 => Some([e[0], e[1], e[2], e[3], e[4], e[5]]),
                     _ => None,
                 };
+                let ir = match id {
+                    0x33 => Some(p[5..17].to_vec()),
+                    0x36 => Some(p[2..12].to_vec()),
+                    0x37 => Some(p[5..15].to_vec()),
+                    _ => None,
+                };
                 Self::Data {
                     id,
                     buttons,
                     accel,
                     extension,
+                    ir,
                 }
             }
         })

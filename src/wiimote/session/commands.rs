@@ -55,7 +55,22 @@ impl<T: Transport> Session<T> {
                 "the IR mode register to read back its mode",
             ))));
         }
+        self.ir_mode = Some(mode);
+        if self.connected {
+            self.mode = self.streaming_mode();
+            self.command(self.mode_report()).map_err(camera)?;
+        }
         Ok(())
+    }
+
+    /// The data report streamed: 0x37 (buttons, accelerometer, 10 bytes of basic IR, 6 of
+    /// extension) once the camera runs in basic mode, else 0x35. Extended and full IR need
+    /// reports with no room for the MotionPlus, so they are initialised but not streamed.
+    pub(super) fn streaming_mode(&self) -> u8 {
+        match self.ir_mode {
+            Some(IrMode::Basic) => 0x37,
+            _ => 0x35,
+        }
     }
 
     /// Writes one report, honouring the write spacing; never waits for an answer.

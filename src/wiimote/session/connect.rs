@@ -36,7 +36,7 @@ impl<T: Transport> Session<T> {
         if self.mp_state != MotionPlusState::Active {
             self.probe_extension()?;
         }
-        self.mode = 0x35;
+        self.mode = self.streaming_mode();
         self.command(self.mode_report())?;
         self.connected = true;
         let now = self.now();

@@ -15,7 +15,9 @@ mod connect;
 mod stream;
 
 use super::filter::{Calibration, FilterKind, ImuSample, OrientationFilter};
-use super::ir::{IR_MODE_REGISTER, IrInitStep, IrMode, IrSensitivity, ir_init_sequence};
+use super::ir::{
+    IR_MODE_REGISTER, IrDots, IrInitStep, IrMode, IrSensitivity, decode_basic, ir_init_sequence,
+};
 use super::protocol::{
     AccelCalibration, AddressSpace, Buttons, ExtensionData, ExtensionId, InputReport,
     MotionPlusCalibration, NunchukFrame, OutputReport, ReadReply, Status, classify_extension,
@@ -186,6 +188,14 @@ pub enum SessionEvent {
     Extension(ExtensionState),
     /// Nunchuk input.
     Nunchuk(NunchukFrame),
+    /// What the IR camera sees (basic mode, streamed in report 0x37 beside the MotionPlus):
+    /// up to four dots, 1024 × 768 pixels.
+    Ir {
+        /// The dot slots.
+        dots: IrDots,
+        /// Host time, µs.
+        timestamp_us: u64,
+    },
 }
 
 const MAX_EVENTS: usize = 4096;
@@ -219,6 +229,8 @@ pub struct Session<T: Transport> {
     extension: ExtensionState,
     connected: bool,
     malformed: u64,
+    /// The IR camera's mode once [`Session::enable_ir`] ran.
+    ir_mode: Option<IrMode>,
 }
 
 impl<T: Transport> Session<T> {
@@ -252,6 +264,7 @@ impl<T: Transport> Session<T> {
             extension: ExtensionState::None,
             connected: false,
             malformed: 0,
+            ir_mode: None,
         }
     }
 

@@ -37,7 +37,7 @@ impl<T: Transport> Session<T> {
                 Err(e @ SessionError::Transport(_)) => return Err(e),
                 Err(_) => {}
             }
-            self.mode = 0x35;
+            self.mode = self.streaming_mode();
             self.command(self.mode_report())?;
         }
         Ok(())
@@ -91,9 +91,19 @@ impl<T: Transport> Session<T> {
                 buttons,
                 accel,
                 extension,
+                ir,
                 ..
             } => {
                 self.buttons(buttons, now);
+                if let (Some(ir), Some(IrMode::Basic)) = (ir, self.ir_mode) {
+                    match decode_basic(&ir) {
+                        Ok(dots) => self.event(SessionEvent::Ir {
+                            dots,
+                            timestamp_us: now,
+                        }),
+                        Err(_) => self.malformed += 1,
+                    }
+                }
                 self.data(now, accel.map(|a| self.accel_cal.to_g(a)), extension);
             }
         }
