@@ -143,6 +143,16 @@ fn main() {
                     println!("remote {id}: extension {state:?}")
                 }
                 ManagerEvent::Nunchuk { .. } => {}
+                ManagerEvent::Ir { id, dots, .. } => {
+                    let seen: Vec<String> = dots
+                        .iter()
+                        .flatten()
+                        .map(|d| format!("({}, {})", d.x, d.y))
+                        .collect();
+                    if !seen.is_empty() {
+                        println!("remote {id}: IR dots {}", seen.join(" "));
+                    }
+                }
             }
             if last_print.elapsed() > Duration::from_millis(250) {
                 break;

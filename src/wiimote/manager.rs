@@ -56,6 +56,17 @@ pub enum ManagerEvent {
         /// Sample.
         sample: OrientationSample,
     },
+    /// What the IR camera sees (when [`SessionConfig::ir_camera`] started it).
+    Ir {
+        /// Remote.
+        id: RemoteId,
+        /// The dot slots.
+        dots: super::ir::IrDots,
+        /// The accelerometer's last reading (g, body frame).
+        gravity: glam::DVec3,
+        /// Host time, µs.
+        timestamp_us: u64,
+    },
     /// Battery report.
     Battery {
         /// Remote.
@@ -422,9 +433,16 @@ fn forward<T: Transport>(id: RemoteId, session: &mut Session<T>, tx: &Sender<Man
             SessionEvent::MotionPlus(state) => ManagerEvent::MotionPlus { id, state },
             SessionEvent::Nunchuk(frame) => ManagerEvent::Nunchuk { id, frame },
             SessionEvent::Imu(_) => continue,
-            // The manager does not start the IR camera (yet): the pointer's ECS side is to
-            // come, and a camera streaming costs report bandwidth for nothing.
-            SessionEvent::Ir { .. } => continue,
+            SessionEvent::Ir {
+                dots,
+                gravity,
+                timestamp_us,
+            } => ManagerEvent::Ir {
+                id,
+                dots,
+                gravity,
+                timestamp_us,
+            },
         };
         send(tx, m);
     }

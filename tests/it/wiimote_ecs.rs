@@ -469,3 +469,55 @@ fn the_remote_turns_a_handle_one_to_one_in_camera_space_and_translates_only_whil
             .is_grabbing()
     );
 }
+
+/// With a pointer set-up the plugin starts each remote's IR camera: an emulated remote aimed at
+/// a screen spot (rolled 25°) shows the bar's two dots and points within 1 % of the spot; turned
+/// away, the pointer is gone (the bar out of view) and the orientation streams on.
+#[test]
+fn the_plugin_points_with_the_ir_camera() {
+    use bevy_wii_deform::wiimote::EmulatedBar;
+    use bevy_wii_deform::wiimote::ir::PointerSetup;
+    let mut app = app();
+    app.insert_resource(bevy::time::TimeUpdateStrategy::ManualDuration(
+        Duration::from_millis(10),
+    ));
+    let setup = PointerSetup::default();
+    let position = glam::DVec3::new(-0.2, 0.4, 0.0);
+    let spot = glam::DVec2::new(0.7, 0.35);
+    let aim = crate::wiimote_ir::aiming(position, setup.screen_point(spot), 25f64.to_radians());
+    app.add_plugins(WiimotePlugin {
+        source: WiimoteSource::Emulator(vec![EmulatorConfig {
+            clock: Some(EmulatorClock::new()),
+            sensor_bar: Some(EmulatedBar {
+                setup,
+                position,
+                noise_px: 0.0,
+            }),
+            ..default()
+        }]),
+        pointer: Some(setup),
+        ..default()
+    });
+    let controls = app.world().resource::<WiimoteEmulators>().0[0].clone();
+    controls.set_motion(Arc::new(Still(aim)));
+    let pointer = |a: &mut App| {
+        let mut q = a.world_mut().query::<&Wiimote>();
+        q.iter(a.world()).next().and_then(|w| w.pointer)
+    };
+    common::update_until(&mut app, "the IR pointer", |a| pointer(a).is_some());
+    let at = pointer(&mut app).unwrap();
+    assert!(
+        (at.as_dvec2() - spot).length() < 0.01,
+        "aimed at {spot}, the pointer is at {at}"
+    );
+    let dots = {
+        let mut q = app.world_mut().query::<&Wiimote>();
+        q.single(app.world()).unwrap().ir_dots.len()
+    };
+    assert_eq!(dots, 2, "the bar's two clusters");
+    // Turned 60° away: no bar, no pointer.
+    controls.set_motion(Arc::new(Still(
+        DQuat::from_rotation_z(60f64.to_radians()) * aim,
+    )));
+    common::update_until(&mut app, "the pointer to go", |a| pointer(a).is_none());
+}

@@ -183,7 +183,7 @@ proptest! {
 
 /// The orientation (body → room) of a remote at `position` aiming at the room point `target`,
 /// rolled by `roll` about its pointing axis.
-fn aiming(position: DVec3, target: DVec3, roll: f64) -> DQuat {
+pub(crate) fn aiming(position: DVec3, target: DVec3, roll: f64) -> DQuat {
     let d = (target - position).normalize();
     // −Y turned by pitch θ about X then yaw ψ about Z: (sin ψ cos θ, −cos ψ cos θ, −sin θ)…
     // solve for the pair that gives `d`.

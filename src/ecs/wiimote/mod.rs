@@ -6,6 +6,7 @@ mod plugin;
 
 use bevy::prelude::*;
 
+use crate::wiimote::ir::PointerSetup;
 use crate::wiimote::{
     EmulatorConfig, EmulatorControls, FilterKind, RemoteCommand, RemoteId, RemoteProblem,
     WiimoteManager, protocol::Buttons,
@@ -53,6 +54,10 @@ pub enum WiimoteSource {
 pub struct WiimoteSettings {
     /// Orientation filter.
     pub filter: WiimoteFilter,
+    /// The sensor bar and screen the IR pointer is computed for (see
+    /// [`WiimotePlugin::pointer`]); `None`: no pointer.
+    #[reflect(ignore)]
+    pub pointer: Option<PointerSetup>,
 }
 
 /// The running device manager (dropping it stops and joins its threads).
@@ -122,6 +127,13 @@ pub struct Wiimote {
     pub stick: Vec2,
     /// Host timestamp of the last sample, µs.
     pub timestamp_us: u64,
+    /// The IR camera's dots in view, pixels (1024 × 768, x right, y down), when the camera
+    /// runs ([`WiimotePlugin::pointer`]).
+    pub ir_dots: Vec<Vec2>,
+    /// Where the remote points on the screen, (0, 0) top left … (1, 1) bottom right
+    /// (roll-compensated, `PROTOCOL.md` §17.5); `None` while the bar is out of view or the
+    /// camera is off.
+    pub pointer: Option<Vec2>,
     /// Why the remote is unusable (permissions, the kernel driver, …), each with its fix in
     /// `Display`; cleared when it connects.
     #[reflect(ignore)]

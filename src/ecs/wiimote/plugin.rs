@@ -9,6 +9,7 @@ use super::{
     WiimoteProblem, WiimoteProblems, WiimoteSettings, WiimoteSource, remote_to_bevy,
     remote_vec_to_bevy,
 };
+use crate::wiimote::ir::{IrSensitivity, PointerSetup};
 use crate::wiimote::{
     CalibrationPhase, EmulatorClock, EmulatorConfig, EmulatorControls, ManagerConfig, ManagerEvent,
     MotionPlusState, RemoteCommand, RemoteSource, SessionConfig, WiimoteManager,
@@ -31,12 +32,17 @@ pub struct WiimotePlugin {
     pub filter: WiimoteFilter,
     /// Hardware or emulator.
     pub source: WiimoteSource,
+    /// The IR pointer: with a sensor bar set-up the camera is started after each handshake
+    /// (basic mode, streamed beside the MotionPlus) and [`Wiimote::pointer`] says where the
+    /// remote points on the screen. `None` (the default): the camera stays off.
+    pub pointer: Option<PointerSetup>,
 }
 
 impl Default for WiimotePlugin {
     fn default() -> Self {
         Self {
             filter: WiimoteFilter::Fusion,
+            pointer: None,
             source: if cfg!(feature = "hidapi") {
                 WiimoteSource::Hardware
             } else {
@@ -90,6 +96,7 @@ impl Plugin for WiimotePlugin {
             source,
             session: SessionConfig {
                 filter: self.filter.into(),
+                ir_camera: self.pointer.map(|_| IrSensitivity::Level3),
                 ..Default::default()
             },
             channel_capacity: 1024,
@@ -98,6 +105,7 @@ impl Plugin for WiimotePlugin {
             .insert_resource(emulators)
             .insert_resource(WiimoteSettings {
                 filter: self.filter,
+                pointer: self.pointer,
             })
             .register_type::<Wiimote>()
             .register_type::<WiimoteSettings>()
@@ -171,6 +179,7 @@ fn receive_wiimote_events(
     mut remotes: Query<(Entity, &mut Wiimote)>,
     mut writers: WiimoteWriters,
     mut open_problems: ResMut<WiimoteProblems>,
+    settings: Res<WiimoteSettings>,
 ) {
     let WiimoteWriters {
         connected,
@@ -207,7 +216,8 @@ fn receive_wiimote_events(
             | ManagerEvent::Battery { id, .. }
             | ManagerEvent::Extension { id, .. }
             | ManagerEvent::MotionPlus { id, .. }
-            | ManagerEvent::Nunchuk { id, .. } => *id,
+            | ManagerEvent::Nunchuk { id, .. }
+            | ManagerEvent::Ir { id, .. } => *id,
         };
         let entity = match find(id, &mut remotes)
             .or_else(|| spawned.iter().find(|(_, w)| w.id == id).map(|(e, _)| *e))
@@ -281,6 +291,18 @@ fn receive_wiimote_events(
                 w.motion_plus = *state == MotionPlusState::Active
             }
             ManagerEvent::Extension { .. } => {}
+            ManagerEvent::Ir { dots, gravity, .. } => {
+                w.ir_dots = dots
+                    .iter()
+                    .flatten()
+                    .map(|d| d.position().as_vec2())
+                    .collect();
+                w.pointer = settings
+                    .pointer
+                    .and_then(|setup| setup.pointed_at(dots, *gravity).ok())
+                    .map(|p| p.as_vec2())
+                    .filter(|p| p.is_finite());
+            }
             ManagerEvent::Nunchuk { frame, .. } => {
                 let axis = |v: u8| ((v as f32 - 128.0) / 100.0).clamp(-1.0, 1.0);
                 w.stick = Vec2::new(axis(frame.stick_x), axis(frame.stick_y));

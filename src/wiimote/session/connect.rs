@@ -39,6 +39,10 @@ impl<T: Transport> Session<T> {
         self.mode = self.streaming_mode();
         self.command(self.mode_report())?;
         self.connected = true;
+        if let Some(sensitivity) = self.config.ir_camera {
+            // A camera that does not answer leaves it off: posing with the MotionPlus goes on.
+            let _ = self.enable_ir(IrMode::Basic, sensitivity);
+        }
         let now = self.now();
         self.last_battery_us = now;
         self.last_mp_frame_us = now;

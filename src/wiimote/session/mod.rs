@@ -45,6 +45,9 @@ pub struct SessionConfig {
     pub motion_plus_poll_ms: u32,
     /// MotionPlus frames missing for this long → re-activate, ms (500).
     pub motion_plus_timeout_ms: u32,
+    /// Start the IR camera in basic mode at this sensitivity after the handshake (`None`: the
+    /// camera stays off). A camera that does not answer leaves it off; the MotionPlus goes on.
+    pub ir_camera: Option<IrSensitivity>,
 }
 
 impl Default for SessionConfig {
@@ -59,6 +62,7 @@ impl Default for SessionConfig {
             battery_interval_ms: 10_000,
             motion_plus_poll_ms: 4000,
             motion_plus_timeout_ms: 500,
+            ir_camera: None,
         }
     }
 }
@@ -193,6 +197,8 @@ pub enum SessionEvent {
     Ir {
         /// The dot slots.
         dots: IrDots,
+        /// The accelerometer's last reading (g, body frame): the roll the pointer undoes.
+        gravity: DVec3,
         /// Host time, µs.
         timestamp_us: u64,
     },
@@ -231,6 +237,8 @@ pub struct Session<T: Transport> {
     malformed: u64,
     /// The IR camera's mode once [`Session::enable_ir`] ran.
     ir_mode: Option<IrMode>,
+    /// The last accelerometer reading, g (body frame).
+    last_accel: DVec3,
 }
 
 impl<T: Transport> Session<T> {
@@ -265,6 +273,7 @@ impl<T: Transport> Session<T> {
             connected: false,
             malformed: 0,
             ir_mode: None,
+            last_accel: DVec3::Z,
         }
     }
 

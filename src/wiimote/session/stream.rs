@@ -95,16 +95,21 @@ impl<T: Transport> Session<T> {
                 ..
             } => {
                 self.buttons(buttons, now);
+                let accel = accel.map(|a| self.accel_cal.to_g(a));
+                if let Some(g) = accel.filter(|g| g.is_finite()) {
+                    self.last_accel = g;
+                }
                 if let (Some(ir), Some(IrMode::Basic)) = (ir, self.ir_mode) {
                     match decode_basic(&ir) {
                         Ok(dots) => self.event(SessionEvent::Ir {
                             dots,
+                            gravity: self.last_accel,
                             timestamp_us: now,
                         }),
                         Err(_) => self.malformed += 1,
                     }
                 }
-                self.data(now, accel.map(|a| self.accel_cal.to_g(a)), extension);
+                self.data(now, accel, extension);
             }
         }
         Ok(())
