@@ -33,8 +33,8 @@ pub mod prelude {
         WiiDeformPlugins, Wiimote, WiimoteButtonChanged, WiimoteCalibration, WiimoteConnected,
         WiimoteControlPlugin, WiimoteDisconnected, WiimoteEmulators, WiimoteFilter,
         WiimoteHandleControl, WiimoteLink, WiimoteOrientationChanged, WiimotePlugin,
-        WiimoteProblem, WiimoteProblems, WiimoteSettings, WiimoteSource, WiimoteSystems,
-        mesh_from_triangles,
+        WiimotePointer, WiimotePointerPlugin, WiimoteProblem, WiimoteProblems, WiimoteSettings,
+        WiimoteSource, WiimoteSystems, mesh_from_triangles,
     };
     pub use crate::wiimote::{EmulatorConfig, EmulatorControls, FilterKind, RemoteProblem};
 }

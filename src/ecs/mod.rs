@@ -43,8 +43,8 @@ pub use scene::{DeformableFrom, DeformableScene, MESH_WAIT_FRAMES};
 pub use wiimote::{
     ConnectionState, Wiimote, WiimoteButtonChanged, WiimoteCalibration, WiimoteConnected,
     WiimoteDisconnected, WiimoteEmulators, WiimoteFilter, WiimoteLink, WiimoteOrientationChanged,
-    WiimotePlugin, WiimoteProblem, WiimoteProblems, WiimoteSettings, WiimoteSource, WiimoteSystems,
-    remote_to_bevy, remote_vec_to_bevy,
+    WiimotePlugin, WiimotePointer, WiimotePointerPlugin, WiimoteProblem, WiimoteProblems,
+    WiimoteSettings, WiimoteSource, WiimoteSystems, remote_to_bevy, remote_vec_to_bevy,
 };
 
 /// Every plugin: [`DeformPlugin`], [`PosePlugin`], [`GrabPlugin`], [`WiimotePlugin`],

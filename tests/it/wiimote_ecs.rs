@@ -521,3 +521,99 @@ fn the_plugin_points_with_the_ir_camera() {
     )));
     common::update_until(&mut app, "the pointer to go", |a| pointer(a).is_none());
 }
+
+/// The remote as a picking pointer: an emulated remote aimed at a bar on screen, A pressed,
+/// starts a grab of that bar by the remote's own pointer at the spot it points at; releasing A
+/// ends it.
+#[test]
+fn the_remote_points_at_a_mesh_and_a_grabs_it() {
+    use bevy::picking::pointer::PointerId;
+    use bevy_wii_deform::deform::synth;
+    use bevy_wii_deform::ecs::ActiveGrabs;
+    use bevy_wii_deform::wiimote::EmulatedBar;
+    use bevy_wii_deform::wiimote::ir::PointerSetup;
+    use bevy_wii_deform::wiimote::protocol::Buttons;
+    let mut app = app();
+    let setup = PointerSetup::default();
+    let position = glam::DVec3::ZERO;
+    app.add_plugins((
+        bevy::window::WindowPlugin::default(),
+        bevy::input::InputPlugin,
+        bevy::camera::CameraPlugin,
+        common::picking_plugins(),
+        MeshPickingPlugin,
+        DeformPlugin::default(),
+        GrabPlugin,
+        WiimotePlugin {
+            source: WiimoteSource::Emulator(vec![EmulatorConfig {
+                clock: Some(EmulatorClock::new()),
+                sensor_bar: Some(EmulatedBar {
+                    setup,
+                    position,
+                    noise_px: 0.0,
+                }),
+                ..default()
+            }]),
+            pointer: Some(setup),
+            ..default()
+        },
+        WiimotePointerPlugin,
+    ));
+    app.insert_resource(bevy::time::TimeUpdateStrategy::ManualDuration(
+        Duration::from_millis(10),
+    ));
+    app.finish();
+    app.cleanup();
+    let camera = common::spawn_camera(
+        &mut app,
+        Transform::from_xyz(0.0, 0.5, 4.0).looking_at(Vec3::new(0.0, 0.5, 0.0), Vec3::Y),
+    );
+    let tri = synth::bar(12, 30, 0.1, 1.0);
+    let mesh = mesh_from_triangles(&tri.positions, &tri.triangles);
+    let mesh = app.world_mut().resource_mut::<Assets<Mesh>>().add(mesh);
+    let bar = app
+        .world_mut()
+        .spawn((
+            Mesh3d(mesh),
+            Transform::default(),
+            Deformable::default(),
+            Grabbable::default(),
+        ))
+        .id();
+    common::update_until(&mut app, "the prepared mesh", |a| {
+        a.world().get::<DeformStatus>(bar).unwrap().vertices > 0
+    });
+    // Aim the remote at the bar's upper part as drawn (1280 × 720 window).
+    let on_screen = common::to_screen(&mut app, camera, Vec3::new(0.0, 0.8, 0.1));
+    let spot = (on_screen / Vec2::new(1280.0, 720.0)).as_dvec2();
+    let aim = crate::wiimote_ir::aiming(position, setup.screen_point(spot), 0.0);
+    let controls = app.world().resource::<WiimoteEmulators>().0[0].clone();
+    controls.set_motion(Arc::new(Still(aim)));
+    let remote_id = |a: &mut App| {
+        let mut q = a.world_mut().query::<&Wiimote>();
+        q.iter(a.world())
+            .find(|w| w.pointer.is_some())
+            .map(|w| WiimotePointer::id(w.id))
+    };
+    common::update_until(&mut app, "the remote's pointer", |a| {
+        let Some(id) = remote_id(a) else {
+            return false;
+        };
+        let mut q = a.world_mut().query::<&PointerId>();
+        q.iter(a.world()).any(|p| *p == id)
+    });
+    let id = remote_id(&mut app).unwrap();
+    for _ in 0..5 {
+        app.update();
+    }
+    assert_eq!(app.world().resource::<ActiveGrabs>().len(), 0);
+    controls.set_buttons(Buttons(Buttons::A));
+    common::update_until(&mut app, "the remote's grab", |a| {
+        a.world().resource::<ActiveGrabs>().mesh_of(id).is_some()
+    });
+    assert_eq!(app.world().resource::<ActiveGrabs>().mesh_of(id), Some(bar));
+    controls.set_buttons(Buttons(0));
+    common::update_until(&mut app, "the grab to end", |a| {
+        a.world().resource::<ActiveGrabs>().is_empty()
+    });
+}

@@ -3,6 +3,7 @@
 //! holds the data types; `plugin.rs` the plugin, its system sets and systems.
 
 mod plugin;
+mod pointer;
 
 use bevy::prelude::*;
 
@@ -13,6 +14,7 @@ use crate::wiimote::{
 };
 
 pub use plugin::{WiimotePlugin, WiimoteSystems};
+pub use pointer::{WiimotePointer, WiimotePointerPlugin};
 
 /// Orientation filter choice (mirrors [`FilterKind`] for reflection and UIs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Reflect)]
