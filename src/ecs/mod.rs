@@ -30,8 +30,8 @@ pub use deform::{
     DeformStatus, DeformSystems, Deformable, FixedRegion, mesh_from_triangles,
 };
 pub use grab::{
-    ActiveGrabs, GrabButton, GrabEnd, GrabHandle, GrabMove, GrabPlugin, GrabStart, GrabTwist,
-    Grabbable,
+    ActiveGrabs, GrabButton, GrabEnd, GrabHandle, GrabMove, GrabPlugin, GrabStart, GrabTurn,
+    GrabTwist, Grabbable,
 };
 pub use pose::{
     GrabAnchor, HandlePositionOnly, JointMask, PinnedJoints, PoseBlend, PoseBlendMode,

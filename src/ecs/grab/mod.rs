@@ -92,6 +92,17 @@ pub struct GrabTwist {
     pub radians: f32,
 }
 
+/// Turn a grab's patch by `rotation`, given in its camera's frame (x right, y up, z towards
+/// the viewer): a remote's turn since the last frame, 1:1 (the remote pointer plugin writes
+/// it while A holds a grab).
+#[derive(Message, Debug, Clone, PartialEq)]
+pub struct GrabTurn {
+    /// Which pointer.
+    pub pointer: PointerId,
+    /// The turn, camera frame.
+    pub rotation: Quat,
+}
+
 /// The pointer released its grab (the pose stays).
 #[derive(Message, Debug, Clone, PartialEq)]
 pub struct GrabEnd {

@@ -15,8 +15,8 @@ use crate::ecs::pose::{GrabAnchor, HandlePositionOnly, PinnedJoints, PosedSkelet
 use crate::ecs::scene::DeformableFrom;
 
 use super::{
-    ActiveGrab, ActiveGrabs, GrabButton, GrabEnd, GrabHandle, GrabMove, GrabStart, GrabTwist,
-    Grabbable,
+    ActiveGrab, ActiveGrabs, GrabButton, GrabEnd, GrabHandle, GrabMove, GrabStart, GrabTurn,
+    GrabTwist, Grabbable,
 };
 
 /// Adds pointer grabs: press on a [`Grabbable`] deformable, drag, release — the surface under
@@ -70,6 +70,7 @@ impl Plugin for GrabPlugin {
             .add_message::<PointerInput>()
             .add_message::<GrabMove>()
             .add_message::<GrabTwist>()
+            .add_message::<GrabTurn>()
             .add_message::<GrabEnd>()
             // New grabs before `Prepare` (a baked mesh starts re-preparing in the same frame);
             // handles placed after it (the rest pose may have become ready this frame).
@@ -326,13 +327,19 @@ enum Step {
     Drag(Vec2, Vec2, bool),
     /// Turn about the view axis, radians counter-clockwise on screen.
     Twist(f32),
+    /// Turn by a rotation in the camera's frame.
+    Turn(Quat),
 }
 
 /// Moves grabbed handles in their camera's view plane, turns them (Shift: arcball) and
 /// twists them about the view axis (wheel).
 fn move_grabs(
     mut commands: Commands,
-    (mut moves, mut twists): (MessageReader<GrabMove>, MessageReader<GrabTwist>),
+    (mut moves, mut twists, mut turns): (
+        MessageReader<GrabMove>,
+        MessageReader<GrabTwist>,
+        MessageReader<GrabTurn>,
+    ),
     mut grabs: ResMut<ActiveGrabs>,
     cameras: Query<(&Camera, &GlobalTransform)>,
     spaces: Query<&GlobalTransform>,
@@ -342,6 +349,7 @@ fn move_grabs(
         .read()
         .map(|m| (m.pointer, Step::Drag(m.from, m.to, m.rotate)))
         .chain(twists.read().map(|t| (t.pointer, Step::Twist(t.radians))))
+        .chain(turns.read().map(|t| (t.pointer, Step::Turn(t.rotation))))
         .collect();
     // Motion that arrived before a handle existed is applied once it does.
     for (pointer, grab) in grabs.0.iter_mut() {
@@ -383,6 +391,7 @@ fn move_grabs(
         let in_view = match step {
             // Counter-clockwise on screen = about the view axis pointing at the viewer (+Z).
             Step::Twist(radians) => Quat::from_rotation_z(radians),
+            Step::Turn(rotation) => rotation,
             Step::Drag(from, to, true) => {
                 let (Ok(centre), Some(size)) = (
                     camera.world_to_viewport(camera_transform, at),

@@ -1,7 +1,9 @@
 //! The remote's IR pointer as a bevy_picking pointer: where a [`Wiimote`] points
 //! ([`Wiimote::pointer`], from its camera) moves a pointer of its own on the primary window,
 //! and A presses and releases its primary button — so hovering, `Pointer<Press>` observers and
-//! [`GrabPlugin`](crate::ecs::GrabPlugin) grabs work with the remote as with the mouse.
+//! [`GrabPlugin`](crate::ecs::GrabPlugin) grabs work with the remote as with the mouse. While A
+//! holds a grab, turning the remote turns it 1:1 ([`GrabTurn`]) and pointing elsewhere moves it
+//! in the view plane; holding B as well freezes the pointer: turn only.
 
 use bevy::asset::uuid::Uuid;
 use bevy::picking::PickingSystems;
@@ -10,6 +12,7 @@ use bevy::prelude::*;
 use bevy::window::{PrimaryWindow, WindowRef};
 
 use super::{Wiimote, WiimoteSystems};
+use crate::ecs::GrabTurn;
 use crate::wiimote::protocol::Buttons;
 
 /// Gives every [`Wiimote`] with a pointer ([`WiimotePlugin::pointer`](crate::ecs::WiimotePlugin::pointer))
@@ -20,12 +23,14 @@ pub struct WiimotePointerPlugin;
 
 impl Plugin for WiimotePointerPlugin {
     fn build(&self, app: &mut App) {
-        app.add_message::<PointerInput>().add_systems(
-            PreUpdate,
-            drive_remote_pointers
-                .in_set(PickingSystems::Input)
-                .after(WiimoteSystems::Receive),
-        );
+        app.add_message::<PointerInput>()
+            .add_message::<GrabTurn>()
+            .add_systems(
+                PreUpdate,
+                drive_remote_pointers
+                    .in_set(PickingSystems::Input)
+                    .after(WiimoteSystems::Receive),
+            );
     }
 }
 
@@ -35,9 +40,11 @@ pub struct WiimotePointer {
     /// The [`Wiimote`] entity.
     #[entities]
     pub remote: Entity,
-    /// Where it was last put (window coordinates), and whether A is held.
+    /// Where it was last put (window coordinates), whether A holds a press, and the remote's
+    /// orientation when its turn was last passed on.
     last: Option<Vec2>,
     pressed: bool,
+    turned_from: Option<Quat>,
 }
 
 impl WiimotePointer {
@@ -55,6 +62,7 @@ fn drive_remote_pointers(
     mut pointers: Query<(&PointerId, &mut WiimotePointer)>,
     window: Query<(Entity, &Window), With<PrimaryWindow>>,
     mut input: MessageWriter<PointerInput>,
+    mut turns: MessageWriter<GrabTurn>,
 ) {
     let Ok((window_entity, window)) = window.single() else {
         return;
@@ -74,6 +82,7 @@ fn drive_remote_pointers(
                         remote,
                         last: None,
                         pressed: false,
+                        turned_from: None,
                     },
                 ));
             }
@@ -84,8 +93,12 @@ fn drive_remote_pointers(
             position,
         };
         let at = w.pointer.map(|p| p * size).filter(|p| p.is_finite());
+        // B is the clutch: while it is held the pointer stays put, so turning the remote turns
+        // a grab without moving it.
+        let clutch = pointer.pressed && w.pressed(Buttons::B);
         if let Some(at) = at
             && pointer.last != Some(at)
+            && !clutch
         {
             let delta = pointer.last.map_or(Vec2::ZERO, |last| at - last);
             input.write(PointerInput::new(
@@ -95,17 +108,34 @@ fn drive_remote_pointers(
             ));
             pointer.last = Some(at);
         }
-        let held = w.pressed(Buttons::A) && w.pointer.is_some();
-        if held != pointer.pressed
-            && let Some(last) = pointer.last
-        {
-            let action = if held {
+        // A presses where the remote points; the press lasts until A is released, even if
+        // the bar leaves the camera's view meanwhile.
+        let a = w.pressed(Buttons::A);
+        let press = a && !pointer.pressed && at.is_some();
+        let release = !a && pointer.pressed;
+        if let (true, Some(last)) = (press || release, pointer.last) {
+            let action = if press {
                 PointerAction::Press(PointerButton::Primary)
             } else {
                 PointerAction::Release(PointerButton::Primary)
             };
             input.write(PointerInput::new(id, location(last), action));
-            pointer.pressed = held;
+            pointer.pressed = press;
+            pointer.turned_from = press.then_some(w.orientation);
+        }
+        // While pressed, the remote's turn since the last frame turns the grab 1:1 (in the
+        // camera's frame, as `WiimoteHandleControl` maps it).
+        if pointer.pressed
+            && let Some(from) = pointer.turned_from
+        {
+            let turn = (w.orientation * from.inverse()).normalize();
+            if turn.is_finite() && turn.angle_between(Quat::IDENTITY) > 1e-6 {
+                turns.write(GrabTurn {
+                    pointer: id,
+                    rotation: turn,
+                });
+                pointer.turned_from = Some(w.orientation);
+            }
         }
     }
 }
