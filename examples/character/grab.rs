@@ -132,3 +132,53 @@ fn spawn_remote_handle(
             .insert(WiimoteHandleControl::default());
     }
 }
+
+/// With `--pointer`: the remote's IR pointer is a picking pointer (the library's
+/// `WiimotePointerPlugin`: A grabs, turning turns, B turns only) drawn as a ring.
+pub struct RemotePointerPlugin;
+
+impl Plugin for RemotePointerPlugin {
+    fn build(&self, app: &mut App) {
+        app.add_plugins(WiimotePointerPlugin)
+            .add_systems(Startup, spawn_cursor)
+            .add_systems(Update, move_cursor);
+    }
+}
+
+#[derive(Component)]
+struct RemoteCursor;
+
+fn spawn_cursor(mut commands: Commands) {
+    commands.spawn((
+        Node {
+            position_type: PositionType::Absolute,
+            width: px(18),
+            height: px(18),
+            border: UiRect::all(px(3)),
+            border_radius: BorderRadius::MAX,
+            ..default()
+        },
+        BorderColor::all(Color::srgb(0.3, 0.8, 1.0)),
+        Visibility::Hidden,
+        RemoteCursor,
+    ));
+}
+
+/// The ring follows the first remote that points somewhere; hidden when none does.
+fn move_cursor(
+    remotes: Query<&Wiimote>,
+    window: Single<&Window, With<bevy::window::PrimaryWindow>>,
+    mut cursor: Single<(&mut Node, &mut Visibility), With<RemoteCursor>>,
+) {
+    let pointed = remotes.iter().find_map(|w| w.pointer);
+    let (node, visibility) = &mut *cursor;
+    match pointed {
+        Some(p) => {
+            let at = p * Vec2::new(window.width(), window.height());
+            node.left = px(at.x - 9.0);
+            node.top = px(at.y - 9.0);
+            **visibility = Visibility::Visible;
+        }
+        None => **visibility = Visibility::Hidden,
+    }
+}

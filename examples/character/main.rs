@@ -17,6 +17,9 @@
 //! * **`--author-demo OUT.glb`**: poses the character by three scripted grabs, keys them at
 //!   0, 0.5 and 1 s, exports the clip, plays it back through Bevy's glTF loader and prints
 //!   the playback error as JSON (see [`authoring`]).
+//! * **`--pointer [emulated]`**: the Wii Remote's IR camera points (a ring where it points):
+//!   hold A on the character to grab there, point elsewhere to drag, turn the remote to turn
+//!   the grab 1:1, add B to turn without moving.
 //! * **`--remote`**: a Wii Remote (MotionPlus) drives a handle on the head: hold B and turn
 //!   the remote to turn the head 1:1, D-pad to move it (`--remote emulated` for the built-in
 //!   emulator).
@@ -43,6 +46,7 @@ mod unattended;
 
 use bevy::prelude::*;
 use bevy_wii_deform::prelude::*;
+use bevy_wii_deform::wiimote::ir::PointerSetup;
 
 /// Command-line options.
 #[derive(Resource, Debug, Clone)]
@@ -55,6 +59,9 @@ pub struct Args {
     pub frames: u32,
     /// `--remote [emulated]`: drive a head handle with a Wii Remote.
     pub remote: Option<WiimotePlugin>,
+    /// `--pointer [emulated]`: the Wii Remote's IR camera as a pointer (a sensor bar below a
+    /// 1 m screen seen from 2 m): point, hold A to grab, turn to turn, B to turn only.
+    pub pointer: Option<WiimotePlugin>,
     /// `--author-demo OUT.glb`: author a three-key clip by script, export, play back, exit.
     pub author_demo: Option<String>,
 }
@@ -86,6 +93,17 @@ impl Args {
                 .and_then(|v| v.parse().ok())
                 .unwrap_or(120),
             author_demo,
+            pointer: args
+                .iter()
+                .any(|a| a == "--pointer")
+                .then(|| WiimotePlugin {
+                    pointer: Some(PointerSetup::default()),
+                    ..if value("--pointer").as_deref() == Some("emulated") {
+                        WiimotePlugin::emulated()
+                    } else {
+                        WiimotePlugin::default()
+                    }
+                }),
             remote: args.iter().any(|a| a == "--remote").then(|| {
                 if value("--remote").as_deref() == Some("emulated") {
                     WiimotePlugin::emulated()
@@ -102,6 +120,8 @@ fn main() {
     let mut app = App::new();
     if let Some(remote) = args.remote.clone() {
         app.add_plugins((remote, WiimoteControlPlugin, grab::RemoteHeadPlugin));
+    } else if let Some(pointer) = args.pointer.clone() {
+        app.add_plugins((pointer, grab::RemotePointerPlugin));
     }
     app.add_plugins(DefaultPlugins.set(AssetPlugin {
         // The shared models live beside the project, not in its assets folder.
