@@ -10,6 +10,8 @@ use bevy_wii_deform::pose::{PoseClip, SkeletonPose};
 use bevy_wii_deform::prelude::*;
 
 use crate::scene::Character;
+pub use crate::undo_keys::HistoryCommand;
+use crate::undo_keys::undo_shortcuts;
 
 /// Undo/redo of the character's pose, keys and pins.
 pub struct UndoPlugin;
@@ -20,7 +22,7 @@ impl Plugin for UndoPlugin {
             .add_message::<HistoryCommand>()
             .add_systems(
                 Update,
-                (shortcuts, undo_redo, record_edits)
+                (undo_shortcuts, undo_redo, record_edits)
                     .chain()
                     .after(PoseSystems::Timeline),
             );
@@ -77,25 +79,6 @@ impl History {
         }?;
         self.seen = Some((target.clone(), time));
         Some(target)
-    }
-}
-
-/// Undo or redo, from the keyboard or the panel.
-#[derive(Message, Debug, Clone, Copy, PartialEq, Eq)]
-pub enum HistoryCommand {
-    /// One step back.
-    Undo,
-    /// One step forward again.
-    Redo,
-}
-
-fn shortcuts(keys: Res<ButtonInput<KeyCode>>, mut commands: MessageWriter<HistoryCommand>) {
-    let ctrl = keys.pressed(KeyCode::ControlLeft) || keys.pressed(KeyCode::ControlRight);
-    if ctrl && keys.just_pressed(KeyCode::KeyZ) {
-        commands.write(HistoryCommand::Undo);
-    }
-    if ctrl && keys.just_pressed(KeyCode::KeyY) {
-        commands.write(HistoryCommand::Redo);
     }
 }
 

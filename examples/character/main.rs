@@ -43,6 +43,8 @@ mod scene;
 mod timeline;
 mod ui;
 mod unattended;
+#[path = "../common/undo_keys.rs"]
+mod undo_keys;
 
 use bevy::prelude::*;
 use bevy_wii_deform::prelude::*;

@@ -5,6 +5,8 @@ use bevy_wii_deform::history::UndoStack;
 use bevy_wii_deform::prelude::*;
 
 use crate::selection::{RegionsChanged, Selection};
+pub use crate::undo_keys::HistoryCommand;
+use crate::undo_keys::undo_shortcuts;
 use crate::{Model, SandboxSet};
 
 /// Undo history, Ctrl+Z / Ctrl+Y, and drags recorded as they end.
@@ -16,7 +18,7 @@ impl Plugin for HistoryPlugin {
             .add_message::<HistoryCommand>()
             .add_systems(
                 Update,
-                (record_drags, shortcuts, apply_history)
+                (record_drags, undo_shortcuts, apply_history)
                     .chain()
                     .in_set(SandboxSet::Edit),
             );
@@ -45,13 +47,6 @@ pub fn snapshot(selection: &Selection, model: &Model, transforms: &Query<&Transf
 #[derive(Resource, Default, Deref, DerefMut)]
 pub struct History(UndoStack<Snapshot>);
 
-/// Undo or redo, from the panel or the keyboard.
-#[derive(Message, Debug, Clone, Copy, PartialEq, Eq)]
-pub enum HistoryCommand {
-    Undo,
-    Redo,
-}
-
 /// Turns each finished mouse drag or Wii Remote grab into an undo entry (the pose at its
 /// start, as the controls recorded it: independent of system order).
 fn record_drags(
@@ -76,16 +71,6 @@ fn record_drags(
             handle: start,
         }),
         (None, None) => {}
-    }
-}
-
-fn shortcuts(keys: Res<ButtonInput<KeyCode>>, mut commands: MessageWriter<HistoryCommand>) {
-    let ctrl = keys.pressed(KeyCode::ControlLeft) || keys.pressed(KeyCode::ControlRight);
-    if ctrl && keys.just_pressed(KeyCode::KeyZ) {
-        commands.write(HistoryCommand::Undo);
-    }
-    if ctrl && keys.just_pressed(KeyCode::KeyY) {
-        commands.write(HistoryCommand::Redo);
     }
 }
 

@@ -42,6 +42,8 @@ mod scripted;
 mod selection;
 mod tasks;
 mod ui;
+#[path = "../common/undo_keys.rs"]
+mod undo_keys;
 
 use std::time::Duration;
 

@@ -307,12 +307,7 @@ fn the_fox_from_bevys_gltf_loader_is_poseable() {
         GltfAssetLabel::Animation(0)
             .from_asset(bevy::asset::AssetPath::from_path_buf(out.join("pose.glb"))),
     );
-    update_until(&mut app, "the saved clip", |a| {
-        a.world()
-            .resource::<Assets<AnimationClip>>()
-            .get(&clip)
-            .is_some()
-    });
+    let node = common::play_clip(&mut app, player, clip.clone());
     // Every joint of the Fox has a curve in the saved clip (same name paths).
     {
         let w = app.world();
@@ -327,22 +322,7 @@ fn the_fox_from_bevys_gltf_loader_is_poseable() {
             .count();
         assert_eq!(hits, posed.joints.len());
     }
-    let (graph, node) = AnimationGraph::from_clip(clip);
-    let graph = app
-        .world_mut()
-        .resource_mut::<Assets<AnimationGraph>>()
-        .add(graph);
-    app.world_mut()
-        .entity_mut(player)
-        .insert(AnimationGraphHandle(graph));
-    app.world_mut()
-        .get_mut::<AnimationPlayer>(player)
-        .unwrap()
-        .stop_all()
-        .play(node);
-    for _ in 0..5 {
-        app.update();
-    }
+    common::show_clip_at(&mut app, player, node, 0.0);
     for (&j, t) in posed.joints.iter().zip(&posed.pose.local) {
         let now = app.world().get::<Transform>(j).unwrap();
         let (a, b) = (now.rotation, t.rotation.as_quat());
