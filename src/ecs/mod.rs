@@ -7,13 +7,16 @@
 //! | [`PosePlugin`] | posing rigged characters ([`Poseable`]): skinning-space ARAP solved for a skeleton pose, written to the joints, blended over clips ([`PoseBlend`]), clips authored on a [`PoseTimeline`] | [`PoseSystems`] (`Update`: Prepare → Request → Poll → Timeline after `DeformSystems::Request`; `PostUpdate`: Apply after `AnimationSystems`, before propagation) |
 //! | [`GrabPlugin`] | press, drag, release on [`Grabbable`] meshes and characters through bevy_picking | runs before `DeformSystems::Request` |
 //! | [`MouseControlPlugin`] | [`MouseHandleControl`]: arcball and view-plane drags of a handle | `Update`, before `DeformSystems::Request` |
+//! | [`WiimotePointerPlugin`] | the Wii Remote's IR pointer as a bevy_picking pointer: A grabs, turning turns ([`GrabTurn`]) | `PreUpdate`, in bevy_picking's input set |
 //! | [`WiimotePlugin`], [`WiimoteControlPlugin`] | one entity per remote with a [`Wiimote`] component, messages; [`WiimoteHandleControl`] | [`WiimoteSystems`] (`PreUpdate`: Receive; `Update`: Control, before `DeformSystems::Request`) |
+//!
+//! The input plugins (mouse, remote, pointer grabs) live in one folder, `ecs/input`, over one
+//! piece of shared view math.
 //!
 //! [`WiiDeformPlugins`] adds them all.
 
-mod control;
 mod deform;
-mod grab;
+mod input;
 mod pose;
 mod scene;
 mod wiimote;
@@ -21,17 +24,14 @@ mod wiimote;
 use bevy::app::PluginGroupBuilder;
 use bevy::prelude::*;
 
-pub use control::{
-    MouseControlPlugin, MouseHandleControl, WiimoteControlPlugin, WiimoteHandleControl,
-    arcball_rotation,
-};
 pub use deform::{
     DeformConfig, DeformError, DeformFailed, DeformHandle, DeformPhase, DeformPlugin, DeformSolved,
     DeformStatus, DeformSystems, Deformable, FixedRegion, mesh_from_triangles,
 };
-pub use grab::{
+pub use input::{
     ActiveGrabs, GrabButton, GrabEnd, GrabHandle, GrabMove, GrabPlugin, GrabStart, GrabTurn,
-    GrabTwist, Grabbable,
+    GrabTwist, Grabbable, MouseControlPlugin, MouseHandleControl, WiimoteControlPlugin,
+    WiimoteHandleControl, WiimotePointer, WiimotePointerPlugin, arcball_rotation,
 };
 pub use pose::{
     GrabAnchor, HandlePositionOnly, JointMask, PinnedJoints, PoseBlend, PoseBlendMode,
@@ -43,8 +43,8 @@ pub use scene::{DeformableFrom, DeformableScene, MESH_WAIT_FRAMES};
 pub use wiimote::{
     ConnectionState, Wiimote, WiimoteButtonChanged, WiimoteCalibration, WiimoteConnected,
     WiimoteDisconnected, WiimoteEmulators, WiimoteFilter, WiimoteLink, WiimoteOrientationChanged,
-    WiimotePlugin, WiimotePointer, WiimotePointerPlugin, WiimoteProblem, WiimoteProblems,
-    WiimoteSettings, WiimoteSource, WiimoteSystems, remote_to_bevy, remote_vec_to_bevy,
+    WiimotePlugin, WiimoteProblem, WiimoteProblems, WiimoteSettings, WiimoteSource, WiimoteSystems,
+    remote_to_bevy, remote_vec_to_bevy,
 };
 
 /// Every plugin: [`DeformPlugin`], [`PosePlugin`], [`GrabPlugin`], [`WiimotePlugin`],

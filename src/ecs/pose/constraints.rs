@@ -11,7 +11,7 @@ use super::{
 };
 use crate::deform::{Handle as CoreHandle, RigidTransform, centroid};
 use crate::ecs::DeformHandle;
-use crate::ecs::control::rotation_of_space;
+use crate::ecs::input::view::rotation_of_space;
 use crate::pose::{
     CentroidEffector, Effector, EffectorGoal, JointHandle, JointLimits, LimitError, SkeletonPose,
 };

@@ -3,7 +3,6 @@
 //! holds the data types; `plugin.rs` the plugin, its system sets and systems.
 
 mod plugin;
-mod pointer;
 
 use bevy::prelude::*;
 
@@ -14,7 +13,6 @@ use crate::wiimote::{
 };
 
 pub use plugin::{WiimotePlugin, WiimoteSystems};
-pub use pointer::{WiimotePointer, WiimotePointerPlugin};
 
 /// Orientation filter choice (mirrors [`FilterKind`] for reflection and UIs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Reflect)]

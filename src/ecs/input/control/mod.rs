@@ -14,7 +14,6 @@ mod plugin;
 use bevy::prelude::*;
 
 pub use plugin::{MouseControlPlugin, WiimoteControlPlugin};
-pub(crate) use plugin::{rotation_of_space, turned_in_space, view_plane_motion};
 
 /// Drive this handle (`DeformHandle` entity, or any entity with a `Transform`) with a remote.
 ///
@@ -183,22 +182,4 @@ impl MouseHandleControl {
     pub fn drag_start(&self) -> Option<Transform> {
         self.drag_start.filter(|_| self.is_dragging())
     }
-}
-
-/// The arcball rotation (in view space: x right, y up, z towards the viewer) that takes the
-/// cursor from `from` to `to` (window coordinates, y down), for a ball of `radius` pixels
-/// centred at `centre`. Points outside the ball lie on its rim, so dragging there rolls about
-/// the view direction.
-pub fn arcball_rotation(from: Vec2, to: Vec2, centre: Vec2, radius: f32) -> Quat {
-    let to_sphere = |p: Vec2| {
-        let v = (p - centre) / radius.max(1.0);
-        let v = Vec2::new(v.x, -v.y);
-        let d2 = v.length_squared();
-        if d2 <= 1.0 {
-            v.extend((1.0 - d2).sqrt())
-        } else {
-            (v / d2.sqrt()).extend(0.0)
-        }
-    };
-    Quat::from_rotation_arc(to_sphere(from), to_sphere(to))
 }

@@ -10,7 +10,7 @@ use bevy::picking::pointer::{PointerButton, PointerId};
 use bevy::prelude::*;
 
 #[cfg(doc)]
-use super::deform::{Deformable, FixedRegion};
+use crate::ecs::deform::{Deformable, FixedRegion};
 
 pub use plugin::GrabPlugin;
 

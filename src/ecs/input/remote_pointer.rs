@@ -11,8 +11,8 @@ use bevy::picking::pointer::{Location, PointerAction, PointerButton, PointerId, 
 use bevy::prelude::*;
 use bevy::window::{PrimaryWindow, WindowRef};
 
-use super::{Wiimote, WiimoteSystems};
 use crate::ecs::GrabTurn;
+use crate::ecs::wiimote::{Wiimote, WiimoteSystems};
 use crate::wiimote::protocol::Buttons;
 
 /// Gives every [`Wiimote`] with a pointer ([`WiimotePlugin::pointer`](crate::ecs::WiimotePlugin::pointer))

@@ -4,7 +4,10 @@
 use bevy::prelude::*;
 use bevy::window::PrimaryWindow;
 
-use super::{Grab, MouseHandleControl, WiimoteHandleControl, arcball_rotation};
+use super::{Grab, MouseHandleControl, WiimoteHandleControl};
+use crate::ecs::input::view::{
+    arcball_rotation, rotation_of_space, turned_in_space, view_plane_motion,
+};
 use crate::ecs::wiimote::{ConnectionState, Wiimote, WiimoteLink};
 use crate::ecs::{DeformSystems, WiimoteSystems};
 use crate::wiimote::RemoteCommand;
@@ -198,76 +201,5 @@ pub(crate) fn drive_mouse_handles(
         if rotation.is_finite() {
             transform.rotation = rotation;
         }
-    }
-}
-
-/// `rotation` (a handle's, in the space `space` maps to world) turned by `in_view`, a rotation
-/// expressed in the camera's view frame.
-pub(crate) fn turned_in_space(
-    in_view: Quat,
-    camera_transform: &GlobalTransform,
-    space: &bevy::math::Affine3A,
-    rotation: Quat,
-) -> Quat {
-    let camera_rotation = rotation_of_space(&camera_transform.affine());
-    let in_world = camera_rotation * in_view * camera_rotation.inverse();
-    // The rotation about a world axis, seen in the handle's space (its rotation part).
-    let space_rotation = rotation_of_space(space);
-    let in_space = space_rotation.inverse() * in_world * space_rotation;
-    (in_space * rotation).normalize()
-}
-
-/// The rotation of an affine space: the rotation nearest to its linear part (the polar
-/// factor), whatever its scale — uniform (0.01 for centimetre rigs), non-uniform, or sheared by
-/// a scaled parent. `Quat::from_mat3a` is only defined for pure rotations; on a scaled matrix
-/// it turns a 34° drag into 39° (scale 2) or a −90° turn into 2.3° (scale 0.01). A degenerate
-/// space (zero or non-finite scale) has no rotation: the identity.
-pub(crate) fn rotation_of_space(space: &bevy::math::Affine3A) -> Quat {
-    let m = glam::DMat3::from_cols(
-        space.matrix3.x_axis.as_dvec3(),
-        space.matrix3.y_axis.as_dvec3(),
-        space.matrix3.z_axis.as_dvec3(),
-    );
-    // The polar factor does not depend on the scale; normalising keeps Jacobi's tolerances
-    // meaningful at any size.
-    let norm =
-        (m.x_axis.length_squared() + m.y_axis.length_squared() + m.z_axis.length_squared()).sqrt();
-    if !norm.is_finite() || norm < 1e-30 {
-        return Quat::IDENTITY;
-    }
-    let q = crate::deform::best_rotation_exact(&(m * norm.recip())).as_quat();
-    if q.is_finite() {
-        q.normalize()
-    } else {
-        Quat::IDENTITY
-    }
-}
-
-/// World-space motion of a point at `at`'s depth that follows the cursor from `from` to `to`.
-pub(crate) fn view_plane_motion(
-    camera: &Camera,
-    camera_transform: &GlobalTransform,
-    at: Vec3,
-    from: Vec2,
-    to: Vec2,
-) -> Vec3 {
-    let (Ok(a), Ok(b)) = (
-        camera.viewport_to_world(camera_transform, from),
-        camera.viewport_to_world(camera_transform, to),
-    ) else {
-        return Vec3::ZERO;
-    };
-    // Intersect both rays with the plane through `at` facing the camera.
-    let normal = camera_transform.forward();
-    let hit = |ray: Ray3d| {
-        let denom = ray.direction.dot(*normal);
-        if denom.abs() < 1e-6 {
-            return None;
-        }
-        Some(ray.origin + *ray.direction * ((at - ray.origin).dot(*normal) / denom))
-    };
-    match (hit(a), hit(b)) {
-        (Some(pa), Some(pb)) => pb - pa,
-        _ => Vec3::ZERO,
     }
 }

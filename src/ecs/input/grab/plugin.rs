@@ -9,8 +9,8 @@ use bevy::picking::pointer::{PointerAction, PointerId, PointerInput};
 use bevy::prelude::*;
 
 use crate::deform::Topology;
-use crate::ecs::control::{arcball_rotation, turned_in_space, view_plane_motion};
 use crate::ecs::deform::{DeformHandle, DeformState, DeformSystems, Deformable, FixedRegion};
+use crate::ecs::input::view::{arcball_rotation, turned_in_space, view_plane_motion};
 use crate::ecs::pose::{GrabAnchor, HandlePositionOnly, PinnedJoints, PosedSkeleton};
 use crate::ecs::scene::DeformableFrom;
 
