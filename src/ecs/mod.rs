@@ -13,7 +13,8 @@
 //! The input plugins (mouse, remote, pointer grabs) live in one folder, `ecs/input`, over one
 //! piece of shared view math.
 //!
-//! [`WiiDeformPlugins`] adds them all.
+//! [`WiiDeformPlugins`] adds them all except [`WiimotePointerPlugin`] (opt-in: it needs a sensor
+//! bar, [`WiimotePlugin::pointer`]).
 
 mod deform;
 mod input;
