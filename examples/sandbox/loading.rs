@@ -103,11 +103,13 @@ struct Merged {
 }
 
 impl Merged {
-    fn look(&self) -> Look {
-        Look {
-            uvs: self.any_uvs.then(|| self.uvs.clone()),
-            material: self.material.clone(),
-        }
+    /// The merged mesh and its look.
+    fn into_parts(self) -> (TriMesh, Look) {
+        let look = Look {
+            uvs: self.any_uvs.then_some(self.uvs),
+            material: self.material,
+        };
+        (self.mesh, look)
     }
 }
 
@@ -280,10 +282,7 @@ fn merge_spawned_scene(
         (true, skipped) => Err(format!(
             "{name}: {skipped} primitive(s), none a triangle list with positions"
         )),
-        (false, _) => {
-            let look = merged.look();
-            Ok((merged.mesh, look))
-        }
+        (false, _) => Ok(merged.into_parts()),
     };
     loading.job = Some(Job::Prepare(prepare(request, read)));
 }
@@ -596,9 +595,9 @@ mod tests {
                 out
             })
             .unwrap();
-        let look = merged.look();
+        let (mesh, look) = merged.into_parts();
         let uvs = look.uvs.as_ref().expect("the Fox's texture coordinates");
-        assert_eq!(uvs.len(), merged.mesh.positions.len());
+        assert_eq!(uvs.len(), mesh.positions.len());
         assert!(uvs.iter().any(|uv| uv[0] != 0.0 || uv[1] != 0.0));
         let materials = app.world().resource::<Assets<StandardMaterial>>();
         let material = material_of(&look, materials);

@@ -265,9 +265,12 @@ impl PoseClip {
                     scale: p.scale.lerp(q.scale, s),
                 })
                 .collect(),
-            KeyInterpolation::CubicSpline => (0..a.pose.local.len())
-                .map(|j| self.cubic_joint(j, k, s))
-                .collect(),
+            KeyInterpolation::CubicSpline => {
+                let times = self.times();
+                (0..a.pose.local.len())
+                    .map(|j| self.cubic_joint(j, k, s, &times))
+                    .collect()
+            }
         };
         Some(SkeletonPose { local })
     }
@@ -275,20 +278,6 @@ impl PoseClip {
     /// The times of the keys.
     pub fn times(&self) -> Vec<f32> {
         self.keys.iter().map(|k| k.time).collect()
-    }
-
-    /// Rotations of joint `j` along the keys, each on the same side as the previous one.
-    pub fn aligned_rotations(&self, j: usize) -> Vec<DQuat> {
-        let mut out: Vec<DQuat> = Vec::with_capacity(self.keys.len());
-        for key in &self.keys {
-            let q = key.pose.local[j].rotation;
-            let q = match out.last() {
-                Some(prev) if prev.dot(q) < 0.0 => -q,
-                _ => q,
-            };
-            out.push(q);
-        }
-        out
     }
 
     /// The automatic tangent (per second) of a value sequence at key `k`: Catmull–Rom inside,
@@ -301,37 +290,37 @@ impl PoseClip {
         (values[k + 1] - values[k - 1]) / span
     }
 
-    fn cubic_joint(&self, j: usize, k: usize, s: f64) -> JointTransform {
-        let times = self.times();
+    /// Joint `j` on cubic segment `k` at `s`: only keys `k − 1 ..= k + 2` shape the segment
+    /// (the tangents at its two ends), so only they are read.
+    fn cubic_joint(&self, j: usize, k: usize, s: f64, times: &[f32]) -> JointTransform {
+        let (lo, hi) = (k.saturating_sub(1), (k + 2).min(self.keys.len() - 1));
+        let window = &self.keys[lo..=hi];
+        let times = &times[lo..=hi];
+        let k = k - lo;
         let td = f64::from(times[k + 1] - times[k]);
-        let t3 = |f: fn(&JointTransform) -> DVec3| -> Vec<DVec4> {
-            self.keys
+        let hermite = |values: &[DVec4]| {
+            let (m0, m1) = (
+                Self::auto_tangent(times, values, k),
+                Self::auto_tangent(times, values, k + 1),
+            );
+            hermite(values[k], m0 * td, values[k + 1], m1 * td, s)
+        };
+        let column = |f: fn(&JointTransform) -> DVec3| -> Vec<DVec4> {
+            window
                 .iter()
                 .map(|key| f(&key.pose.local[j]).extend(0.0))
                 .collect()
         };
-        let hermite = |values: &[DVec4]| {
-            let (m0, m1) = (
-                Self::auto_tangent(&times, values, k),
-                Self::auto_tangent(&times, values, k + 1),
-            );
-            hermite(values[k], m0 * td, values[k + 1], m1 * td, s)
-        };
-        let rotations: Vec<DVec4> = self
-            .aligned_rotations(j)
-            .into_iter()
-            .map(DVec4::from)
-            .collect();
-        let r = hermite(&rotations);
-        let rotation = DQuat::from_vec4(r);
+        let rotations = sign_aligned(window.iter().map(|key| key.pose.local[j].rotation));
+        let rotation = DQuat::from_vec4(hermite(&rotations));
         JointTransform {
-            translation: hermite(&t3(|t| t.translation)).truncate(),
+            translation: hermite(&column(|t| t.translation)).truncate(),
             rotation: if rotation.length_squared() > 1e-18 {
                 rotation.normalize()
             } else {
-                self.keys[k].pose.local[j].rotation
+                window[k].pose.local[j].rotation
             },
-            scale: hermite(&t3(|t| t.scale)).truncate(),
+            scale: hermite(&column(|t| t.scale)).truncate(),
         }
     }
 
@@ -351,6 +340,21 @@ impl PoseClip {
             keys: self.keys.len(),
         }
     }
+}
+
+/// Unit quaternions as vectors, each on the same side as the previous one (so that
+/// interpolating neighbours never takes the long way; `q` and `−q` are one rotation).
+pub(crate) fn sign_aligned(rotations: impl IntoIterator<Item = DQuat>) -> Vec<DVec4> {
+    let mut out: Vec<DVec4> = Vec::new();
+    for q in rotations {
+        let v = DVec4::from(q.normalize());
+        let v = match out.last() {
+            Some(prev) if prev.dot(v) < 0.0 => -v,
+            _ => v,
+        };
+        out.push(v);
+    }
+    out
 }
 
 /// glTF's cubic Hermite segment: `v0`, `v1` the values, `m0`, `m1` the tangents already

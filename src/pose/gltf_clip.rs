@@ -32,7 +32,9 @@ use gltf_json as json;
 use json::animation::{Interpolation, Property};
 use json::validation::{Checked, USize64};
 
-use super::clip::{ClipError, KEY_TIME_EPSILON, KeyInterpolation, PoseClip, PoseKey, hermite};
+use super::clip::{
+    ClipError, KEY_TIME_EPSILON, KeyInterpolation, PoseClip, PoseKey, hermite, sign_aligned,
+};
 use super::file::PoseFileError;
 use super::skeleton::{JointTransform, Skeleton, SkeletonPose};
 
@@ -100,7 +102,7 @@ pub fn write_gltf_clip(
             ),
             (
                 Property::Rotation,
-                aligned(samples.poses.iter().map(|p| p.local[j].rotation)),
+                sign_aligned(samples.poses.iter().map(|p| p.local[j].rotation)),
                 rest.map(|r| DVec4::from(r.local[j].rotation)),
             ),
             (
@@ -277,20 +279,6 @@ fn export_samples(clip: &PoseClip) -> ExportSamples {
         poses,
         interpolation: Interpolation::Linear,
     }
-}
-
-/// Quaternions as vectors, each on the same side as the previous one.
-fn aligned(rotations: impl Iterator<Item = DQuat>) -> Vec<DVec4> {
-    let mut out: Vec<DVec4> = Vec::new();
-    for q in rotations {
-        let v = DVec4::from(q.normalize());
-        let v = match out.last() {
-            Some(prev) if prev.dot(v) < 0.0 => -v,
-            _ => v,
-        };
-        out.push(v);
-    }
-    out
 }
 
 /// One animation channel to write: a track (node path index), a property, and its values
