@@ -3,8 +3,11 @@
 //! grab with the mouse and bend. Press on a thing, drag, release: the pose stays.
 //!
 //! ```text
-//! cargo run --release --example playground [-- --screenshot PATH --frames N]
+//! cargo run --release --example playground [-- --pointer [emulated]] [-- --screenshot PATH --frames N]
 //! ```
+//! `--pointer`: a Wii Remote points too (its IR camera and a sensor bar above the screen):
+//! point at a thing, hold A, move and turn the remote, release — the library's
+//! `WiimotePointerPlugin`, with a ring drawn where the remote points.
 //! Three things make an object bendable: `Deformable` (on a mesh, or on a glTF scene root: it
 //! applies to the meshes below), `Grabbable` (radii along the surface), and the plugins —
 //! `DeformPlugin`, `GrabPlugin` and a picking backend (`MeshPickingPlugin`).
@@ -15,20 +18,32 @@ use bevy::render::view::screenshot::{Screenshot, save_to_disk};
 use bevy_wii_deform::deform::{TriMesh, synth};
 use bevy_wii_deform::prelude::*;
 
+#[path = "common/remote_cursor.rs"]
+mod remote_cursor;
+
 /// The glTF scene, when the shared test assets sit beside the project.
 const ALIEN: &str = "../shared/models/alien.glb";
 
 fn main() {
-    App::new()
-        .add_plugins(DefaultPlugins.set(AssetPlugin {
-            // The shared models live beside the project, not in its assets folder.
-            file_path: "..".into(),
-            ..default()
-        }))
-        .add_plugins((DeformPlugin::default(), GrabPlugin, MeshPickingPlugin))
-        .add_systems(Startup, setup)
-        .add_systems(Update, unattended)
-        .run();
+    let mut app = App::new();
+    app.add_plugins(DefaultPlugins.set(AssetPlugin {
+        // The shared models live beside the project, not in its assets folder.
+        file_path: "..".into(),
+        ..default()
+    }))
+    .add_plugins((DeformPlugin::default(), GrabPlugin, MeshPickingPlugin))
+    .add_systems(Startup, setup)
+    .add_systems(Update, unattended);
+    let args: Vec<String> = std::env::args().collect();
+    if let Some(i) = args.iter().position(|a| a == "--pointer") {
+        // The Wii Remote as a second pointer: A grabs where it points.
+        let emulated = args.get(i + 1).is_some_and(|a| a == "emulated");
+        app.add_plugins((
+            remote_cursor::pointing_remote(emulated),
+            remote_cursor::RemoteCursorPlugin { emulated },
+        ));
+    }
+    app.run();
 }
 
 /// Marks the bar, which `--screenshot` bends by a scripted grab.

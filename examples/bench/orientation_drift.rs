@@ -1,10 +1,15 @@
 //! Drift benchmark (PROTOCOL.md §14): seeded 10-minute synthetic sessions through the
 //! emulator and the session code, scored for every filter against the ground truth, on every
-//! session set (`default`, `no_warm_up`, `continuous`; see `wiimote::drift`).
+//! session set (`default`, `no_warm_up`, `continuous`, `pointing`; see `wiimote::drift`).
 //!
 //! ```text
-//! cargo run --release --example orientation_drift -- --json [--seeds 5] [--first-seed 1] [--seconds 600] [--set NAME] [--ideal LIST]
+//! cargo run --release --example orientation_drift -- --json [--seeds 5] [--first-seed 1] [--seconds 600] [--set NAME] [--ideal LIST] [--in-view 0.5]
 //! ```
+//! The `pointing` set aims at a screen with a sensor bar `--in-view` of the time (default
+//! 0.5) with the IR camera on; it adds `ours_ir` (our filter fed with the bar's sightings: the
+//! heading reference of `PROTOCOL.md` §17.6) and `in_view_share` (the share of samples in which
+//! the camera saw the bar) and `pointer_rms_percent_of_width` (the pointer's RMS error while
+//! the bar is in view, per cent of the screen's width).
 //! `--ideal` removes sensor errors from the emulated unit, to find which one limits a filter:
 //! a comma-separated list of `accel` (misalignment and scale), `gyro_scale` (calibration-block
 //! scale error), `gyro_misalignment`, `bias_walk`, `warm_up`, `gyro_noise` (σ 0.01 deg/s).
@@ -43,14 +48,26 @@ struct SetReport {
     set: SessionSet,
     scores: Vec<drift::FilterScore>,
     floor: f64,
+    /// `ours` fed with the bar's sightings, and the share of samples that saw it (the
+    /// `pointing` set only).
+    with_bar: Option<(drift::FilterScore, f64, f64)>,
 }
 
-fn run_set(
-    set: SessionSet,
-    ideal: &str,
+/// What one set is run with.
+struct RunSettings<'a> {
+    ideal: &'a str,
     seeds: std::ops::RangeInclusive<u64>,
     seconds: f64,
-) -> SetReport {
+    in_view: f64,
+}
+
+fn run_set(set: SessionSet, run: &RunSettings) -> SetReport {
+    let RunSettings {
+        ideal,
+        ref seeds,
+        seconds,
+        in_view,
+    } = *run;
     let sensor = match idealised(set.sensor(), ideal) {
         Ok(sensor) => sensor,
         Err(e) => {
@@ -62,8 +79,13 @@ fn run_set(
     };
     let mut per_filter: Vec<Vec<drift::FilterScore>> = vec![Vec::new(); FilterKind::ALL.len()];
     let mut floors = Vec::new();
-    for seed in seeds {
-        let rec = set.record_with_sensor(sensor.clone(), seed, seconds);
+    let (mut with_bar, mut shares, mut pointer) = (Vec::new(), Vec::new(), Vec::new());
+    for seed in seeds.clone() {
+        let rec = if set == SessionSet::Pointing {
+            drift::record_pointing(sensor.clone(), seed, seconds, in_view)
+        } else {
+            set.record_with_sensor(sensor.clone(), seed, seconds)
+        };
         eprintln!(
             "{} seed {seed}: {} samples, {:.0} s",
             set.name(),
@@ -74,11 +96,23 @@ fn run_set(
         for (k, kind) in FilterKind::ALL.iter().enumerate() {
             per_filter[k].push(drift::score(*kind, &rec));
         }
+        if set == SessionSet::Pointing {
+            with_bar.push(drift::score_with_bar(FilterKind::Fusion, &rec));
+            shares.push(rec.in_view_share());
+            pointer.extend(rec.pointer_rms_error());
+        }
     }
     SetReport {
         set,
         scores: per_filter.iter().map(|s| drift::mean(s)).collect(),
         floor: floors.iter().sum::<f64>() / floors.len().max(1) as f64,
+        with_bar: (!with_bar.is_empty()).then(|| {
+            (
+                drift::mean(&with_bar),
+                shares.iter().sum::<f64>() / shares.len() as f64,
+                pointer.iter().sum::<f64>() / pointer.len().max(1) as f64,
+            )
+        }),
     }
 }
 
@@ -89,7 +123,7 @@ fn print_table(report: &SetReport) {
         report.floor
     );
     println!(
-        "{:<6} {:>9} {:>11} {:>10} {:>10} {:>11} {:>9} {:>9} {:>7}",
+        "{:<7} {:>9} {:>11} {:>10} {:>10} {:>11} {:>9} {:>9} {:>7}",
         "filter",
         "tilt RMS°",
         "tilt still°",
@@ -100,10 +134,16 @@ fn print_table(report: &SetReport) {
         "inclin.°",
         "µs/smp"
     );
-    for (kind, m) in FilterKind::ALL.iter().zip(&report.scores) {
+    let with_bar = report.with_bar.iter().map(|(m, ..)| ("ours_ir", m));
+    for (name, m) in FilterKind::ALL
+        .iter()
+        .map(|k| k.name())
+        .zip(&report.scores)
+        .chain(with_bar)
+    {
         println!(
-            "{:<6} {:>9.3} {:>11.3} {:>10.3} {:>10.3} {:>11.3} {:>9.3} {:>9.3} {:>7.3}",
-            kind.name(),
+            "{:<7} {:>9.3} {:>11.3} {:>10.3} {:>10.3} {:>11.3} {:>9.3} {:>9.3} {:>7.3}",
+            name,
             m.tilt_rms_deg,
             m.tilt_max_still_deg,
             m.yaw_drift_deg_per_min,
@@ -114,15 +154,30 @@ fn print_table(report: &SetReport) {
             m.us_per_sample
         );
     }
+    if let Some((_, share, pointer)) = report.with_bar {
+        println!(
+            "bar in view {:.1} % of the samples; pointer error {:.3} % of the screen width (RMS)",
+            share * 100.0,
+            pointer * 100.0
+        );
+    }
 }
 
 fn filters_json(report: &SetReport) -> String {
-    FilterKind::ALL
+    let mut fields: Vec<String> = FilterKind::ALL
         .iter()
         .zip(&report.scores)
         .map(|(kind, m)| format!("\"{}\": {}", kind.name(), m.to_json()))
-        .collect::<Vec<_>>()
-        .join(", ")
+        .collect();
+    if let Some((m, share, pointer)) = &report.with_bar {
+        fields.push(format!("\"ours_ir\": {}", m.to_json()));
+        fields.push(format!("\"in_view_share\": {share:.4}"));
+        fields.push(format!(
+            "\"pointer_rms_percent_of_width\": {:.4}",
+            pointer * 100.0
+        ));
+    }
+    fields.join(", ")
 }
 
 fn main() {
@@ -139,20 +194,24 @@ fn main() {
     let seconds = number("--seconds", 600.0);
     let json = args.iter().any(|a| a == "--json");
     let ideal = value("--ideal").map(String::as_str).unwrap_or("");
+    let in_view = number("--in-view", drift::DEFAULT_IN_VIEW_SHARE);
     let sets: Vec<SessionSet> = match value("--set") {
         Some(name) => match SessionSet::from_name(name) {
             Some(set) => vec![set],
             None => {
-                eprintln!("unknown set {name}: default, no_warm_up or continuous");
+                eprintln!("unknown set {name}: default, no_warm_up, continuous or pointing");
                 std::process::exit(2);
             }
         },
         None => SessionSet::ALL.to_vec(),
     };
-    let reports: Vec<SetReport> = sets
-        .iter()
-        .map(|set| run_set(*set, ideal, first..=first + seeds - 1, seconds))
-        .collect();
+    let run = RunSettings {
+        ideal,
+        seeds: first..=first + seeds - 1,
+        seconds,
+        in_view,
+    };
+    let reports: Vec<SetReport> = sets.iter().map(|set| run_set(*set, &run)).collect();
     for r in &reports {
         print_table(r);
     }

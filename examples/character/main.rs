@@ -39,6 +39,8 @@ mod grab;
 mod history;
 mod hud;
 mod library;
+#[path = "../common/remote_cursor.rs"]
+mod remote_cursor;
 mod scene;
 mod timeline;
 mod ui;
@@ -48,7 +50,6 @@ mod undo_keys;
 
 use bevy::prelude::*;
 use bevy_wii_deform::prelude::*;
-use bevy_wii_deform::wiimote::ir::PointerSetup;
 
 /// Command-line options.
 #[derive(Resource, Debug, Clone)]
@@ -61,9 +62,10 @@ pub struct Args {
     pub frames: u32,
     /// `--remote [emulated]`: drive a head handle with a Wii Remote.
     pub remote: Option<WiimotePlugin>,
-    /// `--pointer [emulated]`: the Wii Remote's IR camera as a pointer (a sensor bar below a
-    /// 1 m screen seen from 2 m): point, hold A to grab, turn to turn, B to turn only.
-    pub pointer: Option<WiimotePlugin>,
+    /// `--pointer [emulated]`: the Wii Remote's IR camera as a pointer (a sensor bar above a
+    /// 42-inch screen seen from 2 m): point, hold A to grab, turn to turn, B to turn only.
+    /// `Some(true)`: an emulated remote sweeping over the screen.
+    pub pointer: Option<bool>,
     /// `--author-demo OUT.glb`: author a three-key clip by script, export, play back, exit.
     pub author_demo: Option<String>,
 }
@@ -98,14 +100,7 @@ impl Args {
             pointer: args
                 .iter()
                 .any(|a| a == "--pointer")
-                .then(|| WiimotePlugin {
-                    pointer: Some(PointerSetup::default()),
-                    ..if value("--pointer").as_deref() == Some("emulated") {
-                        WiimotePlugin::emulated()
-                    } else {
-                        WiimotePlugin::default()
-                    }
-                }),
+                .then(|| value("--pointer").as_deref() == Some("emulated")),
             remote: args.iter().any(|a| a == "--remote").then(|| {
                 if value("--remote").as_deref() == Some("emulated") {
                     WiimotePlugin::emulated()
@@ -122,8 +117,11 @@ fn main() {
     let mut app = App::new();
     if let Some(remote) = args.remote.clone() {
         app.add_plugins((remote, WiimoteControlPlugin, grab::RemoteHeadPlugin));
-    } else if let Some(pointer) = args.pointer.clone() {
-        app.add_plugins((pointer, grab::RemotePointerPlugin));
+    } else if let Some(emulated) = args.pointer {
+        app.add_plugins((
+            remote_cursor::pointing_remote(emulated),
+            remote_cursor::RemoteCursorPlugin { emulated },
+        ));
     }
     app.add_plugins(DefaultPlugins.set(AssetPlugin {
         // The shared models live beside the project, not in its assets folder.

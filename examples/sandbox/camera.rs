@@ -90,10 +90,19 @@ pub fn cursor_ray(
     window: &Query<&Window, With<PrimaryWindow>>,
     camera: &Query<(&Camera, &GlobalTransform)>,
 ) -> Option<Ray3d> {
-    let window = window.single().ok()?;
-    let cursor = window.cursor_position()?;
+    let cursor = window.single().ok()?.cursor_position()?;
+    screen_ray(window, camera, cursor)
+}
+
+/// The ray through a window position (logical pixels), from the first camera.
+pub fn screen_ray(
+    window: &Query<&Window, With<PrimaryWindow>>,
+    camera: &Query<(&Camera, &GlobalTransform)>,
+    at: Vec2,
+) -> Option<Ray3d> {
+    window.single().ok()?;
     let (cam, tf) = camera.iter().next()?;
-    cam.viewport_to_world(tf, cursor).ok()
+    cam.viewport_to_world(tf, at).ok()
 }
 
 /// True unless the pointer is over the egui panel.

@@ -3,12 +3,14 @@
 //!
 //! ```text
 //! cargo run --release --example sandbox [-- MODEL|PATH.obj|PATH.off|PATH.gltf|PATH.glb]
-//!     [--task NAME] [--demo] [--emulate] [--screenshot PATH --frames N] [--windowless]
+//!     [--task NAME] [--demo] [--emulate] [--pointer] [--screenshot PATH --frames N] [--windowless]
 //! ```
 //! Mouse: right-drag orbits, wheel zooms, middle-drag pans. In *Paint* mode left-drag paints
 //! with the brush; in *Pose* mode left-drag turns the handle with an arcball, Shift+left-drag
 //! moves it in the view plane. Wiimote: hold B and turn the remote (1:1), D-pad/+/− move,
-//! Home recentres. Ctrl+Z / Ctrl+Y undo and redo.
+//! Home recentres. `--pointer`: the remote's IR camera points too (a ring where it points,
+//! filled while the sensor bar holds its heading); in *Paint* mode hold A to paint where it
+//! points. Ctrl+Z / Ctrl+Y undo and redo.
 //!
 //! The app is a set of plugins, one per job, talking through resources, messages and states:
 //!
@@ -38,6 +40,8 @@ mod loading;
 #[path = "../common/models.rs"]
 mod models;
 mod posing;
+#[path = "../common/remote_cursor.rs"]
+mod remote_cursor;
 mod scripted;
 mod selection;
 mod tasks;
@@ -147,6 +151,8 @@ struct Args {
     task: Option<String>,
     demo: bool,
     emulate: bool,
+    /// `--pointer`: the remote's IR camera points (a ring where it points); A paints.
+    pointer: bool,
     windowless: bool,
     unattended: Unattended,
 }
@@ -180,6 +186,7 @@ impl Args {
             task,
             demo,
             emulate: demo || windowless || flag("--emulate"),
+            pointer: flag("--pointer"),
             windowless,
             unattended: Unattended {
                 screenshot: arg_value(&args, "--screenshot"),
@@ -244,7 +251,12 @@ fn main() -> AppExit {
     let args = Args::parse();
     let mut app = App::new();
     add_bevy(&mut app, args.windowless);
-    let wiimote = if args.emulate {
+    let wiimote = if args.pointer {
+        app.add_plugins(remote_cursor::RemoteCursorPlugin {
+            emulated: args.emulate,
+        });
+        remote_cursor::pointing_remote(args.emulate)
+    } else if args.emulate {
         WiimotePlugin::emulated()
     } else {
         WiimotePlugin::default()

@@ -9,7 +9,7 @@ use bevy_wii_deform::deform::centroid;
 use bevy_wii_deform::prelude::*;
 use glam::DVec3;
 
-use crate::camera::{cursor_ray, not_over_ui};
+use crate::camera::{cursor_ray, not_over_ui, screen_ray};
 use crate::challenge::ChallengeState;
 use crate::history::{History, snapshot};
 use crate::{EditMode, InputMethod, Model, SandboxSet};
@@ -103,33 +103,48 @@ pub fn selection_colors(labels: &[u8]) -> Vec<[f32; 4]> {
         .collect()
 }
 
-/// Where the brush hits the mesh this frame.
+/// Where the brush hits the mesh this frame, and whether a brush button is held (the left
+/// mouse button, or A on a Wii Remote that points at the screen).
 #[derive(Resource, Default)]
-struct BrushHit(Option<Vec3>);
+struct BrushHit {
+    point: Option<Vec3>,
+    held: bool,
+}
 
 fn brush_ray(
     model: Res<Model>,
     mut ray_cast: MeshRayCast,
     buttons: Res<ButtonInput<MouseButton>>,
+    remotes: Query<&Wiimote>,
     window: Query<&Window, With<PrimaryWindow>>,
     camera: Query<(&Camera, &GlobalTransform)>,
     mut hit_out: ResMut<BrushHit>,
 ) {
-    hit_out.0 = None;
+    *hit_out = BrushHit::default();
     let Some(mesh_entity) = model.entity else {
         return;
     };
-    if !buttons.pressed(MouseButton::Left) {
+    // The mouse first; else a remote pointing at the screen with A held paints where it points.
+    let pointed = remotes
+        .iter()
+        .filter(|w| w.pressed(bevy_wii_deform::wiimote::protocol::Buttons::A))
+        .find_map(|w| w.pointer);
+    let ray = if buttons.pressed(MouseButton::Left) {
+        cursor_ray(&window, &camera)
+    } else if let (Some(p), Ok(w)) = (pointed, window.single()) {
+        screen_ray(&window, &camera, p * Vec2::new(w.width(), w.height()))
+    } else {
         return;
-    }
-    let Some(ray) = cursor_ray(&window, &camera) else {
+    };
+    hit_out.held = true;
+    let Some(ray) = ray else {
         return;
     };
     let only_mesh = |e: Entity| e == mesh_entity;
     let settings = MeshRayCastSettings::default()
         .with_visibility(RayCastVisibility::Any)
         .with_filter(&only_mesh);
-    hit_out.0 = ray_cast
+    hit_out.point = ray_cast
         .cast_ray(ray, &settings)
         .first()
         .map(|(_, hit)| hit.point);
@@ -149,7 +164,6 @@ fn paint(
     mut selection: ResMut<Selection>,
     mut history: ResMut<History>,
     model: Res<Model>,
-    buttons: Res<ButtonInput<MouseButton>>,
     hit: Res<BrushHit>,
     mut parts: ModelMesh,
     mut regions: MessageWriter<RegionsChanged>,
@@ -161,12 +175,12 @@ fn paint(
     else {
         return;
     };
-    if buttons.just_released(MouseButton::Left) && selection.stroke {
+    if !hit.held && selection.stroke {
         selection.stroke = false;
         regions.write(RegionsChanged { pose: None });
         return;
     }
-    let Some(point) = hit.0 else { return };
+    let Some(point) = hit.point else { return };
     if !selection.stroke {
         history.checkpoint(snapshot(&selection, &model, &parts.transforms));
         selection.stroke = true;

@@ -466,21 +466,7 @@ impl PointerSetup {
     /// The remote's position (on the central axis) and pointing direction in the room frame,
     /// reconstructed from the dots and gravity (see [`PointerSetup::pointed_at`]).
     pub fn aim(&self, dots: &IrDots, gravity: DVec3) -> Result<(DVec3, DVec3), IrError> {
-        let camera = IrCamera::default();
-        let seen: Vec<DVec2> = dots.iter().flatten().map(IrDot::position).collect();
-        if seen.len() < 2 {
-            return Err(IrError::BarNotInView(seen.len()));
-        }
-        // The two clusters: the pair farthest apart (stray reflections sit between or near).
-        let (mut a, mut b) = (seen[0], seen[1]);
-        for i in 0..seen.len() {
-            for j in i + 1..seen.len() {
-                if seen[i].distance_squared(seen[j]) > a.distance_squared(b) {
-                    (a, b) = (seen[i], seen[j]);
-                }
-            }
-        }
-        let (da, db) = (camera.direction(a), camera.direction(b));
+        let (da, db) = IrCamera::default().cluster_directions(dots)?;
         // Distance to the bar from the angle between the clusters.
         let angle = da.angle_between(db);
         if angle.is_nan() || angle <= 1e-6 {
@@ -522,6 +508,19 @@ impl PointerSetup {
     }
 }
 
+/// The orientation (body → room) of a remote at `position` pointing its −Y axis at `target`
+/// (room frame, +Z up), rolled by `roll` radians about that axis (positive lifts its left
+/// side): how an emulated remote is aimed at a spot of the screen
+/// ([`PointerSetup::screen_point`]).
+pub fn aimed_at(position: DVec3, target: DVec3, roll: f64) -> DQuat {
+    let d = (target - position).normalize_or(DVec3::NEG_Y);
+    // −Y turned by a pitch θ about X, then a yaw ψ about Z, is (sin ψ cos θ, −cos ψ cos θ,
+    // −sin θ).
+    let pitch = (-d.z).clamp(-1.0, 1.0).asin();
+    let yaw = d.x.atan2(-d.y);
+    DQuat::from_rotation_z(yaw) * DQuat::from_rotation_x(pitch) * DQuat::from_rotation_y(roll)
+}
+
 /// The IR camera: resolution 1024 × 768 and its field of view.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct IrCamera {
@@ -541,6 +540,36 @@ impl Default for IrCamera {
 }
 
 impl IrCamera {
+    /// The body-frame rays to the bar's two clusters: the two dots farthest apart (stray
+    /// reflections sit between or near them); a typed error with fewer than two dots or two
+    /// dots on one pixel.
+    pub fn cluster_directions(&self, dots: &IrDots) -> Result<(DVec3, DVec3), IrError> {
+        let seen: Vec<DVec2> = dots.iter().flatten().map(IrDot::position).collect();
+        if seen.len() < 2 {
+            return Err(IrError::BarNotInView(seen.len()));
+        }
+        let (mut a, mut b) = (seen[0], seen[1]);
+        for i in 0..seen.len() {
+            for j in i + 1..seen.len() {
+                if seen[i].distance_squared(seen[j]) > a.distance_squared(b) {
+                    (a, b) = (seen[i], seen[j]);
+                }
+            }
+        }
+        if a == b {
+            return Err(IrError::BarNotInView(1));
+        }
+        Ok((self.direction(a), self.direction(b)))
+    }
+
+    /// The body-frame unit direction from the remote to the sensor bar's centre (the mean of
+    /// the two clusters' rays): what the heading reference of the orientation filter measures
+    /// (`docs/PROTOCOL.md` §17.6).
+    pub fn bar_direction(&self, dots: &IrDots) -> Result<DVec3, IrError> {
+        let (a, b) = self.cluster_directions(dots)?;
+        Ok((a + b).normalize())
+    }
+
     /// The body-frame direction of the ray through pixel `p` (inverse of the projection).
     pub fn direction(&self, p: DVec2) -> DVec3 {
         let u = (p.x - IR_WIDTH as f64 / 2.0) / (IR_WIDTH as f64 / 2.0) * (self.fov_x / 2.0).tan();

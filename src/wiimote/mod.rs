@@ -39,8 +39,8 @@ pub use emulator::{
     Variant,
 };
 pub use filter::{
-    Calibration, CalibrationPhase, FilterKind, FusionFilter, ImuSample, OrientationFilter,
-    PaperFilter, RawIntegration, StillnessBias, VqfFilter, snap_tilt,
+    BarHeading, Calibration, CalibrationPhase, FilterKind, FusionFilter, ImuSample,
+    OrientationFilter, PaperFilter, RawIntegration, StillnessBias, VqfFilter, snap_tilt,
 };
 pub use manager::{
     ManagerConfig, ManagerEvent, RemoteCommand, RemoteId, RemoteSource, WiimoteManager,

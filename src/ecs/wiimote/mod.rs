@@ -134,6 +134,9 @@ pub struct Wiimote {
     /// (roll-compensated, `PROTOCOL.md` §17.5); `None` while the bar is out of view or the
     /// camera is off.
     pub pointer: Option<Vec2>,
+    /// The heading is held by the sensor bar right now (the camera sees it, `PROTOCOL.md`
+    /// §17.6); otherwise it is the 6-axis filter's, drifting slowly.
+    pub heading_from_bar: bool,
     /// Why the remote is unusable (permissions, the kernel driver, …), each with its fix in
     /// `Display`; cleared when it connects.
     #[reflect(ignore)]

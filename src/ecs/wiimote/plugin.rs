@@ -11,8 +11,8 @@ use super::{
 };
 use crate::wiimote::ir::{IrSensitivity, PointerSetup};
 use crate::wiimote::{
-    CalibrationPhase, EmulatorClock, EmulatorConfig, EmulatorControls, ManagerConfig, ManagerEvent,
-    MotionPlusState, RemoteCommand, RemoteSource, SessionConfig, WiimoteManager,
+    CalibrationPhase, EmulatedBar, EmulatorClock, EmulatorConfig, EmulatorControls, ManagerConfig,
+    ManagerEvent, MotionPlusState, RemoteCommand, RemoteSource, SessionConfig, WiimoteManager,
 };
 
 /// Wiimote systems, in `PreUpdate`.
@@ -59,6 +59,24 @@ impl WiimotePlugin {
             source: WiimoteSource::Emulator(vec![EmulatorConfig::default()]),
             ..Default::default()
         }
+    }
+
+    /// With the IR pointer in the room `setup` ([`Self::pointer`]); emulated remotes see that
+    /// room's sensor bar from its standing point (unless their config places one already), so
+    /// `WiimotePlugin::emulated().with_pointer(PointerSetup::default())` points with no
+    /// hardware (aim it through [`WiimoteEmulators`]).
+    pub fn with_pointer(mut self, setup: PointerSetup) -> Self {
+        self.pointer = Some(setup);
+        if let WiimoteSource::Emulator(configs) = &mut self.source {
+            for config in configs {
+                config.sensor_bar.get_or_insert(EmulatedBar {
+                    setup,
+                    position: glam::DVec3::ZERO,
+                    noise_px: 0.5,
+                });
+            }
+        }
+        self
     }
 }
 impl Plugin for WiimotePlugin {
@@ -270,6 +288,7 @@ fn receive_wiimote_events(
                     w.orientation = q;
                     w.angular_velocity = av;
                     w.timestamp_us = sample.timestamp_us;
+                    w.heading_from_bar = sample.heading_from_bar;
                     w.calibration = match sample.calibration.phase {
                         CalibrationPhase::Collecting { progress } => {
                             WiimoteCalibration::Collecting(progress as f32)

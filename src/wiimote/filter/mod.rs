@@ -7,7 +7,8 @@
 //!   snapped to the accelerometer's gravity when still (yaw kept).
 //! * [`FusionFilter`] — ours: VQF's inclination filter and motion-time bias estimation, with
 //!   our gated stillness detector ([`StillnessBias`]) in place of VQF's rest detection, no
-//!   dead zone.
+//!   dead zone, and the sensor bar as a heading reference while the IR camera sees it
+//!   ([`BarHeading`]).
 //! * [`crate::wiimote::VqfFilter`] — VQF (Laidig & Seel 2023), 6-axis, the published state of
 //!   the art.
 //!
@@ -15,9 +16,11 @@
 
 use std::collections::VecDeque;
 
+mod heading;
 mod vqf;
 
 use glam::{DQuat, DVec3};
+pub use heading::BarHeading;
 pub use vqf::VqfFilter;
 
 /// Radians per degree.
@@ -80,6 +83,15 @@ pub trait OrientationFilter: Send {
     fn recenter(&mut self);
     /// Restarts bias calibration (hold the remote still afterwards).
     fn calibrate_now(&mut self);
+    /// What the IR camera saw with the sample just given to [`Self::update`]: the body-frame
+    /// direction to the sensor bar's centre (`crate::wiimote::ir::IrCamera::bar_direction`),
+    /// `None` when the bar is not in view. Filters with a heading reference ([`FusionFilter`])
+    /// correct their heading from it; the others ignore it.
+    fn observe_bar(&mut self, _bar: Option<DVec3>) {}
+    /// Whether the heading is currently held by the sensor bar (see [`Self::observe_bar`]).
+    fn heading_from_bar(&self) -> bool {
+        false
+    }
 }
 
 /// Filter choice, for settings and UIs.
@@ -473,9 +485,18 @@ impl StillnessBias {
 /// A looser bias uncertainty lets VQF's motion-time estimation keep correcting the bias
 /// between still periods; a shorter inclination time constant follows gravity more closely
 /// after the gyro's scale error has tilted the estimate during a fast swing.
+///
+/// With the IR camera on, [`OrientationFilter::observe_bar`] feeds a [`BarHeading`]: while the
+/// bar is in view the heading is held to it; out of view the filter is the 6-axis one above,
+/// continuing from the last corrected heading.
 pub struct FusionFilter {
     vqf: VqfFilter,
     stillness: StillnessBias,
+    heading: BarHeading,
+    /// The corrected estimate at the last recentre.
+    reference: DQuat,
+    /// `dt` of the last sample, s.
+    last_dt: f64,
     /// Bias uncertainty handed to VQF after a still update, deg/s (0.3).
     pub still_bias_sigma_dps: f64,
 }
@@ -514,8 +535,26 @@ impl FusionFilter {
         Self {
             vqf: VqfFilter::new(sample_period_s, params),
             stillness: StillnessBias::default(),
+            heading: BarHeading::default(),
+            reference: DQuat::IDENTITY,
+            last_dt: 0.0,
             still_bias_sigma_dps: 0.3,
         }
+    }
+
+    /// The sensor-bar heading reference (its settings, whether it holds the heading now).
+    pub fn bar_heading(&self) -> &BarHeading {
+        &self.heading
+    }
+
+    /// The sensor-bar heading reference, to change its settings or make it forget the bar.
+    pub fn bar_heading_mut(&mut self) -> &mut BarHeading {
+        &mut self.heading
+    }
+
+    /// The corrected estimate before recentring (world←body).
+    fn absolute(&self) -> DQuat {
+        self.heading.apply(self.vqf.absolute())
     }
 
     /// The stillness and bias detector.
@@ -540,9 +579,10 @@ impl OrientationFilter for FusionFilter {
                 .set_bias_dps(self.stillness.bias_dps(), self.still_bias_sigma_dps);
         }
         self.vqf.update(s);
+        self.last_dt = s.dt;
     }
     fn orientation(&self) -> DQuat {
-        self.vqf.orientation()
+        (self.reference.inverse() * self.absolute()).normalize()
     }
     fn angular_velocity(&self) -> DVec3 {
         self.vqf.angular_velocity()
@@ -557,10 +597,16 @@ impl OrientationFilter for FusionFilter {
         self.stillness.is_still()
     }
     fn recenter(&mut self) {
-        self.vqf.recenter();
+        self.reference = self.absolute();
     }
     fn calibrate_now(&mut self) {
         self.stillness.restart();
+    }
+    fn observe_bar(&mut self, bar: Option<DVec3>) {
+        self.heading.observe(self.vqf.absolute(), bar, self.last_dt);
+    }
+    fn heading_from_bar(&self) -> bool {
+        self.heading.in_view()
     }
 }
 

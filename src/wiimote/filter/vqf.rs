@@ -85,7 +85,7 @@ impl VqfFilter {
     }
 
     /// The unreferenced estimate (world←body, world Z up), before recentring.
-    fn absolute(&self) -> DQuat {
+    pub(super) fn absolute(&self) -> DQuat {
         vqf_orientation(&self.vqf)
     }
 

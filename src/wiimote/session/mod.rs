@@ -16,7 +16,8 @@ mod stream;
 
 use super::filter::{Calibration, FilterKind, ImuSample, OrientationFilter};
 use super::ir::{
-    IR_MODE_REGISTER, IrDots, IrInitStep, IrMode, IrSensitivity, decode_basic, ir_init_sequence,
+    IR_MODE_REGISTER, IrCamera, IrDots, IrInitStep, IrMode, IrSensitivity, decode_basic,
+    ir_init_sequence,
 };
 use super::protocol::{
     AccelCalibration, AddressSpace, Buttons, ExtensionData, ExtensionId, InputReport,
@@ -48,6 +49,9 @@ pub struct SessionConfig {
     /// Start the IR camera in basic mode at this sensitivity after the handshake (`None`: the
     /// camera stays off). A camera that does not answer leaves it off; the MotionPlus goes on.
     pub ir_camera: Option<IrSensitivity>,
+    /// With the camera on, the orientation filter takes its heading from the sensor bar while
+    /// it is in view (`PROTOCOL.md` §17.6; `true`).
+    pub ir_heading: bool,
 }
 
 impl Default for SessionConfig {
@@ -63,6 +67,7 @@ impl Default for SessionConfig {
             motion_plus_poll_ms: 4000,
             motion_plus_timeout_ms: 500,
             ir_camera: None,
+            ir_heading: true,
         }
     }
 }
@@ -163,6 +168,9 @@ pub struct OrientationSample {
     pub still: bool,
     /// Calibration state.
     pub calibration: Calibration,
+    /// The heading is held by the sensor bar right now (IR camera on, bar in view, a filter
+    /// with a heading reference: `PROTOCOL.md` §17.6).
+    pub heading_from_bar: bool,
 }
 
 /// Something that happened on the remote.
@@ -239,6 +247,9 @@ pub struct Session<T: Transport> {
     ir_mode: Option<IrMode>,
     /// The last accelerometer reading, g (body frame).
     last_accel: DVec3,
+    /// What the camera saw in the report being handled (`Some(None)`: the camera runs and
+    /// does not see the bar), handed to the filter after the report's sample.
+    bar_sighting: Option<Option<DVec3>>,
 }
 
 impl<T: Transport> Session<T> {
@@ -274,6 +285,7 @@ impl<T: Transport> Session<T> {
             malformed: 0,
             ir_mode: None,
             last_accel: DVec3::Z,
+            bar_sighting: None,
         }
     }
 

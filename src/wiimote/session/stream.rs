@@ -101,11 +101,17 @@ impl<T: Transport> Session<T> {
                 }
                 if let (Some(ir), Some(IrMode::Basic)) = (ir, self.ir_mode) {
                     match decode_basic(&ir) {
-                        Ok(dots) => self.event(SessionEvent::Ir {
-                            dots,
-                            gravity: self.last_accel,
-                            timestamp_us: now,
-                        }),
+                        Ok(dots) => {
+                            if self.config.ir_heading {
+                                self.bar_sighting =
+                                    Some(IrCamera::default().bar_direction(&dots).ok());
+                            }
+                            self.event(SessionEvent::Ir {
+                                dots,
+                                gravity: self.last_accel,
+                                timestamp_us: now,
+                            })
+                        }
                         Err(_) => self.malformed += 1,
                     }
                 }
@@ -190,6 +196,9 @@ impl<T: Transport> Session<T> {
             accel_g,
         };
         self.filter.update(&sample);
+        if let Some(bar) = self.bar_sighting.take() {
+            self.filter.observe_bar(bar);
+        }
         self.event(SessionEvent::Imu(sample));
         let o = OrientationSample {
             timestamp_us: now,
@@ -199,6 +208,7 @@ impl<T: Transport> Session<T> {
             gyro_fast: fast,
             still: self.filter.is_still(),
             calibration: self.filter.calibration(),
+            heading_from_bar: self.filter.heading_from_bar(),
         };
         self.event(SessionEvent::Orientation(o));
     }

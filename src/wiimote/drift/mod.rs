@@ -2,21 +2,30 @@
 //! slow yaw, fast swings, held tilted poses) through the emulator and the session code, scored
 //! against the ground truth for every filter.
 //!
-//! Three [`SessionSet`]s: the default sessions; the same without the gyro's warm-up drift (the
-//! conditions the paper's filter was designed for); and continuous motion with no still period
+//! Four [`SessionSet`]s: the default sessions; the same without the gyro's warm-up drift (the
+//! conditions the paper's filter was designed for); continuous motion with no still period
 //! longer than 1 s after the first 5 s on the table (the hard case for stillness-gated bias
-//! estimation).
+//! estimation); and pointing at a screen with a sensor bar part of the time
+//! ([`PointingScenario`], the IR camera on: [`score_with_bar`] scores a filter fed with the
+//! bar's sightings, `ours_ir` in the benchmark).
 
 use std::time::Instant;
 
-use glam::{DQuat, DVec3};
+use glam::{DQuat, DVec2, DVec3};
 
-use super::emulator::{EmulatedRemote, EmulatorConfig, SensorModel, Variant};
+use super::emulator::{EmulatedBar, EmulatedRemote, EmulatorConfig, SensorModel, Variant};
 use super::filter::{FilterKind, ImuSample, OrientationFilter};
+use super::ir::{IrCamera, IrSensitivity, PointerSetup};
 use super::motion::{Motion, from_yaw_elevation_roll};
 use super::rng::Rng;
 use super::session::{Session, SessionConfig, SessionEvent};
 use super::transport::Transport;
+
+mod pointing;
+pub use pointing::PointingScenario;
+
+/// The share of each cycle the [`SessionSet::Pointing`] sessions aim at the screen (0.5).
+pub const DEFAULT_IN_VIEW_SHARE: f64 = 0.5;
 
 const START_STILL: f64 = 5.0;
 const WIGGLE: f64 = 60.0;
@@ -223,22 +232,27 @@ pub enum SessionSet {
     NoWarmUp,
     /// [`ContinuousScenario`] with the default sensor model.
     Continuous,
+    /// [`PointingScenario`] (the bar aimed at [`DEFAULT_IN_VIEW_SHARE`] of the time) with the
+    /// default sensor model and the IR camera on: 2 m from a 42-inch screen, 0.5 px of noise.
+    Pointing,
 }
 
 impl SessionSet {
     /// Every set, in report order.
-    pub const ALL: [SessionSet; 3] = [
+    pub const ALL: [SessionSet; 4] = [
         SessionSet::Default,
         SessionSet::NoWarmUp,
         SessionSet::Continuous,
+        SessionSet::Pointing,
     ];
 
-    /// The name used in reports (`default`, `no_warm_up`, `continuous`).
+    /// The name used in reports (`default`, `no_warm_up`, `continuous`, `pointing`).
     pub fn name(self) -> &'static str {
         match self {
             SessionSet::Default => "default",
             SessionSet::NoWarmUp => "no_warm_up",
             SessionSet::Continuous => "continuous",
+            SessionSet::Pointing => "pointing",
         }
     }
 
@@ -254,7 +268,9 @@ impl SessionSet {
                 gyro_temperature_drift_dps: 0.0,
                 ..SensorModel::default()
             },
-            SessionSet::Default | SessionSet::Continuous => SensorModel::default(),
+            SessionSet::Default | SessionSet::Continuous | SessionSet::Pointing => {
+                SensorModel::default()
+            }
         }
     }
 
@@ -286,8 +302,25 @@ impl SessionSet {
                 let end = scenario.duration();
                 record_motion(scenario, sensor, seed, end, |t| t < START_STILL)
             }
+            SessionSet::Pointing => {
+                record_pointing(sensor, seed, duration_s, DEFAULT_IN_VIEW_SHARE)
+            }
         }
     }
+}
+
+/// Records a [`PointingScenario`] session aiming at the screen `share` of the time (the IR
+/// camera on, the bar 2 m away, 0.5 px of pixel noise): [`Recording::bar`] holds what the
+/// camera saw with each sample.
+pub fn record_pointing(sensor: SensorModel, seed: u64, duration_s: f64, share: f64) -> Recording {
+    let scenario = std::sync::Arc::new(PointingScenario::new(seed, duration_s, share));
+    let end = scenario.duration();
+    let bar = EmulatedBar {
+        setup: PointerSetup::default(),
+        position: DVec3::ZERO,
+        noise_px: 0.5,
+    };
+    record_with_bar(scenario, sensor, seed, end, Some(bar), |t| t < START_STILL)
 }
 
 /// Scores of one filter on one or more sessions.
@@ -342,6 +375,46 @@ pub struct Recording {
     pub times: Vec<f64>,
     /// Whether the scenario holds still at that time (for the still-tilt metric).
     pub still: Vec<bool>,
+    /// What the IR camera saw with each sample: the body-frame direction to the sensor bar's
+    /// centre, `None` when it was not in view (or the camera was off).
+    pub bar: Vec<Option<DVec3>>,
+    /// Where the pointer said the remote pointed with each sample (normalised screen
+    /// coordinates, [`PointerSetup::pointed_at`]), `None` without the bar.
+    pub pointer: Vec<Option<DVec2>>,
+    /// The room the camera saw (`None`: no bar).
+    pub setup: Option<PointerSetup>,
+}
+
+impl Recording {
+    /// The share of samples with the bar in view.
+    pub fn in_view_share(&self) -> f64 {
+        let seen = self.bar.iter().filter(|b| b.is_some()).count();
+        seen as f64 / self.bar.len().max(1) as f64
+    }
+
+    /// RMS distance between where the pointer said the remote pointed and where it truly
+    /// pointed (the true pointing ray of a remote at the standing point, met with the screen
+    /// plane), over the samples with a pointer, as a share of the screen's width; `None`
+    /// without any.
+    pub fn pointer_rms_error(&self) -> Option<f64> {
+        let setup = self.setup?;
+        let (mut sum, mut n) = (0.0, 0usize);
+        for (pointer, truth) in self.pointer.iter().zip(&self.truth) {
+            let Some(at) = pointer else { continue };
+            let ray = *truth * DVec3::NEG_Y;
+            if ray.y >= -1e-9 {
+                continue;
+            }
+            let hit = ray * (-setup.distance / ray.y);
+            let error = DVec2::new(
+                (at.x - (0.5 - hit.x / setup.screen_width)) * setup.screen_width,
+                (at.y - (0.5 - hit.z / setup.screen_height)) * setup.screen_height,
+            );
+            sum += error.length_squared();
+            n += 1;
+        }
+        (n > 0).then(|| (sum / n as f64).sqrt() / setup.screen_width)
+    }
 }
 
 /// Runs the default §14 scenario through the emulator (Remote Plus, default sensor model, seed)
@@ -359,35 +432,70 @@ pub fn record_motion<M: Motion + 'static>(
     duration_s: f64,
     still: impl Fn(f64) -> bool,
 ) -> Recording {
+    record_with_bar(motion, sensor, seed, duration_s, None, still)
+}
+
+/// As [`record_motion`], with a sensor bar in the room (`Some`: the IR camera on).
+pub fn record_with_bar<M: Motion + 'static>(
+    motion: std::sync::Arc<M>,
+    sensor: SensorModel,
+    seed: u64,
+    duration_s: f64,
+    bar: Option<EmulatedBar>,
+    still: impl Fn(f64) -> bool,
+) -> Recording {
     let emu = EmulatedRemote::new(EmulatorConfig {
         variant: Variant::Plus,
         seed,
         sensors: sensor,
+        sensor_bar: bar,
         ..Default::default()
     });
     emu.controls().set_motion(motion.clone());
-    let mut session = Session::new(emu, SessionConfig::default());
-    let mut rec = Recording::default();
+    let config = SessionConfig {
+        ir_camera: bar.map(|_| IrSensitivity::default()),
+        ..SessionConfig::default()
+    };
+    let mut session = Session::new(emu, config);
+    let mut rec = Recording {
+        setup: bar.map(|b| b.setup),
+        ..Recording::default()
+    };
     if session.connect().is_err() {
         return rec;
     }
+    let camera = IrCamera::default();
+    let mut pointed = None;
     let end_us = (duration_s * 1e6) as u64;
+    // The camera's dots arrive in the same report as the sample, just before it.
+    let mut seen = None;
     while session.transport().now_us() < end_us {
         if session.poll(20).is_err() {
             break;
         }
         let events: Vec<SessionEvent> = session.drain_events().collect();
         for e in events {
-            if let SessionEvent::Imu(s) = e {
-                let t_us = session
-                    .transport()
-                    .sample_time_of(s.timestamp_us)
-                    .unwrap_or(s.timestamp_us);
-                let t = t_us as f64 * 1e-6;
-                rec.samples.push(s);
-                rec.truth.push(motion.orientation(t));
-                rec.times.push(t);
-                rec.still.push(still(t));
+            match e {
+                SessionEvent::Ir { dots, gravity, .. } => {
+                    seen = camera.bar_direction(&dots).ok();
+                    pointed = rec
+                        .setup
+                        .and_then(|setup| setup.pointed_at(&dots, gravity).ok());
+                }
+                SessionEvent::Imu(s) => {
+                    let t_us = session
+                        .transport()
+                        .sample_time_of(s.timestamp_us)
+                        .unwrap_or(s.timestamp_us);
+                    let t = t_us as f64 * 1e-6;
+                    rec.samples.push(s);
+                    rec.truth.push(motion.orientation(t));
+                    rec.times.push(t);
+                    rec.still.push(still(t));
+                    rec.bar.push(seen.take());
+                    rec.pointer.push(pointed.take());
+                }
+                _ => {}
             }
         }
     }
@@ -420,21 +528,49 @@ fn percentile(mut v: Vec<f64>, p: f64) -> f64 {
     v[((v.len() - 1) as f64 * p).round() as usize]
 }
 
-/// Scores one filter on a recording (metrics from t ≥ 5 s, after the start-up still phase).
+/// Scores one filter on a recording (metrics from t ≥ 5 s, after the start-up still phase),
+/// the camera's sightings not given to it (a 6-axis run).
 pub fn score(kind: FilterKind, rec: &Recording) -> FilterScore {
     score_filter(&mut *kind.build(), rec)
 }
 
-#[allow(clippy::needless_range_loop)] // parallel per-sample arrays
-/// Scores a filter instance (e.g. with tuned parameters) on a recording, from its current state.
+/// As [`score`], with the camera's sightings of the bar ([`Recording::bar`]) handed to the
+/// filter after each sample ([`OrientationFilter::observe_bar`]).
+pub fn score_with_bar(kind: FilterKind, rec: &Recording) -> FilterScore {
+    let mut filter = kind.build();
+    let estimates = estimate(&mut *filter, rec, true);
+    score_estimates(rec, &estimates.0, estimates.1)
+}
+
+/// Scores a filter instance (e.g. with tuned parameters) on a recording, from its current
+/// state, without the camera's sightings.
 pub fn score_filter(f: &mut dyn OrientationFilter, rec: &Recording) -> FilterScore {
+    let (est, us) = estimate(f, rec, false);
+    score_estimates(rec, &est, us)
+}
+
+/// Runs a filter over a recording: its estimate at each sample, and µs per sample.
+pub fn estimate(
+    f: &mut dyn OrientationFilter,
+    rec: &Recording,
+    with_bar: bool,
+) -> (Vec<DQuat>, f64) {
     let mut est = Vec::with_capacity(rec.samples.len());
     let t0 = Instant::now();
-    for s in &rec.samples {
+    for (i, s) in rec.samples.iter().enumerate() {
         f.update(s);
+        if with_bar {
+            f.observe_bar(rec.bar.get(i).copied().flatten());
+        }
         est.push(f.orientation());
     }
     let us = t0.elapsed().as_secs_f64() * 1e6 / rec.samples.len().max(1) as f64;
+    (est, us)
+}
+
+#[allow(clippy::needless_range_loop)] // parallel per-sample arrays
+/// Scores per-sample estimates against a recording's truth.
+fn score_estimates(rec: &Recording, est: &[DQuat], us: f64) -> FilterScore {
     let first = rec
         .times
         .iter()

@@ -1,0 +1,100 @@
+//! The Wii Remote as a pointer in the example apps: the library's `WiimotePointerPlugin`
+//! (point, hold A to grab there, turn to turn the grab 1:1, add B to turn only) and a ring
+//! drawn where the remote points, filled while the sensor bar holds the remote's heading.
+//! `--pointer emulated` aims an emulated remote in a slow figure-eight over the screen.
+
+use std::sync::Arc;
+
+use bevy::prelude::*;
+use bevy_wii_deform::ecs::{Wiimote, WiimoteEmulators, WiimotePlugin, WiimotePointerPlugin};
+use bevy_wii_deform::wiimote::FnMotion;
+use bevy_wii_deform::wiimote::ir::{PointerSetup, aimed_at};
+
+/// The Wii Remote source for `--pointer [emulated]`, with the IR pointer in the default room
+/// (a 42-inch screen seen from 2 m, the bar above it).
+pub fn pointing_remote(emulated: bool) -> WiimotePlugin {
+    let source = if emulated {
+        WiimotePlugin::emulated()
+    } else {
+        WiimotePlugin::default()
+    };
+    source.with_pointer(PointerSetup::default())
+}
+
+/// The remote's picking pointer and its on-screen ring (add with [`pointing_remote`]).
+pub struct RemoteCursorPlugin {
+    /// Aim the emulated remote over the screen (with `pointing_remote(true)`).
+    pub emulated: bool,
+}
+
+impl Plugin for RemoteCursorPlugin {
+    fn build(&self, app: &mut App) {
+        app.add_plugins(WiimotePointerPlugin)
+            .add_systems(Startup, spawn_cursor)
+            .add_systems(Update, move_cursor);
+        if self.emulated {
+            app.add_systems(Startup, sweep_emulated_remote);
+        }
+    }
+}
+
+#[derive(Component)]
+struct RemoteCursor;
+
+const RING: f32 = 18.0;
+
+fn spawn_cursor(mut commands: Commands) {
+    commands.spawn((
+        Node {
+            position_type: PositionType::Absolute,
+            width: px(RING),
+            height: px(RING),
+            border: UiRect::all(px(3)),
+            border_radius: BorderRadius::MAX,
+            ..default()
+        },
+        BorderColor::all(Color::srgb(0.3, 0.8, 1.0)),
+        BackgroundColor(Color::NONE),
+        Visibility::Hidden,
+        RemoteCursor,
+    ));
+}
+
+/// The ring follows the first remote that points somewhere; hidden when none does; filled
+/// while the bar holds the heading.
+fn move_cursor(
+    remotes: Query<&Wiimote>,
+    window: Single<&Window, With<bevy::window::PrimaryWindow>>,
+    mut cursor: Single<(&mut Node, &mut Visibility, &mut BackgroundColor), With<RemoteCursor>>,
+) {
+    let pointing = remotes.iter().find(|w| w.pointer.is_some());
+    let (node, visibility, fill) = &mut *cursor;
+    match pointing.and_then(|w| w.pointer.map(|p| (p, w.heading_from_bar))) {
+        Some((p, held)) => {
+            let at = p * Vec2::new(window.width(), window.height());
+            node.left = px(at.x - RING / 2.0);
+            node.top = px(at.y - RING / 2.0);
+            **visibility = Visibility::Visible;
+            fill.0 = if held {
+                Color::srgba(0.3, 0.8, 1.0, 0.6)
+            } else {
+                Color::NONE
+            };
+        }
+        None => **visibility = Visibility::Hidden,
+    }
+}
+
+/// The emulated remote aims at a slow figure-eight over the screen's middle (standing at the
+/// room's standing point, rolled a little), so the ring has something to show.
+fn sweep_emulated_remote(emulators: Res<WiimoteEmulators>) {
+    let setup = PointerSetup::default();
+    for controls in &emulators.0 {
+        controls.set_motion(Arc::new(FnMotion(move |t: f64| {
+            let spot = glam::DVec2::new(0.5 + 0.25 * (0.2 * t).sin(), 0.5 + 0.15 * (0.4 * t).sin());
+            let target = setup.screen_point(spot);
+            let roll = 0.2 * (0.3 * t).sin();
+            (aimed_at(glam::DVec3::ZERO, target, roll), glam::DVec3::ZERO)
+        })));
+    }
+}
