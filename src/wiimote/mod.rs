@@ -31,6 +31,7 @@ mod motion;
 pub mod protocol;
 mod rng;
 mod session;
+pub mod smoothing;
 mod transport;
 
 pub use diagnosis::{LinuxDevices, OpenErrorKind, RemoteProblem};

@@ -7,6 +7,7 @@ mod plugin;
 use bevy::prelude::*;
 
 use crate::wiimote::ir::PointerSetup;
+use crate::wiimote::smoothing::PointerSmoothing;
 use crate::wiimote::{
     EmulatorConfig, EmulatorControls, FilterKind, RemoteCommand, RemoteId, RemoteProblem,
     WiimoteManager, protocol::Buttons,
@@ -58,6 +59,9 @@ pub struct WiimoteSettings {
     /// [`WiimotePlugin::pointer`]); `None`: no pointer.
     #[reflect(ignore)]
     pub pointer: Option<PointerSetup>,
+    /// How the pointer is smoothed (see [`WiimotePlugin::pointer_smoothing`]).
+    #[reflect(ignore)]
+    pub pointer_smoothing: Option<PointerSmoothing>,
 }
 
 /// The running device manager (dropping it stops and joins its threads).

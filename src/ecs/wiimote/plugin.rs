@@ -10,6 +10,7 @@ use super::{
     remote_vec_to_bevy,
 };
 use crate::wiimote::ir::{IrSensitivity, PointerSetup};
+use crate::wiimote::smoothing::{PointerSmoothing, SmoothedPointer};
 use crate::wiimote::{
     CalibrationPhase, EmulatedBar, EmulatorClock, EmulatorConfig, EmulatorControls, ManagerConfig,
     ManagerEvent, MotionPlusState, RemoteCommand, RemoteSource, SessionConfig, WiimoteManager,
@@ -36,6 +37,9 @@ pub struct WiimotePlugin {
     /// (basic mode, streamed beside the MotionPlus) and [`Wiimote::pointer`] says where the
     /// remote points on the screen. `None` (the default): the camera stays off.
     pub pointer: Option<PointerSetup>,
+    /// Smoothing of [`Wiimote::pointer`] (a One Euro filter: steady at rest, little lag in
+    /// motion; `PROTOCOL.md` §17.5); `None` gives the camera's raw pointer.
+    pub pointer_smoothing: Option<PointerSmoothing>,
 }
 
 impl Default for WiimotePlugin {
@@ -43,6 +47,7 @@ impl Default for WiimotePlugin {
         Self {
             filter: WiimoteFilter::Fusion,
             pointer: None,
+            pointer_smoothing: Some(PointerSmoothing::default()),
             source: if cfg!(feature = "hidapi") {
                 WiimoteSource::Hardware
             } else {
@@ -124,6 +129,7 @@ impl Plugin for WiimotePlugin {
             .insert_resource(WiimoteSettings {
                 filter: self.filter,
                 pointer: self.pointer,
+                pointer_smoothing: self.pointer_smoothing,
             })
             .register_type::<Wiimote>()
             .register_type::<WiimoteSettings>()
@@ -198,6 +204,7 @@ fn receive_wiimote_events(
     mut writers: WiimoteWriters,
     mut open_problems: ResMut<WiimoteProblems>,
     settings: Res<WiimoteSettings>,
+    mut smoothing: Local<Vec<(u32, SmoothedPointer)>>,
 ) {
     let WiimoteWriters {
         connected,
@@ -310,17 +317,29 @@ fn receive_wiimote_events(
                 w.motion_plus = *state == MotionPlusState::Active
             }
             ManagerEvent::Extension { .. } => {}
-            ManagerEvent::Ir { dots, gravity, .. } => {
+            ManagerEvent::Ir {
+                dots,
+                gravity,
+                timestamp_us,
+                ..
+            } => {
                 w.ir_dots = dots
                     .iter()
                     .flatten()
                     .map(|d| d.position().as_vec2())
                     .collect();
-                w.pointer = settings
+                let raw = settings
                     .pointer
                     .and_then(|setup| setup.pointed_at(dots, *gravity).ok())
-                    .map(|p| p.as_vec2())
                     .filter(|p| p.is_finite());
+                w.pointer = smooth_pointer(
+                    &mut smoothing,
+                    settings.pointer_smoothing,
+                    id,
+                    raw,
+                    *timestamp_us,
+                )
+                .map(|p| p.as_vec2());
             }
             ManagerEvent::Nunchuk { frame, .. } => {
                 let axis = |v: u8| ((v as f32 - 128.0) / 100.0).clamp(-1.0, 1.0);
@@ -347,5 +366,35 @@ fn receive_wiimote_events(
     }
     for (e, w) in spawned {
         commands.entity(e).try_insert(w);
+    }
+}
+
+/// The remote `id`'s pointer through its One Euro filter (reset while the bar is out of view,
+/// so the pointer reappears where it points rather than sliding there).
+fn smooth_pointer(
+    filters: &mut Vec<(u32, SmoothedPointer)>,
+    settings: Option<PointerSmoothing>,
+    id: u32,
+    raw: Option<glam::DVec2>,
+    timestamp_us: u64,
+) -> Option<glam::DVec2> {
+    let Some(settings) = settings else {
+        return raw;
+    };
+    let index = match filters.iter().position(|(i, _)| *i == id) {
+        Some(index) => index,
+        None => {
+            filters.push((id, SmoothedPointer::new(settings)));
+            filters.len() - 1
+        }
+    };
+    let filter = &mut filters[index].1;
+    filter.settings = settings;
+    match raw {
+        Some(at) => Some(filter.update(at, timestamp_us as f64 * 1e-6)),
+        None => {
+            filter.reset();
+            None
+        }
     }
 }
