@@ -15,6 +15,7 @@ use glam::{DAffine3, DVec3};
 
 use crate::challenge::{ChallengeSetup, TaskList, TaskTarget};
 use crate::history::History;
+use crate::parts::{PartRange, needs_parts, spawn_parts};
 use crate::selection::{FIXED, FREE, HANDLE, RegionsChanged, Selection, selection_colors};
 use crate::{Model, SandboxSet, StatusLine, models, tasks};
 
@@ -81,12 +82,14 @@ struct Loaded {
 }
 
 /// What a glTF model looks like, kept while its merged mesh is edited: texture coordinates
-/// per vertex (when any primitive has them) and the material of its first primitive that has
-/// one (a model whose primitives use several materials is drawn with that one).
+/// per vertex (when any primitive has them), the material of its first primitive that has
+/// one, and each primitive's range and material (a model of several materials is drawn part
+/// by part: `parts.rs`).
 #[derive(Default)]
 struct Look {
     uvs: Option<Vec<[f32; 2]>>,
     material: Option<Handle<StandardMaterial>>,
+    parts: Vec<PartRange>,
 }
 
 /// A glTF scene's primitives merged into one mesh, with their look.
@@ -96,6 +99,8 @@ struct Merged {
     uvs: Vec<[f32; 2]>,
     any_uvs: bool,
     material: Option<Handle<StandardMaterial>>,
+    /// Each primitive's vertices, triangles and material.
+    parts: Vec<PartRange>,
     /// Primitives that are not triangle lists with positions.
     skipped: usize,
     /// Why primitives are broken.
@@ -108,6 +113,7 @@ impl Merged {
         let look = Look {
             uvs: self.any_uvs.then_some(self.uvs),
             material: self.material,
+            parts: self.parts,
         };
         (self.mesh, look)
     }
@@ -310,6 +316,7 @@ fn merge_below(
             Some(Err(e)) => out.errors.push(e),
             Some(Ok((positions, triangles))) => {
                 let base = out.mesh.positions.len() as u32;
+                let first_triangle = out.mesh.triangles.len();
                 out.mesh
                     .positions
                     .extend(positions.iter().map(|p| to_root.transform_point3(*p)));
@@ -326,6 +333,11 @@ fn merge_below(
                 if out.material.is_none() {
                     out.material = material.map(|m| m.0.clone());
                 }
+                out.parts.push(PartRange {
+                    vertices: base..out.mesh.positions.len() as u32,
+                    triangles: first_triangle..out.mesh.triangles.len(),
+                    material: material.map(|m| m.0.clone()),
+                });
             }
             None => out.skipped += 1,
         }
@@ -422,16 +434,27 @@ fn finish_loading(
     }
     let material = material_of(&loaded.look, &parts.materials);
     let material = parts.materials.add(material);
+    let drawn_in_parts = needs_parts(&loaded.look.parts).then(|| bevy_mesh.clone());
     let entity = commands
         .spawn((
             Mesh3d(parts.meshes.add(bevy_mesh)),
-            MeshMaterial3d(material),
+            MeshMaterial3d(material.clone()),
             Deformable::default(),
             FixedRegion::default(),
             Transform::default(),
             Name::new(loaded.name.clone()),
         ))
         .id();
+    if let Some(merged) = drawn_in_parts {
+        spawn_parts(
+            &mut commands,
+            &mut parts.meshes,
+            entity,
+            &merged,
+            &loaded.look.parts,
+            &material,
+        );
+    }
     let (lo, hi) = loaded.mesh.bounds();
     model.diagonal = (hi - lo).length();
     parts.orbit.focus = ((lo + hi) / 2.0).as_vec3();
@@ -535,16 +558,15 @@ mod tests {
         }
     }
 
-    /// The Fox through Bevy's glTF loader, merged as the sandbox merges a scene: its texture
-    /// coordinates come along (one per vertex) and the Fox's material — its base-colour
-    /// texture — is the merged mesh's.
-    #[test]
-    fn the_sandbox_keeps_gltf_materials() {
+    /// `file` of `../shared/models` through Bevy's glTF loader (its materials as
+    /// `StandardMaterial`s, as the renderer makes them), merged as the sandbox merges a scene;
+    /// `None` when the shared assets are absent (a failure in CI).
+    fn merge_shared_scene(file: &str) -> Option<(App, Merged)> {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/models");
-        if !dir.join("Fox.glb").exists() {
+        if !dir.join(file).exists() {
             assert!(std::env::var_os("CI").is_none(), "CI always has ../shared");
-            eprintln!("SKIPPED: ../shared/models/Fox.glb is absent");
-            return;
+            eprintln!("SKIPPED: ../shared/models/{file} is absent");
+            return None;
         }
         let mut app = App::new();
         app.add_plugins((
@@ -574,14 +596,11 @@ mod tests {
         let scene = app
             .world()
             .resource::<AssetServer>()
-            .load(GltfAssetLabel::Scene(0).from_asset("Fox.glb"));
+            .load(GltfAssetLabel::Scene(0).from_asset(file.to_string()));
         let root = app.world_mut().spawn(WorldAssetRoot(scene)).id();
         let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
         while app.world().get::<Children>(root).is_none() {
-            assert!(
-                std::time::Instant::now() < deadline,
-                "the Fox never spawned"
-            );
+            assert!(std::time::Instant::now() < deadline, "{file} never spawned");
             app.update();
             std::thread::yield_now();
         }
@@ -595,6 +614,17 @@ mod tests {
                 out
             })
             .unwrap();
+        Some((app, merged))
+    }
+
+    /// The Fox through Bevy's glTF loader, merged as the sandbox merges a scene: its texture
+    /// coordinates come along (one per vertex) and the Fox's material — its base-colour
+    /// texture — is the merged mesh's; one material, so it is drawn by the merged mesh itself.
+    #[test]
+    fn the_sandbox_keeps_gltf_materials() {
+        let Some((app, merged)) = merge_shared_scene("Fox.glb") else {
+            return;
+        };
         let (mesh, look) = merged.into_parts();
         let uvs = look.uvs.as_ref().expect("the Fox's texture coordinates");
         assert_eq!(uvs.len(), mesh.positions.len());
@@ -605,6 +635,37 @@ mod tests {
             material.base_color_texture.is_some(),
             "the Fox's base-colour texture is on the merged mesh's material"
         );
+        assert!(!needs_parts(&look.parts), "one material, no parts");
+    }
+
+    /// The alien (Kenney's Space Kit: five materials over eighteen primitives): every
+    /// primitive keeps its own material, so the merged mesh is drawn part by part with the
+    /// file's five base colours, and the parts cover every vertex and triangle once.
+    #[test]
+    fn the_sandbox_keeps_each_primitives_material() {
+        let Some((app, merged)) = merge_shared_scene("alien.glb") else {
+            return;
+        };
+        let (mesh, look) = merged.into_parts();
+        assert!(needs_parts(&look.parts));
+        let materials = app.world().resource::<Assets<StandardMaterial>>();
+        let mut colours: Vec<[u8; 4]> = look
+            .parts
+            .iter()
+            .map(|p| {
+                let m = materials
+                    .get(p.material.as_ref().expect("every primitive has a material"))
+                    .expect("a loaded material");
+                m.base_color.to_srgba().to_u8_array()
+            })
+            .collect();
+        colours.sort();
+        colours.dedup();
+        assert_eq!(colours.len(), 5, "the alien's five materials: {colours:?}");
+        let vertices: u32 = look.parts.iter().map(|p| p.vertices.len() as u32).sum();
+        let triangles: usize = look.parts.iter().map(|p| p.triangles.len()).sum();
+        assert_eq!(vertices as usize, mesh.positions.len());
+        assert_eq!(triangles, mesh.triangles.len());
     }
 
     /// Turns each glTF material into a `StandardMaterial` on its meshes (see the test above).

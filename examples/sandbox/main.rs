@@ -3,7 +3,8 @@
 //!
 //! ```text
 //! cargo run --release --example sandbox [-- MODEL|PATH.obj|PATH.off|PATH.gltf|PATH.glb]
-//!     [--task NAME] [--demo] [--emulate] [--pointer] [--screenshot PATH --frames N] [--windowless]
+//!     [--task NAME] [--demo] [--emulate] [--pointer] [--bend] [--screenshot PATH --frames N]
+//!     [--windowless]
 //! ```
 //! Mouse: right-drag orbits, wheel zooms, middle-drag pans. In *Paint* mode left-drag paints
 //! with the brush; in *Pose* mode left-drag turns the handle with an arcball, Shift+left-drag
@@ -18,6 +19,7 @@
 //! |---|---|---|
 //! | `camera.rs` | [`StagePlugin`] | camera, light, orbit controls |
 //! | `loading.rs` | [`LoadingPlugin`] | built-in models, OBJ/OFF, glTF scenes through Bevy's loader |
+//! | `parts.rs` | [`parts::ModelPartsPlugin`] | a glTF of several materials drawn part by part |
 //! | `selection.rs` | [`SelectionPlugin`] | painting regions; regions → `FixedRegion` + handle |
 //! | `history.rs` | [`HistoryPlugin`] | undo/redo of paint strokes and pose drags |
 //! | `posing.rs` | [`PosingPlugin`] | which control (mouse or remote) drives the handle |
@@ -39,6 +41,7 @@ mod history;
 mod loading;
 #[path = "../common/models.rs"]
 mod models;
+mod parts;
 mod posing;
 #[path = "../common/remote_cursor.rs"]
 mod remote_cursor;
@@ -194,6 +197,7 @@ impl Args {
                     .and_then(|v| v.parse().ok())
                     .unwrap_or(30),
                 demo,
+                bend: flag("--bend"),
                 windowless,
                 check_not_blank: flag("--check-not-blank"),
                 ..default()
@@ -285,6 +289,7 @@ fn main() -> AppExit {
     .add_plugins((
         StagePlugin { demo: args.demo },
         LoadingPlugin,
+        parts::ModelPartsPlugin,
         SelectionPlugin,
         HistoryPlugin,
         PosingPlugin,

@@ -1,5 +1,6 @@
-//! Unattended runs: the `--demo` wave, `--screenshot PATH --frames N` and `--windowless`
-//! (rendering into an image, for CI's render check).
+//! Unattended runs: the `--demo` wave, `--bend` (any loaded model bent by script),
+//! `--screenshot PATH --frames N` and `--windowless` (rendering into an image, for CI's render
+//! check).
 
 use std::time::Duration;
 
@@ -7,13 +8,15 @@ use bevy::camera::RenderTarget;
 use bevy::prelude::*;
 use bevy::render::render_resource::TextureFormat;
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured, save_to_disk};
+use bevy_wii_deform::deform::centroid;
 use bevy_wii_deform::prelude::*;
 use bevy_wii_deform::wiimote::FnMotion;
 use bevy_wii_deform::wiimote::protocol::Buttons;
 use glam::DVec3;
 
-use crate::SandboxSet;
 use crate::challenge::Challenge;
+use crate::selection::{FIXED, FREE, HANDLE, RegionsChanged, Selection};
+use crate::{Model, SandboxSet};
 
 /// Scripted input and frame capture, from the command line.
 pub struct UnattendedPlugin(pub Unattended);
@@ -22,7 +25,7 @@ impl Plugin for UnattendedPlugin {
     fn build(&self, app: &mut App) {
         app.insert_resource(self.0.clone())
             .add_systems(PostStartup, render_to_image)
-            .add_systems(Update, demo_script.in_set(SandboxSet::Edit))
+            .add_systems(Update, (demo_script, bend_script).in_set(SandboxSet::Edit))
             .add_systems(Update, unattended_frames.after(DeformSystems::Writeback));
     }
 }
@@ -34,6 +37,9 @@ pub struct Unattended {
     pub frames: u32,
     pub frame: u32,
     pub demo: bool,
+    /// `--bend`: once the model is prepared, its lowest quarter is fixed and its top fifth
+    /// turned 35° and moved sideways.
+    pub bend: bool,
     pub windowless: bool,
     pub check_not_blank: bool,
     pub requested: bool,
@@ -108,6 +114,51 @@ fn demo_script(
         b |= Buttons::RIGHT;
     }
     emu.set_buttons(Buttons(b));
+}
+
+/// `--bend`: paints the model's lowest quarter (by height) fixed and its top fifth as the
+/// handle, and poses the handle turned 35° about the view axis and moved a fifth of the
+/// model's size sideways — any model, built-in or loaded, bent with no hands.
+fn bend_script(
+    unattended: Res<Unattended>,
+    model: Res<Model>,
+    statuses: Query<&DeformStatus>,
+    mut selection: ResMut<Selection>,
+    mut regions: MessageWriter<RegionsChanged>,
+    mut done: Local<Option<Entity>>,
+) {
+    let Some(entity) = model.entity else {
+        return;
+    };
+    if !unattended.bend || *done == Some(entity) {
+        return;
+    }
+    if !statuses.get(entity).is_ok_and(|s| s.vertices > 0) {
+        return;
+    }
+    let positions = &model.mesh.positions;
+    let (lo, hi) = model.mesh.bounds();
+    let height = (hi.y - lo.y).max(1e-9);
+    selection.labels = positions
+        .iter()
+        .map(|p| match (p.y - lo.y) / height {
+            h if h < 0.25 => FIXED,
+            h if h > 0.8 => HANDLE,
+            _ => FREE,
+        })
+        .collect();
+    let handle: Vec<u32> = (0..positions.len() as u32)
+        .filter(|&i| selection.labels[i as usize] == HANDLE)
+        .collect();
+    let pivot = centroid(positions, &handle).as_vec3();
+    let sideways = Vec3::X * (height as f32) * 0.2;
+    regions.write(RegionsChanged {
+        pose: Some(
+            Transform::from_translation(pivot + sideways)
+                .with_rotation(Quat::from_rotation_z(-35f32.to_radians())),
+        ),
+    });
+    *done = Some(entity);
 }
 
 fn unattended_frames(
