@@ -145,7 +145,7 @@ fn sync_parts(
         let Some(copied) = meshes.get(&source.0).map(|m| {
             SHARED
                 .into_iter()
-                .filter_map(|a| Some((a.clone(), slice(m.attribute(a.id)?, &range)?)))
+                .filter_map(|a| Some((a, slice(m.attribute(a.id)?, &range)?)))
                 .collect::<Vec<_>>()
         }) else {
             continue;
