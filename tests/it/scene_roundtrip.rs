@@ -114,8 +114,8 @@ fn a_scene_round_trip_keeps_handles_pins_and_controls_pointing_at_the_right_enti
     );
 }
 
-/// `DeformConfig`'s accelerations (core types) are reflected: applying another config through
-/// reflection changes them, and its reflected fields name them.
+/// `DeformConfig`'s accelerations and preview region (core types) are reflected: applying
+/// another config through reflection changes them, and its reflected fields name them.
 #[test]
 fn deform_config_reflects_its_accelerations() {
     use bevy::reflect::structs::Struct;
@@ -126,10 +126,54 @@ fn deform_config_reflects_its_accelerations() {
     let mut other = config.clone();
     other.acceleration = Acceleration::Anderson { depth: 5 };
     other.settle_acceleration = Acceleration::None;
+    other.preview = other
+        .preview
+        .map(|p| bevy_wii_deform::deform::PreviewRegion {
+            max_vertices: 1234,
+            ..p
+        });
     assert_ne!(config.acceleration, other.acceleration);
     config.apply(other.as_partial_reflect());
     assert_eq!(config.acceleration, Acceleration::Anderson { depth: 5 });
     assert_eq!(config.settle_acceleration, Acceleration::None);
+    assert_eq!(config.preview.map(|p| p.max_vertices), Some(1234));
     assert!(config.field("acceleration").is_some());
     assert!(config.field("settle_acceleration").is_some());
+    assert!(config.field("preview").is_some());
+    other.preview = None;
+    config.apply(other.as_partial_reflect());
+    assert_eq!(config.preview, None);
+}
+
+/// A character's last error is shown through reflection (an opaque value an inspector can
+/// print) and a scene holding it saves and loads (the error is not written: a loaded scene
+/// prepares its characters again).
+#[test]
+fn a_pose_error_is_reflected_and_scenes_skip_it() {
+    use bevy::reflect::structs::Struct;
+    use bevy_wii_deform::ecs::PoseableError;
+    let mut source = registry_app();
+    let status = PoseStatus {
+        joints: 3,
+        error: Some(PoseableError::NoSkinnedMesh),
+        ..default()
+    };
+    let shown = format!("{:?}", status.field("error").unwrap());
+    assert!(shown.contains("NoSkinnedMesh"), "{shown}");
+    let character = source.world_mut().spawn(status).id();
+    let registry = source.world().resource::<AppTypeRegistry>().read();
+    let saved =
+        bevy::world_serialization::DynamicWorldBuilder::from_world(source.world(), &registry)
+            .extract_entity(character)
+            .build();
+    let text = saved
+        .serialize(&registry)
+        .expect("a scene with a pose error serialises");
+    assert!(!text.contains("NoSkinnedMesh"), "{text}");
+    drop(registry);
+    let mut target = registry_app();
+    let mut map = EntityHashMap::default();
+    saved.write_to_world(target.world_mut(), &mut map).unwrap();
+    let loaded = target.world().get::<PoseStatus>(map[&character]).unwrap();
+    assert_eq!(loaded.joints, 3);
 }

@@ -42,6 +42,28 @@ pub enum AccelerationReflect {
     },
 }
 
+/// [`PreviewRegion`] (a core type) as reflection sees it.
+#[reflect_remote(PreviewRegion)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PreviewRegionReflect {
+    /// Radius along the surface, as a fraction of the mesh's bounding-box diagonal.
+    pub radius: f64,
+    /// At most this many vertices move (the nearest to the handles).
+    pub max_vertices: usize,
+    /// Meshes with no more vertices than this get no preview.
+    pub min_mesh_vertices: usize,
+}
+
+/// `Option<PreviewRegion>` as reflection sees it ([`DeformConfig::preview`]).
+#[reflect_remote(Option<PreviewRegion>)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum OptionalPreviewReflect {
+    /// No preview: always wait for the whole mesh.
+    None,
+    /// Preview with this region.
+    Some(#[reflect(remote = PreviewRegionReflect)] PreviewRegion),
+}
+
 /// Project-wide deformation defaults, mirrored from [`DeformPlugin`]; change at run time.
 #[derive(Resource, Debug, Clone, Reflect)]
 #[reflect(Resource)]
@@ -76,8 +98,8 @@ pub struct DeformConfig {
     /// factorization takes several (26k armadillo: ~12 against ~45 ms; 104k: ~35–45
     /// against ~200 ms, see docs/benchmarks.md). The whole mesh is then factored in the background and solved
     /// on from the preview. `None`: always wait for the whole mesh. Not used on a
-    /// [`Deformable`] with its own region of interest. Not reflected (a core type).
-    #[reflect(ignore)]
+    /// [`Deformable`] with its own region of interest.
+    #[reflect(remote = OptionalPreviewReflect)]
     pub preview: Option<PreviewRegion>,
 }
 /// Marks a `Mesh3d` entity as deformable. Handles refer to it by entity.

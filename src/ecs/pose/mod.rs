@@ -261,14 +261,16 @@ pub struct PoseStatus {
     pub solve_ms: f64,
     /// Completed solves so far.
     pub solves: u64,
-    /// Last error.
-    #[reflect(ignore)]
+    /// Last error (shown by inspectors; not written to scenes: a loaded scene prepares its
+    /// characters again).
+    #[reflect(skip_serializing)]
     pub error: Option<PoseableError>,
 }
 
 /// Why a character could not be made poseable or posed (in [`PoseFailed`] and
-/// [`PoseStatus::error`]).
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+/// [`PoseStatus::error`]). Reflected as an opaque value (its `Debug` text in inspectors).
+#[derive(Debug, Clone, PartialEq, thiserror::Error, Reflect)]
+#[reflect(opaque, Debug, PartialEq, Clone)]
 pub enum PoseableError {
     /// No `SkinnedMesh` at or below the entity (after its scene spawned).
     #[error("no skinned mesh at or below this entity: Poseable needs a rigged character")]
@@ -318,6 +320,11 @@ pub struct PoseFailed {
 
 /// Inserted by the plugin on a prepared [`Poseable`]: the model, its joints and the pose it
 /// holds. Read it to save the pose or to pick on what is on screen; write `pose` to load one.
+///
+/// Not reflected, on purpose: it is state the plugin derives from the [`Poseable`] and its
+/// skin, so it stays out of scenes (a saved one would carry a model for joints that a loaded
+/// scene renumbers); the pose itself is in the joints' `Transform`s, which scenes keep, and in
+/// [`PosedSkeleton::pose_file`] for a file.
 #[derive(Component, Debug, Clone)]
 pub struct PosedSkeleton {
     /// The prepared model (skeleton in joint order of [`PosedSkeleton::joints`]).
