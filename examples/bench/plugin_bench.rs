@@ -148,17 +148,21 @@ fn main() {
     // comparisons.
     let deform_plugin = match args.iter().any(|a| a == "--plain") {
         true => DeformPlugin {
-            acceleration: bevy_wii_deform::deform::Acceleration::None,
-            settle_iterations: 0,
-            ..default()
+            config: DeformConfig {
+                acceleration: bevy_wii_deform::deform::Acceleration::None,
+                settle_iterations: 0,
+                ..default()
+            },
         },
         false => DeformPlugin::default(),
     };
     // `--no-preview`: a new constraint set waits for the whole mesh (`DeformConfig::preview`).
     let deform_plugin = match args.iter().any(|a| a == "--no-preview") {
         true => DeformPlugin {
-            preview: None,
-            ..deform_plugin
+            config: DeformConfig {
+                preview: None,
+                ..deform_plugin.config
+            },
         },
         false => deform_plugin,
     };

@@ -20,6 +20,7 @@ mod deform;
 mod input;
 mod pose;
 mod scene;
+mod tasks;
 mod wiimote;
 
 use bevy::app::PluginGroupBuilder;
@@ -27,7 +28,7 @@ use bevy::prelude::*;
 
 pub use deform::{
     DeformConfig, DeformError, DeformFailed, DeformHandle, DeformPhase, DeformPlugin, DeformSolved,
-    DeformStatus, DeformSystems, Deformable, FixedRegion, mesh_from_triangles,
+    DeformState, DeformStatus, DeformSystems, Deformable, FixedRegion, mesh_from_triangles,
 };
 pub use input::{
     ActiveGrabs, GrabButton, GrabEnd, GrabHandle, GrabMove, GrabPlugin, GrabStart, GrabTurn,

@@ -107,7 +107,7 @@ fn energy_never_increases_across_iterations() {
     }
 }
 
-#[allow(clippy::needless_range_loop)]
+#[allow(clippy::needless_range_loop)] // dense matrix indices read as the math
 /// Dense reference: full Laplacian with constrained rows eliminated, Gaussian elimination,
 /// exact rotations. Independent of faer and of the warm rotation fit.
 fn dense_reference(t: &Topology, c: &Constraints, iterations: usize) -> Vec<DVec3> {

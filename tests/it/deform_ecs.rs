@@ -640,8 +640,10 @@ fn a_released_handle_settles_to_the_converged_pose() {
     let run = |settle_iterations| {
         let mut app = app();
         app.add_plugins(DeformPlugin {
-            settle_iterations,
-            ..default()
+            config: DeformConfig {
+                settle_iterations,
+                ..default()
+            },
         });
         let (e, handle, tri) = spawn_bar(&mut app);
         app.world_mut().get_mut::<Deformable>(e).unwrap().tolerance = Some(1e-7);
@@ -661,7 +663,7 @@ fn a_released_handle_settles_to_the_converged_pose() {
             solves,
         )
     };
-    let (settled, tri, handle_at, settled_solves) = run(DeformPlugin::default().settle_iterations);
+    let (settled, tri, handle_at, settled_solves) = run(DeformConfig::default().settle_iterations);
     let (frozen, _, _, frozen_solves) = run(0);
 
     // The converged pose for the same constraints, from the core.
@@ -693,8 +695,10 @@ fn a_set_change_on_a_large_mesh_is_previewed_then_solved_whole() {
     let first_and_settled = |preview: Option<deform::PreviewRegion>| {
         let mut app = app();
         app.add_plugins(DeformPlugin {
-            preview,
-            ..default()
+            config: DeformConfig {
+                preview,
+                ..default()
+            },
         });
         let (e, handle, tri) = spawn_bar(&mut app);
         {

@@ -57,8 +57,8 @@ impl ArapSolver {
         // The mesh in the solver's order (built by the topology's first solver), then every
         // per-vertex array in that order.
         let layout = topology
-            .solver_layout(settings.weights, |t| Layout::new(t, settings.weights))
-            .clone();
+            .derived(settings.weights, |t| Layout::new(t, settings.weights))
+            .unwrap_or_else(|| std::sync::Arc::new(Layout::new(&topology, settings.weights)));
         let mut roles = layout.gather(&roles);
         let pinned = pin_unanchored_components(&layout, &mut roles);
         let (offsets, nbrs) = (&layout.offsets[..], &layout.nbrs[..]);

@@ -4,7 +4,6 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use super::ordering::{Dissection, dissect};
-use super::solver::Layout;
 
 mod geodesic;
 mod rebase;
@@ -98,14 +97,17 @@ pub struct Topology {
     offsets: Vec<u32>,
     neighbors: Vec<u32>,
     cotangent: Vec<f64>,
-    /// The solvers' mesh data per [`WeightMode`] (memory order, renumbered rows, rest sums):
-    /// built by the first solver, shared by every constraint set after it.
-    solver_layouts: [std::sync::OnceLock<std::sync::Arc<Layout>>; 3],
+    /// Data other modules derive once per [`WeightMode`] and share between every constraint
+    /// set (the solver's memory layout), type-erased so the topology does not know them.
+    derived: [std::sync::OnceLock<DerivedData>; 3],
     /// Fill-reducing elimination order of the whole mesh (welded indices), made once and
     /// restricted to each constraint set's free vertices; shared with rebased copies (same
     /// graph).
     elimination: std::sync::Arc<std::sync::OnceLock<Dissection>>,
 }
+
+/// Data derived from a topology by another module ([`Topology::derived`]).
+type DerivedData = std::sync::Arc<dyn std::any::Any + Send + Sync>;
 
 /// CSR rows built piece by piece (in parallel): `(row lengths, neighbours, weights)`.
 pub(crate) type RowPiece = (Vec<u32>, Vec<u32>, Vec<f64>);
@@ -301,7 +303,7 @@ impl Topology {
             offsets,
             neighbors,
             cotangent,
-            solver_layouts: Default::default(),
+            derived: Default::default(),
             elimination: Default::default(),
         })
     }
@@ -325,18 +327,24 @@ impl Topology {
         self.elimination.get()
     }
 
-    /// The solvers' layout of this mesh under `mode`, built once by `build`.
-    pub(crate) fn solver_layout(
+    /// What `build` derives from this mesh under `mode`, built by the first caller and shared
+    /// after it (the solver keeps its memory layout here). One type per mode: a caller asking
+    /// for another type than the one stored gets `None`.
+    pub(crate) fn derived<T: std::any::Any + Send + Sync>(
         &self,
         mode: WeightMode,
-        build: impl FnOnce(&Self) -> Layout,
-    ) -> &std::sync::Arc<Layout> {
+        build: impl FnOnce(&Self) -> T,
+    ) -> Option<std::sync::Arc<T>> {
         let slot = match mode {
             WeightMode::ClampedCotangent => 0,
             WeightMode::RawCotangent => 1,
             WeightMode::Uniform => 2,
         };
-        self.solver_layouts[slot].get_or_init(|| std::sync::Arc::new(build(self)))
+        self.derived[slot]
+            .get_or_init(|| std::sync::Arc::new(build(self)))
+            .clone()
+            .downcast::<T>()
+            .ok()
     }
 
     /// Number of welded vertices.

@@ -72,7 +72,7 @@ impl Topology {
             offsets: self.offsets.clone(),
             neighbors: self.neighbors.clone(),
             cotangent,
-            solver_layouts: Default::default(),
+            derived: Default::default(),
             elimination: self.elimination.clone(),
         })
     }

@@ -15,8 +15,7 @@ use glam::DVec3;
 
 use crate::deform::{Acceleration, MeshError, PreviewRegion, RigidTransform, SolveError, centroid};
 
-pub(crate) use plugin::DeformState;
-pub use plugin::{DeformPlugin, DeformSystems};
+pub use plugin::{DeformPlugin, DeformState, DeformSystems};
 
 /// [`Acceleration`] (a core type, no Bevy) as the reflection of [`DeformConfig`] sees it, so
 /// inspectors and scenes show and edit it.
@@ -64,7 +63,8 @@ pub enum OptionalPreviewReflect {
     Some(#[reflect(remote = PreviewRegionReflect)] PreviewRegion),
 }
 
-/// Project-wide deformation defaults, mirrored from [`DeformPlugin`]; change at run time.
+/// Project-wide deformation defaults: inserted by [`DeformPlugin`] (its `config`); change at
+/// run time.
 #[derive(Resource, Debug, Clone, Reflect)]
 #[reflect(Resource)]
 pub struct DeformConfig {
@@ -101,6 +101,22 @@ pub struct DeformConfig {
     /// [`Deformable`] with its own region of interest.
     #[reflect(remote = OptionalPreviewReflect)]
     pub preview: Option<PreviewRegion>,
+}
+
+impl Default for DeformConfig {
+    /// 4 L-BFGS iterations per solve, tolerance 1e-3, 40 settling iterations of truncated
+    /// Newton, the Laplacian start beyond 5 % of the diagonal, and a preview on large meshes.
+    fn default() -> Self {
+        Self {
+            max_iterations: 4,
+            tolerance: 1e-3,
+            acceleration: Acceleration::Lbfgs { depth: 8 },
+            settle_iterations: 40,
+            settle_acceleration: Acceleration::Newton { max_cg: 30 },
+            laplacian_start_displacement: 0.05,
+            preview: Some(PreviewRegion::default()),
+        }
+    }
 }
 /// Marks a `Mesh3d` entity as deformable. Handles refer to it by entity.
 ///

@@ -2,15 +2,15 @@
 //! on handle changes (latest wins), write the pose to the joints after animation.
 
 use std::sync::Arc;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use bevy::app::AnimationSystems;
 use bevy::picking::PickingSystems;
 use bevy::picking::backend::PointerHits;
 use bevy::picking::backend::ray::RayMap;
 use bevy::prelude::*;
-use bevy::tasks::futures::check_ready;
-use bevy::tasks::{AsyncComputeTaskPool, Task};
+
+use crate::ecs::tasks::LatestTask;
+use bevy::tasks::Task;
 use bevy::transform::TransformSystems;
 
 use super::blend::BlendMemory;
@@ -122,8 +122,8 @@ pub(crate) struct PoseState {
     pub(super) reference: Option<SkeletonPose>,
     pub(super) solver: Option<Arc<PoseSolver>>,
     pub(super) last: Option<Arc<PoseSolution>>,
-    pub(super) task: Option<Task<SolveResult>>,
-    pub(super) requested: Arc<AtomicU64>,
+    /// The running solve (the latest request wins).
+    pub(super) solve: LatestTask<SolveResult>,
     pub(super) pending: Option<PoseConstraints>,
     /// The constraints of the running solve (re-queued while the pose is still settling).
     pub(super) running: Option<PoseConstraints>,
@@ -178,7 +178,7 @@ pub(super) fn fail(
 }
 
 /// Starts a solve when a character's handles, pins or pose changed (latest wins).
-#[allow(clippy::type_complexity)]
+#[allow(clippy::type_complexity)] // a system's queries, named by their parameters
 fn request_pose_solves(
     mut characters: Query<(
         Entity,
@@ -375,8 +375,8 @@ fn request_pose_solves(
         let state = state.bypass_change_detection();
         state.pending = Some(constraints);
         state.start = start;
-        state.requested.fetch_add(1, Ordering::Relaxed);
-        if state.task.is_none() {
+        state.solve.supersede();
+        if !state.solve.is_running() {
             spawn_pose_solve(state, &posed, poseable, &mut status);
         }
     }
@@ -407,10 +407,8 @@ fn spawn_pose_solve(
         max_iterations: poseable.max_iterations.max(1),
         tolerance: poseable.tolerance.max(0.0) as f64,
     };
-    let generation = state.requested.load(Ordering::Relaxed);
-    let requested = state.requested.clone();
     status.phase = DeformPhase::Solving;
-    state.task = Some(AsyncComputeTaskPool::get().spawn(async move {
+    state.solve.spawn(move |cancellation| {
         let t0 = std::time::Instant::now();
         let solver = match reuse {
             Some(s) => s,
@@ -424,14 +422,10 @@ fn spawn_pose_solve(
         let start = warm
             .as_deref()
             .map_or(PoseStart::Pose(&current), PoseStart::Warm);
-        let calls = std::cell::Cell::new(0u32);
-        let cancel = || {
-            calls.set(calls.get() + 1);
-            calls.get() > 1 && requested.load(Ordering::Relaxed) != generation
-        };
+        let cancel = || cancellation.superseded();
         let solution = solver.solve(&constraints, &options, start, &cancel)?;
         Ok((solver, solution, t0.elapsed().as_secs_f64() * 1e3))
-    }));
+    });
 }
 
 /// What [`poll_pose_solves`] reads and writes of a character.
@@ -452,13 +446,9 @@ fn poll_pose_solves(
 ) {
     for (entity, poseable, mut posed, mut state, mut status, blend) in &mut characters {
         let state = state.bypass_change_detection();
-        let Some(task) = state.task.as_mut() else {
+        let Some(result) = state.solve.poll() else {
             continue;
         };
-        let Some(result) = check_ready(task) else {
-            continue;
-        };
-        state.task = None;
         // Released (no handles left) and the app set a pose since: it wins over the settling
         // of the old targets.
         let set_by_app = state.written.as_ref().is_some_and(|w| *w != posed.pose);

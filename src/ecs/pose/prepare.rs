@@ -3,11 +3,12 @@
 //! [`PosedSkeleton`] when it is ready.
 
 use std::sync::Arc;
-use std::sync::atomic::AtomicU64;
 
 use bevy::mesh::VertexAttributeValues;
 use bevy::mesh::skinning::{SkinnedMesh as BevySkin, SkinnedMeshInverseBindposes};
 use bevy::prelude::*;
+
+use crate::ecs::tasks::LatestTask;
 use bevy::tasks::AsyncComputeTaskPool;
 use bevy::tasks::futures::check_ready;
 use bevy::world_serialization::WorldAssetRoot;
@@ -70,7 +71,7 @@ pub(super) fn skinned_mesh_of(mesh: &Mesh) -> Result<SkinnedMesh, PoseableError>
 
 /// Finds the skinned primitives and joints of new [`Poseable`]s and starts building their
 /// models in the background.
-#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+#[allow(clippy::too_many_arguments, clippy::type_complexity)] // a system: one parameter per resource it touches
 pub(super) fn find_skins(
     mut commands: Commands,
     mut new: Query<
@@ -237,8 +238,7 @@ pub(super) fn find_skins(
             reference: None,
             solver: None,
             last: None,
-            task: None,
-            requested: Arc::new(AtomicU64::new(0)),
+            solve: LatestTask::default(),
             pending: None,
             running: None,
             written: None,

@@ -8,12 +8,13 @@ mod writeback;
 use prepare::*;
 use solve::*;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicU64, Ordering};
 use writeback::*;
 
 use bevy::asset::RenderAssetUsages;
 use bevy::mesh::VertexAttributeValues;
 use bevy::prelude::*;
+
+use crate::ecs::tasks::LatestTask;
 use bevy::tasks::futures::check_ready;
 use bevy::tasks::{AsyncComputeTaskPool, Task};
 
@@ -22,9 +23,8 @@ use super::{
     Deformable, FixedRegion, mesh_positions,
 };
 use crate::deform::{
-    Acceleration, ArapSolver, Constraints, Handle as CoreHandle, InitialGuess, Preview,
-    PreviewRegion, Solution, SolveError, SolveOptions, SolveStats, SolverSettings, Topology,
-    WeightMode, centroid,
+    Acceleration, ArapSolver, Constraints, Handle as CoreHandle, InitialGuess, Preview, Solution,
+    SolveError, SolveOptions, SolveStats, SolverSettings, Topology, WeightMode, centroid,
 };
 
 /// Ordered phases of the deformation systems, all in `Update` (chained in this order).
@@ -44,84 +44,53 @@ pub enum DeformSystems {
     Writeback,
 }
 /// Adds ARAP deformation of [`Deformable`] meshes driven by [`DeformHandle`] entities.
-#[derive(Debug, Clone)]
+///
+/// Its settings are the [`DeformConfig`] resource it inserts (change that at run time):
+/// `DeformPlugin { config: DeformConfig { max_iterations: 8, ..default() } }`.
+#[derive(Debug, Clone, Default)]
 pub struct DeformPlugin {
-    /// Default iterations per solve (warm-started solves need few).
-    pub max_iterations: u32,
-    /// Default tolerance.
-    pub tolerance: f32,
-    /// Default acceleration ([`DeformConfig::acceleration`]).
-    pub acceleration: Acceleration,
-    /// Default settling budget ([`DeformConfig::settle_iterations`]).
-    pub settle_iterations: u32,
-    /// Default settling iterations ([`DeformConfig::settle_acceleration`]).
-    pub settle_acceleration: Acceleration,
-    /// Default start rule ([`DeformConfig::laplacian_start_displacement`]).
-    pub laplacian_start_displacement: f32,
-    /// Default first pose of a new constraint set on a large mesh ([`DeformConfig::preview`]).
-    pub preview: Option<PreviewRegion>,
-}
-
-impl Default for DeformPlugin {
-    fn default() -> Self {
-        Self {
-            max_iterations: 4,
-            tolerance: 1e-3,
-            acceleration: Acceleration::Lbfgs { depth: 8 },
-            settle_iterations: 40,
-            settle_acceleration: Acceleration::Newton { max_cg: 30 },
-            laplacian_start_displacement: 0.05,
-            preview: Some(PreviewRegion::default()),
-        }
-    }
+    /// The project-wide defaults, inserted as the [`DeformConfig`] resource.
+    pub config: DeformConfig,
 }
 
 impl Plugin for DeformPlugin {
     fn build(&self, app: &mut App) {
-        app.insert_resource(DeformConfig {
-            max_iterations: self.max_iterations,
-            tolerance: self.tolerance,
-            acceleration: self.acceleration,
-            settle_iterations: self.settle_iterations,
-            settle_acceleration: self.settle_acceleration,
-            laplacian_start_displacement: self.laplacian_start_displacement,
-            preview: self.preview,
-        })
-        .register_type::<Deformable>()
-        .register_type::<FixedRegion>()
-        .register_type::<DeformHandle>()
-        .register_type::<DeformStatus>()
-        .register_type::<DeformConfig>()
-        .register_type::<crate::ecs::scene::DeformableScene>()
-        .register_type::<crate::ecs::scene::DeformableFrom>()
-        .add_observer(crate::ecs::scene::mark_scene_spawned)
-        .add_message::<DeformSolved>()
-        .add_message::<DeformFailed>()
-        .configure_sets(
-            Update,
-            (
-                DeformSystems::Prepare,
-                DeformSystems::Request,
-                DeformSystems::Poll,
-                DeformSystems::Writeback,
-            )
-                .chain(),
-        )
-        .add_systems(
-            Update,
-            (
+        app.insert_resource(self.config.clone())
+            .register_type::<Deformable>()
+            .register_type::<FixedRegion>()
+            .register_type::<DeformHandle>()
+            .register_type::<DeformStatus>()
+            .register_type::<DeformConfig>()
+            .register_type::<crate::ecs::scene::DeformableScene>()
+            .register_type::<crate::ecs::scene::DeformableFrom>()
+            .add_observer(crate::ecs::scene::mark_scene_spawned)
+            .add_message::<DeformSolved>()
+            .add_message::<DeformFailed>()
+            .configure_sets(
+                Update,
                 (
-                    crate::ecs::scene::expand_deformable_ancestors,
-                    crate::ecs::scene::sync_deformable_ancestors,
-                    prepare_deformables,
+                    DeformSystems::Prepare,
+                    DeformSystems::Request,
+                    DeformSystems::Poll,
+                    DeformSystems::Writeback,
                 )
-                    .chain()
-                    .in_set(DeformSystems::Prepare),
-                request_solves.in_set(DeformSystems::Request),
-                poll_tasks.in_set(DeformSystems::Poll),
-                write_back.in_set(DeformSystems::Writeback),
-            ),
-        );
+                    .chain(),
+            )
+            .add_systems(
+                Update,
+                (
+                    (
+                        crate::ecs::scene::expand_deformable_ancestors,
+                        crate::ecs::scene::sync_deformable_ancestors,
+                        prepare_deformables,
+                    )
+                        .chain()
+                        .in_set(DeformSystems::Prepare),
+                    request_solves.in_set(DeformSystems::Request),
+                    poll_tasks.in_set(DeformSystems::Poll),
+                    write_back.in_set(DeformSystems::Writeback),
+                ),
+            );
     }
 }
 /// Rest data of a prepared mesh.
@@ -156,15 +125,18 @@ struct RenderPose {
     tangents: Option<Vec<[f32; 4]>>,
 }
 
-/// Internal per-deformable state (not reflected).
+/// The plugin's state of one prepared [`Deformable`] (on its entity): the rest pose, the
+/// solver, the running and pending solves. Other plugins read it through its methods (the
+/// grab plugin takes the welded topology for geodesic regions and bakes released poses); its
+/// internals are the plugin's. Not reflected (runtime state rebuilt from the mesh).
 #[derive(Component)]
-pub(crate) struct DeformState {
+pub struct DeformState {
     rest: Option<Arc<Rest>>,
     building: Option<Task<Result<Rest, DeformError>>>,
     solver: Option<Arc<ArapSolver>>,
     last: Option<Arc<Solution>>,
-    task: Option<Task<SolveOutput>>,
-    requested: Arc<AtomicU64>,
+    /// The running solve (the latest request wins).
+    solve: LatestTask<SolveOutput>,
     pending: Option<Constraints>,
     ready: Option<RenderPose>,
     attempted: bool,
@@ -181,14 +153,20 @@ pub(crate) struct DeformState {
 }
 
 impl DeformState {
-    /// The welded topology of the rest pose, once prepared.
-    pub(crate) fn topology(&self) -> Option<&Arc<Topology>> {
+    /// The welded topology of the rest pose, once prepared (`None` while preparing).
+    pub fn topology(&self) -> Option<&Arc<Topology>> {
         self.rest.as_ref().map(|r| &r.topology)
     }
 
-    /// Makes the mesh's current pose its rest pose: the deformable is prepared again, keeping
-    /// the weld and adjacency of this rest pose when it has one ([`Topology::rebased`]).
-    pub(crate) fn bake(&self, entity: Entity, commands: &mut Commands) {
+    /// Whether a solve is running in the background.
+    pub fn is_solving(&self) -> bool {
+        self.solve.is_running()
+    }
+
+    /// Makes the mesh's current pose its rest pose: the deformable `entity` (the one this
+    /// state is on) is prepared again, keeping the weld and adjacency of this rest pose when it
+    /// has one ([`Topology::rebased`]).
+    pub fn bake(&self, entity: Entity, commands: &mut Commands) {
         let mut entity = commands.entity(entity);
         entity.try_remove::<DeformState>();
         if let Some(topology) = self.topology() {

@@ -3,7 +3,7 @@
 
 use super::*;
 
-#[allow(clippy::type_complexity)]
+#[allow(clippy::type_complexity)] // a system's queries, named by their parameters
 pub(super) fn prepare_deformables(
     mut commands: Commands,
     mut meshes: ResMut<Assets<Mesh>>,
@@ -90,8 +90,7 @@ pub(super) fn prepare_deformables(
             building: Some(task),
             solver: None,
             last: None,
-            task: None,
-            requested: Arc::new(AtomicU64::new(0)),
+            solve: LatestTask::default(),
             pending: None,
             ready: None,
             attempted: false,

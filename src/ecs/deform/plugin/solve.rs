@@ -22,7 +22,7 @@ pub(super) fn build_constraints(
     }
 }
 
-#[allow(clippy::type_complexity)]
+#[allow(clippy::type_complexity)] // a system's queries, named by their parameters
 pub(super) fn request_solves(
     config: Res<DeformConfig>,
     mut deformables: Query<(
@@ -93,8 +93,8 @@ pub(super) fn request_solves(
         state.attempted = true;
         state.pending = Some(constraints);
         state.settle_left = config.settle_iterations;
-        state.requested.fetch_add(1, Ordering::Relaxed);
-        if state.task.is_some() {
+        state.solve.supersede();
+        if state.solve.is_running() {
             continue; // the running task is cancelled at its next iteration; respawn on landing
         }
         spawn_solve(state, &rest, deformable, &config, &mut status, false);
@@ -114,8 +114,6 @@ pub(super) fn spawn_solve(
     let Some(constraints) = state.pending.take() else {
         return;
     };
-    let generation = state.requested.load(Ordering::Relaxed);
-    let requested = state.requested.clone();
     let rest = rest.clone();
     let settings = solver_settings(deformable, &rest.topology);
     // The factorization depends on the constraint sets *and* the settings (weights, region
@@ -171,7 +169,7 @@ pub(super) fn spawn_solve(
             acceleration: config.acceleration,
         },
     };
-    state.task = Some(AsyncComputeTaskPool::get().spawn(async move {
+    state.solve.spawn(move |cancellation| {
         let t0 = std::time::Instant::now();
         let result = (|| {
             let (solver, preview, followed) = match (reuse, follow) {
@@ -201,11 +199,7 @@ pub(super) fn spawn_solve(
                 None if laplacian_start => InitialGuess::Laplacian,
                 None => InitialGuess::Rest,
             };
-            let calls = std::cell::Cell::new(0u32);
-            let cancel = || {
-                calls.set(calls.get() + 1);
-                calls.get() > 1 && requested.load(Ordering::Relaxed) != generation
-            };
+            let cancel = || cancellation.superseded();
             let solution = solver.solve(solving, &options, init, &cancel)?;
             let pose = render_pose(&rest, &solution);
             Ok(Solved {
@@ -224,7 +218,7 @@ pub(super) fn spawn_solve(
             constraints,
             unsettled,
         }
-    }));
+    });
 }
 
 /// Relative energy decrease per iteration below which a pose counts as converged for settling.
@@ -324,13 +318,9 @@ pub(super) fn poll_tasks(
     for (entity, deformable, mut state, mut status) in &mut deformables {
         let state = state.bypass_change_detection();
         poll_factoring(entity, deformable, &config, state, &mut status, &mut failed);
-        let Some(task) = state.task.as_mut() else {
+        let Some(out) = state.solve.poll() else {
             continue;
         };
-        let Some(out) = check_ready(task) else {
-            continue;
-        };
-        state.task = None;
         let mut previewed = false;
         match out.result {
             Ok(s) if finite(&s.pose) => {
@@ -391,7 +381,7 @@ pub(super) fn poll_tasks(
         {
             spawn_solve(state, &rest, deformable, &config, &mut status, settling);
         }
-        if state.task.is_none() && state.factoring.is_some() {
+        if !state.solve.is_running() && state.factoring.is_some() {
             status.phase = DeformPhase::Factorizing;
         }
     }
@@ -455,7 +445,7 @@ pub(super) fn poll_factoring(
                 state.pending = latest;
                 state.settle_left = config.settle_iterations;
             }
-            if state.task.is_none()
+            if !state.solve.is_running()
                 && let Some(rest) = state.rest.clone()
             {
                 spawn_solve(state, &rest, deformable, config, status, false);
@@ -463,7 +453,7 @@ pub(super) fn poll_factoring(
         }
         Err(e) => {
             // The preview stays on screen; the next change of the sets tries again.
-            if state.task.is_none() {
+            if !state.solve.is_running() {
                 status.phase = DeformPhase::Idle;
             }
             let error = DeformError::from(e);

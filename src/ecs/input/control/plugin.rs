@@ -140,7 +140,7 @@ pub fn drive_handles(
 }
 
 /// Applies mouse drags to controlled handles.
-#[allow(clippy::type_complexity)]
+#[allow(clippy::type_complexity)] // a system's queries, named by their parameters
 pub(crate) fn drive_mouse_handles(
     buttons: Res<ButtonInput<MouseButton>>,
     keys: Res<ButtonInput<KeyCode>>,

@@ -9,10 +9,10 @@ use bevy::picking::pointer::{PointerAction, PointerId, PointerInput};
 use bevy::prelude::*;
 
 use crate::deform::Topology;
-use crate::ecs::deform::{DeformHandle, DeformState, DeformSystems, Deformable, FixedRegion};
 use crate::ecs::input::view::{arcball_rotation, turned_in_space, view_plane_motion};
 use crate::ecs::pose::{GrabAnchor, HandlePositionOnly, PinnedJoints, PosedSkeleton};
 use crate::ecs::scene::DeformableFrom;
+use crate::ecs::{DeformHandle, DeformState, DeformSystems, Deformable, FixedRegion};
 
 use super::{
     ActiveGrab, ActiveGrabs, GrabButton, GrabEnd, GrabHandle, GrabMove, GrabStart, GrabTurn,
