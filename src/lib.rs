@@ -26,7 +26,7 @@ pub mod prelude {
         ConnectionState, DeformConfig, DeformError, DeformFailed, DeformHandle, DeformPhase,
         DeformPlugin, DeformSolved, DeformStatus, DeformSystems, Deformable, DeformableFrom,
         DeformableScene, FixedRegion, GrabAnchor, GrabButton, GrabEnd, GrabMove, GrabPlugin,
-        GrabStart, GrabTurn, GrabTwist, Grabbable, JointMask, MouseControlPlugin,
+        GrabStart, GrabTurn, GrabTwist, Grabbable, InputSystems, JointMask, MouseControlPlugin,
         MouseHandleControl, PinnedJoints, PoseBlend, PoseBlendMode, PoseEffector, PoseEffectorKind,
         PoseFailed, PoseJointHandle, PoseLimits, PosePlugin, PoseSolved, PoseStatus, PoseStiffness,
         PoseSystems, PoseTimeline, Poseable, PoseableError, PosedSkeleton, SymmetricEditing,

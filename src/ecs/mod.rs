@@ -5,10 +5,10 @@
 //! |---|---|---|
 //! | [`DeformPlugin`] | ARAP on [`Deformable`] meshes moved by [`DeformHandle`]s, solved in the `AsyncComputeTaskPool`, written back to the mesh asset | [`DeformSystems`] (`Update`: Prepare → Request → Poll → Writeback) |
 //! | [`PosePlugin`] | posing rigged characters ([`Poseable`]): skinning-space ARAP solved for a skeleton pose, written to the joints, blended over clips ([`PoseBlend`]), clips authored on a [`PoseTimeline`] | [`PoseSystems`] (`Update`: Prepare → Request → Poll → Timeline after `DeformSystems::Request`; `PostUpdate`: Apply after `AnimationSystems`, before propagation) |
-//! | [`GrabPlugin`] | press, drag, release on [`Grabbable`] meshes and characters through bevy_picking | runs before `DeformSystems::Request` |
-//! | [`MouseControlPlugin`] | [`MouseHandleControl`]: arcball and view-plane drags of a handle | `Update`, before `DeformSystems::Request` |
+//! | [`GrabPlugin`] | press, drag, release on [`Grabbable`] meshes and characters through bevy_picking | [`InputSystems`] (`Update`: StartGrabs before `DeformSystems::Prepare`, MoveHandles after it and before `DeformSystems::Request`) |
+//! | [`MouseControlPlugin`] | [`MouseHandleControl`]: arcball and view-plane drags of a handle | `Update`, in `InputSystems::MoveHandles` |
 //! | [`WiimotePointerPlugin`] | the Wii Remote's IR pointer as a bevy_picking pointer: A grabs, turning turns ([`GrabTurn`]) | `PreUpdate`, in bevy_picking's input set |
-//! | [`WiimotePlugin`], [`WiimoteControlPlugin`] | one entity per remote with a [`Wiimote`] component, messages; [`WiimoteHandleControl`] | [`WiimoteSystems`] (`PreUpdate`: Receive; `Update`: Control, before `DeformSystems::Request`) |
+//! | [`WiimotePlugin`], [`WiimoteControlPlugin`] | one entity per remote with a [`Wiimote`] component, messages; [`WiimoteHandleControl`] | [`WiimoteSystems`] (`PreUpdate`: Receive; `Update`: Control, part of `InputSystems::MoveHandles`) |
 //!
 //! The input plugins (mouse, remote, pointer grabs) live in one folder, `ecs/input`, over one
 //! piece of shared view math.
@@ -32,8 +32,9 @@ pub use deform::{
 };
 pub use input::{
     ActiveGrabs, GrabButton, GrabEnd, GrabHandle, GrabMove, GrabPlugin, GrabStart, GrabTurn,
-    GrabTwist, Grabbable, MouseControlPlugin, MouseHandleControl, WiimoteControlPlugin,
-    WiimoteHandleControl, WiimotePointer, WiimotePointerPlugin, arcball_rotation,
+    GrabTwist, Grabbable, InputSystems, MouseControlPlugin, MouseHandleControl,
+    WiimoteControlPlugin, WiimoteHandleControl, WiimotePointer, WiimotePointerPlugin,
+    arcball_rotation,
 };
 pub use pose::{
     GrabAnchor, HandlePositionOnly, JointMask, PinnedJoints, PoseBlend, PoseBlendMode,

@@ -5,11 +5,12 @@ use bevy::prelude::*;
 use bevy::window::PrimaryWindow;
 
 use super::{Grab, MouseHandleControl, WiimoteHandleControl};
+use crate::ecs::WiimoteSystems;
 use crate::ecs::input::view::{
     arcball_rotation, rotation_of_space, turned_in_space, view_plane_motion,
 };
+use crate::ecs::input::{InputSystems, configure_input_sets};
 use crate::ecs::wiimote::{ConnectionState, Wiimote, WiimoteLink};
-use crate::ecs::{DeformSystems, WiimoteSystems};
 use crate::wiimote::RemoteCommand;
 use crate::wiimote::protocol::Buttons;
 
@@ -20,24 +21,24 @@ pub struct WiimoteControlPlugin;
 impl Plugin for WiimoteControlPlugin {
     fn build(&self, app: &mut App) {
         app.register_type::<WiimoteHandleControl>();
-        app.add_systems(
-            Update,
-            drive_handles
-                .in_set(WiimoteSystems::Control)
-                .before(DeformSystems::Request),
-        );
+        app.add_systems(Update, drive_handles.in_set(WiimoteSystems::Control));
+        configure_input_sets(app);
     }
 }
 
-/// Adds [`MouseHandleControl`]: mouse drags turn and move handles (in `Update`, before
-/// [`DeformSystems::Request`]).
+/// Adds [`MouseHandleControl`]: mouse drags turn and move handles (in `Update`, in
+/// [`InputSystems::MoveHandles`]).
 #[derive(Debug, Clone, Default)]
 pub struct MouseControlPlugin;
 
 impl Plugin for MouseControlPlugin {
     fn build(&self, app: &mut App) {
         app.register_type::<MouseHandleControl>();
-        app.add_systems(Update, drive_mouse_handles.before(DeformSystems::Request));
+        app.add_systems(
+            Update,
+            drive_mouse_handles.in_set(InputSystems::MoveHandles),
+        );
+        configure_input_sets(app);
     }
 }
 

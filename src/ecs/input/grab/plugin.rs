@@ -10,9 +10,10 @@ use bevy::prelude::*;
 
 use crate::deform::Topology;
 use crate::ecs::input::view::{arcball_rotation, turned_in_space, view_plane_motion};
+use crate::ecs::input::{InputSystems, configure_input_sets};
 use crate::ecs::pose::{GrabAnchor, HandlePositionOnly, PinnedJoints, PosedSkeleton};
 use crate::ecs::scene::DeformableFrom;
-use crate::ecs::{DeformHandle, DeformState, DeformSystems, Deformable, FixedRegion};
+use crate::ecs::{DeformHandle, DeformState, Deformable, FixedRegion};
 
 use super::{
     ActiveGrab, ActiveGrabs, GrabButton, GrabEnd, GrabHandle, GrabMove, GrabStart, GrabTurn,
@@ -78,15 +79,15 @@ impl Plugin for GrabPlugin {
                 Update,
                 ((presses_to_grabs, pointer_inputs_to_grabs), start_grabs)
                     .chain()
-                    .before(DeformSystems::Prepare),
+                    .in_set(InputSystems::StartGrabs),
             )
             .add_systems(
                 Update,
                 (place_grabs, move_grabs, end_grabs)
                     .chain()
-                    .after(DeformSystems::Prepare)
-                    .before(DeformSystems::Request),
+                    .in_set(InputSystems::MoveHandles),
             );
+        configure_input_sets(app);
     }
 }
 
