@@ -30,11 +30,14 @@
 //! Set [`PosedSkeleton::pose`] yourself (e.g. from a [`crate::pose::PoseFile`]) to load a
 //! pose; the next solve starts from it.
 
+mod apply;
 mod blend;
 mod constraints;
 mod picking;
 mod plugin;
+mod poll;
 mod prepare;
+mod request;
 mod timeline;
 
 use std::sync::Arc;

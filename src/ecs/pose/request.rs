@@ -1,0 +1,436 @@
+//! Requesting pose solves: each frame, a character's drivers (vertex handles, joint handles,
+//! effectors) and pins are compared with the set its solver was built for; a new set rebases
+//! the handles on the pose on screen, a moved one queues a solve (latest wins) in the
+//! background.
+
+use std::sync::Arc;
+
+use bevy::prelude::*;
+
+use super::constraints::{
+    SetKey, core_effector, joint_handle, rebase, resolve_limits, vertex_handles,
+};
+use super::plugin::{PoseState, fail};
+use super::prepare::joint_transform;
+use super::{
+    GrabAnchor, HandlePositionOnly, PinnedJoints, PoseBlend, PoseBlendMode, PoseEffector,
+    PoseFailed, PoseJointHandle, PoseLimits, PoseStatus, PoseStiffness, Poseable, PosedSkeleton,
+    SymmetricEditing,
+};
+use crate::ecs::{DeformHandle, DeformPhase};
+use crate::pose::{
+    Effector, JointTransform, Mirror, PoseConstraints, PoseSolveOptions, PoseSolver,
+    PoseSolverSettings, PoseStart, ReferenceStiffness, SkeletonPose,
+};
+
+/// A character grabbed with no anchor (compared in place every frame, never allocated).
+static NO_ANCHOR: GrabAnchor = GrabAnchor {
+    joints: Vec::new(),
+    vertices: Vec::new(),
+};
+
+/// The per-character settings a solve reads besides handles and pins.
+#[derive(bevy::ecs::query::QueryData)]
+pub(super) struct CharacterSettings {
+    limits: Option<Ref<'static, PoseLimits>>,
+    stiffness: Option<Ref<'static, PoseStiffness>>,
+    symmetric: Has<SymmetricEditing>,
+    blend: Option<&'static PoseBlend>,
+}
+
+impl CharacterSettingsItem<'_, '_> {
+    /// An additive blend layer: solves start from the pose on screen, results become the
+    /// layer over the animation.
+    fn additive(&self) -> bool {
+        self.blend
+            .is_some_and(|b| b.mode == PoseBlendMode::Additive)
+    }
+}
+
+/// Vertex-set handles of every character.
+type VertexHandles<'w, 's> = Query<
+    'w,
+    's,
+    (Entity, &'static mut DeformHandle, &'static mut Transform),
+    Without<PoseJointHandle>,
+>;
+/// Joint handles of every character.
+type JointHandles<'w, 's> = Query<
+    'w,
+    's,
+    (Entity, &'static mut PoseJointHandle, &'static mut Transform),
+    Without<DeformHandle>,
+>;
+/// Effectors of every character, with where their targets are.
+type Effectors<'w, 's> = Query<
+    'w,
+    's,
+    (
+        Entity,
+        Ref<'static, PoseEffector>,
+        Ref<'static, GlobalTransform>,
+    ),
+>;
+/// The joints' local transforms (what is on screen).
+type JointTransforms<'w, 's> =
+    Query<'w, 's, &'static Transform, (Without<DeformHandle>, Without<PoseJointHandle>)>;
+
+/// What a solve request reads of a character.
+type RequestingCharacter = (
+    Entity,
+    &'static Poseable,
+    &'static mut PosedSkeleton,
+    Option<Ref<'static, PinnedJoints>>,
+    Option<&'static GrabAnchor>,
+    CharacterSettings,
+    &'static mut PoseState,
+    &'static mut PoseStatus,
+);
+
+/// One character's drivers this frame, each list in entity order.
+struct Drivers<'a> {
+    handles: Vec<(Entity, Mut<'a, DeformHandle>, Mut<'a, Transform>)>,
+    joint_handles: Vec<(Entity, Mut<'a, PoseJointHandle>, Mut<'a, Transform>)>,
+    effectors: Vec<(Entity, Ref<'a, PoseEffector>, Ref<'a, GlobalTransform>)>,
+    /// Handles whose centroid follows them, orientation free ([`HandlePositionOnly`]).
+    followers: Vec<Entity>,
+}
+
+impl<'a> Drivers<'a> {
+    /// The drivers of `character`.
+    fn of(
+        character: Entity,
+        handles: &'a mut VertexHandles,
+        joint_handles: &'a mut JointHandles,
+        effectors: &'a Effectors,
+        position_only: &Query<(), With<HandlePositionOnly>>,
+    ) -> Self {
+        let mut handles: Vec<_> = handles
+            .iter_mut()
+            .filter(|(_, h, _)| h.target == character)
+            .collect();
+        let mut joint_handles: Vec<_> = joint_handles
+            .iter_mut()
+            .filter(|(_, h, _)| h.target == character)
+            .collect();
+        let mut effectors: Vec<_> = effectors
+            .iter()
+            .filter(|(_, e, _)| e.character == character)
+            .collect();
+        handles.sort_by_key(|(e, _, _)| *e);
+        joint_handles.sort_by_key(|(e, _, _)| *e);
+        effectors.sort_by_key(|(e, _, _)| *e);
+        let followers = handles
+            .iter()
+            .map(|(e, _, _)| *e)
+            .filter(|e| position_only.contains(*e))
+            .collect();
+        Self {
+            handles,
+            joint_handles,
+            effectors,
+            followers,
+        }
+    }
+
+    fn is_empty(&self) -> bool {
+        self.handles.is_empty() && self.joint_handles.is_empty() && self.effectors.is_empty()
+    }
+
+    /// Each effector and the joint it drives.
+    fn effector_keys(&self) -> Vec<(Entity, Entity)> {
+        self.effectors
+            .iter()
+            .map(|(e, p, _)| (*e, p.joint))
+            .collect()
+    }
+
+    /// The key of this set of drivers, pins and anchor.
+    fn key(&self, pins: &[Entity], anchor: &GrabAnchor) -> SetKey {
+        SetKey {
+            handles: self
+                .handles
+                .iter()
+                .map(|(e, h, _)| (*e, h.vertices.clone()))
+                .collect(),
+            joint_handles: self
+                .joint_handles
+                .iter()
+                .map(|(e, h, _)| (*e, h.joint))
+                .collect(),
+            pins: pins.to_vec(),
+            anchor: anchor.clone(),
+            position_only: self.followers.clone(),
+            effectors: self.effector_keys(),
+        }
+    }
+
+    /// Whether the set differs from `key` (or a handle has not been placed yet).
+    fn set_changed(&self, key: Option<&SetKey>, pins: &[Entity], anchor: &GrabAnchor) -> bool {
+        let same = key.is_some_and(|k| {
+            k.matches(&self.handles, &self.joint_handles, pins)
+                && k.anchor == *anchor
+                && k.position_only == self.followers
+                && k.effectors == self.effector_keys()
+        });
+        !same
+            || self.handles.iter().any(|(_, h, _)| h.pivot.is_none())
+            || self.joint_handles.iter().any(|(_, h, _)| h.rest.is_none())
+    }
+
+    /// Whether a handle or an effector's target moved this frame.
+    fn moved(&self) -> bool {
+        self.handles.iter().any(|(_, _, t)| t.is_changed())
+            || self.joint_handles.iter().any(|(_, _, t)| t.is_changed())
+            || self
+                .effectors
+                .iter()
+                .any(|(_, e, g)| e.is_changed() || g.is_changed())
+    }
+}
+
+/// What is on screen: the joints as they are now (the held pose, whatever a playing or paused
+/// clip left on them, or the clip plus an additive layer).
+fn on_screen(posed: &PosedSkeleton, joints: &JointTransforms) -> SkeletonPose {
+    SkeletonPose {
+        local: posed
+            .joints
+            .iter()
+            .zip(&posed.pose.local)
+            .map(|(&j, held)| {
+                let now = joints.get(j).map(joint_transform).ok();
+                now.filter(JointTransform::is_valid).unwrap_or(*held)
+            })
+            .collect(),
+    }
+}
+
+/// Starts a new set of drivers: the reference pose is what is on screen (an override blend's
+/// layer is its own pose), the handles are rebased on it, and the solver is rebuilt.
+fn start_set(
+    state: &mut PoseState,
+    posed: &mut PosedSkeleton,
+    drivers: &mut Drivers,
+    key: SetKey,
+    extras: &CharacterSettingsItem,
+    joints: &JointTransforms,
+) {
+    let reference = if extras.additive() {
+        on_screen(posed, joints)
+    } else {
+        if extras.blend.is_none() {
+            let now = on_screen(posed, joints);
+            if now != posed.pose {
+                posed.pose = now;
+            }
+        }
+        posed.pose.clone()
+    };
+    // A handle that turned rigid (a grab being turned) keeps its target: its world position
+    // and the turn just given to it, now about the patch as it is on screen.
+    let turned: Vec<(Entity, Transform)> = state
+        .key
+        .as_ref()
+        .map(|k| {
+            drivers
+                .handles
+                .iter()
+                .filter(|(e, h, _)| {
+                    h.pivot.is_some()
+                        && k.position_only.contains(e)
+                        && drivers.followers.binary_search(e).is_err()
+                })
+                .map(|(e, _, t)| (*e, **t))
+                .collect()
+        })
+        .unwrap_or_default();
+    rebase(
+        posed,
+        &reference,
+        &mut drivers.handles,
+        &mut drivers.joint_handles,
+    );
+    for (e, kept) in turned {
+        if let Some((_, _, t)) = drivers.handles.iter_mut().find(|(f, _, _)| *f == e) {
+            **t = kept;
+        }
+    }
+    state.key = Some(key);
+    state.reference = Some(reference);
+    state.solver = None;
+    state.last = None;
+}
+
+/// The constraints of the current drivers, and where the solve starts when not from the held
+/// pose (an additive layer starts from what is on screen).
+fn constraints_of(
+    state: &mut PoseState,
+    posed: &PosedSkeleton,
+    drivers: &Drivers,
+    (pins, anchor): (&[Entity], &GrabAnchor),
+    extras: &CharacterSettingsItem,
+    joints: &JointTransforms,
+) -> Result<(PoseConstraints, Option<SkeletonPose>), super::PoseableError> {
+    let limits = resolve_limits(posed, extras.limits.as_ref(), &mut state.limits)?;
+    let mut fixed_joints: Vec<usize> = pins
+        .iter()
+        .chain(&anchor.joints)
+        .filter_map(|e| posed.joint_index(*e))
+        .collect();
+    fixed_joints.sort_unstable();
+    fixed_joints.dedup();
+    let (handles, centroid_effectors) = vertex_handles(
+        posed,
+        state.reference.as_ref(),
+        &drivers.handles,
+        &drivers.followers,
+    );
+    let mut effectors: Vec<Effector> = drivers
+        .effectors
+        .iter()
+        .filter_map(|(_, e, g)| core_effector(posed, e, g))
+        .collect();
+    if extras.symmetric {
+        mirror_effectors(state, posed, &mut effectors);
+    }
+    // An additive layer holds what nothing pulls on where the animation puts it now.
+    let start = extras.additive().then(|| on_screen(posed, joints));
+    let stiffness = extras
+        .stiffness
+        .as_ref()
+        .zip(start.clone().or_else(|| state.reference.clone()))
+        .map(|(k, pose)| ReferenceStiffness::uniform(pose, k.0.clamp(0.0, 1.0) as f64));
+    let constraints = PoseConstraints {
+        centroid_effectors,
+        handles,
+        fixed_vertices: anchor.vertices.clone(),
+        fixed_joints,
+        joint_handles: drivers
+            .joint_handles
+            .iter()
+            .filter_map(|(_, h, t)| joint_handle(posed, h, t))
+            .collect(),
+        effectors,
+        stiffness,
+        limits,
+    };
+    Ok((constraints, start))
+}
+
+/// Adds the mirror image of every effector ([`super::SymmetricEditing`]).
+fn mirror_effectors(state: &mut PoseState, posed: &PosedSkeleton, effectors: &mut Vec<Effector>) {
+    let skeleton = posed.model.skeleton();
+    let mirror = state
+        .mirror
+        .get_or_insert_with(|| Arc::new(Mirror::new(skeleton, &skeleton.bind_pose())))
+        .clone();
+    let frame = skeleton.joints()[0].parent_frame;
+    let mirrored: Vec<Effector> = effectors
+        .iter()
+        .filter_map(|e| mirror.mirror_effector(e, &frame))
+        .collect();
+    effectors.extend(mirrored);
+}
+
+/// Starts a solve when a character's handles, pins or pose changed (latest wins).
+pub(super) fn request_pose_solves(
+    mut characters: Query<RequestingCharacter>,
+    mut handles: VertexHandles,
+    mut joint_handles: JointHandles,
+    joints: JointTransforms,
+    (position_only, effectors): (Query<(), With<HandlePositionOnly>>, Effectors),
+    mut failed: MessageWriter<PoseFailed>,
+) {
+    for (entity, poseable, mut posed, pins, anchor, extras, mut state, mut status) in
+        &mut characters
+    {
+        let mut drivers = Drivers::of(
+            entity,
+            &mut handles,
+            &mut joint_handles,
+            &effectors,
+            &position_only,
+        );
+        if drivers.is_empty() {
+            state.bypass_change_detection().key = None;
+            continue; // nothing drives the pose
+        }
+        let pinned = pins.as_ref().map_or(&[][..], |p| &p.0[..]);
+        let anchor = anchor.unwrap_or(&NO_ANCHOR);
+        if drivers.set_changed(state.key.as_ref(), pinned, anchor) {
+            let key = drivers.key(pinned, anchor);
+            let state = state.bypass_change_detection();
+            start_set(state, &mut posed, &mut drivers, key, &extras, &joints);
+            continue; // the rebased Transforms trigger the solve next frame
+        }
+        let settings_changed = extras.limits.as_ref().is_some_and(|l| l.is_changed())
+            || extras.stiffness.as_ref().is_some_and(|s| s.is_changed());
+        let changed = drivers.moved()
+            || pins.as_ref().is_some_and(|p| p.is_changed())
+            || settings_changed
+            || extras.additive() && state.blend.moved;
+        if !changed && state.pending.is_none() {
+            continue;
+        }
+        let state = state.bypass_change_detection();
+        let (constraints, start) =
+            match constraints_of(state, &posed, &drivers, (pinned, anchor), &extras, &joints) {
+                Ok(c) => c,
+                Err(e) => {
+                    fail(entity, e, &mut status, &mut failed);
+                    continue;
+                }
+            };
+        state.pending = Some(constraints);
+        state.start = start;
+        state.solve.supersede();
+        if !state.solve.is_running() {
+            spawn_pose_solve(state, &posed, poseable, &mut status);
+        }
+    }
+}
+pub(super) fn spawn_pose_solve(
+    state: &mut PoseState,
+    posed: &PosedSkeleton,
+    poseable: &Poseable,
+    status: &mut PoseStatus,
+) {
+    let Some(constraints) = state.pending.take() else {
+        return;
+    };
+    let Some(reference) = state.reference.clone() else {
+        return;
+    };
+    state.running = Some(constraints.clone());
+    let model = posed.model.clone();
+    let reuse = state.solver.clone().filter(|s| s.accepts(&constraints));
+    let warm = if reuse.is_some() && state.start.is_none() {
+        state.last.clone()
+    } else {
+        None
+    };
+    let current = state.start.take().unwrap_or_else(|| posed.pose.clone());
+    let options = PoseSolveOptions {
+        max_iterations: poseable.max_iterations.max(1),
+        tolerance: poseable.tolerance.max(0.0) as f64,
+    };
+    status.phase = DeformPhase::Solving;
+    state.solve.spawn(move |cancellation| {
+        let t0 = std::time::Instant::now();
+        let solver = match reuse {
+            Some(s) => s,
+            None => Arc::new(PoseSolver::new(
+                model,
+                &constraints,
+                &reference,
+                PoseSolverSettings::default(),
+            )?),
+        };
+        let start = warm
+            .as_deref()
+            .map_or(PoseStart::Pose(&current), PoseStart::Warm);
+        let cancel = || cancellation.superseded();
+        let solution = solver.solve(&constraints, &options, start, &cancel)?;
+        Ok((solver, solution, t0.elapsed().as_secs_f64() * 1e3))
+    });
+}
