@@ -1,12 +1,14 @@
 //! The deformation plugin: its system sets, and the systems that prepare meshes, start
 //! solves, collect them and write them back.
 
+mod poll;
 mod prepare;
-mod solve;
+mod request;
 mod writeback;
 
+use poll::*;
 use prepare::*;
-use solve::*;
+use request::*;
 use std::sync::Arc;
 use writeback::*;
 

@@ -1,7 +1,9 @@
-//! Solving: constraints from handles and regions, background solves (latest wins), previews
-//! of large meshes, the whole-mesh factorization, settling a released pose.
+//! Requesting solves: constraints from handles and regions, background solves (latest wins)
+//! with a preview of a large mesh first, settling a released pose.
 
 use super::*;
+use crate::deform::PreviewRegion;
+use crate::ecs::tasks::Cancellation;
 
 /// Builds core constraints (welded indices) for one deformable.
 pub(super) fn build_constraints(
@@ -114,7 +116,6 @@ pub(super) fn spawn_solve(
     let Some(constraints) = state.pending.take() else {
         return;
     };
-    let rest = rest.clone();
     let settings = solver_settings(deformable, &rest.topology);
     // The factorization depends on the constraint sets *and* the settings (weights, region
     // of interest): reuse it only when both are unchanged.
@@ -131,10 +132,6 @@ pub(super) fn spawn_solve(
             Some((preview.clone(), solver.clone(), followed))
         }),
     };
-    let region = match deformable.region_of_interest {
-        None if !settling => config.preview,
-        _ => None,
-    };
     status.phase = match (&reuse, &follow, settling) {
         (None, None, _) => DeformPhase::Factorizing,
         (_, _, false) => DeformPhase::Solving,
@@ -147,11 +144,38 @@ pub(super) fn spawn_solve(
     let laplacian_start = warm.is_none()
         && constraints.largest_displacement(rest.topology.positions())
             > f64::from(config.laplacian_start_displacement) * rest.topology.bounding_diagonal();
+    let job = SolveJob {
+        rest: rest.clone(),
+        constraints,
+        settings,
+        solver: match (reuse, follow) {
+            (Some(solver), _) => JobSolver::Reuse(solver),
+            (None, Some((preview, solver, followed))) => {
+                JobSolver::FollowPreview(preview, solver, followed)
+            }
+            (None, None) => JobSolver::Factor {
+                region: match deformable.region_of_interest {
+                    None if !settling => config.preview,
+                    _ => None,
+                },
+            },
+        },
+        warm,
+        laplacian_start,
+        options: solve_options(settling, deformable, config),
+    };
+    state
+        .solve
+        .spawn(move |cancellation| job.run(&cancellation));
+}
+
+/// How a solve iterates: the settings' acceleration and tolerance, or the settling ones.
+fn solve_options(settling: bool, deformable: &Deformable, config: &DeformConfig) -> SolveOptions {
     let max_iterations = deformable
         .max_iterations
         .unwrap_or(config.max_iterations)
         .max(1);
-    let options = match (settling, config.settle_acceleration) {
+    match (settling, config.settle_acceleration) {
         // One Newton iteration is already several back-substitutions: land each one.
         (true, newton @ Acceleration::Newton { .. }) => SolveOptions {
             max_iterations: 1,
@@ -168,57 +192,90 @@ pub(super) fn spawn_solve(
             tolerance: deformable.tolerance.unwrap_or(config.tolerance).max(0.0) as f64,
             acceleration: config.acceleration,
         },
-    };
-    state.solve.spawn(move |cancellation| {
+    }
+}
+
+/// Where a background solve gets its factorization.
+enum JobSolver {
+    /// The current one (same constraint sets and settings).
+    Reuse(Arc<ArapSolver>),
+    /// The current preview's, with the constraints it follows.
+    FollowPreview(Arc<Preview>, Arc<ArapSolver>, Constraints),
+    /// A new one: of a preview region when `region` makes one, else of the whole mesh.
+    Factor { region: Option<PreviewRegion> },
+}
+
+/// Everything a background solve needs, moved into its task.
+struct SolveJob {
+    rest: Arc<Rest>,
+    constraints: Constraints,
+    settings: SolverSettings,
+    solver: JobSolver,
+    warm: Option<Arc<Solution>>,
+    laplacian_start: bool,
+    options: SolveOptions,
+}
+
+impl SolveJob {
+    /// Factors (if needed) and solves; stops early when `cancellation` says a newer request
+    /// arrived.
+    fn run(self, cancellation: &Cancellation) -> SolveOutput {
         let t0 = std::time::Instant::now();
-        let result = (|| {
-            let (solver, preview, followed) = match (reuse, follow) {
-                (Some(solver), _) => (solver, None, None),
-                (None, Some((preview, solver, followed))) => {
-                    (solver, Some(preview), Some(followed))
-                }
-                (None, None) => {
-                    let current = warm
-                        .as_ref()
-                        .map_or(rest.topology.positions(), |w| &w.positions[..]);
-                    let preview = region
-                        .and_then(|r| r.preview(&rest.topology, &constraints, current))
-                        .map(Arc::new);
-                    let factored = preview.as_ref().map_or(&constraints, |p| p.constraints());
-                    let solver = ArapSolver::precompute(rest.topology.clone(), factored, settings)?;
-                    (Arc::new(solver), preview, None)
-                }
-            };
-            let solving = match (&followed, &preview) {
-                (Some(followed), _) => followed,
-                (None, Some(preview)) => preview.constraints(),
-                (None, None) => &constraints,
-            };
-            let init = match &warm {
-                Some(w) => InitialGuess::Warm(w),
-                None if laplacian_start => InitialGuess::Laplacian,
-                None => InitialGuess::Rest,
-            };
-            let cancel = || cancellation.superseded();
-            let solution = solver.solve(solving, &options, init, &cancel)?;
-            let pose = render_pose(&rest, &solution);
-            Ok(Solved {
-                solver,
-                solution: Arc::new(solution),
-                pose,
-                preview,
-            })
-        })();
+        let result = self.solve(cancellation);
         let unsettled = result
             .as_ref()
-            .is_ok_and(|s| still_converging(&s.solution.stats, &options));
+            .is_ok_and(|s| still_converging(&s.solution.stats, &self.options));
         SolveOutput {
             result,
             ms: t0.elapsed().as_secs_f64() * 1e3,
-            constraints,
+            constraints: self.constraints,
             unsettled,
         }
-    });
+    }
+
+    fn solve(&self, cancellation: &Cancellation) -> Result<Solved, SolveError> {
+        let rest = &self.rest;
+        let (solver, preview, followed) = match &self.solver {
+            JobSolver::Reuse(solver) => (solver.clone(), None, None),
+            JobSolver::FollowPreview(preview, solver, followed) => {
+                (solver.clone(), Some(preview.clone()), Some(followed))
+            }
+            JobSolver::Factor { region } => {
+                let current = self
+                    .warm
+                    .as_ref()
+                    .map_or(rest.topology.positions(), |w| &w.positions[..]);
+                let preview = region
+                    .and_then(|r| r.preview(&rest.topology, &self.constraints, current))
+                    .map(Arc::new);
+                let factored = preview
+                    .as_ref()
+                    .map_or(&self.constraints, |p| p.constraints());
+                let solver =
+                    ArapSolver::precompute(rest.topology.clone(), factored, self.settings.clone())?;
+                (Arc::new(solver), preview, None)
+            }
+        };
+        let solving = match (followed, &preview) {
+            (Some(followed), _) => followed,
+            (None, Some(preview)) => preview.constraints(),
+            (None, None) => &self.constraints,
+        };
+        let init = match &self.warm {
+            Some(w) => InitialGuess::Warm(w),
+            None if self.laplacian_start => InitialGuess::Laplacian,
+            None => InitialGuess::Rest,
+        };
+        let cancel = || cancellation.superseded();
+        let solution = solver.solve(solving, &self.options, init, &cancel)?;
+        let pose = render_pose(rest, &solution);
+        Ok(Solved {
+            solver,
+            solution: Arc::new(solution),
+            pose,
+            preview,
+        })
+    }
 }
 
 /// Relative energy decrease per iteration below which a pose counts as converged for settling.
@@ -307,158 +364,4 @@ pub(super) fn finite(pose: &RenderPose) -> bool {
             .flatten()
             .flatten()
             .all(|x| x.is_finite())
-}
-
-pub(super) fn poll_tasks(
-    config: Res<DeformConfig>,
-    mut deformables: Query<(Entity, &Deformable, &mut DeformState, &mut DeformStatus)>,
-    mut solved: MessageWriter<DeformSolved>,
-    mut failed: MessageWriter<DeformFailed>,
-) {
-    for (entity, deformable, mut state, mut status) in &mut deformables {
-        let state = state.bypass_change_detection();
-        poll_factoring(entity, deformable, &config, state, &mut status, &mut failed);
-        let Some(out) = state.solve.poll() else {
-            continue;
-        };
-        let mut previewed = false;
-        match out.result {
-            Ok(s) if finite(&s.pose) => {
-                status.iterations = s.solution.stats.iterations;
-                status.energy = s.solution.stats.final_energy();
-                status.solve_ms = out.ms;
-                status.solves += 1;
-                status.error = None;
-                status.phase = DeformPhase::Idle;
-                status.preview = s.preview.is_some();
-                solved.write(DeformSolved {
-                    entity,
-                    iterations: s.solution.stats.iterations,
-                    energy: status.energy,
-                    solve_ms: out.ms,
-                });
-                match s.preview {
-                    Some(preview) => {
-                        previewed = true;
-                        state.preview = Some((preview, s.solver));
-                        factor_whole_mesh(state, deformable, &out.constraints);
-                    }
-                    None => {
-                        state.solver = Some(s.solver);
-                        state.preview = None;
-                    }
-                }
-                state.last = Some(s.solution);
-                state.ready = Some(s.pose);
-            }
-            Ok(_) => {
-                status.phase = DeformPhase::Idle;
-                status.error = Some(DeformError::NonFinite);
-                failed.write(DeformFailed {
-                    entity,
-                    error: DeformError::NonFinite,
-                });
-            }
-            Err(e) => {
-                status.phase = DeformPhase::Idle;
-                let error = DeformError::from(e);
-                status.error = Some(error.clone());
-                failed.write(DeformFailed { entity, error });
-            }
-        }
-        // A newer request arrived while solving: start it now with the freshest constraints.
-        // Otherwise, if that solve did not converge, settle on with the same constraints (a
-        // preview does not settle: the whole mesh's solve follows it).
-        let settle =
-            out.unsettled && !previewed && state.pending.is_none() && state.settle_left > 0;
-        let settling = settle && status.error.is_none();
-        if settling {
-            state.settle_left = state.settle_left.saturating_sub(status.iterations.max(1));
-            state.pending = Some(out.constraints);
-        }
-        if state.pending.is_some()
-            && let Some(rest) = state.rest.clone()
-        {
-            spawn_solve(state, &rest, deformable, &config, &mut status, settling);
-        }
-        if !state.solve.is_running() && state.factoring.is_some() {
-            status.phase = DeformPhase::Factorizing;
-        }
-    }
-}
-
-/// After a preview of `constraints`: factor the whole mesh for them in the background,
-/// unless that is done or under way.
-pub(super) fn factor_whole_mesh(
-    state: &mut DeformState,
-    deformable: &Deformable,
-    constraints: &Constraints,
-) {
-    let Some(rest) = state.rest.clone() else {
-        return;
-    };
-    let settings = solver_settings(deformable, &rest.topology);
-    let factored = state
-        .solver
-        .as_ref()
-        .is_some_and(|s| s.accepts(constraints) && *s.settings() == settings);
-    let under_way = state
-        .factoring
-        .as_ref()
-        .is_some_and(|(c, _)| c.same_sets(constraints));
-    if factored || under_way {
-        return;
-    }
-    let sets = constraints.clone();
-    let task = AsyncComputeTaskPool::get()
-        .spawn(async move { ArapSolver::precompute(rest.topology.clone(), &sets, settings) });
-    // A factorization for older sets is dropped (cancelled if it has not started).
-    state.factoring = Some((constraints.clone(), task));
-}
-
-/// A finished whole-mesh factorization replaces the preview and solves the latest
-/// constraints from the displayed pose (at once, or when the running solve lands).
-pub(super) fn poll_factoring(
-    entity: Entity,
-    deformable: &Deformable,
-    config: &DeformConfig,
-    state: &mut DeformState,
-    status: &mut DeformStatus,
-    failed: &mut MessageWriter<DeformFailed>,
-) {
-    let Some((_, task)) = state.factoring.as_mut() else {
-        return;
-    };
-    let Some(result) = check_ready(task) else {
-        return;
-    };
-    state.factoring = None;
-    match result {
-        Ok(solver) => {
-            let latest = state.latest.clone();
-            if !latest.as_ref().is_some_and(|c| solver.accepts(c)) {
-                return; // the sets changed since: their own preview and factorization follow
-            }
-            state.solver = Some(Arc::new(solver));
-            state.preview = None;
-            if state.pending.is_none() {
-                state.pending = latest;
-                state.settle_left = config.settle_iterations;
-            }
-            if !state.solve.is_running()
-                && let Some(rest) = state.rest.clone()
-            {
-                spawn_solve(state, &rest, deformable, config, status, false);
-            }
-        }
-        Err(e) => {
-            // The preview stays on screen; the next change of the sets tries again.
-            if !state.solve.is_running() {
-                status.phase = DeformPhase::Idle;
-            }
-            let error = DeformError::from(e);
-            status.error = Some(error.clone());
-            failed.write(DeformFailed { entity, error });
-        }
-    }
 }
