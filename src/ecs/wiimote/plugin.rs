@@ -206,167 +206,191 @@ fn receive_wiimote_events(
     settings: Res<WiimoteSettings>,
     mut smoothing: Local<Vec<(u32, SmoothedPointer)>>,
 ) {
-    let WiimoteWriters {
-        connected,
-        disconnected,
-        orientation,
-        buttons_changed,
-        problems,
-    } = &mut writers;
-    let find = |id: u32, remotes: &mut Query<(Entity, &mut Wiimote)>| -> Option<Entity> {
-        remotes.iter().find(|(_, w)| w.id == id).map(|(e, _)| e)
+    let mut out = EventOutputs {
+        writers: &mut writers,
+        open_problems: &mut open_problems,
+        settings: &settings,
+        smoothing: &mut smoothing,
     };
     // Entities spawned this frame are not queryable yet: buffer their state locally.
     let mut spawned: Vec<(Entity, Wiimote)> = Vec::new();
     while let Ok(event) = link.manager.events().try_recv() {
         if let ManagerEvent::Problem { problem, .. } = &event {
             warn!("Wii Remote: {problem}");
-            if !open_problems.0.contains(problem) {
-                open_problems.0.push(problem.clone());
+            if !out.open_problems.0.contains(problem) {
+                out.open_problems.0.push(problem.clone());
             }
         }
-        let id = match &event {
-            ManagerEvent::Problem { id: None, problem } => {
-                problems.write(WiimoteProblem {
+        let Some(id) = remote_of(&event) else {
+            if let ManagerEvent::Problem { problem, .. } = &event {
+                out.writers.problems.write(WiimoteProblem {
                     entity: None,
                     problem: problem.clone(),
                 });
-                continue;
             }
-            ManagerEvent::Problem { id: Some(id), .. }
-            | ManagerEvent::Connected { id, .. }
-            | ManagerEvent::Disconnected { id, .. }
-            | ManagerEvent::Buttons { id, .. }
-            | ManagerEvent::Orientation { id, .. }
-            | ManagerEvent::Battery { id, .. }
-            | ManagerEvent::Extension { id, .. }
-            | ManagerEvent::MotionPlus { id, .. }
-            | ManagerEvent::Nunchuk { id, .. }
-            | ManagerEvent::Ir { id, .. } => *id,
+            continue;
         };
-        let entity = match find(id, &mut remotes)
-            .or_else(|| spawned.iter().find(|(_, w)| w.id == id).map(|(e, _)| *e))
-        {
-            Some(e) => e,
-            None => {
-                let e = commands.spawn(Name::new(format!("Wii Remote {id}"))).id();
-                spawned.push((
-                    e,
-                    Wiimote {
-                        id,
-                        connection: ConnectionState::Disconnected,
-                        orientation: Quat::IDENTITY,
-                        ..Default::default()
-                    },
-                ));
-                e
-            }
-        };
-        let mut apply = |w: &mut Wiimote| match &event {
-            ManagerEvent::Connected { info, .. } => {
-                w.connection = ConnectionState::Connected;
-                for p in w.problems.drain(..) {
-                    open_problems.0.retain(|q| *q != p);
+        let known = remotes.iter().find(|(_, w)| w.id == id).map(|(e, _)| e);
+        let entity =
+            match known.or_else(|| spawned.iter().find(|(_, w)| w.id == id).map(|(e, _)| *e)) {
+                Some(e) => e,
+                None => {
+                    let e = commands.spawn(Name::new(format!("Wii Remote {id}"))).id();
+                    spawned.push((
+                        e,
+                        Wiimote {
+                            id,
+                            connection: ConnectionState::Disconnected,
+                            orientation: Quat::IDENTITY,
+                            ..Default::default()
+                        },
+                    ));
+                    e
                 }
-                w.battery = info.battery;
-                w.motion_plus = info.motion_plus == MotionPlusState::Active;
-                connected.write(WiimoteConnected { entity, id });
-            }
-            ManagerEvent::Disconnected { .. } => {
-                w.connection = ConnectionState::Disconnected;
-                w.buttons = 0;
-                w.angular_velocity = Vec3::ZERO;
-                disconnected.write(WiimoteDisconnected { entity, id });
-            }
-            ManagerEvent::Buttons { buttons, .. } => {
-                let old = w.buttons;
-                w.buttons = buttons.0;
-                buttons_changed.write(WiimoteButtonChanged {
-                    entity,
-                    buttons: buttons.0,
-                    pressed: buttons.0 & !old,
-                    released: old & !buttons.0,
-                });
-            }
-            ManagerEvent::Orientation { sample, .. } => {
-                let q = remote_to_bevy(sample.orientation);
-                let av = remote_vec_to_bevy(sample.angular_velocity);
-                if q.is_finite() && av.is_finite() {
-                    w.orientation = q;
-                    w.angular_velocity = av;
-                    w.timestamp_us = sample.timestamp_us;
-                    w.heading_from_bar = sample.heading_from_bar;
-                    w.calibration = match sample.calibration.phase {
-                        CalibrationPhase::Collecting { progress } => {
-                            WiimoteCalibration::Collecting(progress as f32)
-                        }
-                        CalibrationPhase::Calibrated => {
-                            WiimoteCalibration::Calibrated(sample.calibration.confidence as f32)
-                        }
-                    };
-                    orientation.write(WiimoteOrientationChanged {
-                        entity,
-                        rotation: q,
-                        angular_velocity: av,
-                        timestamp_us: sample.timestamp_us,
-                    });
-                }
-            }
-            ManagerEvent::Battery { level, .. } => w.battery = *level,
-            ManagerEvent::MotionPlus { state, .. } => {
-                w.motion_plus = *state == MotionPlusState::Active
-            }
-            ManagerEvent::Extension { .. } => {}
-            ManagerEvent::Ir {
-                dots,
-                gravity,
-                timestamp_us,
-                ..
-            } => {
-                w.ir_dots = dots
-                    .iter()
-                    .flatten()
-                    .map(|d| d.position().as_vec2())
-                    .collect();
-                let raw = settings
-                    .pointer
-                    .and_then(|setup| setup.pointed_at(dots, *gravity).ok())
-                    .filter(|p| p.is_finite());
-                w.pointer = smooth_pointer(
-                    &mut smoothing,
-                    settings.pointer_smoothing,
-                    id,
-                    raw,
-                    *timestamp_us,
-                )
-                .map(|p| p.as_vec2());
-            }
-            ManagerEvent::Nunchuk { frame, .. } => {
-                let axis = |v: u8| ((v as f32 - 128.0) / 100.0).clamp(-1.0, 1.0);
-                w.stick = Vec2::new(axis(frame.stick_x), axis(frame.stick_y));
-            }
-            ManagerEvent::Problem { problem, .. } => {
-                if w.connection != ConnectionState::Connected {
-                    w.connection = ConnectionState::Unusable;
-                }
-                if !w.problems.contains(problem) {
-                    w.problems.push(problem.clone());
-                }
-                problems.write(WiimoteProblem {
-                    entity: Some(entity),
-                    problem: problem.clone(),
-                });
-            }
-        };
+            };
         if let Some((_, w)) = spawned.iter_mut().find(|(e, _)| *e == entity) {
-            apply(w);
+            apply_event(w, entity, &event, &mut out);
         } else if let Ok((_, mut w)) = remotes.get_mut(entity) {
-            apply(&mut w);
+            apply_event(&mut w, entity, &event, &mut out);
         }
     }
     for (e, w) in spawned {
         commands.entity(e).try_insert(w);
     }
+}
+
+/// Where a remote's events go besides its component.
+struct EventOutputs<'a, 'w> {
+    writers: &'a mut WiimoteWriters<'w>,
+    open_problems: &'a mut WiimoteProblems,
+    settings: &'a WiimoteSettings,
+    smoothing: &'a mut Vec<(u32, SmoothedPointer)>,
+}
+
+/// The remote an event is about (`None`: a problem with no remote, e.g. no permission to list
+/// devices).
+fn remote_of(event: &ManagerEvent) -> Option<u32> {
+    match event {
+        ManagerEvent::Problem { id, .. } => *id,
+        ManagerEvent::Connected { id, .. }
+        | ManagerEvent::Disconnected { id, .. }
+        | ManagerEvent::Buttons { id, .. }
+        | ManagerEvent::Orientation { id, .. }
+        | ManagerEvent::Battery { id, .. }
+        | ManagerEvent::Extension { id, .. }
+        | ManagerEvent::MotionPlus { id, .. }
+        | ManagerEvent::Nunchuk { id, .. }
+        | ManagerEvent::Ir { id, .. } => Some(*id),
+    }
+}
+
+/// Applies one event to its remote's component and writes its messages.
+fn apply_event(w: &mut Wiimote, entity: Entity, event: &ManagerEvent, out: &mut EventOutputs) {
+    let id = w.id;
+    match event {
+        ManagerEvent::Connected { info, .. } => {
+            w.connection = ConnectionState::Connected;
+            for p in w.problems.drain(..) {
+                out.open_problems.0.retain(|q| *q != p);
+            }
+            w.battery = info.battery;
+            w.motion_plus = info.motion_plus == MotionPlusState::Active;
+            out.writers.connected.write(WiimoteConnected { entity, id });
+        }
+        ManagerEvent::Disconnected { .. } => {
+            w.connection = ConnectionState::Disconnected;
+            w.buttons = 0;
+            w.angular_velocity = Vec3::ZERO;
+            out.writers
+                .disconnected
+                .write(WiimoteDisconnected { entity, id });
+        }
+        ManagerEvent::Buttons { buttons, .. } => {
+            let old = w.buttons;
+            w.buttons = buttons.0;
+            out.writers.buttons_changed.write(WiimoteButtonChanged {
+                entity,
+                buttons: buttons.0,
+                pressed: buttons.0 & !old,
+                released: old & !buttons.0,
+            });
+        }
+        ManagerEvent::Orientation { sample, .. } => {
+            if let Some(changed) = apply_orientation(w, entity, sample) {
+                out.writers.orientation.write(changed);
+            }
+        }
+        ManagerEvent::Battery { level, .. } => w.battery = *level,
+        ManagerEvent::MotionPlus { state, .. } => w.motion_plus = *state == MotionPlusState::Active,
+        ManagerEvent::Extension { .. } => {}
+        ManagerEvent::Ir {
+            dots,
+            gravity,
+            timestamp_us,
+            ..
+        } => {
+            w.ir_dots = dots
+                .iter()
+                .flatten()
+                .map(|d| d.position().as_vec2())
+                .collect();
+            let raw = out
+                .settings
+                .pointer
+                .and_then(|setup| setup.pointed_at(dots, *gravity).ok())
+                .filter(|p| p.is_finite());
+            let smoothing = out.settings.pointer_smoothing;
+            w.pointer = smooth_pointer(out.smoothing, smoothing, id, raw, *timestamp_us)
+                .map(|p| p.as_vec2());
+        }
+        ManagerEvent::Nunchuk { frame, .. } => {
+            let axis = |v: u8| ((v as f32 - 128.0) / 100.0).clamp(-1.0, 1.0);
+            w.stick = Vec2::new(axis(frame.stick_x), axis(frame.stick_y));
+        }
+        ManagerEvent::Problem { problem, .. } => {
+            if w.connection != ConnectionState::Connected {
+                w.connection = ConnectionState::Unusable;
+            }
+            if !w.problems.contains(problem) {
+                w.problems.push(problem.clone());
+            }
+            out.writers.problems.write(WiimoteProblem {
+                entity: Some(entity),
+                problem: problem.clone(),
+            });
+        }
+    }
+}
+
+/// Takes a new orientation sample (ignored unless finite) and says what changed.
+fn apply_orientation(
+    w: &mut Wiimote,
+    entity: Entity,
+    sample: &crate::wiimote::OrientationSample,
+) -> Option<WiimoteOrientationChanged> {
+    let q = remote_to_bevy(sample.orientation);
+    let av = remote_vec_to_bevy(sample.angular_velocity);
+    if !(q.is_finite() && av.is_finite()) {
+        return None;
+    }
+    w.orientation = q;
+    w.angular_velocity = av;
+    w.timestamp_us = sample.timestamp_us;
+    w.heading_from_bar = sample.heading_from_bar;
+    w.calibration = match sample.calibration.phase {
+        CalibrationPhase::Collecting { progress } => {
+            WiimoteCalibration::Collecting(progress as f32)
+        }
+        CalibrationPhase::Calibrated => {
+            WiimoteCalibration::Calibrated(sample.calibration.confidence as f32)
+        }
+    };
+    Some(WiimoteOrientationChanged {
+        entity,
+        rotation: q,
+        angular_velocity: av,
+        timestamp_us: sample.timestamp_us,
+    })
 }
 
 /// The remote `id`'s pointer through its One Euro filter (reset while the bar is out of view,
