@@ -69,116 +69,136 @@ pub(super) fn skinned_mesh_of(mesh: &Mesh) -> Result<SkinnedMesh, PoseableError>
     })
 }
 
-/// Finds the skinned primitives and joints of new [`Poseable`]s and starts building their
-/// models in the background.
-#[allow(clippy::too_many_arguments, clippy::type_complexity)] // a system: one parameter per resource it touches
-pub(super) fn find_skins(
-    mut commands: Commands,
-    mut new: Query<
+/// What finding a character's skin reads: the hierarchy, skinned meshes, their assets and
+/// the joints.
+#[derive(bevy::ecs::system::SystemParam)]
+pub(super) struct SkinSources<'w, 's> {
+    children: Query<'w, 's, &'static Children>,
+    skins: Query<'w, 's, (&'static BevySkin, &'static Mesh3d)>,
+    meshes: Res<'w, Assets<Mesh>>,
+    bindposes: Res<'w, Assets<SkinnedMeshInverseBindposes>>,
+    joints: Query<
+        'w,
+        's,
         (
-            Entity,
-            &Poseable,
-            &mut PoseStatus,
-            Option<&WorldAssetRoot>,
-            Has<SceneSpawned>,
+            &'static Transform,
+            Option<&'static ChildOf>,
+            Option<&'static Name>,
         ),
-        Without<PoseState>,
     >,
-    assets: Option<Res<AssetServer>>,
-    children: Query<&Children>,
-    skins: Query<(&BevySkin, &Mesh3d)>,
-    meshes: Res<Assets<Mesh>>,
-    bindposes: Res<Assets<SkinnedMeshInverseBindposes>>,
-    joints: Query<(&Transform, Option<&ChildOf>, Option<&Name>)>,
-    globals: Query<&GlobalTransform>,
-    mut failed: MessageWriter<PoseFailed>,
-) {
-    for (entity, poseable, mut status, scene, spawned) in &mut new {
-        if status.phase == DeformPhase::Failed {
-            continue;
-        }
-        let primitives: Vec<Entity> = std::iter::once(entity)
-            .chain(children.iter_descendants(entity))
-            .filter(|e| skins.contains(*e))
-            .collect();
-        let Some(&first) = primitives.first() else {
-            // A scene root waits for its instance; any other entity must have its skinned
-            // mesh at or below it when `Poseable` is added (as for `Deformable`).
-            let error = if scene.is_some() && !spawned {
-                match assets.as_deref().and_then(|a| scene_load_failure(a, scene)) {
-                    Some(message) => PoseableError::SceneLoadFailed(message),
-                    None => continue, // the scene has not spawned yet
-                }
-            } else {
-                PoseableError::NoSkinnedMesh
-            };
-            fail(entity, error, &mut status, &mut failed);
-            continue;
+    globals: Query<'w, 's, &'static GlobalTransform>,
+}
+
+/// A character's skin, found and read: the primitives' combined mesh (and where each starts),
+/// the joints in skeleton order and their current local transforms.
+struct FoundSkin {
+    mesh: SkinnedMesh,
+    primitives: Vec<(Entity, u32)>,
+    skeleton: Skeleton,
+    joints: Vec<Entity>,
+    reference: SkeletonPose,
+}
+
+impl SkinSources<'_, '_> {
+    /// The skinned primitives at and below `entity`.
+    fn primitives(&self, entity: Entity) -> Vec<Entity> {
+        std::iter::once(entity)
+            .chain(self.children.iter_descendants(entity))
+            .filter(|e| self.skins.contains(*e))
+            .collect()
+    }
+
+    /// Reads the skin of `primitives` (the first one's skin, and every primitive sharing its
+    /// joints); `Ok(None)` while an asset is still loading.
+    fn read(&self, primitives: &[Entity]) -> Result<Option<FoundSkin>, PoseableError> {
+        let Some((skin, _)) = primitives.first().and_then(|p| self.skins.get(*p).ok()) else {
+            return Err(PoseableError::NoSkinnedMesh);
         };
-        let (skin, _) = skins.get(first).expect("filtered");
-        let Some(ibp) = bindposes.get(&skin.inverse_bindposes) else {
-            continue; // loading
+        let Some(ibp) = self.bindposes.get(&skin.inverse_bindposes) else {
+            return Ok(None);
         };
         let members: Vec<Entity> = primitives
             .iter()
             .copied()
-            .filter(|&p| skins.get(p).is_ok_and(|(s, _)| s.joints == skin.joints))
+            .filter(|&p| {
+                self.skins
+                    .get(p)
+                    .is_ok_and(|(s, _)| s.joints == skin.joints)
+            })
             .collect();
-        let loaded = members
-            .iter()
-            .all(|&p| skins.get(p).is_ok_and(|(_, m)| meshes.contains(&m.0)));
+        let loaded = members.iter().all(|&p| {
+            self.skins
+                .get(p)
+                .is_ok_and(|(_, m)| self.meshes.contains(&m.0))
+        });
         if !loaded {
-            continue; // a mesh asset is still loading
+            return Ok(None);
         }
+        let (mut mesh, primitives) = self.combined_mesh(&members)?;
+        let (list, reference) = self.joints_of(skin, ibp)?;
+        let (skeleton, order) = Skeleton::sorted(list)?;
+        let mut new_index = vec![u16::MAX; order.len()];
+        for (new, &old) in order.iter().enumerate() {
+            new_index[old] = new as u16;
+        }
+        for ji in &mut mesh.joint_indices {
+            *ji = ji.map(|j| new_index.get(j as usize).copied().unwrap_or(u16::MAX));
+        }
+        Ok(Some(FoundSkin {
+            mesh,
+            primitives,
+            skeleton,
+            joints: order.iter().map(|&old| skin.joints[old]).collect(),
+            reference: SkeletonPose {
+                local: order.iter().map(|&old| reference[old]).collect(),
+            },
+        }))
+    }
+
+    /// The members' meshes as one, and the first combined vertex of each member.
+    fn combined_mesh(
+        &self,
+        members: &[Entity],
+    ) -> Result<(SkinnedMesh, Vec<(Entity, u32)>), PoseableError> {
         let mut mesh = SkinnedMesh::default();
         let mut offsets = Vec::new();
-        let mut result: Result<(), PoseableError> = Ok(());
-        for &p in &members {
-            let (_, mesh3d) = skins.get(p).expect("filtered");
-            let asset = meshes.get(&mesh3d.0).expect("checked loaded above");
-            match skinned_mesh_of(asset) {
-                Ok(part) => {
-                    let base = mesh.positions.len() as u32;
-                    offsets.push((p, base));
-                    mesh.indices.extend(part.indices.iter().map(|i| i + base));
-                    mesh.positions.extend(part.positions);
-                    mesh.joint_indices.extend(part.joint_indices);
-                    mesh.joint_weights.extend(part.joint_weights);
-                }
-                Err(e) => {
-                    result = Err(e);
-                    break;
-                }
-            }
+        for &p in members {
+            let Some(asset) = self
+                .skins
+                .get(p)
+                .ok()
+                .and_then(|(_, m)| self.meshes.get(&m.0))
+            else {
+                continue;
+            };
+            let part = skinned_mesh_of(asset)?;
+            let base = mesh.positions.len() as u32;
+            offsets.push((p, base));
+            mesh.indices.extend(part.indices.iter().map(|i| i + base));
+            mesh.positions.extend(part.positions);
+            mesh.joint_indices.extend(part.joint_indices);
+            mesh.joint_weights.extend(part.joint_weights);
         }
-        if let Err(e) = result {
-            fail(entity, e, &mut status, &mut failed);
-            continue;
-        }
-        // The skeleton: parents are the nearest joint ancestors; a root's parent frame is its
-        // parent entity's world transform.
+        Ok((mesh, offsets))
+    }
+
+    /// The skin's joints in skin order: parents are the nearest joint ancestors; a root's parent
+    /// frame is its parent entity's world transform. With their current local transforms.
+    fn joints_of(
+        &self,
+        skin: &BevySkin,
+        ibp: &SkinnedMeshInverseBindposes,
+    ) -> Result<(Vec<Joint>, Vec<JointTransform>), PoseableError> {
         let mut list = Vec::with_capacity(skin.joints.len());
         let mut reference = Vec::with_capacity(skin.joints.len());
-        let mut missing = None;
         for (k, &j) in skin.joints.iter().enumerate() {
-            let Ok((transform, child_of, name)) = joints.get(j) else {
-                missing = Some(j);
-                break;
+            let Ok((transform, child_of, name)) = self.joints.get(j) else {
+                return Err(PoseableError::MissingJoint(j));
             };
-            let mut up = child_of.map(|c| c.parent());
-            let mut parent = None;
-            while let Some(p) = up {
-                if let Some(index) = skin.joints.iter().position(|&x| x == p) {
-                    parent = Some(index);
-                    break;
-                }
-                up = joints
-                    .get(p)
-                    .ok()
-                    .and_then(|(_, c, _)| c.map(|c| c.parent()));
-            }
+            let parent = self.joint_parent(skin, child_of);
             let parent_frame = match (parent, child_of) {
-                (None, Some(c)) => globals
+                (None, Some(c)) => self
+                    .globals
                     .get(c.parent())
                     .map(affine)
                     .unwrap_or(DAffine3::IDENTITY),
@@ -196,44 +216,90 @@ pub(super) fn find_skins(
             });
             reference.push(joint_transform(transform));
         }
-        if let Some(j) = missing {
-            fail(
-                entity,
-                PoseableError::MissingJoint(j),
-                &mut status,
-                &mut failed,
-            );
+        Ok((list, reference))
+    }
+
+    /// The skin index of the nearest ancestor (from `child_of` up) that is a joint of `skin`.
+    fn joint_parent(&self, skin: &BevySkin, child_of: Option<&ChildOf>) -> Option<usize> {
+        let mut up = child_of.map(|c| c.parent());
+        while let Some(p) = up {
+            if let Some(index) = skin.joints.iter().position(|&x| x == p) {
+                return Some(index);
+            }
+            up = self
+                .joints
+                .get(p)
+                .ok()
+                .and_then(|(_, c, _)| c.map(|c| c.parent()));
+        }
+        None
+    }
+}
+
+/// Finds the skinned primitives and joints of new [`Poseable`]s and starts building their
+/// models in the background.
+#[allow(clippy::type_complexity)] // a system's queries, named by their parameters
+pub(super) fn find_skins(
+    mut commands: Commands,
+    mut new: Query<
+        (
+            Entity,
+            &Poseable,
+            &mut PoseStatus,
+            Option<&WorldAssetRoot>,
+            Has<SceneSpawned>,
+        ),
+        Without<PoseState>,
+    >,
+    assets: Option<Res<AssetServer>>,
+    sources: SkinSources,
+    mut failed: MessageWriter<PoseFailed>,
+) {
+    for (entity, poseable, mut status, scene, spawned) in &mut new {
+        if status.phase == DeformPhase::Failed {
             continue;
         }
-        let sorted = Skeleton::sorted(list);
-        let (skeleton, order) = match sorted {
-            Ok(s) => s,
+        let primitives = sources.primitives(entity);
+        if primitives.is_empty() {
+            // A scene root waits for its instance; any other entity must have its skinned
+            // mesh at or below it when `Poseable` is added (as for `Deformable`).
+            let error = if scene.is_some() && !spawned {
+                match assets.as_deref().and_then(|a| scene_load_failure(a, scene)) {
+                    Some(message) => PoseableError::SceneLoadFailed(message),
+                    None => continue, // the scene has not spawned yet
+                }
+            } else {
+                PoseableError::NoSkinnedMesh
+            };
+            fail(entity, error, &mut status, &mut failed);
+            continue;
+        }
+        let found = match sources.read(&primitives) {
+            Ok(Some(found)) => found,
+            Ok(None) => continue, // an asset is still loading
             Err(e) => {
-                fail(entity, e.into(), &mut status, &mut failed);
+                fail(entity, e, &mut status, &mut failed);
                 continue;
             }
-        };
-        let mut new_index = vec![u16::MAX; order.len()];
-        for (new, &old) in order.iter().enumerate() {
-            new_index[old] = new as u16;
-        }
-        for ji in &mut mesh.joint_indices {
-            *ji = ji.map(|j| new_index.get(j as usize).copied().unwrap_or(u16::MAX));
-        }
-        let reference = SkeletonPose {
-            local: order.iter().map(|&old| reference[old]).collect(),
         };
         let settings = ModelSettings {
             clusters: poseable.clusters.max(1) as usize,
             ..Default::default()
         };
+        let FoundSkin {
+            mesh,
+            primitives,
+            skeleton,
+            joints,
+            reference,
+        } = found;
         let task = AsyncComputeTaskPool::get()
             .spawn(async move { Ok(SkinnedModel::new(skeleton, &mesh, &reference, settings)?) });
         status.phase = DeformPhase::BuildingTopology;
         commands.entity(entity).try_insert(PoseState {
             building: Some(task),
-            joints: order.iter().map(|&old| skin.joints[old]).collect(),
-            primitives: offsets,
+            joints,
+            primitives,
             key: None,
             reference: None,
             solver: None,
