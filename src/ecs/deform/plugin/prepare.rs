@@ -3,31 +3,21 @@
 
 use super::*;
 
-#[allow(clippy::type_complexity)] // a system's queries, named by their parameters
-pub(super) fn prepare_deformables(
-    mut commands: Commands,
-    mut meshes: ResMut<Assets<Mesh>>,
-    mut new: Query<
-        (
-            Entity,
-            &mut Mesh3d,
-            &mut DeformStatus,
-            Option<&PreviousTopology>,
-        ),
-        (With<Deformable>, Without<DeformState>),
-    >,
-    mut building: Query<(Entity, &mut DeformState, &mut DeformStatus)>,
-    mut failed: MessageWriter<DeformFailed>,
-) {
-    for (entity, mut mesh3d, mut status, previous) in &mut new {
-        let Some(mesh) = meshes.get(&mesh3d.0) else {
-            continue; // not loaded yet
-        };
-        let previous = previous.map(|p| p.0.clone());
-        commands.entity(entity).try_remove::<PreviousTopology>();
+/// What the background preparation of a deformable needs from its mesh.
+struct MeshInput {
+    triangles: bool,
+    topology: bevy::mesh::PrimitiveTopology,
+    positions: Option<Vec<Vec3>>,
+    indices: Option<Vec<u32>>,
+    normals: Option<Vec<Vec3>>,
+    tangents: Option<Vec<Vec4>>,
+}
+
+impl MeshInput {
+    /// A per-instance copy of `mesh` (glTF entities may share one asset) with its broken
+    /// normals repaired, and what preparing it needs.
+    fn read(mesh: &Mesh) -> (Mesh, Self) {
         let topology = mesh.primitive_topology();
-        let triangles = topology == bevy::mesh::PrimitiveTopology::TriangleList;
-        // Copy per instance: glTF entities may share one mesh asset.
         let mut copy = mesh.clone();
         let positions = mesh_positions(&copy);
         let indices: Option<Vec<u32>> = copy
@@ -61,8 +51,29 @@ pub(super) fn prepare_deformables(
             _ => None,
         };
         copy.asset_usage = RenderAssetUsages::default();
-        mesh3d.0 = meshes.add(copy);
-        let task = AsyncComputeTaskPool::get().spawn(async move {
+        let input = Self {
+            triangles: topology == bevy::mesh::PrimitiveTopology::TriangleList,
+            topology,
+            positions,
+            indices,
+            normals,
+            tangents,
+        };
+        (copy, input)
+    }
+
+    /// Welds the mesh and orders its elimination, in the background (a baked pose of the same
+    /// mesh keeps its weld, `previous`).
+    fn prepare(self, previous: Option<Arc<Topology>>) -> Task<Result<Rest, DeformError>> {
+        let Self {
+            triangles,
+            topology,
+            positions,
+            indices,
+            normals,
+            tangents,
+        } = self;
+        AsyncComputeTaskPool::get().spawn(async move {
             if !triangles {
                 return Err(DeformError::NotTriangleList(format!("{topology:?}")));
             }
@@ -71,7 +82,6 @@ pub(super) fn prepare_deformables(
                 Some(i) => i,
                 None => (0..positions.len() as u32).collect(),
             };
-            // A baked pose of the same mesh keeps its weld; anything else is built afresh.
             let topology = match previous.map(|p| p.rebased(&positions, &indices)) {
                 Some(Ok(rebased)) => rebased,
                 _ => Topology::from_render_mesh(&positions, &indices)?,
@@ -83,11 +93,16 @@ pub(super) fn prepare_deformables(
                 normals,
                 tangents,
             })
-        });
-        status.phase = DeformPhase::BuildingTopology;
-        commands.entity(entity).try_insert(DeformState {
+        })
+    }
+}
+
+impl DeformState {
+    /// The state of a deformable whose rest pose is being prepared by `building`.
+    fn building(building: Task<Result<Rest, DeformError>>) -> Self {
+        Self {
             rest: None,
-            building: Some(task),
+            building: Some(building),
             solver: None,
             last: None,
             solve: LatestTask::default(),
@@ -98,27 +113,61 @@ pub(super) fn prepare_deformables(
             preview: None,
             factoring: None,
             latest: None,
-        });
+        }
+    }
+}
+
+/// Starts preparing new deformables (their mesh copied per instance) and collects prepared
+/// rest poses.
+#[allow(clippy::type_complexity)] // a system's queries, named by their parameters
+pub(super) fn prepare_deformables(
+    mut commands: Commands,
+    mut meshes: ResMut<Assets<Mesh>>,
+    mut new: Query<
+        (
+            Entity,
+            &mut Mesh3d,
+            &mut DeformStatus,
+            Option<&PreviousTopology>,
+        ),
+        (With<Deformable>, Without<DeformState>),
+    >,
+    mut building: Query<(Entity, &mut DeformState, &mut DeformStatus)>,
+    mut failed: MessageWriter<DeformFailed>,
+) {
+    for (entity, mut mesh3d, mut status, previous) in &mut new {
+        let Some(mesh) = meshes.get(&mesh3d.0) else {
+            continue; // not loaded yet
+        };
+        let previous = previous.map(|p| p.0.clone());
+        commands.entity(entity).try_remove::<PreviousTopology>();
+        let (copy, input) = MeshInput::read(mesh);
+        mesh3d.0 = meshes.add(copy);
+        status.phase = DeformPhase::BuildingTopology;
+        commands
+            .entity(entity)
+            .try_insert(DeformState::building(input.prepare(previous)));
     }
     for (entity, mut state, mut status) in &mut building {
         let state = state.bypass_change_detection();
         let Some(task) = state.building.as_mut() else {
             continue;
         };
-        if let Some(result) = check_ready(task) {
-            state.building = None;
-            match result {
-                Ok(rest) => {
-                    status.vertices = rest.topology.vertex_count();
-                    status.phase = DeformPhase::Idle;
-                    state.rest = Some(Arc::new(rest));
-                }
-                Err(error) => {
-                    warn!("Deformable {entity}: {error}");
-                    status.phase = DeformPhase::Failed;
-                    status.error = Some(error.clone());
-                    failed.write(DeformFailed { entity, error });
-                }
+        let Some(result) = check_ready(task) else {
+            continue;
+        };
+        state.building = None;
+        match result {
+            Ok(rest) => {
+                status.vertices = rest.topology.vertex_count();
+                status.phase = DeformPhase::Idle;
+                state.rest = Some(Arc::new(rest));
+            }
+            Err(error) => {
+                warn!("Deformable {entity}: {error}");
+                status.phase = DeformPhase::Failed;
+                status.error = Some(error.clone());
+                failed.write(DeformFailed { entity, error });
             }
         }
     }
