@@ -7,17 +7,19 @@ use glam::{DAffine3, DMat3, DMat4, DQuat, DVec3, DVec4};
 
 mod energy;
 mod gauss_newton;
+mod setup;
 
 use super::PoseError;
 use super::effectors::{
     CentroidEffector, Effector, ExtraInputs, ExtraTerms, Param, ReferenceStiffness,
 };
 use super::limits::JointLimits;
-use super::model::{SkinnedModel, add_outer4x3};
+use super::model::SkinnedModel;
 use super::skeleton::{JointTransform, SkeletonPose};
 use crate::deform::constraints::same_keys;
 use crate::deform::{Handle, RigidTransform};
 use gauss_newton::solve_damped;
+use setup::{check_indices, joint_frames, nonzero_blocks, set_sums};
 
 /// A joint driven to a rigid motion of where it was in the reference pose.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -211,80 +213,30 @@ impl PoseSolver {
     ) -> Result<Self, PoseError> {
         let skeleton = model.skeleton();
         skeleton.check_pose(reference)?;
-        let n = model.topology().vertex_count();
+        check_indices(constraints, model.topology().vertex_count(), skeleton.len())?;
         let joints = skeleton.len();
         let dim = 4 * joints;
-        let check_vertex = |v: u32| {
-            if (v as usize) < n {
-                Ok(())
-            } else {
-                Err(PoseError::VertexOutOfRange {
-                    vertex: v,
-                    vertex_count: n,
-                })
-            }
-        };
-        for &v in constraints
-            .fixed_vertices
-            .iter()
-            .chain(constraints.handles.iter().flat_map(|h| &h.vertices))
-        {
-            check_vertex(v)?;
-        }
-        for &j in constraints
-            .fixed_joints
-            .iter()
-            .chain(constraints.joint_handles.iter().map(|h| &h.joint))
-        {
-            if j >= joints {
-                return Err(PoseError::JointOutOfRange {
-                    joint: j,
-                    joint_count: joints,
-                });
-            }
-        }
         let reference_positions = model.skin_welded(reference);
         let reference_globals = skeleton.global_transforms(reference);
         let vertex_weight = settings.constraint_stiffness * model.mean_degree.max(1e-12);
         let joint_weight = vertex_weight * settings.joint_stiffness;
         let length_scale = model.topology().bounding_diagonal().max(1e-12);
         let mut q = model.q.clone();
-        let sums = |vertices: &[u32], q: &mut [f64]| {
-            let mut s = SetSums {
-                mp: vec![0.0; dim * 3],
-                m: vec![0.0; dim],
-                p: DVec3::ZERO,
-                pp: 0.0,
-                count: vertices.len() as f64,
-            };
-            for &v in vertices {
-                let p = reference_positions[v as usize];
-                let row: Vec<(usize, DVec4)> = model.row(v as usize).collect();
-                for &(a, ua) in &row {
-                    add_outer4x3(&mut s.mp, a, ua, p);
-                    for p in 0..4 {
-                        s.m[4 * a + p] += ua[p];
-                    }
-                    for &(b, ub) in &row {
-                        let base = 4 * a * dim + 4 * b;
-                        for r in 0..4 {
-                            for c in 0..4 {
-                                q[base + r * dim + c] += vertex_weight * ua[r] * ub[c];
-                            }
-                        }
-                    }
-                }
-                s.p += p;
-                s.pp += p.length_squared();
-            }
-            s
+        let mut sums = |vertices: &[u32]| {
+            set_sums(
+                &model,
+                &reference_positions,
+                vertices,
+                vertex_weight,
+                &mut q,
+            )
         };
         let handle_sums: Vec<SetSums> = constraints
             .handles
             .iter()
-            .map(|h| sums(&h.vertices, &mut q))
+            .map(|h| sums(&h.vertices))
             .collect();
-        let fixed = sums(&constraints.fixed_vertices, &mut q);
+        let fixed = sums(&constraints.fixed_vertices);
         let mut fixed_b = vec![0.0; dim * 3];
         let fixed_c = set_target(
             &fixed,
@@ -292,22 +244,7 @@ impl PoseSolver {
             vertex_weight,
             &mut fixed_b,
         );
-        // Joint constraints: ‖(S_j N_j − G*) D‖² with N_j = inverse_bind⁻¹, D = diag(ℓ,ℓ,ℓ,1).
-        let joint_u: Vec<[DVec4; 4]> = (0..joints)
-            .map(|j| {
-                let nj = skeleton.joints()[j].inverse_bind.inverse();
-                let n4 = affine_rows(&nj);
-                // U = N D: column c of U scaled by ℓ for c < 3. Store rows of U.
-                std::array::from_fn(|r| {
-                    DVec4::new(
-                        n4[r][0] * length_scale,
-                        n4[r][1] * length_scale,
-                        n4[r][2] * length_scale,
-                        n4[r][3],
-                    )
-                })
-            })
-            .collect();
+        let joint_u = joint_frames(skeleton, length_scale);
         for &j in constraints
             .fixed_joints
             .iter()
@@ -320,22 +257,7 @@ impl PoseSolver {
                 }
             }
         }
-        let block_nonzero: Vec<bool> = (0..joints * joints)
-            .map(|b| {
-                let (k, l) = (b / joints, b % joints);
-                (0..4).any(|r| (0..4).any(|c| q[(4 * k + r) * dim + 4 * l + c] != 0.0))
-            })
-            .collect();
-        let q_blocks = (0..joints * joints)
-            .filter(|&b| block_nonzero[b])
-            .map(|b| {
-                let (k, l) = (b / joints, b % joints);
-                let m = DMat4::from_cols_array_2d(&std::array::from_fn(|c| {
-                    std::array::from_fn(|r| q[(4 * k + r) * dim + 4 * l + c])
-                }));
-                (k, l, m)
-            })
-            .collect();
+        let (block_nonzero, q_blocks) = nonzero_blocks(&q, joints);
         let params = parameters_for(skeleton, &block_nonzero);
         Ok(Self {
             params,
