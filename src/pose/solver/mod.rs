@@ -305,13 +305,7 @@ impl PoseSolver {
         if !self.accepts(constraints) {
             return Err(PoseError::ConstraintSetChanged);
         }
-        let valid = |t: &RigidTransform| t.is_valid();
-        if !constraints.handles.iter().all(|h| valid(&h.transform))
-            || !constraints
-                .joint_handles
-                .iter()
-                .all(|h| valid(&h.transform))
-        {
+        if !targets_valid(constraints) {
             return Err(PoseError::NonFiniteTarget);
         }
         let skeleton = self.model.skeleton();
@@ -342,9 +336,7 @@ impl PoseSolver {
         if let Some(limits) = limits {
             limits.project(&mut pose);
         }
-        let mut globals = skeleton.global_transforms(&pose);
-        let mut skin = skinning(&globals, skeleton);
-        let mut x = self.model.stack(&skin);
+        let mut current = self.posed(pose);
         let mut stats = PoseSolveStats::default();
         let mut b = vec![0.0; b_pen.len()];
         let mut last = f64::NAN;
@@ -354,61 +346,45 @@ impl PoseSolver {
                 break;
             }
             let t = Instant::now();
-            self.local_step(&x, &mut rotations, exact);
+            self.local_step(&current.x, &mut rotations, exact);
             exact = false;
             stats.local_s += t.elapsed().as_secs_f64();
             let t = Instant::now();
             b.copy_from_slice(&b_pen);
             self.add_rotation_terms(&rotations, &mut b);
-            let constant = self.model.c0 + c_pen;
-            let f0 = self.objective(&x, &b, constant) + extras.energy(&globals, &skin);
+            let objective = Objective {
+                b: &b,
+                constant: self.model.c0 + c_pen,
+                extras: &extras,
+            };
+            let f0 = self.energy(&current, &objective);
             if it == 0 {
                 stats.initial_energy = f0 / c0;
                 last = f0;
             }
             // Levenberg–Marquardt: damp the Gauss–Newton step until it lowers the energy.
-            let (mut h, mut g) = self.gauss_newton_system(&x, &b, &globals);
+            let (mut h, mut g) = self.gauss_newton_system(&current.x, &b, &current.globals);
             if !extras.is_empty() {
-                extras.add_system(&globals, &skin, &self.param_list(), &mut h, &mut g);
+                let params = self.param_list();
+                extras.add_system(&current.globals, &current.skin, &params, &mut h, &mut g);
             }
             if let Some(limits) = limits {
-                self.restrict_hinges(limits, &globals, &mut h, &mut g);
+                self.restrict_hinges(limits, &current.globals, &mut h, &mut g);
             }
             stats.system_s += t.elapsed().as_secs_f64();
-            let mut accepted = None;
-            // A rejected step is first shortened along its direction (cheap: no new
-            // factorization), then re-solved with more damping.
-            'trials: for _ in 0..12 {
-                let step = solve_damped(&h, &g, damping);
-                for (k, length) in [1.0, 0.5].into_iter().enumerate() {
-                    let mut candidate = retract(&pose, &globals, &step, length, self);
-                    if let Some(limits) = limits {
-                        limits.project(&mut candidate);
-                    }
-                    let cg = skeleton.global_transforms(&candidate);
-                    let cs = skinning(&cg, skeleton);
-                    let cx = self.model.stack(&cs);
-                    let f = self.objective(&cx, &b, constant) + extras.energy(&cg, &cs);
-                    if f.is_finite() && f <= f0 {
-                        accepted = Some((candidate, cg, cs, cx, f));
-                        damping = if k == 0 {
-                            (damping / 2.0).max(1e-9)
-                        } else {
-                            damping * 2.0
-                        };
-                        break 'trials;
-                    }
-                    stats.rejected_steps += 1;
-                }
-                damping *= 4.0;
-            }
+            let step = DampedSystem { h: &h, g: &g, f0 };
+            let accepted = self.damped_step(
+                &current,
+                &step,
+                &objective,
+                limits,
+                &mut damping,
+                &mut stats,
+            );
             stats.global_s += t.elapsed().as_secs_f64();
             let f = match accepted {
-                Some((candidate, cg, cs, cx, f)) => {
-                    pose = candidate;
-                    globals = cg;
-                    skin = cs;
-                    x = cx;
+                Some((next, f)) => {
+                    current = next;
                     f
                 }
                 None => f0,
@@ -421,6 +397,7 @@ impl PoseSolver {
                 break;
             }
         }
+        let pose = current.pose;
         if !pose.local.iter().all(|t| t.is_valid()) {
             return Err(PoseError::NonFiniteResult);
         }
@@ -435,6 +412,62 @@ impl PoseSolver {
 
     /// The effector and stiffness terms of `constraints`, with targets blended from the
     /// reference pose this solver was built for.
+    /// A pose with its global and skinning transforms and the stacked skinning matrix.
+    fn posed(&self, pose: SkeletonPose) -> Posed {
+        let skeleton = self.model.skeleton();
+        let globals = skeleton.global_transforms(&pose);
+        let skin = skinning(&globals, skeleton);
+        let x = self.model.stack(&skin);
+        Posed {
+            pose,
+            globals,
+            skin,
+            x,
+        }
+    }
+
+    /// The energy of a posed skeleton.
+    fn energy(&self, posed: &Posed, objective: &Objective) -> f64 {
+        self.objective(&posed.x, objective.b, objective.constant)
+            + objective.extras.energy(&posed.globals, &posed.skin)
+    }
+
+    /// One Levenberg–Marquardt step from `current`: a rejected step is first shortened along
+    /// its direction (cheap: no new factorization), then re-solved with more damping. The
+    /// accepted pose and its energy, or `None` after twelve rejections.
+    fn damped_step(
+        &self,
+        current: &Posed,
+        system: &DampedSystem,
+        objective: &Objective,
+        limits: Option<&JointLimits>,
+        damping: &mut f64,
+        stats: &mut PoseSolveStats,
+    ) -> Option<(Posed, f64)> {
+        for _ in 0..12 {
+            let step = solve_damped(system.h, system.g, *damping);
+            for (k, length) in [1.0, 0.5].into_iter().enumerate() {
+                let mut candidate = retract(&current.pose, &current.globals, &step, length, self);
+                if let Some(limits) = limits {
+                    limits.project(&mut candidate);
+                }
+                let candidate = self.posed(candidate);
+                let f = self.energy(&candidate, objective);
+                if f.is_finite() && f <= system.f0 {
+                    *damping = if k == 0 {
+                        (*damping / 2.0).max(1e-9)
+                    } else {
+                        *damping * 2.0
+                    };
+                    return Some((candidate, f));
+                }
+                stats.rejected_steps += 1;
+            }
+            *damping *= 4.0;
+        }
+        None
+    }
+
     fn extra_terms<'a>(&'a self, constraints: &'a PoseConstraints) -> ExtraTerms<'a> {
         let skeleton = self.model.skeleton();
         let reference_skinning = skinning(&self.reference_globals, skeleton);
@@ -542,6 +575,39 @@ fn parameters_for(skeleton: &super::Skeleton, block_nonzero: &[bool]) -> Vec<(us
             .map(|j| (j, ParamKind::Translation)),
     );
     out
+}
+
+/// A pose with what the energy and its derivatives read of it.
+struct Posed {
+    pose: SkeletonPose,
+    globals: Vec<DAffine3>,
+    skin: Vec<DAffine3>,
+    x: Vec<f64>,
+}
+
+/// What an iteration's energy is made of besides the pose: the linear term of the rotation
+/// fit and penalties, its constant, and the effector, limit and stiffness terms.
+struct Objective<'a> {
+    b: &'a [f64],
+    constant: f64,
+    extras: &'a ExtraTerms<'a>,
+}
+
+/// An iteration's Gauss–Newton system and the energy it starts from.
+struct DampedSystem<'a> {
+    h: &'a [f64],
+    g: &'a [f64],
+    f0: f64,
+}
+
+/// Every handle's target is a finite rigid transform.
+fn targets_valid(constraints: &PoseConstraints) -> bool {
+    let valid = |t: &RigidTransform| t.is_valid();
+    constraints.handles.iter().all(|h| valid(&h.transform))
+        && constraints
+            .joint_handles
+            .iter()
+            .all(|h| valid(&h.transform))
 }
 
 /// Applies `t · step` to `pose`: rotation increments (world space, about each joint) become
