@@ -74,9 +74,7 @@ impl PoseSolver {
         b: &[f64],
         globals: &[DAffine3],
     ) -> (Vec<f64>, Vec<f64>) {
-        let skeleton = self.model.skeleton();
-        let joints = skeleton.len();
-        let params = &self.params;
+        let joints = self.model.skeleton().len();
         // S̄_k rows (4 × 4 homogeneous) from X.
         let s_bar: Vec<[[f64; 4]; 4]> = (0..joints)
             .map(|k| {
@@ -90,9 +88,17 @@ impl PoseSolver {
                 s
             })
             .collect();
+        let gsum = self.subtree_gradients(x, b, &s_bar);
+        let z = self.subtree_hessian_blocks(&s_bar);
+        self.parameter_system(&gsum, &z, globals)
+    }
+
+    /// Per joint, the gradient of the objective in that joint's twist, summed over its
+    /// subtree: g_k[g] = 2 tr(G_g S̄_k Γ_k), Γ = QX − B.
+    fn subtree_gradients(&self, x: &[f64], b: &[f64], s_bar: &[[[f64; 4]; 4]]) -> Vec<[f64; 6]> {
+        let skeleton = self.model.skeleton();
         let qx = self.q_times(x);
-        // Gradient per joint: g_k[g] = 2 tr(G_g S̄_k Γ_k), Γ = QX − B.
-        let mut gsum: Vec<[f64; 6]> = (0..joints)
+        let mut gsum: Vec<[f64; 6]> = (0..skeleton.len())
             .map(|k| {
                 let mut p = [[0.0; 3]; 4];
                 for (r, pr) in p.iter_mut().enumerate() {
@@ -116,7 +122,7 @@ impl PoseSolver {
                 g
             })
             .collect();
-        for k in (0..joints).rev() {
+        for k in (0..skeleton.len()).rev() {
             if let Some(p) = skeleton.joints()[k].parent {
                 let gk = gsum[k];
                 for (a, v) in gsum[p].iter_mut().zip(gk) {
@@ -124,8 +130,14 @@ impl PoseSolver {
                 }
             }
         }
-        // Hessian blocks M_kl[g][h] = tr(G_g N_kl G_hᵀ), N_kl = S̄_k Q_kl S̄_lᵀ, summed over
-        // subtrees: Z[a][b] = Σ_{k∈sub(a), l∈sub(b)} M_kl.
+        gsum
+    }
+
+    /// Hessian blocks M_kl[g][h] = tr(G_g N_kl G_hᵀ), N_kl = S̄_k Q_kl S̄_lᵀ, summed over
+    /// subtrees: Z[a][b] = Σ_{k∈sub(a), l∈sub(b)} M_kl.
+    fn subtree_hessian_blocks(&self, s_bar: &[[[f64; 4]; 4]]) -> Vec<TwistBlock> {
+        let skeleton = self.model.skeleton();
+        let joints = skeleton.len();
         let s_mat: Vec<DMat4> = s_bar
             .iter()
             .map(|s| DMat4::from_cols_array_2d(s).transpose())
@@ -151,15 +163,29 @@ impl PoseSolver {
                 }
             }
         }
-        // Parameter maps A (6 × 3): rotation about o: [I; [o]×]; root translation: [0; I].
+        z
+    }
+
+    /// The system in the solver's parameters, through the maps A (6 × 3): rotation about o:
+    /// [I; [o]×]; root translation: [0; I].
+    fn parameter_system(
+        &self,
+        gsum: &[[f64; 6]],
+        z: &[TwistBlock],
+        globals: &[DAffine3],
+    ) -> (Vec<f64>, Vec<f64>) {
+        let joints = self.model.skeleton().len();
+        let params = &self.params;
         let np = params.len() * 3;
         let mut h = vec![0.0; np * np];
         let mut g = vec![0.0; np];
-        let cross = |j: usize, kind: ParamKind| match kind {
-            ParamKind::Rotation => Some(skew(globals[j].translation)),
-            ParamKind::Translation => None,
-        };
-        let maps: Vec<Option<DMat3>> = params.iter().map(|&(j, kind)| cross(j, kind)).collect();
+        let maps: Vec<Option<DMat3>> = params
+            .iter()
+            .map(|&(j, kind)| match kind {
+                ParamKind::Rotation => Some(skew(globals[j].translation)),
+                ParamKind::Translation => None,
+            })
+            .collect();
         for (pa, &(ja, kind_a)) in params.iter().enumerate() {
             let (gw, gv) = (
                 DVec3::new(gsum[ja][0], gsum[ja][1], gsum[ja][2]),
