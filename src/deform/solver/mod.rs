@@ -371,32 +371,8 @@ impl ArapSolver {
         constraints.check_values()?;
         let layout = &self.layout;
         let n = layout.rest.len();
-        let rest = &layout.rest[..];
         let mut stats = SolveStats::default();
-
-        // Known positions; free ones start at rest (overwritten by the initial guess).
-        let mut x: Vec<DVec3> = match initial {
-            InitialGuess::Warm(prev) => {
-                if prev.positions.len() != n || prev.rotations.len() != n {
-                    return Err(SolveError::WarmStartMismatch {
-                        got: prev.positions.len(),
-                        expected: n,
-                    });
-                }
-                layout.gather(&prev.positions)
-            }
-            _ => rest.to_vec(),
-        };
-        for i in 0..n {
-            let role = self.roles[i];
-            if role != Role::Free {
-                x[i] = constraints.position_of(role, rest[i]);
-            }
-        }
-        let mut quats = match initial {
-            InitialGuess::Warm(prev) => layout.gather(&prev.rotations),
-            _ => vec![DQuat::IDENTITY; n],
-        };
+        let (mut x, mut quats) = self.starting_state(constraints, initial)?;
         let mut mats: Vec<DMat3> = quats.par_iter().map(|q| DMat3::from_quat(*q)).collect();
         let mut rhs = vec![DVec3::ZERO; self.free.len()];
         let rhs_by_vertex = vec![DVec3::ZERO; n];
@@ -425,7 +401,6 @@ impl ArapSolver {
             prev_energy = Some(e);
         }
 
-        let mut carry = CarriedHistory::default();
         let mut it = Iterate {
             x,
             quats,
@@ -436,31 +411,7 @@ impl ArapSolver {
             energy: prev_energy,
             stats,
         };
-        if !self.free.is_empty() {
-            match options.acceleration {
-                Acceleration::Lbfgs { depth } => {
-                    let carried = match initial {
-                        InitialGuess::Warm(prev) => match &prev.history.0 {
-                            Some((id, h)) if *id == self.id && h.depth() == depth => Some(h),
-                            _ => None,
-                        },
-                        _ => None,
-                    };
-                    let mut history = carried.cloned().unwrap_or_else(|| Lbfgs::new(depth));
-                    self.iterate_lbfgs(&mut it, &mut history, options, should_cancel)?;
-                    carry = CarriedHistory(Some((self.id, history)));
-                }
-                Acceleration::Newton { max_cg } => {
-                    self.iterate_newton(&mut it, max_cg, options, should_cancel)?
-                }
-                Acceleration::None => {
-                    self.iterate_local_global(&mut it, 0, options, should_cancel)?
-                }
-                Acceleration::Anderson { depth } => {
-                    self.iterate_local_global(&mut it, depth, options, should_cancel)?
-                }
-            }
-        }
+        let carry = self.iterate(&mut it, initial, options, should_cancel)?;
         let Iterate {
             x,
             mut quats,
@@ -483,6 +434,77 @@ impl ArapSolver {
             stats,
             history: carry,
         })
+    }
+
+    /// The positions a solve starts from (known ones placed, free ones at rest or the warm
+    /// start's) and the rotations (identity, or the warm start's), in solver order.
+    fn starting_state(
+        &self,
+        constraints: &Constraints,
+        initial: InitialGuess<'_>,
+    ) -> Result<(Vec<DVec3>, Vec<DQuat>), SolveError> {
+        let layout = &self.layout;
+        let n = layout.rest.len();
+        let rest = &layout.rest[..];
+        let mut x: Vec<DVec3> = match initial {
+            InitialGuess::Warm(prev) => {
+                if prev.positions.len() != n || prev.rotations.len() != n {
+                    return Err(SolveError::WarmStartMismatch {
+                        got: prev.positions.len(),
+                        expected: n,
+                    });
+                }
+                layout.gather(&prev.positions)
+            }
+            _ => rest.to_vec(),
+        };
+        for i in 0..n {
+            let role = self.roles[i];
+            if role != Role::Free {
+                x[i] = constraints.position_of(role, rest[i]);
+            }
+        }
+        let quats = match initial {
+            InitialGuess::Warm(prev) => layout.gather(&prev.rotations),
+            _ => vec![DQuat::IDENTITY; n],
+        };
+        Ok((x, quats))
+    }
+
+    /// Runs the iterations of `options.acceleration`; the L-BFGS history to carry into a warm
+    /// start of this factorization.
+    fn iterate(
+        &self,
+        it: &mut Iterate,
+        initial: InitialGuess<'_>,
+        options: &SolveOptions,
+        should_cancel: &dyn Fn() -> bool,
+    ) -> Result<CarriedHistory, SolveError> {
+        if self.free.is_empty() {
+            return Ok(CarriedHistory::default());
+        }
+        match options.acceleration {
+            Acceleration::Lbfgs { depth } => {
+                let carried = match initial {
+                    InitialGuess::Warm(prev) => match &prev.history.0 {
+                        Some((id, h)) if *id == self.id && h.depth() == depth => Some(h),
+                        _ => None,
+                    },
+                    _ => None,
+                };
+                let mut history = carried.cloned().unwrap_or_else(|| Lbfgs::new(depth));
+                self.iterate_lbfgs(it, &mut history, options, should_cancel)?;
+                return Ok(CarriedHistory(Some((self.id, history))));
+            }
+            Acceleration::Newton { max_cg } => {
+                self.iterate_newton(it, max_cg, options, should_cancel)?
+            }
+            Acceleration::None => self.iterate_local_global(it, 0, options, should_cancel)?,
+            Acceleration::Anderson { depth } => {
+                self.iterate_local_global(it, depth, options, should_cancel)?
+            }
+        }
+        Ok(CarriedHistory::default())
     }
 
     /// Fits rotations for active (`true`) or inactive (`false`) cells; returns their summed
