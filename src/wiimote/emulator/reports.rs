@@ -300,24 +300,7 @@ impl EmulatedRemote {
                 data,
                 ..
             }) => {
-                if data.is_empty() || data.len() > 16 {
-                    return; // silently ignored, no ack
-                }
-                let error = match space {
-                    AddressSpace::Eeprom => {
-                        let a = address as usize;
-                        if a + data.len() > EEPROM_SIZE {
-                            8
-                        } else {
-                            self.eeprom[a..a + data.len()].copy_from_slice(&data);
-                            0
-                        }
-                    }
-                    AddressSpace::Registers => {
-                        self.write_registers((address >> 16) as u8, address as u8, &data)
-                    }
-                };
-                self.ack(0x16, error);
+                self.write_memory(space, address, &data);
                 return;
             }
             Ok(OutputReport::ReadMemory {
@@ -326,48 +309,7 @@ impl EmulatedRemote {
                 size,
                 ..
             }) => {
-                if size == 0 {
-                    return;
-                }
-                if self.read.is_some() {
-                    self.ack(0x17, 4);
-                    return;
-                }
-                let size = size as usize;
-                let result = match space {
-                    AddressSpace::Eeprom => {
-                        let a = address as usize;
-                        if a + size > EEPROM_SIZE {
-                            Err(8)
-                        } else {
-                            Ok(self.eeprom[a..a + size].to_vec())
-                        }
-                    }
-                    AddressSpace::Registers => {
-                        self.read_registers((address >> 16) as u8, address as u8, size)
-                    }
-                };
-                let b = self.buttons().to_bytes();
-                let lo = address as u16;
-                let mut chunks = VecDeque::new();
-                match result {
-                    Err(code) => {
-                        let mut r = vec![0x21, b[0], b[1], 0xF0 | code];
-                        r.extend_from_slice(&lo.to_be_bytes());
-                        r.resize(22, 0);
-                        chunks.push_back(r);
-                    }
-                    Ok(data) => {
-                        for (i, c) in data.chunks(16).enumerate() {
-                            let mut r = vec![0x21, b[0], b[1], ((c.len() as u8 - 1) << 4)];
-                            r.extend_from_slice(&(lo.wrapping_add(16 * i as u16)).to_be_bytes());
-                            r.extend_from_slice(c);
-                            r.resize(22, 0);
-                            chunks.push_back(r);
-                        }
-                    }
-                }
-                self.read = Some(PendingRead { chunks });
+                self.read_memory(space, address, size);
                 return;
             }
             Ok(OutputReport::SpeakerData) => return,
@@ -375,5 +317,75 @@ impl EmulatedRemote {
         if ack_requested || self.config.always_ack {
             self.ack(id, error);
         }
+    }
+
+    /// A memory write (report 0x16): EEPROM or registers, acknowledged with its error code;
+    /// an empty or over-long write is ignored without an ack, as the hardware does.
+    fn write_memory(&mut self, space: AddressSpace, address: u32, data: &[u8]) {
+        if data.is_empty() || data.len() > 16 {
+            return;
+        }
+        let error = match space {
+            AddressSpace::Eeprom => {
+                let a = address as usize;
+                if a + data.len() > EEPROM_SIZE {
+                    8
+                } else {
+                    self.eeprom[a..a + data.len()].copy_from_slice(data);
+                    0
+                }
+            }
+            AddressSpace::Registers => {
+                self.write_registers((address >> 16) as u8, address as u8, data)
+            }
+        };
+        self.ack(0x16, error);
+    }
+
+    /// A memory read (report 0x17): its answer queued as 0x21 reports of up to 16 bytes, or one
+    /// with the error code; a read while another is answered is refused (error 4).
+    fn read_memory(&mut self, space: AddressSpace, address: u32, size: u16) {
+        if size == 0 {
+            return;
+        }
+        if self.read.is_some() {
+            self.ack(0x17, 4);
+            return;
+        }
+        let size = size as usize;
+        let result = match space {
+            AddressSpace::Eeprom => {
+                let a = address as usize;
+                if a + size > EEPROM_SIZE {
+                    Err(8)
+                } else {
+                    Ok(self.eeprom[a..a + size].to_vec())
+                }
+            }
+            AddressSpace::Registers => {
+                self.read_registers((address >> 16) as u8, address as u8, size)
+            }
+        };
+        let b = self.buttons().to_bytes();
+        let lo = address as u16;
+        let mut chunks = VecDeque::new();
+        match result {
+            Err(code) => {
+                let mut r = vec![0x21, b[0], b[1], 0xF0 | code];
+                r.extend_from_slice(&lo.to_be_bytes());
+                r.resize(22, 0);
+                chunks.push_back(r);
+            }
+            Ok(data) => {
+                for (i, c) in data.chunks(16).enumerate() {
+                    let mut r = vec![0x21, b[0], b[1], ((c.len() as u8 - 1) << 4)];
+                    r.extend_from_slice(&(lo.wrapping_add(16 * i as u16)).to_be_bytes());
+                    r.extend_from_slice(c);
+                    r.resize(22, 0);
+                    chunks.push_back(r);
+                }
+            }
+        }
+        self.read = Some(PendingRead { chunks });
     }
 }
