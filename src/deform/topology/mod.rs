@@ -106,6 +106,109 @@ pub struct Topology {
     elimination: std::sync::Arc<std::sync::OnceLock<Dissection>>,
 }
 
+/// Positions and triangles that make a mesh: some vertices, all finite, every index in range.
+fn check_mesh(positions: &[DVec3], triangles: &[[u32; 3]]) -> Result<(), MeshError> {
+    if positions.is_empty() {
+        return Err(MeshError::NoVertices);
+    }
+    if positions.len() > u32::MAX as usize / 2 {
+        return Err(MeshError::TooManyVertices(positions.len()));
+    }
+    if let Some(vertex) = positions.iter().position(|p| !p.is_finite()) {
+        return Err(MeshError::NonFinitePosition { vertex });
+    }
+    for t in triangles {
+        for &i in t {
+            if i as usize >= positions.len() {
+                return Err(MeshError::IndexOutOfRange {
+                    index: i,
+                    vertex_count: positions.len(),
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The cotangent-weighted rows of the welded mesh, in a few pieces of consecutive rows.
+///
+/// Half-cotangent of each corner, per triangle in parallel. Then every corner's two edges are
+/// scattered, in triangle order, into its vertex's raw row, and the rows are merged in
+/// parallel: duplicates are summed in raw order, so both ends of an edge add the same
+/// contributions in the same (triangle) order and `w_ij == w_ji` exactly.
+fn cotangent_rows(welded: &[DVec3], tris: &[[u32; 3]]) -> Vec<RowPiece> {
+    let n = welded.len();
+    let corners: Vec<[f64; 3]> = tris
+        .par_iter()
+        .map(|t| half_cotangents(t.map(|i| welded[i as usize])))
+        .collect();
+    let mut starts = vec![0usize; n + 1];
+    for t in tris {
+        for &v in t {
+            starts[v as usize + 1] += 2;
+        }
+    }
+    for i in 0..n {
+        starts[i + 1] += starts[i];
+    }
+    let mut raw = vec![(0u32, 0.0f64); starts[n]];
+    let mut fill = starts[..n].to_vec();
+    for (t, half_cot) in tris.iter().zip(&corners) {
+        for k in 0..3 {
+            let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+            // Edge (a, b) is opposite the corner at c; edge (a, c) the corner at b.
+            let at = fill[a as usize];
+            raw[at] = (b, half_cot[(k + 2) % 3]);
+            raw[at + 1] = (c, half_cot[(k + 1) % 3]);
+            fill[a as usize] += 2;
+        }
+    }
+    // A few groups of rows, merged in parallel, each with a marker array over all vertices
+    // (4 bytes per vertex per group: the group count is capped).
+    let groups = rayon::current_num_threads().clamp(1, 4);
+    let per_group = n.div_ceil(groups).max(1);
+    (0..n.div_ceil(per_group))
+        .into_par_iter()
+        .map(|g| merge_rows(&raw, &starts, g * per_group..n.min((g + 1) * per_group), n))
+        .collect()
+}
+
+/// Merges the raw rows `rows` (duplicate neighbours summed, each row sorted).
+fn merge_rows(
+    raw: &[(u32, f64)],
+    starts: &[usize],
+    rows: std::ops::Range<usize>,
+    n: usize,
+) -> RowPiece {
+    // Every edge but a boundary one appears twice: half the raw entries, and a little more,
+    // holds the rows.
+    let guess = (starts[rows.end] - starts[rows.start]) * 5 / 8;
+    let mut lengths = Vec::with_capacity(rows.len());
+    let (mut nbrs, mut wts) = (Vec::with_capacity(guess), Vec::with_capacity(guess));
+    // `slot_of[j]`: where neighbour `j` sits in the row being merged.
+    let mut slot_of = vec![u32::MAX; n];
+    for i in rows {
+        let before = nbrs.len();
+        for &(j, w) in &raw[starts[i]..starts[i + 1]] {
+            let slot = &mut slot_of[j as usize];
+            if *slot == u32::MAX {
+                *slot = nbrs.len() as u32;
+                nbrs.push(j);
+                wts.push(w);
+            } else {
+                wts[*slot as usize] += w;
+            }
+        }
+        let row = before..nbrs.len();
+        for &j in &nbrs[row.clone()] {
+            slot_of[j as usize] = u32::MAX;
+        }
+        sort_row(&mut nbrs[row.clone()], &mut wts[row.clone()]);
+        lengths.push(row.len() as u32);
+    }
+    (lengths, nbrs, wts)
+}
+
 /// Data derived from a topology by another module ([`Topology::derived`]).
 type DerivedData = std::sync::Arc<dyn std::any::Any + Send + Sync>;
 
@@ -202,99 +305,15 @@ impl Topology {
         triangles: &[[u32; 3]],
         policy: WeldPolicy,
     ) -> Result<Self, MeshError> {
-        if positions.is_empty() {
-            return Err(MeshError::NoVertices);
-        }
-        if positions.len() > u32::MAX as usize / 2 {
-            return Err(MeshError::TooManyVertices(positions.len()));
-        }
-        if let Some(vertex) = positions.iter().position(|p| !p.is_finite()) {
-            return Err(MeshError::NonFinitePosition { vertex });
-        }
-        for t in triangles {
-            for &i in t {
-                if i as usize >= positions.len() {
-                    return Err(MeshError::IndexOutOfRange {
-                        index: i,
-                        vertex_count: positions.len(),
-                    });
-                }
-            }
-        }
+        check_mesh(positions, triangles)?;
         let (welded, render_to_welded) = weld(positions, triangles, policy);
         let tris: Vec<[u32; 3]> = triangles
             .iter()
             .map(|t| t.map(|i| render_to_welded[i as usize]))
             .filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
             .collect();
-        let n = welded.len();
 
-        // Half-cotangent of each corner, per triangle in parallel. Then every corner's two
-        // edges are scattered, in triangle order, into its vertex's raw row, and the rows are
-        // merged in parallel: duplicates are summed in raw order, so both ends of an edge add
-        // the same contributions in the same (triangle) order and `w_ij == w_ji` exactly.
-        let corners: Vec<[f64; 3]> = tris
-            .par_iter()
-            .map(|t| half_cotangents(t.map(|i| welded[i as usize])))
-            .collect();
-        let mut starts = vec![0usize; n + 1];
-        for t in &tris {
-            for &v in t {
-                starts[v as usize + 1] += 2;
-            }
-        }
-        for i in 0..n {
-            starts[i + 1] += starts[i];
-        }
-        let mut raw = vec![(0u32, 0.0f64); starts[n]];
-        let mut fill = starts[..n].to_vec();
-        for (t, half_cot) in tris.iter().zip(&corners) {
-            for k in 0..3 {
-                let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
-                // Edge (a, b) is opposite the corner at c; edge (a, c) the corner at b.
-                let at = fill[a as usize];
-                raw[at] = (b, half_cot[(k + 2) % 3]);
-                raw[at + 1] = (c, half_cot[(k + 1) % 3]);
-                fill[a as usize] += 2;
-            }
-        }
-        // A few groups of rows, merged in parallel, each with a marker array over all
-        // vertices (4 bytes per vertex per group: the group count is capped).
-        let groups = rayon::current_num_threads().clamp(1, 4);
-        let per_group = n.div_ceil(groups).max(1);
-        let pieces: Vec<RowPiece> = (0..n.div_ceil(per_group))
-            .into_par_iter()
-            .map(|g| {
-                let rows = g * per_group..n.min((g + 1) * per_group);
-                // Every edge but a boundary one appears twice: half the raw entries, and a
-                // little more, holds the rows.
-                let guess = (starts[rows.end] - starts[rows.start]) * 5 / 8;
-                let mut lengths = Vec::with_capacity(rows.len());
-                let (mut nbrs, mut wts) = (Vec::with_capacity(guess), Vec::with_capacity(guess));
-                // `slot_of[j]`: where neighbour `j` sits in the row being merged.
-                let mut slot_of = vec![u32::MAX; n];
-                for i in rows {
-                    let before = nbrs.len();
-                    for &(j, w) in &raw[starts[i]..starts[i + 1]] {
-                        let slot = &mut slot_of[j as usize];
-                        if *slot == u32::MAX {
-                            *slot = nbrs.len() as u32;
-                            nbrs.push(j);
-                            wts.push(w);
-                        } else {
-                            wts[*slot as usize] += w;
-                        }
-                    }
-                    let row = before..nbrs.len();
-                    for &j in &nbrs[row.clone()] {
-                        slot_of[j as usize] = u32::MAX;
-                    }
-                    sort_row(&mut nbrs[row.clone()], &mut wts[row.clone()]);
-                    lengths.push(row.len() as u32);
-                }
-                (lengths, nbrs, wts)
-            })
-            .collect();
+        let pieces = cotangent_rows(&welded, &tris);
         let (offsets, neighbors, cotangent) = join_rows(&pieces);
         Ok(Topology {
             positions: welded,
