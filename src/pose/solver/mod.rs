@@ -302,26 +302,12 @@ impl PoseSolver {
         cancel: &dyn Fn() -> bool,
     ) -> Result<PoseSolution, PoseError> {
         let started = Instant::now();
-        if !self.accepts(constraints) {
-            return Err(PoseError::ConstraintSetChanged);
-        }
-        if !targets_valid(constraints) {
-            return Err(PoseError::NonFiniteTarget);
-        }
-        let skeleton = self.model.skeleton();
-        super::effectors::validate(
-            skeleton,
-            self.model.topology().vertex_count(),
-            &constraints.effectors,
-            &constraints.centroid_effectors,
-            constraints.stiffness.as_ref(),
-        )?;
+        self.check_solve(constraints, &start)?;
         let clusters = self.model.cluster_count();
         let (start, warm) = match start {
             PoseStart::Pose(p) => (p, None),
             PoseStart::Warm(s) => (&s.pose, Some(s)),
         };
-        skeleton.check_pose(start)?;
         let extras = self.extra_terms(constraints);
         let limits = constraints.limits.as_deref();
         let (mut rotations, mut damping, mut exact) = match warm {
@@ -412,6 +398,35 @@ impl PoseSolver {
 
     /// The effector and stiffness terms of `constraints`, with targets blended from the
     /// reference pose this solver was built for.
+    /// A solve of `constraints` from `start` is possible: the same constraint sets, finite
+    /// targets, valid effectors and a start pose of this skeleton.
+    fn check_solve(
+        &self,
+        constraints: &PoseConstraints,
+        start: &PoseStart,
+    ) -> Result<(), PoseError> {
+        if !self.accepts(constraints) {
+            return Err(PoseError::ConstraintSetChanged);
+        }
+        if !targets_valid(constraints) {
+            return Err(PoseError::NonFiniteTarget);
+        }
+        let skeleton = self.model.skeleton();
+        super::effectors::validate(
+            skeleton,
+            self.model.topology().vertex_count(),
+            &constraints.effectors,
+            &constraints.centroid_effectors,
+            constraints.stiffness.as_ref(),
+        )?;
+        let pose = match start {
+            PoseStart::Pose(p) => p,
+            PoseStart::Warm(s) => &s.pose,
+        };
+        skeleton.check_pose(pose)?;
+        Ok(())
+    }
+
     /// A pose with its global and skinning transforms and the stacked skinning matrix.
     fn posed(&self, pose: SkeletonPose) -> Posed {
         let skeleton = self.model.skeleton();
