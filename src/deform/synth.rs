@@ -407,9 +407,24 @@ pub fn implicit_surface(f: &dyn Fn(DVec3) -> f64, lo: DVec3, hi: DVec3, cells: u
             }
         }
     }
-    // Orient every triangle outward (along the gradient of f).
-    let eps = h * 0.1;
-    for t in &mut triangles {
+    orient_outward(f, &positions, &mut triangles, h * 0.1);
+    // Drop slivers whose corners collapsed onto one grid point.
+    triangles.retain(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]);
+    TriMesh {
+        positions,
+        triangles,
+    }
+}
+
+/// Turns every triangle outward, along the gradient of `f` (central differences of step
+/// `eps`) at its centre.
+fn orient_outward(
+    f: &dyn Fn(DVec3) -> f64,
+    positions: &[DVec3],
+    triangles: &mut [[u32; 3]],
+    eps: f64,
+) {
+    for t in triangles {
         let [a, b, c] = t.map(|i| positions[i as usize]);
         let centre = (a + b + c) / 3.0;
         let grad = DVec3::new(
@@ -420,12 +435,6 @@ pub fn implicit_surface(f: &dyn Fn(DVec3) -> f64, lo: DVec3, hi: DVec3, cells: u
         if (b - a).cross(c - a).dot(grad) < 0.0 {
             t.swap(1, 2);
         }
-    }
-    // Drop slivers whose corners collapsed onto one grid point.
-    triangles.retain(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]);
-    TriMesh {
-        positions,
-        triangles,
     }
 }
 

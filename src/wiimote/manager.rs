@@ -375,29 +375,7 @@ fn run_remote<T: Transport, F: FnMut() -> Option<T>>(
             if stop.load(Ordering::Relaxed) {
                 return RemoteExit::Stopped;
             }
-            let mut failed = None;
-            while let Ok(c) = commands.try_recv() {
-                let r = match c {
-                    RemoteCommand::Rumble(on) => session.set_rumble(on),
-                    RemoteCommand::Recenter => {
-                        session.recenter();
-                        Ok(())
-                    }
-                    RemoteCommand::CalibrateNow => {
-                        session.calibrate_now();
-                        Ok(())
-                    }
-                    RemoteCommand::SetFilter(k) => {
-                        filter = k;
-                        session.set_filter(k);
-                        Ok(())
-                    }
-                };
-                if let Err(e) = r {
-                    failed = Some(e.to_string());
-                    break;
-                }
-            }
+            let failed = apply_commands(&commands, &mut session, &mut filter);
             if let Some(reason) = failed {
                 break reason;
             }
@@ -414,6 +392,37 @@ fn run_remote<T: Transport, F: FnMut() -> Option<T>>(
         std::thread::sleep(Duration::from_millis(200));
     }
     RemoteExit::Stopped
+}
+
+/// Applies the commands waiting for a connected remote (switching filters updates `filter`,
+/// kept across reconnects); the first that fails ends the session, with its reason.
+fn apply_commands<T: Transport>(
+    commands: &Receiver<RemoteCommand>,
+    session: &mut Session<T>,
+    filter: &mut FilterKind,
+) -> Option<String> {
+    while let Ok(c) = commands.try_recv() {
+        let r = match c {
+            RemoteCommand::Rumble(on) => session.set_rumble(on),
+            RemoteCommand::Recenter => {
+                session.recenter();
+                Ok(())
+            }
+            RemoteCommand::CalibrateNow => {
+                session.calibrate_now();
+                Ok(())
+            }
+            RemoteCommand::SetFilter(k) => {
+                *filter = k;
+                session.set_filter(k);
+                Ok(())
+            }
+        };
+        if let Err(e) = r {
+            return Some(e.to_string());
+        }
+    }
+    None
 }
 
 fn forward<T: Transport>(id: RemoteId, session: &mut Session<T>, tx: &Sender<ManagerEvent>) {
