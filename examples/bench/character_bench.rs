@@ -72,23 +72,7 @@ fn args() -> Args {
 
 fn main() {
     let args = args();
-    let (name, skeleton, mesh) = match &args.model {
-        Some(path) => match rigged_gltf::load(path) {
-            Ok(rig) => (path.display().to_string(), rig.skeleton, rig.mesh),
-            Err(e) => {
-                eprintln!("cannot read {}: {e}", path.display());
-                std::process::exit(2);
-            }
-        },
-        None => {
-            let rig = mannequin_rig(args.cells);
-            (
-                format!("mannequin_rig({})", args.cells),
-                rig.skeleton,
-                rig.mesh,
-            )
-        }
-    };
+    let (name, skeleton, mesh) = load_rig(&args);
     let bind = skeleton.bind_pose();
     let t0 = Instant::now();
     let model = Arc::new(
@@ -97,26 +81,7 @@ fn main() {
     let model_ms = t0.elapsed().as_secs_f64() * 1e3;
     let rest = model.topology().positions().to_vec();
     let diagonal = model.topology().bounding_diagonal();
-    let (lo, hi) = rest.iter().fold((DVec3::MAX, DVec3::MIN), |(lo, hi), p| {
-        (lo.min(*p), hi.max(*p))
-    });
-    let fixed: Vec<u32> = (0..rest.len() as u32)
-        .filter(|&i| rest[i as usize].y < lo.y + 0.06 * (hi.y - lo.y))
-        .collect();
-    let handle: Vec<u32> = if args.model.is_none() {
-        let hand = DVec3::new(0.58, 0.86, 0.06) * model.rest_scale();
-        (0..rest.len() as u32)
-            .filter(|&i| rest[i as usize].distance(hand) < 0.1)
-            .collect()
-    } else {
-        let mut by_z: Vec<u32> = (0..rest.len() as u32)
-            .filter(|i| !fixed.contains(i))
-            .collect();
-        by_z.sort_by(|&a, &b| rest[b as usize].z.total_cmp(&rest[a as usize].z));
-        by_z.truncate((rest.len() / 25).max(1));
-        by_z.sort_unstable();
-        by_z
-    };
+    let (fixed, handle) = drag_regions(&model, &rest, args.model.is_none());
     let pivot = centroid(&rest, &handle);
     let target = RigidTransform::new(
         DQuat::from_rotation_z(25f64.to_radians()),
@@ -155,24 +120,7 @@ fn main() {
     let converged = converge(&solver, &constraints, &last);
     let energy_subspace = model.full_arap_energy(&converged.pose);
     if std::env::var("BENCH_DEBUG").is_ok() {
-        let e = &converged.stats.energies;
-        let w = &last.stats;
-        eprintln!(
-            "last drag solve: local {:.3} ms global {:.3} ms (systems {:.3} ms) rejected {}",
-            w.local_s * 1e3,
-            w.global_s * 1e3,
-            w.system_s * 1e3,
-            w.rejected_steps
-        );
-        eprintln!(
-            "drag: {iterations} iterations, {rejected} rejected trial steps, final drag energy {:?}",
-            last.stats.energies.last()
-        );
-        eprintln!(
-            "converge energies: first {:?} … last {:?}",
-            &e[..e.len().min(8)],
-            &e[e.len().saturating_sub(4)..]
-        );
+        debug_report(&converged, &last, iterations, rejected);
     }
     let skinned = model.skin_welded(&converged.pose);
     let handle_error = handle
@@ -183,6 +131,107 @@ fn main() {
         / diagonal;
     let bone_error = max_bone_length_error(model.skeleton(), &bind, &converged.pose) / diagonal;
 
+    let energy_full = full_mesh_energy(&model, fixed, handle, target);
+    let constrained = constrained_drag(&model, &bind, &constraints, diagonal);
+
+    if !args.json {
+        println!(
+            "{name}: {} render vertices, {} joints, {} clusters; precompute {precompute_ms:.0} ms; {ms_per_solve:.3} ms/solve; energy {energy_subspace:.5} (full-mesh ARAP {energy_full:.5})",
+            mesh.positions.len(),
+            model.skeleton().len(),
+            model.cluster_count()
+        );
+    }
+    println!(
+        "{{\"model\": \"{name}\", \"render_vertices\": {}, \"welded_vertices\": {}, \"joints\": {}, \"clusters\": {}, \"precompute_ms\": {precompute_ms:.1}, \"ms_per_iteration\": {ms_per_iteration:.4}, \"ms_per_solve\": {ms_per_solve:.4}, \"energy_subspace\": {energy_subspace:.6}, \"energy_full_arap\": {energy_full:.6}, \"max_bone_length_error\": {bone_error:.3e}, \"handle_error\": {handle_error:.3e}, \"converge_iterations\": {}, \"constrained_ms_per_solve\": {:.4}, \"max_limit_violation_deg\": {:.4}, \"effector_error\": {:.3e}}}",
+        mesh.positions.len(),
+        model.topology().vertex_count(),
+        model.skeleton().len(),
+        model.cluster_count(),
+        converged.stats.iterations,
+        constrained.ms_per_solve,
+        constrained.max_violation_deg,
+        constrained.effector_error,
+    );
+}
+
+/// The rig to pose: `--model`'s file (every mesh node of its skin) or the generated mannequin.
+fn load_rig(args: &Args) -> (String, Skeleton, SkinnedMesh) {
+    match &args.model {
+        Some(path) => match rigged_gltf::load(path) {
+            Ok(rig) => (path.display().to_string(), rig.skeleton, rig.mesh),
+            Err(e) => {
+                eprintln!("cannot read {}: {e}", path.display());
+                std::process::exit(2);
+            }
+        },
+        None => {
+            let rig = mannequin_rig(args.cells);
+            (
+                format!("mannequin_rig({})", args.cells),
+                rig.skeleton,
+                rig.mesh,
+            )
+        }
+    }
+}
+
+/// The drag's fixed vertices (the lowest 6 % of the height: the feet) and handle (the
+/// mannequin's right hand, or the front 4 % of a file's model).
+fn drag_regions(model: &SkinnedModel, rest: &[DVec3], mannequin: bool) -> (Vec<u32>, Vec<u32>) {
+    let (lo, hi) = rest.iter().fold((DVec3::MAX, DVec3::MIN), |(lo, hi), p| {
+        (lo.min(*p), hi.max(*p))
+    });
+    let fixed: Vec<u32> = (0..rest.len() as u32)
+        .filter(|&i| rest[i as usize].y < lo.y + 0.06 * (hi.y - lo.y))
+        .collect();
+    let handle: Vec<u32> = if mannequin {
+        let hand = DVec3::new(0.58, 0.86, 0.06) * model.rest_scale();
+        (0..rest.len() as u32)
+            .filter(|&i| rest[i as usize].distance(hand) < 0.1)
+            .collect()
+    } else {
+        let mut by_z: Vec<u32> = (0..rest.len() as u32)
+            .filter(|i| !fixed.contains(i))
+            .collect();
+        by_z.sort_by(|&a, &b| rest[b as usize].z.total_cmp(&rest[a as usize].z));
+        by_z.truncate((rest.len() / 25).max(1));
+        by_z.sort_unstable();
+        by_z
+    };
+    (fixed, handle)
+}
+
+/// `BENCH_DEBUG`: where the last drag solve spent its time and how the energies went.
+fn debug_report(converged: &PoseSolution, last: &PoseSolution, iterations: u32, rejected: u32) {
+    let e = &converged.stats.energies;
+    let w = &last.stats;
+    eprintln!(
+        "last drag solve: local {:.3} ms global {:.3} ms (systems {:.3} ms) rejected {}",
+        w.local_s * 1e3,
+        w.global_s * 1e3,
+        w.system_s * 1e3,
+        w.rejected_steps
+    );
+    eprintln!(
+        "drag: {iterations} iterations, {rejected} rejected trial steps, final drag energy {:?}",
+        last.stats.energies.last()
+    );
+    eprintln!(
+        "converge energies: first {:?} … last {:?}",
+        &e[..e.len().min(8)],
+        &e[e.len().saturating_sub(4)..]
+    );
+}
+
+/// The ARAP energy of the same drag solved on the whole mesh (free vertices, no bones): what
+/// skinning space gives up.
+fn full_mesh_energy(
+    model: &SkinnedModel,
+    fixed: Vec<u32>,
+    handle: Vec<u32>,
+    target: RigidTransform,
+) -> f64 {
     let full = Constraints {
         fixed,
         handles: vec![Handle {
@@ -206,29 +255,7 @@ fn main() {
             &|| false,
         )
         .expect("full solve");
-    let energy_full = arap_energy(model.topology(), &full_solution.positions);
-
-    let constrained = constrained_drag(&model, &bind, &constraints, diagonal);
-
-    if !args.json {
-        println!(
-            "{name}: {} render vertices, {} joints, {} clusters; precompute {precompute_ms:.0} ms; {ms_per_solve:.3} ms/solve; energy {energy_subspace:.5} (full-mesh ARAP {energy_full:.5})",
-            mesh.positions.len(),
-            model.skeleton().len(),
-            model.cluster_count()
-        );
-    }
-    println!(
-        "{{\"model\": \"{name}\", \"render_vertices\": {}, \"welded_vertices\": {}, \"joints\": {}, \"clusters\": {}, \"precompute_ms\": {precompute_ms:.1}, \"ms_per_iteration\": {ms_per_iteration:.4}, \"ms_per_solve\": {ms_per_solve:.4}, \"energy_subspace\": {energy_subspace:.6}, \"energy_full_arap\": {energy_full:.6}, \"max_bone_length_error\": {bone_error:.3e}, \"handle_error\": {handle_error:.3e}, \"converge_iterations\": {}, \"constrained_ms_per_solve\": {:.4}, \"max_limit_violation_deg\": {:.4}, \"effector_error\": {:.3e}}}",
-        mesh.positions.len(),
-        model.topology().vertex_count(),
-        model.skeleton().len(),
-        model.cluster_count(),
-        converged.stats.iterations,
-        constrained.ms_per_solve,
-        constrained.max_violation_deg,
-        constrained.effector_error,
-    );
+    arap_energy(model.topology(), &full_solution.positions)
 }
 
 /// Figures of the drag under full-body constraints.
