@@ -134,38 +134,8 @@ fn main() {
         .unwrap_or(1);
     // Frame rate of the simulated game (the handle moves every frame).
     let fps: f64 = arg("--fps").and_then(|v| v.parse().ok()).unwrap_or(120.0);
-    let tri = if let Some(path) = arg("--mesh") {
-        TriMesh::read(&path).unwrap_or_else(|e| panic!("{path}: {e}"))
-    } else if let Some(n) = arg("--bar").and_then(|v| v.parse().ok()) {
-        synth::bar_with_vertices(n)
-    } else {
-        TriMesh::read("../shared/meshes/armadillo.off").unwrap_or_else(|_| {
-            eprintln!("../shared/meshes/armadillo.off absent: using a 26k-vertex bar");
-            synth::bar_with_vertices(26_002)
-        })
-    };
-    // `--plain`: plain local/global and no settling (the plugin before L-BFGS), for side-by-side
-    // comparisons.
-    let deform_plugin = match args.iter().any(|a| a == "--plain") {
-        true => DeformPlugin {
-            config: DeformConfig {
-                acceleration: bevy_wii_deform::deform::Acceleration::None,
-                settle_iterations: 0,
-                ..default()
-            },
-        },
-        false => DeformPlugin::default(),
-    };
-    // `--no-preview`: a new constraint set waits for the whole mesh (`DeformConfig::preview`).
-    let deform_plugin = match args.iter().any(|a| a == "--no-preview") {
-        true => DeformPlugin {
-            config: DeformConfig {
-                preview: None,
-                ..deform_plugin.config
-            },
-        },
-        false => deform_plugin,
-    };
+    let tri = bench_mesh(arg("--mesh"), arg("--bar").and_then(|v| v.parse().ok()));
+    let deform_plugin = deform_plugin(&args);
     let mut app = App::new();
     app.add_plugins((
         MinimalPlugins,
@@ -226,6 +196,12 @@ fn main() {
     if args.iter().any(|a| a == "--set-changes") {
         return run_set_changes(&mut app, e, &tri, &fixed_set, diagonal, seconds, fps);
     }
+    run_drag(&mut app, e, seconds, fps);
+}
+
+/// The default run: the handle moved every frame for `seconds`; prints the JSON line with the
+/// main thread's frame times and the solves per second.
+fn run_drag(app: &mut App, e: Entity, seconds: f64, fps: f64) {
     // Wait for topology + factorization (the first solve).
     let setup = Instant::now();
     while app
@@ -260,11 +236,41 @@ fn main() {
         "last solve: {} iterations, energy {:.5}, {:.2} ms",
         status.iterations, status.energy, status.solve_ms
     );
-    let mut report = main_thread_report(&app, e);
+    let mut report = main_thread_report(app, e);
     report.extend(object(serde_json::json!({
         "solves_per_s": (status.solves - solves0) as f64 / elapsed,
     })));
     println!("{}", serde_json::Value::Object(report));
+}
+
+/// The mesh to deform: `--mesh PATH`, `--bar N` (a generated bar of about N vertices), or the
+/// armadillo (a 26k-vertex bar when `../shared` is absent).
+fn bench_mesh(path: Option<String>, bar: Option<u32>) -> TriMesh {
+    if let Some(path) = path {
+        TriMesh::read(&path).unwrap_or_else(|e| panic!("{path}: {e}"))
+    } else if let Some(n) = bar {
+        synth::bar_with_vertices(n)
+    } else {
+        TriMesh::read("../shared/meshes/armadillo.off").unwrap_or_else(|_| {
+            eprintln!("../shared/meshes/armadillo.off absent: using a 26k-vertex bar");
+            synth::bar_with_vertices(26_002)
+        })
+    }
+}
+
+/// The plugin as the flags ask: `--plain` (plain local/global and no settling, the plugin
+/// before L-BFGS, for side-by-side comparisons), `--no-preview` (a new constraint set waits
+/// for the whole mesh, `DeformConfig::preview`).
+fn deform_plugin(args: &[String]) -> DeformPlugin {
+    let mut config = DeformConfig::default();
+    if args.iter().any(|a| a == "--plain") {
+        config.acceleration = bevy_wii_deform::deform::Acceleration::None;
+        config.settle_iterations = 0;
+    }
+    if args.iter().any(|a| a == "--no-preview") {
+        config.preview = None;
+    }
+    DeformPlugin { config }
 }
 
 /// `--grab`: a new grab every second; prints the JSON line with grab latencies.
