@@ -40,6 +40,90 @@ fn button_names(b: Buttons) -> String {
     }
 }
 
+/// The emulator (with a scripted motion) or real remotes over hidapi, listing what hidapi
+/// sees and, when it sees none, why (permissions, the kernel driver); `None` without hidapi.
+fn remote_source(emulate: bool) -> Option<RemoteSource> {
+    if emulate {
+        let controls = EmulatorControls::default();
+        controls.set_motion(Arc::new(DemoMotion));
+        println!("Using the software emulator (Wii Remote Plus, scripted motion).");
+        return Some(RemoteSource::Emulated(vec![(
+            EmulatorConfig::default(),
+            controls,
+        )]));
+    }
+    #[cfg(feature = "hidapi")]
+    {
+        match discover() {
+            Ok(list) if !list.is_empty() => {
+                for d in &list {
+                    println!(
+                        "found {} (PID {:04X}) {:?} at {}",
+                        d.product.as_deref().unwrap_or("?"),
+                        d.product_id,
+                        d.serial,
+                        d.path
+                    );
+                }
+            }
+            Ok(_) => {
+                println!("No Wii Remote visible through hidapi. Pair it with the red SYNC button.");
+                for problem in LinuxDevices::system().diagnose_all() {
+                    println!("- {problem}");
+                }
+            }
+            Err(e) => println!("hidapi failed: {e}"),
+        }
+        Some(RemoteSource::Hid)
+    }
+    #[cfg(not(feature = "hidapi"))]
+    {
+        println!("built without the `hidapi` feature; use --emulate");
+        None
+    }
+}
+
+/// Prints the events that are news (connections, problems, extensions, IR dots).
+fn print_event(event: &ManagerEvent) {
+    match event {
+        ManagerEvent::Connected { id, info } => println!(
+            "remote {id} connected: {:?}, MotionPlus {:?} (calibration CRC {}), accel cal valid {}, battery {}",
+            info.kind,
+            info.motion_plus,
+            if info.motion_plus_crc_ok {
+                "ok"
+            } else {
+                "failed: fallback constants"
+            },
+            info.accel_calibration_valid,
+            info.battery
+        ),
+        ManagerEvent::Disconnected { id, reason } => {
+            println!("remote {id} disconnected: {reason}")
+        }
+        ManagerEvent::Problem { id, problem } => match id {
+            Some(id) => println!("remote {id} is unusable: {problem}"),
+            None => println!("problem: {problem}"),
+        },
+        ManagerEvent::MotionPlus { id, state } => println!("remote {id}: MotionPlus {state:?}"),
+        ManagerEvent::Extension { id, state } => println!("remote {id}: extension {state:?}"),
+        ManagerEvent::Ir { id, dots, .. } => {
+            let seen: Vec<String> = dots
+                .iter()
+                .flatten()
+                .map(|d| format!("({}, {})", d.x, d.y))
+                .collect();
+            if !seen.is_empty() {
+                println!("remote {id}: IR dots {}", seen.join(" "));
+            }
+        }
+        ManagerEvent::Buttons { .. }
+        | ManagerEvent::Battery { .. }
+        | ManagerEvent::Orientation { .. }
+        | ManagerEvent::Nunchuk { .. } => {}
+    }
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let emulate = args.iter().any(|a| a == "--emulate");
@@ -60,43 +144,8 @@ fn main() {
         Some("vqf") => FilterKind::Vqf,
         _ => FilterKind::Fusion,
     };
-    let source = if emulate {
-        let controls = EmulatorControls::default();
-        controls.set_motion(Arc::new(DemoMotion));
-        println!("Using the software emulator (Wii Remote Plus, scripted motion).");
-        RemoteSource::Emulated(vec![(EmulatorConfig::default(), controls)])
-    } else {
-        #[cfg(feature = "hidapi")]
-        {
-            match discover() {
-                Ok(list) if !list.is_empty() => {
-                    for d in &list {
-                        println!(
-                            "found {} (PID {:04X}) {:?} at {}",
-                            d.product.as_deref().unwrap_or("?"),
-                            d.product_id,
-                            d.serial,
-                            d.path
-                        );
-                    }
-                }
-                Ok(_) => {
-                    println!(
-                        "No Wii Remote visible through hidapi. Pair it with the red SYNC button."
-                    );
-                    for problem in LinuxDevices::system().diagnose_all() {
-                        println!("- {problem}");
-                    }
-                }
-                Err(e) => println!("hidapi failed: {e}"),
-            }
-            RemoteSource::Hid
-        }
-        #[cfg(not(feature = "hidapi"))]
-        {
-            println!("built without the `hidapi` feature; use --emulate");
-            return;
-        }
+    let Some(source) = remote_source(emulate) else {
+        return;
     };
     let manager = WiimoteManager::start(ManagerConfig {
         source,
@@ -114,45 +163,10 @@ fn main() {
     while start.elapsed().as_secs_f64() < seconds {
         while let Ok(e) = manager.events().recv_timeout(Duration::from_millis(20)) {
             match e {
-                ManagerEvent::Connected { id, info } => println!(
-                    "remote {id} connected: {:?}, MotionPlus {:?} (calibration CRC {}), accel cal valid {}, battery {}",
-                    info.kind,
-                    info.motion_plus,
-                    if info.motion_plus_crc_ok {
-                        "ok"
-                    } else {
-                        "failed: fallback constants"
-                    },
-                    info.accel_calibration_valid,
-                    info.battery
-                ),
-                ManagerEvent::Disconnected { id, reason } => {
-                    println!("remote {id} disconnected: {reason}")
-                }
-                ManagerEvent::Problem { id, problem } => match id {
-                    Some(id) => println!("remote {id} is unusable: {problem}"),
-                    None => println!("problem: {problem}"),
-                },
                 ManagerEvent::Buttons { buttons: b, .. } => buttons = b,
                 ManagerEvent::Battery { level, .. } => battery = level,
                 ManagerEvent::Orientation { id, sample } => latest = Some((id, sample)),
-                ManagerEvent::MotionPlus { id, state } => {
-                    println!("remote {id}: MotionPlus {state:?}")
-                }
-                ManagerEvent::Extension { id, state } => {
-                    println!("remote {id}: extension {state:?}")
-                }
-                ManagerEvent::Nunchuk { .. } => {}
-                ManagerEvent::Ir { id, dots, .. } => {
-                    let seen: Vec<String> = dots
-                        .iter()
-                        .flatten()
-                        .map(|d| format!("({}, {})", d.x, d.y))
-                        .collect();
-                    if !seen.is_empty() {
-                        println!("remote {id}: IR dots {}", seen.join(" "));
-                    }
-                }
+                other => print_event(&other),
             }
             if last_print.elapsed() > Duration::from_millis(250) {
                 break;
