@@ -61,6 +61,87 @@ fn parse_constraints(text: &str) -> Result<ParsedConstraints, String> {
     Ok((fixed, handle))
 }
 
+/// The peer comparison's flags.
+struct PeerOptions {
+    /// `--init laplacian|rest` (laplacian by default).
+    init: &'static str,
+    /// `--factorization auto|simplicial|supernodal`.
+    factorization: Factorization,
+    /// `--anderson DEPTH` (0: plain local/global).
+    anderson_depth: usize,
+    /// `--weld none|seams|all` (the peers solve the mesh's own index topology: none).
+    weld: WeldPolicy,
+}
+
+impl PeerOptions {
+    fn parse(args: &[String]) -> Result<Self, String> {
+        let init = match args
+            .iter()
+            .position(|a| a == "--init")
+            .map(|i| args.get(i + 1))
+        {
+            None => "laplacian",
+            Some(Some(v)) if v == "rest" => "rest",
+            Some(Some(v)) if v == "laplacian" => "laplacian",
+            Some(v) => return Err(format!("--init must be laplacian or rest, got {v:?}")),
+        };
+        let factorization = match args
+            .iter()
+            .position(|a| a == "--factorization")
+            .map(|i| args.get(i + 1))
+        {
+            None => Factorization::Auto,
+            Some(Some(v)) if v == "simplicial" => Factorization::Simplicial,
+            Some(Some(v)) if v == "supernodal" => Factorization::Supernodal,
+            Some(Some(v)) if v == "auto" => Factorization::Auto,
+            Some(v) => {
+                return Err(format!(
+                    "--factorization must be auto, simplicial or supernodal, got {v:?}"
+                ));
+            }
+        };
+        let anderson_depth = match args
+            .iter()
+            .position(|a| a == "--anderson")
+            .map(|i| args.get(i + 1).and_then(|v| v.parse::<usize>().ok()))
+        {
+            None => 0,
+            Some(Some(depth)) => depth,
+            Some(None) => return Err("--anderson needs a history depth (0 = off)".into()),
+        };
+        // The peers solve the mesh's own index topology: weld nothing unless asked.
+        let weld = match args
+            .iter()
+            .position(|a| a == "--weld")
+            .map(|i| args.get(i + 1))
+        {
+            None => WeldPolicy::None,
+            Some(Some(v)) if v == "none" => WeldPolicy::None,
+            Some(Some(v)) if v == "seams" => WeldPolicy::Seams,
+            Some(Some(v)) if v == "all" => WeldPolicy::AllCoincident,
+            Some(v) => return Err(format!("--weld must be none, seams or all, got {v:?}")),
+        };
+        Ok(Self {
+            init,
+            factorization,
+            anderson_depth,
+            weld,
+        })
+    }
+}
+
+/// Writes the solved positions in input (render) vertex order as little-endian f64 triples.
+fn write_positions(path: &str, topology: &Topology, positions: &[DVec3]) -> Result<(), String> {
+    let render = topology.to_render(positions);
+    let mut bytes = Vec::with_capacity(render.len() * 24);
+    for p in &render {
+        for c in p.to_array() {
+            bytes.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    std::fs::write(path, bytes).map_err(|e| format!("{path}: {e}"))
+}
+
 fn run() -> Result<(), String> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     if args.len() < 5 {
@@ -71,51 +152,12 @@ fn run() -> Result<(), String> {
     let (fixed, targets) = parse_constraints(&text)?;
     let iters: u32 = args[2].parse().map_err(|_| "ITERS must be an integer")?;
     let repeats: usize = args[3].parse().map_err(|_| "REPEATS must be an integer")?;
-    let init = match args
-        .iter()
-        .position(|a| a == "--init")
-        .map(|i| args.get(i + 1))
-    {
-        None => "laplacian",
-        Some(Some(v)) if v == "laplacian" || v == "rest" => v.as_str(),
-        Some(v) => return Err(format!("--init must be laplacian or rest, got {v:?}")),
-    };
-    let factorization = match args
-        .iter()
-        .position(|a| a == "--factorization")
-        .map(|i| args.get(i + 1))
-    {
-        None => Factorization::Auto,
-        Some(Some(v)) if v == "simplicial" => Factorization::Simplicial,
-        Some(Some(v)) if v == "supernodal" => Factorization::Supernodal,
-        Some(Some(v)) if v == "auto" => Factorization::Auto,
-        Some(v) => {
-            return Err(format!(
-                "--factorization must be auto, simplicial or supernodal, got {v:?}"
-            ));
-        }
-    };
-    let anderson_depth = match args
-        .iter()
-        .position(|a| a == "--anderson")
-        .map(|i| args.get(i + 1).and_then(|v| v.parse::<usize>().ok()))
-    {
-        None => 0,
-        Some(Some(depth)) => depth,
-        Some(None) => return Err("--anderson needs a history depth (0 = off)".into()),
-    };
-    // The peers solve the mesh's own index topology: weld nothing unless asked.
-    let weld = match args
-        .iter()
-        .position(|a| a == "--weld")
-        .map(|i| args.get(i + 1))
-    {
-        None => WeldPolicy::None,
-        Some(Some(v)) if v == "none" => WeldPolicy::None,
-        Some(Some(v)) if v == "seams" => WeldPolicy::Seams,
-        Some(Some(v)) if v == "all" => WeldPolicy::AllCoincident,
-        Some(v) => return Err(format!("--weld must be none, seams or all, got {v:?}")),
-    };
+    let PeerOptions {
+        init,
+        factorization,
+        anderson_depth,
+        weld,
+    } = PeerOptions::parse(&args)?;
     let settings = SolverSettings {
         factorization,
         ..Default::default()
@@ -175,14 +217,7 @@ fn run() -> Result<(), String> {
         last = Some((topology, sol));
     }
     let (topology, sol) = last.expect("at least one repeat");
-    let render = topology.to_render(&sol.positions);
-    let mut bytes = Vec::with_capacity(render.len() * 24);
-    for p in &render {
-        for c in p.to_array() {
-            bytes.extend_from_slice(&c.to_le_bytes());
-        }
-    }
-    std::fs::write(&args[4], bytes).map_err(|e| format!("{}: {e}", args[4]))?;
+    write_positions(&args[4], &topology, &sol.positions)?;
     println!(
         "{}",
         serde_json::json!({ "precompute_s": pre, "solve_s": sol_s })
