@@ -96,38 +96,50 @@ pub fn load(path: &Path) -> Result<RiggedGltf, String> {
         .flat_map(|m| m.primitives().collect::<Vec<_>>());
     let mut mesh = SkinnedMesh::default();
     for primitive in primitives {
-        let reader = primitive.reader(|b| Some(&buffers[b.index()]));
-        let base = mesh.positions.len() as u32;
-        let positions: Vec<Vec3> = reader
-            .read_positions()
-            .ok_or("a primitive has no positions")?
-            .map(Vec3::from)
-            .collect();
-        let count = positions.len();
-        mesh.positions.extend(positions);
-        let joints: Vec<[u16; 4]> = reader
-            .read_joints(0)
-            .ok_or("a primitive has no JOINTS_0")?
-            .into_u16()
-            .collect();
-        let weights: Vec<[f32; 4]> = reader
-            .read_weights(0)
-            .ok_or("a primitive has no WEIGHTS_0")?
-            .into_f32()
-            .collect();
-        if joints.len() != count || weights.len() != count {
-            return Err("skin attribute lengths differ from the positions".into());
-        }
-        mesh.joint_indices.extend(
-            joints
-                .into_iter()
-                .map(|j| j.map(|j| *new_index.get(j as usize).unwrap_or(&u16::MAX))),
-        );
-        mesh.joint_weights.extend(weights);
-        match reader.read_indices() {
-            Some(i) => mesh.indices.extend(i.into_u32().map(|i| i + base)),
-            None => mesh.indices.extend(base..base + count as u32),
-        }
+        append_primitive(&mut mesh, &primitive, &buffers, &new_index)?;
     }
     Ok(RiggedGltf { skeleton, mesh })
+}
+
+/// Appends a primitive's positions, skin attributes (joints renumbered by `new_index`) and
+/// triangles to `mesh`.
+fn append_primitive(
+    mesh: &mut SkinnedMesh,
+    primitive: &gltf::Primitive,
+    buffers: &[gltf::buffer::Data],
+    new_index: &[u16],
+) -> Result<(), String> {
+    let reader = primitive.reader(|b| Some(&buffers[b.index()]));
+    let base = mesh.positions.len() as u32;
+    let positions: Vec<Vec3> = reader
+        .read_positions()
+        .ok_or("a primitive has no positions")?
+        .map(Vec3::from)
+        .collect();
+    let count = positions.len();
+    mesh.positions.extend(positions);
+    let joints: Vec<[u16; 4]> = reader
+        .read_joints(0)
+        .ok_or("a primitive has no JOINTS_0")?
+        .into_u16()
+        .collect();
+    let weights: Vec<[f32; 4]> = reader
+        .read_weights(0)
+        .ok_or("a primitive has no WEIGHTS_0")?
+        .into_f32()
+        .collect();
+    if joints.len() != count || weights.len() != count {
+        return Err("skin attribute lengths differ from the positions".into());
+    }
+    mesh.joint_indices.extend(
+        joints
+            .into_iter()
+            .map(|j| j.map(|j| *new_index.get(j as usize).unwrap_or(&u16::MAX))),
+    );
+    mesh.joint_weights.extend(weights);
+    match reader.read_indices() {
+        Some(i) => mesh.indices.extend(i.into_u32().map(|i| i + base)),
+        None => mesh.indices.extend(base..base + count as u32),
+    }
+    Ok(())
 }
