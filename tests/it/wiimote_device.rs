@@ -22,6 +22,218 @@ fn hex(v: &serde_json::Value) -> Vec<u8> {
     parse_hex(v.as_str().unwrap()).unwrap()
 }
 
+/// A MotionPlus calibration block: parsed, its CRC, each range, re-encoded byte for byte.
+fn check_mplus_calibration(item: &serde_json::Value, e: &serde_json::Value) {
+    let bytes = hex(&item["hex"]);
+    let (cal, ok) = MotionPlusCalibration::parse(&bytes).unwrap();
+    assert_eq!(ok, e["crc_ok"].as_bool().unwrap());
+    let crc = u32::from_str_radix(
+        e["crc32_computed"]
+            .as_str()
+            .unwrap()
+            .trim_start_matches("0x"),
+        16,
+    )
+    .unwrap();
+    assert_eq!(MotionPlusCalibration::crc(&bytes), crc);
+    for (range, name) in [(&cal.fast, "fast"), (&cal.slow, "slow")] {
+        let x = &e[name];
+        assert_eq!(range.zero[0] as u64, x["yaw_zero16"].as_u64().unwrap());
+        assert_eq!(range.zero[1] as u64, x["roll_zero16"].as_u64().unwrap());
+        assert_eq!(range.zero[2] as u64, x["pitch_zero16"].as_u64().unwrap());
+        assert_eq!(range.scale[0] as u64, x["yaw_scale16"].as_u64().unwrap());
+        assert_eq!(range.scale[1] as u64, x["roll_scale16"].as_u64().unwrap());
+        assert_eq!(range.scale[2] as u64, x["pitch_scale16"].as_u64().unwrap());
+        assert_eq!(range.degrees as u64, x["degrees"].as_u64().unwrap());
+        assert_eq!(range.uid as u64, x["uid"].as_u64().unwrap());
+    }
+    // Re-encoding reproduces the bytes exactly (CRC included).
+    assert_eq!(cal.encode().to_vec(), bytes);
+}
+
+/// An accelerometer calibration block from the EEPROM.
+fn check_accel_calibration(item: &serde_json::Value, e: &serde_json::Value) {
+    let c = AccelCalibration::parse(&hex(&item["hex"])).unwrap();
+    let z: Vec<u16> = e["zero_g"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_u64().unwrap() as u16)
+        .collect();
+    let o: Vec<u16> = e["one_g"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_u64().unwrap() as u16)
+        .collect();
+    assert_eq!(c.zero.to_vec(), z);
+    assert_eq!(c.one_g.to_vec(), o);
+}
+
+/// A memory read reply (0x21): size, error, data, and what the data decodes to.
+fn check_read_reply(item: &serde_json::Value, e: &serde_json::Value) {
+    let InputReport::ReadReply(r) = InputReport::decode(&hex(&item["hex"])).unwrap() else {
+        panic!()
+    };
+    assert_eq!(r.data.len() as u64, e["size"].as_u64().unwrap());
+    assert_eq!(r.error as u64, e["error"].as_u64().unwrap());
+    if let Some(d) = e.get("data") {
+        assert_eq!(r.data, hex(d));
+        let c = AccelCalibration::parse(
+            &[
+                &r.data[..],
+                &[
+                    0x40,
+                    AccelCalibration::checksum(&[&r.data[..], &[0x40]].concat()),
+                ],
+            ]
+            .concat(),
+        );
+        let c = c.unwrap();
+        assert_eq!(c.zero[0] as u64, e["zero_g"][0].as_u64().unwrap());
+        assert_eq!(c.one_g[2] as u64, e["one_g"][2].as_u64().unwrap());
+    }
+    if let Some(id) = e.get("id") {
+        assert_eq!(r.data, hex(id));
+        assert!(matches!(
+            ExtensionId::parse(&r.data),
+            ExtensionId::MotionPlus {
+                active: false,
+                mode: 5
+            }
+        ));
+    }
+}
+
+/// An acknowledgement (0x22): the report it acknowledges and its error.
+fn check_ack(item: &serde_json::Value, e: &serde_json::Value) {
+    let InputReport::Ack { report, error, .. } = InputReport::decode(&hex(&item["hex"])).unwrap()
+    else {
+        panic!()
+    };
+    let want = u8::from_str_radix(
+        e["acked_report"].as_str().unwrap().trim_start_matches("0x"),
+        16,
+    )
+    .unwrap();
+    assert_eq!(report, want);
+    assert_eq!(error as u64, e["error"].as_u64().unwrap());
+}
+
+/// A status report (0x20).
+fn check_status(item: &serde_json::Value, e: &serde_json::Value) {
+    let InputReport::Status(s) = InputReport::decode(&hex(&item["hex"])).unwrap() else {
+        panic!()
+    };
+    assert_eq!(
+        s.extension_connected,
+        e["extension_connected"].as_bool().unwrap()
+    );
+    assert_eq!(s.battery_low, e["battery_low"].as_bool().unwrap());
+    assert_eq!(s.leds as u64, e["leds"].as_u64().unwrap());
+    assert_eq!(s.battery as u64, e["battery"].as_u64().unwrap());
+}
+
+/// A data report (0x31, 0x35): the accelerometer and the MotionPlus frame in deg/s.
+fn check_data_report(item: &serde_json::Value, e: &serde_json::Value, f: &serde_json::Value) {
+    let InputReport::Data {
+        accel, extension, ..
+    } = InputReport::decode(&hex(&item["hex"])).unwrap()
+    else {
+        panic!()
+    };
+    let want: Vec<u16> = e["accel_raw"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_u64().unwrap() as u16)
+        .collect();
+    assert_eq!(accel.unwrap().0.to_vec(), want);
+    if let Some(m) = e.get("mplus") {
+        let ExtensionData::MotionPlus(fr) = classify_extension(&extension.unwrap(), true) else {
+            panic!()
+        };
+        assert_eq!(fr.yaw as u64, m["yaw"].as_u64().unwrap());
+        assert_eq!(fr.roll as u64, m["roll"].as_u64().unwrap());
+        assert_eq!(fr.pitch as u64, m["pitch"].as_u64().unwrap());
+        let cal_hex = &f["captured"][0]["hex"];
+        let (cal, _) = MotionPlusCalibration::parse(&hex(cal_hex)).unwrap();
+        let r = cal.rates_deg(&fr);
+        let d = &e["deg_per_s_right_hand_using_mplus_cal_unit1_slow"];
+        assert!((r.x - d["x_pitch"].as_f64().unwrap()).abs() < 0.01, "{r}");
+        assert!((r.y - d["y_roll"].as_f64().unwrap()).abs() < 0.01, "{r}");
+        assert!((r.z - d["z_yaw"].as_f64().unwrap()).abs() < 0.01, "{r}");
+    }
+}
+
+/// Output reports encode to the captured bytes.
+fn check_output_reports(item: &serde_json::Value) {
+    let items = item["items"].as_object().unwrap();
+    let enc = |r: OutputReport| r.encode();
+    assert_eq!(
+        enc(OutputReport::Leds {
+            leds: 1,
+            ack: true,
+            rumble: false
+        }),
+        hex(&items["leds1_ack"])
+    );
+    assert_eq!(
+        enc(OutputReport::ReportMode {
+            mode: 0x35,
+            continuous: true,
+            ack: true,
+            rumble: false
+        }),
+        hex(&items["mode_0x35_continuous_ack"])
+    );
+    assert_eq!(
+        enc(OutputReport::StatusRequest { rumble: false }),
+        hex(&items["status_request"])
+    );
+    assert_eq!(
+        enc(OutputReport::ReadMemory {
+            space: AddressSpace::Eeprom,
+            address: 0x16,
+            size: 10,
+            rumble: false
+        }),
+        hex(&items["read_accel_cal_10B"])
+    );
+    assert_eq!(
+        enc(OutputReport::write_register(0xA400F0, 0x55, false)),
+        hex(&items["ext_init_1"])
+    );
+    assert_eq!(
+        enc(OutputReport::write_register(0xA400FB, 0x00, false)),
+        hex(&items["ext_init_2"])
+    );
+    assert_eq!(
+        enc(OutputReport::write_register(0xA600F0, 0x55, false)),
+        hex(&items["mplus_init"])
+    );
+    assert_eq!(
+        enc(OutputReport::read_register(0xA600FA, 6, false)),
+        hex(&items["mplus_read_id"])
+    );
+    assert_eq!(
+        enc(OutputReport::write_register(0xA600FE, 0x04, false)),
+        hex(&items["mplus_activate_0x04"])
+    );
+    assert_eq!(
+        enc(OutputReport::read_register(0xA400FA, 6, false)),
+        hex(&items["active_id_read"])
+    );
+    assert_eq!(
+        enc(OutputReport::read_register(0xA40020, 32, false)),
+        hex(&items["mplus_cal_read_active"])
+    );
+    assert_eq!(
+        enc(OutputReport::write_register(0xA400F0, 0x55, false)),
+        hex(&items["mplus_deactivate"])
+    );
+}
+
 #[test]
 fn captured_and_synthetic_fixtures_decode() {
     let Some(f) = fixtures() else {
@@ -37,209 +249,13 @@ fn captured_and_synthetic_fixtures_decode() {
         let kind = item["kind"].as_str().unwrap();
         let e = &item["expect"];
         match kind {
-            "mplus_calibration_32B" => {
-                let bytes = hex(&item["hex"]);
-                let (cal, ok) = MotionPlusCalibration::parse(&bytes).unwrap();
-                assert_eq!(ok, e["crc_ok"].as_bool().unwrap());
-                let crc = u32::from_str_radix(
-                    e["crc32_computed"]
-                        .as_str()
-                        .unwrap()
-                        .trim_start_matches("0x"),
-                    16,
-                )
-                .unwrap();
-                assert_eq!(MotionPlusCalibration::crc(&bytes), crc);
-                for (range, name) in [(&cal.fast, "fast"), (&cal.slow, "slow")] {
-                    let x = &e[name];
-                    assert_eq!(range.zero[0] as u64, x["yaw_zero16"].as_u64().unwrap());
-                    assert_eq!(range.zero[1] as u64, x["roll_zero16"].as_u64().unwrap());
-                    assert_eq!(range.zero[2] as u64, x["pitch_zero16"].as_u64().unwrap());
-                    assert_eq!(range.scale[0] as u64, x["yaw_scale16"].as_u64().unwrap());
-                    assert_eq!(range.scale[1] as u64, x["roll_scale16"].as_u64().unwrap());
-                    assert_eq!(range.scale[2] as u64, x["pitch_scale16"].as_u64().unwrap());
-                    assert_eq!(range.degrees as u64, x["degrees"].as_u64().unwrap());
-                    assert_eq!(range.uid as u64, x["uid"].as_u64().unwrap());
-                }
-                // Re-encoding reproduces the bytes exactly (CRC included).
-                assert_eq!(cal.encode().to_vec(), bytes);
-            }
-            "eeprom_accel_calibration_10B" => {
-                let c = AccelCalibration::parse(&hex(&item["hex"])).unwrap();
-                let z: Vec<u16> = e["zero_g"]
-                    .as_array()
-                    .unwrap()
-                    .iter()
-                    .map(|v| v.as_u64().unwrap() as u16)
-                    .collect();
-                let o: Vec<u16> = e["one_g"]
-                    .as_array()
-                    .unwrap()
-                    .iter()
-                    .map(|v| v.as_u64().unwrap() as u16)
-                    .collect();
-                assert_eq!(c.zero.to_vec(), z);
-                assert_eq!(c.one_g.to_vec(), o);
-            }
-            "input_report_0x21" => {
-                let InputReport::ReadReply(r) = InputReport::decode(&hex(&item["hex"])).unwrap()
-                else {
-                    panic!()
-                };
-                assert_eq!(r.data.len() as u64, e["size"].as_u64().unwrap());
-                assert_eq!(r.error as u64, e["error"].as_u64().unwrap());
-                if let Some(d) = e.get("data") {
-                    assert_eq!(r.data, hex(d));
-                    let c = AccelCalibration::parse(
-                        &[
-                            &r.data[..],
-                            &[
-                                0x40,
-                                AccelCalibration::checksum(&[&r.data[..], &[0x40]].concat()),
-                            ],
-                        ]
-                        .concat(),
-                    );
-                    let c = c.unwrap();
-                    assert_eq!(c.zero[0] as u64, e["zero_g"][0].as_u64().unwrap());
-                    assert_eq!(c.one_g[2] as u64, e["one_g"][2].as_u64().unwrap());
-                }
-                if let Some(id) = e.get("id") {
-                    assert_eq!(r.data, hex(id));
-                    assert!(matches!(
-                        ExtensionId::parse(&r.data),
-                        ExtensionId::MotionPlus {
-                            active: false,
-                            mode: 5
-                        }
-                    ));
-                }
-            }
-            "input_report_0x22" => {
-                let InputReport::Ack { report, error, .. } =
-                    InputReport::decode(&hex(&item["hex"])).unwrap()
-                else {
-                    panic!()
-                };
-                let want = u8::from_str_radix(
-                    e["acked_report"].as_str().unwrap().trim_start_matches("0x"),
-                    16,
-                )
-                .unwrap();
-                assert_eq!(report, want);
-                assert_eq!(error as u64, e["error"].as_u64().unwrap());
-            }
-            "input_report_0x20" => {
-                let InputReport::Status(s) = InputReport::decode(&hex(&item["hex"])).unwrap()
-                else {
-                    panic!()
-                };
-                assert_eq!(
-                    s.extension_connected,
-                    e["extension_connected"].as_bool().unwrap()
-                );
-                assert_eq!(s.battery_low, e["battery_low"].as_bool().unwrap());
-                assert_eq!(s.leds as u64, e["leds"].as_u64().unwrap());
-                assert_eq!(s.battery as u64, e["battery"].as_u64().unwrap());
-            }
-            "input_report_0x35" | "input_report_0x31" => {
-                let InputReport::Data {
-                    accel, extension, ..
-                } = InputReport::decode(&hex(&item["hex"])).unwrap()
-                else {
-                    panic!()
-                };
-                let want: Vec<u16> = e["accel_raw"]
-                    .as_array()
-                    .unwrap()
-                    .iter()
-                    .map(|v| v.as_u64().unwrap() as u16)
-                    .collect();
-                assert_eq!(accel.unwrap().0.to_vec(), want);
-                if let Some(m) = e.get("mplus") {
-                    let ExtensionData::MotionPlus(fr) =
-                        classify_extension(&extension.unwrap(), true)
-                    else {
-                        panic!()
-                    };
-                    assert_eq!(fr.yaw as u64, m["yaw"].as_u64().unwrap());
-                    assert_eq!(fr.roll as u64, m["roll"].as_u64().unwrap());
-                    assert_eq!(fr.pitch as u64, m["pitch"].as_u64().unwrap());
-                    let cal_hex = &f["captured"][0]["hex"];
-                    let (cal, _) = MotionPlusCalibration::parse(&hex(cal_hex)).unwrap();
-                    let r = cal.rates_deg(&fr);
-                    let d = &e["deg_per_s_right_hand_using_mplus_cal_unit1_slow"];
-                    assert!((r.x - d["x_pitch"].as_f64().unwrap()).abs() < 0.01, "{r}");
-                    assert!((r.y - d["y_roll"].as_f64().unwrap()).abs() < 0.01, "{r}");
-                    assert!((r.z - d["z_yaw"].as_f64().unwrap()).abs() < 0.01, "{r}");
-                }
-            }
-            "output_reports" => {
-                let items = item["items"].as_object().unwrap();
-                let enc = |r: OutputReport| r.encode();
-                assert_eq!(
-                    enc(OutputReport::Leds {
-                        leds: 1,
-                        ack: true,
-                        rumble: false
-                    }),
-                    hex(&items["leds1_ack"])
-                );
-                assert_eq!(
-                    enc(OutputReport::ReportMode {
-                        mode: 0x35,
-                        continuous: true,
-                        ack: true,
-                        rumble: false
-                    }),
-                    hex(&items["mode_0x35_continuous_ack"])
-                );
-                assert_eq!(
-                    enc(OutputReport::StatusRequest { rumble: false }),
-                    hex(&items["status_request"])
-                );
-                assert_eq!(
-                    enc(OutputReport::ReadMemory {
-                        space: AddressSpace::Eeprom,
-                        address: 0x16,
-                        size: 10,
-                        rumble: false
-                    }),
-                    hex(&items["read_accel_cal_10B"])
-                );
-                assert_eq!(
-                    enc(OutputReport::write_register(0xA400F0, 0x55, false)),
-                    hex(&items["ext_init_1"])
-                );
-                assert_eq!(
-                    enc(OutputReport::write_register(0xA400FB, 0x00, false)),
-                    hex(&items["ext_init_2"])
-                );
-                assert_eq!(
-                    enc(OutputReport::write_register(0xA600F0, 0x55, false)),
-                    hex(&items["mplus_init"])
-                );
-                assert_eq!(
-                    enc(OutputReport::read_register(0xA600FA, 6, false)),
-                    hex(&items["mplus_read_id"])
-                );
-                assert_eq!(
-                    enc(OutputReport::write_register(0xA600FE, 0x04, false)),
-                    hex(&items["mplus_activate_0x04"])
-                );
-                assert_eq!(
-                    enc(OutputReport::read_register(0xA400FA, 6, false)),
-                    hex(&items["active_id_read"])
-                );
-                assert_eq!(
-                    enc(OutputReport::read_register(0xA40020, 32, false)),
-                    hex(&items["mplus_cal_read_active"])
-                );
-                assert_eq!(
-                    enc(OutputReport::write_register(0xA400F0, 0x55, false)),
-                    hex(&items["mplus_deactivate"])
-                );
-            }
+            "mplus_calibration_32B" => check_mplus_calibration(item, e),
+            "eeprom_accel_calibration_10B" => check_accel_calibration(item, e),
+            "input_report_0x21" => check_read_reply(item, e),
+            "input_report_0x22" => check_ack(item, e),
+            "input_report_0x20" => check_status(item, e),
+            "input_report_0x35" | "input_report_0x31" => check_data_report(item, e, &f),
+            "output_reports" => check_output_reports(item),
             other => panic!("unhandled fixture kind {other}"),
         }
         checked += 1;
