@@ -335,6 +335,119 @@ fn a_mouse_drag_moves_a_character_handle_with_the_cursor() {
 /// the bind pose of skinned meshes): the press picks the CPU-skinned surface, motion drags the
 /// patch in the view plane, the wheel twists it about the view axis, release ends the grab and
 /// the pose stays; a second press where only the posed surface is hits it.
+/// Three wheel lines over the grab: it turns 30° counter-clockwise on screen (about the
+/// camera's back axis), within 0.2°.
+fn twist_three_lines(app: &mut App, camera: Entity, handle: Entity, at: Vec2) {
+    use bevy::picking::pointer::PointerAction;
+    // Three wheel lines: 30° counter-clockwise on screen (about the camera's back axis).
+    let before = app.world().get::<Transform>(handle).unwrap().rotation;
+    pointer(
+        app,
+        at,
+        PointerAction::Scroll {
+            unit: bevy::input::mouse::MouseScrollUnit::Line,
+            x: 0.0,
+            y: 3.0,
+            phase: bevy::input::touch::TouchPhase::Moved,
+        },
+    );
+    app.update();
+    let after = app.world().get::<Transform>(handle).unwrap().rotation;
+    let back = app.world().get::<GlobalTransform>(camera).unwrap().back();
+    let expected_turn = Quat::from_axis_angle(*back, 30f32.to_radians());
+    let error = (after * before.inverse()).angle_between(expected_turn);
+    assert!(
+        error < 0.2f32.to_radians(),
+        "twist off by {}°",
+        error.to_degrees()
+    );
+}
+
+/// Released: the grab ends, its handle goes, the character keeps the pose it showed.
+fn release_keeps_the_pose(app: &mut App, root: Entity, handle: Entity, at: Vec2, skinned: &[Vec3]) {
+    use bevy::picking::pointer::{PointerAction, PointerButton};
+    // Released: the grab ends, its handle goes, the character keeps the pose.
+    pointer(app, at, PointerAction::Release(PointerButton::Primary));
+    for _ in 0..20 {
+        app.update();
+    }
+    assert_eq!(
+        app.world()
+            .resource::<ActiveGrabs>()
+            .mesh_of(PointerId::Mouse),
+        None
+    );
+    assert!(app.world().get_entity(handle).is_err(), "the handle stayed");
+    let kept = app
+        .world()
+        .get::<PosedSkeleton>(root)
+        .unwrap()
+        .skinned_positions();
+    let drift = kept
+        .iter()
+        .zip(skinned)
+        .map(|(a, b)| a.distance(*b))
+        .fold(0.0, f32::max);
+    assert!(drift < 1e-5, "the pose moved {drift} after release");
+}
+
+/// A press where the posed top is now (the bind pose is not there) grabs the character; a
+/// quick flick and release, then the app resets the pose while the flick still settles: the
+/// reset wins.
+fn regrab_on_the_posed_surface_and_reset(
+    app: &mut App,
+    camera: Entity,
+    root: Entity,
+    posed: &PosedSkeleton,
+    top: Vec3,
+) {
+    use bevy::picking::pointer::{PointerAction, PointerButton};
+    // Press where the posed top is now (the bind pose is not there): the character is hit.
+    let posed_tip = to_screen(app, camera, top);
+    let bind_hit = posed
+        .model
+        .topology()
+        .positions()
+        .iter()
+        .any(|p| (to_screen(app, camera, p.as_vec3()) - posed_tip).length() < 4.0);
+    assert!(
+        !bind_hit,
+        "the test needs a press where only the posed surface is"
+    );
+    pointer(app, posed_tip, PointerAction::Press(PointerButton::Primary));
+    common::update_until(app, "the second grab", |a| {
+        a.world()
+            .get::<GrabHandle>(root)
+            .and_then(|h| a.world().get::<DeformHandle>(h.0))
+            .is_some_and(|h| h.pivot.is_some())
+    });
+    // A quick flick and release, then the app resets the pose while the flick still settles:
+    // the reset wins.
+    let flick = posed_tip + Vec2::new(0.0, -60.0);
+    let delta = Vec2::new(0.0, -60.0);
+    pointer(app, flick, PointerAction::Move { delta });
+    app.update();
+    pointer(app, flick, PointerAction::Release(PointerButton::Primary));
+    let rest = posed.model.skeleton().bind_pose();
+    app.world_mut().get_mut::<PosedSkeleton>(root).unwrap().pose = rest.clone();
+    for _ in 0..40 {
+        app.update();
+        std::thread::yield_now();
+    }
+    let now = app.world().get::<PosedSkeleton>(root).unwrap();
+    let reset = now.model.skin_render(&rest);
+    let drift = now
+        .skinned_positions()
+        .iter()
+        .zip(&reset)
+        .map(|(a, b)| a.as_dvec3().distance(*b))
+        .fold(0.0, f64::max);
+    assert!(
+        drift < 1e-5,
+        "the released grab pulled the reset pose by {drift}"
+    );
+}
+
 #[test]
 fn the_pointer_grabs_a_posed_character_drags_twists_and_releases() {
     use bevy::picking::pointer::{PointerAction, PointerButton};
@@ -398,28 +511,7 @@ fn the_pointer_grabs_a_posed_character_drags_twists_and_releases() {
         (moved - expected).length() < 0.02 * drag.length(),
         "handle at {moved}, cursor ray at {expected}"
     );
-    // Three wheel lines: 30° counter-clockwise on screen (about the camera's back axis).
-    let before = app.world().get::<Transform>(handle).unwrap().rotation;
-    pointer(
-        &mut app,
-        end,
-        PointerAction::Scroll {
-            unit: bevy::input::mouse::MouseScrollUnit::Line,
-            x: 0.0,
-            y: 3.0,
-            phase: bevy::input::touch::TouchPhase::Moved,
-        },
-    );
-    app.update();
-    let after = app.world().get::<Transform>(handle).unwrap().rotation;
-    let back = app.world().get::<GlobalTransform>(camera).unwrap().back();
-    let expected_turn = Quat::from_axis_angle(*back, 30f32.to_radians());
-    let error = (after * before.inverse()).angle_between(expected_turn);
-    assert!(
-        error < 0.2f32.to_radians(),
-        "twist off by {}°",
-        error.to_degrees()
-    );
+    twist_three_lines(&mut app, camera, handle, end);
     // Held still, the pose converges: the top has followed the drag.
     common::drive_solves(&mut app, root, handle, 30);
     let posed = app.world().get::<PosedSkeleton>(root).unwrap().clone();
@@ -435,83 +527,6 @@ fn the_pointer_grabs_a_posed_character_drags_twists_and_releases() {
         "the grabbed top moved {}",
         centroid - pivot
     );
-    // Released: the grab ends, its handle goes, the character keeps the pose.
-    pointer(
-        &mut app,
-        end,
-        PointerAction::Release(PointerButton::Primary),
-    );
-    for _ in 0..20 {
-        app.update();
-    }
-    assert_eq!(
-        app.world()
-            .resource::<ActiveGrabs>()
-            .mesh_of(PointerId::Mouse),
-        None
-    );
-    assert!(app.world().get_entity(handle).is_err(), "the handle stayed");
-    let kept = app
-        .world()
-        .get::<PosedSkeleton>(root)
-        .unwrap()
-        .skinned_positions();
-    let drift = kept
-        .iter()
-        .zip(&skinned)
-        .map(|(a, b)| a.distance(*b))
-        .fold(0.0, f32::max);
-    assert!(drift < 1e-5, "the pose moved {drift} after release");
-    // Press where the posed top is now (the bind pose is not there): the character is hit.
-    let posed_tip = to_screen(&mut app, camera, centroid);
-    let bind_hit = posed
-        .model
-        .topology()
-        .positions()
-        .iter()
-        .any(|p| (to_screen(&mut app, camera, p.as_vec3()) - posed_tip).length() < 4.0);
-    assert!(
-        !bind_hit,
-        "the test needs a press where only the posed surface is"
-    );
-    pointer(
-        &mut app,
-        posed_tip,
-        PointerAction::Press(PointerButton::Primary),
-    );
-    common::update_until(&mut app, "the second grab", |a| {
-        a.world()
-            .get::<GrabHandle>(root)
-            .and_then(|h| a.world().get::<DeformHandle>(h.0))
-            .is_some_and(|h| h.pivot.is_some())
-    });
-    // A quick flick and release, then the app resets the pose while the flick still settles:
-    // the reset wins.
-    let flick = posed_tip + Vec2::new(0.0, -60.0);
-    let delta = Vec2::new(0.0, -60.0);
-    pointer(&mut app, flick, PointerAction::Move { delta });
-    app.update();
-    pointer(
-        &mut app,
-        flick,
-        PointerAction::Release(PointerButton::Primary),
-    );
-    let rest = posed.model.skeleton().bind_pose();
-    app.world_mut().get_mut::<PosedSkeleton>(root).unwrap().pose = rest.clone();
-    for _ in 0..40 {
-        app.update();
-        std::thread::yield_now();
-    }
-    let now = app.world().get::<PosedSkeleton>(root).unwrap();
-    let reset = now.model.skin_render(&rest);
-    let drift = now
-        .skinned_positions()
-        .iter()
-        .zip(&reset)
-        .map(|(a, b)| a.as_dvec3().distance(*b))
-        .fold(0.0, f64::max);
-    assert!(
-        drift < 1e-5,
-        "the released grab pulled the reset pose by {drift}"
-    );
+    release_keeps_the_pose(&mut app, root, handle, end, &skinned);
+    regrab_on_the_posed_surface_and_reset(&mut app, camera, root, &posed, centroid);
 }
