@@ -531,21 +531,15 @@ fn the_plugin_points_with_the_ir_camera() {
     assert!(!held(&mut app), "no bar, no heading reference");
 }
 
-/// The remote as a picking pointer: an emulated remote aimed at a bar on screen, A pressed,
-/// starts a grab of that bar by the remote's own pointer at the spot it points at; with B held
-/// too, turning the remote 40° turns the grab 40° (within 1°) without moving it; releasing A
-/// ends it.
-#[test]
-fn the_remote_points_at_a_mesh_and_a_grabs_it() {
-    use bevy::picking::pointer::PointerId;
+/// A headless app with a bendable bar in front of a camera, and an emulated remote that sees
+/// the sensor bar of `setup` from `position` and is a picking pointer (`WiimotePointerPlugin`).
+fn remote_pointer_app(
+    setup: bevy_wii_deform::wiimote::ir::PointerSetup,
+    position: glam::DVec3,
+) -> (App, Entity, Entity) {
     use bevy_wii_deform::deform::synth;
-    use bevy_wii_deform::ecs::ActiveGrabs;
     use bevy_wii_deform::wiimote::EmulatedBar;
-    use bevy_wii_deform::wiimote::ir::PointerSetup;
-    use bevy_wii_deform::wiimote::protocol::Buttons;
     let mut app = app();
-    let setup = PointerSetup::default();
-    let position = glam::DVec3::ZERO;
     app.add_plugins((
         bevy::window::WindowPlugin::default(),
         bevy::input::InputPlugin,
@@ -593,6 +587,22 @@ fn the_remote_points_at_a_mesh_and_a_grabs_it() {
     common::update_until(&mut app, "the prepared mesh", |a| {
         a.world().get::<DeformStatus>(bar).unwrap().vertices > 0
     });
+    (app, camera, bar)
+}
+
+/// The remote as a picking pointer: an emulated remote aimed at a bar on screen, A pressed,
+/// starts a grab of that bar by the remote's own pointer at the spot it points at; with B held
+/// too, turning the remote 40° turns the grab 40° (within 1°) without moving it; releasing A
+/// ends it.
+#[test]
+fn the_remote_points_at_a_mesh_and_a_grabs_it() {
+    use bevy::picking::pointer::PointerId;
+    use bevy_wii_deform::ecs::ActiveGrabs;
+    use bevy_wii_deform::wiimote::ir::PointerSetup;
+    use bevy_wii_deform::wiimote::protocol::Buttons;
+    let setup = PointerSetup::default();
+    let position = glam::DVec3::ZERO;
+    let (mut app, camera, bar) = remote_pointer_app(setup, position);
     // Aim the remote at the bar's upper part as drawn (1280 × 720 window).
     let on_screen = common::to_screen(&mut app, camera, Vec3::new(0.0, 0.8, 0.1));
     let spot = (on_screen / Vec2::new(1280.0, 720.0)).as_dvec2();
