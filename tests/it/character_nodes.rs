@@ -23,112 +23,165 @@ fn part_of(y: f64) -> usize {
 
 const PARTS: [&str; 3] = ["body", "head", "legs"];
 
+/// The binary buffer, buffer views and accessors of a glTF being written.
+#[derive(Default)]
+struct GlbBuffers {
+    bin: Vec<u8>,
+    views: Vec<serde_json::Value>,
+    accessors: Vec<serde_json::Value>,
+}
+
+impl GlbBuffers {
+    /// Appends `bytes` (4-byte aligned) with their accessor; returns the accessor's index.
+    fn push(&mut self, bytes: Vec<u8>, accessor: serde_json::Value) -> usize {
+        while !self.bin.len().is_multiple_of(4) {
+            self.bin.push(0);
+        }
+        self.views
+            .push(json!({"buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len()}));
+        self.bin.extend(bytes);
+        let mut a = accessor;
+        a["bufferView"] = json!(self.views.len() - 1);
+        self.accessors.push(a);
+        self.accessors.len() - 1
+    }
+}
+
+/// The vertices (mesh indices) and local triangles of one part (triangles by the height of
+/// their centre).
+fn part_triangles(
+    mesh: &bevy_wii_deform::pose::SkinnedMesh,
+    part: usize,
+) -> (Vec<usize>, Vec<u32>) {
+    let mut index_of = vec![u32::MAX; mesh.positions.len()];
+    let mut vertices: Vec<usize> = Vec::new();
+    let mut indices: Vec<u32> = Vec::new();
+    for t in mesh.indices.chunks_exact(3) {
+        let y = t
+            .iter()
+            .map(|&i| f64::from(mesh.positions[i as usize].y))
+            .sum::<f64>()
+            / 3.0;
+        if part_of(y) != part {
+            continue;
+        }
+        for &i in t {
+            if index_of[i as usize] == u32::MAX {
+                index_of[i as usize] = vertices.len() as u32;
+                vertices.push(i as usize);
+            }
+            indices.push(index_of[i as usize]);
+        }
+    }
+    (vertices, indices)
+}
+
+/// Smooth normals, as exporters write them (without, Bevy's loader would split every
+/// triangle for flat normals).
+fn smooth_normals(positions: &[[f32; 3]], indices: &[u32]) -> Vec<glam::Vec3> {
+    let mut normals = vec![glam::Vec3::ZERO; positions.len()];
+    for t in indices.chunks_exact(3) {
+        let [a, b, c] = [0, 1, 2].map(|k| glam::Vec3::from_array(positions[t[k] as usize]));
+        let area_normal = (b - a).cross(c - a);
+        for &i in t {
+            normals[i as usize] += area_normal;
+        }
+    }
+    normals
+        .iter()
+        .map(|v| v.normalize_or(glam::Vec3::Y))
+        .collect()
+}
+
+/// One part as a glTF mesh (positions moved by −`hips`), and its vertex count.
+fn part_mesh(
+    buffers: &mut GlbBuffers,
+    mesh: &bevy_wii_deform::pose::SkinnedMesh,
+    part: usize,
+    hips: DVec3,
+) -> (serde_json::Value, usize) {
+    let (vertices, indices) = part_triangles(mesh, part);
+    let positions: Vec<[f32; 3]> = vertices
+        .iter()
+        .map(|&v| (mesh.positions[v].as_dvec3() - hips).as_vec3().to_array())
+        .collect();
+    let (lo, hi) = positions
+        .iter()
+        .fold(([f32::MAX; 3], [f32::MIN; 3]), |(l, h), p| {
+            (
+                [l[0].min(p[0]), l[1].min(p[1]), l[2].min(p[2])],
+                [h[0].max(p[0]), h[1].max(p[1]), h[2].max(p[2])],
+            )
+        });
+    let n = vertices.len();
+    let bytes = |floats: &mut dyn Iterator<Item = f32>| -> Vec<u8> {
+        floats.flat_map(|f| f.to_le_bytes()).collect()
+    };
+    let normals = smooth_normals(&positions, &indices);
+    let normal = buffers.push(
+        bytes(&mut normals.iter().flat_map(|v| v.to_array())),
+        json!({"componentType": 5126, "count": n, "type": "VEC3"}),
+    );
+    let position = buffers.push(
+        bytes(&mut positions.iter().flatten().copied()),
+        json!({"componentType": 5126, "count": n, "type": "VEC3", "min": lo, "max": hi}),
+    );
+    let joints = buffers.push(
+        vertices
+            .iter()
+            .flat_map(|&v| mesh.joint_indices[v])
+            .flat_map(|j| j.to_le_bytes())
+            .collect(),
+        json!({"componentType": 5123, "count": n, "type": "VEC4"}),
+    );
+    let weights = buffers.push(
+        bytes(&mut vertices.iter().flat_map(|&v| mesh.joint_weights[v])),
+        json!({"componentType": 5126, "count": n, "type": "VEC4"}),
+    );
+    let index = buffers.push(
+        indices.iter().flat_map(|i| i.to_le_bytes()).collect(),
+        json!({"componentType": 5125, "count": indices.len(), "type": "SCALAR"}),
+    );
+    let json = json!({"name": PARTS[part], "primitives": [{
+        "attributes": {"POSITION": position, "NORMAL": normal, "JOINTS_0": joints, "WEIGHTS_0": weights},
+        "indices": index,
+    }]});
+    (json, n)
+}
+
+/// The joint nodes (the root joint at the origin: the hips).
+fn joint_nodes(rig: &SyntheticRig) -> Vec<serde_json::Value> {
+    rig.skeleton
+        .joints()
+        .iter()
+        .enumerate()
+        .map(|(j, joint)| {
+            let t = if joint.parent.is_some() {
+                rig.rest.local[j].translation
+            } else {
+                DVec3::ZERO
+            };
+            let children: Vec<usize> = rig.skeleton.children(j).to_vec();
+            let mut node = json!({"name": joint.name, "translation": t.as_vec3().to_array()});
+            if !children.is_empty() {
+                node["children"] = json!(children);
+            }
+            node
+        })
+        .collect()
+}
+
 /// Writes `rig` as a binary glTF: the joint nodes under a root node, three mesh nodes
 /// sharing one skin, everything moved so that the hips are at the origin.
 fn three_node_glb(rig: &SyntheticRig) -> (Vec<u8>, [usize; 3]) {
     let hips = rig.rest.local[0].translation;
-    let mesh = &rig.mesh;
-    let mut bin: Vec<u8> = Vec::new();
-    let mut views = Vec::new();
-    let mut accessors = Vec::new();
-    let mut push = |bytes: Vec<u8>, accessor: serde_json::Value| {
-        while !bin.len().is_multiple_of(4) {
-            bin.push(0);
-        }
-        views.push(json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": bytes.len()}));
-        bin.extend(bytes);
-        let mut a = accessor;
-        a["bufferView"] = json!(views.len() - 1);
-        accessors.push(a);
-        accessors.len() - 1
-    };
+    let mut buffers = GlbBuffers::default();
     let mut meshes = Vec::new();
     let mut counts = [0usize; 3];
     for (part, count) in counts.iter_mut().enumerate() {
-        let mut index_of = vec![u32::MAX; mesh.positions.len()];
-        let mut vertices: Vec<usize> = Vec::new();
-        let mut indices: Vec<u32> = Vec::new();
-        for t in mesh.indices.chunks_exact(3) {
-            let y = t
-                .iter()
-                .map(|&i| f64::from(mesh.positions[i as usize].y))
-                .sum::<f64>()
-                / 3.0;
-            if part_of(y) != part {
-                continue;
-            }
-            for &i in t {
-                if index_of[i as usize] == u32::MAX {
-                    index_of[i as usize] = vertices.len() as u32;
-                    vertices.push(i as usize);
-                }
-                indices.push(index_of[i as usize]);
-            }
-        }
-        *count = vertices.len();
-        let positions: Vec<[f32; 3]> = vertices
-            .iter()
-            .map(|&v| (mesh.positions[v].as_dvec3() - hips).as_vec3().to_array())
-            .collect();
-        let (lo, hi) = positions
-            .iter()
-            .fold(([f32::MAX; 3], [f32::MIN; 3]), |(l, h), p| {
-                (
-                    [l[0].min(p[0]), l[1].min(p[1]), l[2].min(p[2])],
-                    [h[0].max(p[0]), h[1].max(p[1]), h[2].max(p[2])],
-                )
-            });
-        let n = vertices.len();
-        // Smooth normals, as exporters write them (without, Bevy's loader would split every
-        // triangle for flat normals).
-        let mut normals = vec![glam::Vec3::ZERO; n];
-        for t in indices.chunks_exact(3) {
-            let [a, b, c] = [0, 1, 2].map(|k| glam::Vec3::from_array(positions[t[k] as usize]));
-            let area_normal = (b - a).cross(c - a);
-            for &i in t {
-                normals[i as usize] += area_normal;
-            }
-        }
-        let normal = push(
-            normals
-                .iter()
-                .flat_map(|v| v.normalize_or(glam::Vec3::Y).to_array())
-                .flat_map(|f| f.to_le_bytes())
-                .collect(),
-            json!({"componentType": 5126, "count": n, "type": "VEC3"}),
-        );
-        let position = push(
-            positions
-                .iter()
-                .flatten()
-                .flat_map(|f| f.to_le_bytes())
-                .collect(),
-            json!({"componentType": 5126, "count": n, "type": "VEC3", "min": lo, "max": hi}),
-        );
-        let joints = push(
-            vertices
-                .iter()
-                .flat_map(|&v| mesh.joint_indices[v])
-                .flat_map(|j| j.to_le_bytes())
-                .collect(),
-            json!({"componentType": 5123, "count": n, "type": "VEC4"}),
-        );
-        let weights = push(
-            vertices
-                .iter()
-                .flat_map(|&v| mesh.joint_weights[v])
-                .flat_map(|w| w.to_le_bytes())
-                .collect(),
-            json!({"componentType": 5126, "count": n, "type": "VEC4"}),
-        );
-        let index = push(
-            indices.iter().flat_map(|i| i.to_le_bytes()).collect(),
-            json!({"componentType": 5125, "count": indices.len(), "type": "SCALAR"}),
-        );
-        meshes.push(json!({"name": PARTS[part], "primitives": [{
-            "attributes": {"POSITION": position, "NORMAL": normal, "JOINTS_0": joints, "WEIGHTS_0": weights},
-            "indices": index,
-        }]}));
+        let (mesh, n) = part_mesh(&mut buffers, &rig.mesh, part, hips);
+        meshes.push(mesh);
+        *count = n;
     }
     let joints = rig.skeleton.joints();
     let inverse_binds: Vec<u8> = joints
@@ -140,27 +193,11 @@ fn three_node_glb(rig: &SyntheticRig) -> (Vec<u8>, [usize; 3]) {
         })
         .flat_map(|f| f.to_le_bytes())
         .collect();
-    let ibm = push(
+    let ibm = buffers.push(
         inverse_binds,
         json!({"componentType": 5126, "count": joints.len(), "type": "MAT4"}),
     );
-    let mut nodes: Vec<serde_json::Value> = joints
-        .iter()
-        .enumerate()
-        .map(|(j, joint)| {
-            let t = if joint.parent.is_some() {
-                rig.rest.local[j].translation
-            } else {
-                DVec3::ZERO // the root joint at the origin: the hips
-            };
-            let children: Vec<usize> = rig.skeleton.children(j).to_vec();
-            let mut node = json!({"name": joint.name, "translation": t.as_vec3().to_array()});
-            if !children.is_empty() {
-                node["children"] = json!(children);
-            }
-            node
-        })
-        .collect();
+    let mut nodes = joint_nodes(rig);
     let first_part = nodes.len();
     for (part, name) in PARTS.iter().enumerate() {
         nodes.push(json!({"name": name, "mesh": part, "skin": 0}));
@@ -176,12 +213,12 @@ fn three_node_glb(rig: &SyntheticRig) -> (Vec<u8>, [usize; 3]) {
         "nodes": nodes,
         "meshes": meshes,
         "skins": [{"joints": (0..joints.len()).collect::<Vec<_>>(), "inverseBindMatrices": ibm, "skeleton": 0}],
-        "accessors": accessors,
-        "bufferViews": views,
-        "buffers": [{"byteLength": bin.len()}],
+        "accessors": buffers.accessors,
+        "bufferViews": buffers.views,
+        "buffers": [{"byteLength": buffers.bin.len()}],
     });
     (
-        glb_container(serde_json::to_vec(&document).unwrap(), bin),
+        glb_container(serde_json::to_vec(&document).unwrap(), buffers.bin),
         counts,
     )
 }
