@@ -195,6 +195,92 @@ fn an_entity_without_a_skin_gets_a_typed_error() {
     );
 }
 
+/// The Fox's pose saved as a RON pose file and as a one-keyframe glTF clip: the clip played
+/// back through Bevy's loader on the same Fox gives every joint its posed rotation, and the
+/// RON file loads back to the same pose.
+fn saved_pose_plays_back_and_loads(
+    app: &mut App,
+    root: Entity,
+    handle: Entity,
+    posed: &PosedSkeleton,
+) {
+    // Save the pose as a RON pose file and as a one-keyframe glTF clip; play the clip back
+    // through Bevy's loader on the same Fox, and load the RON file back.
+    let world = app.world();
+    let tracks = posed.clip_tracks(|e| {
+        (
+            world.get::<Name>(e).map(|n| n.as_str().to_string()),
+            world.get::<ChildOf>(e).map(|c| c.parent()),
+            world.get::<AnimationPlayer>(e).is_some(),
+        )
+    });
+    let glb = bevy_wii_deform::pose::write_gltf_pose_clip("pose", &tracks).unwrap();
+    let ron = posed.pose_file().to_ron().unwrap();
+    let out = std::env::temp_dir().join(format!("pose_ecs_{}", std::process::id()));
+    std::fs::create_dir_all(&out).unwrap();
+    std::fs::write(out.join("pose.glb"), glb).unwrap();
+    // Let go: no handles, and stop holding the pose so the clip drives the joints.
+    app.world_mut().despawn(handle);
+    app.world_mut()
+        .entity_mut(root)
+        .remove::<(Poseable, PosedSkeleton)>();
+    let rest = posed.model.skeleton().bind_pose();
+    let player = {
+        let w = app.world_mut();
+        let mut q = w.query_filtered::<Entity, With<AnimationPlayer>>();
+        q.iter(w).next().expect("the Fox has an AnimationPlayer")
+    };
+    // Knock the joints out of the pose, then play the saved clip.
+    for &j in &posed.joints {
+        app.world_mut().get_mut::<Transform>(j).unwrap().rotation = Quat::IDENTITY;
+    }
+    let clip: Handle<AnimationClip> = app.world().resource::<AssetServer>().load(
+        GltfAssetLabel::Animation(0)
+            .from_asset(bevy::asset::AssetPath::from_path_buf(out.join("pose.glb"))),
+    );
+    let node = common::play_clip(app, player, clip.clone());
+    // Every joint of the Fox has a curve in the saved clip (same name paths).
+    {
+        let w = app.world();
+        let c = w.resource::<Assets<AnimationClip>>().get(&clip).unwrap();
+        let hits = posed
+            .joints
+            .iter()
+            .filter(|&&j| {
+                w.get::<bevy::animation::AnimationTargetId>(j)
+                    .is_some_and(|id| c.curves().contains_key(id))
+            })
+            .count();
+        assert_eq!(hits, posed.joints.len());
+    }
+    common::show_clip_at(app, player, node, 0.0);
+    for (&j, t) in posed.joints.iter().zip(&posed.pose.local) {
+        let now = app.world().get::<Transform>(j).unwrap();
+        let (a, b) = (now.rotation, t.rotation.as_quat());
+        let b = if a.dot(b) < 0.0 { -b } else { b };
+        assert!(
+            (a - b).length() < 1e-5,
+            "joint {j}: clip gives {:?}, pose was {:?}",
+            now.rotation,
+            t.rotation
+        );
+    }
+    let back = bevy_wii_deform::pose::PoseFile::from_ron(&ron)
+        .unwrap()
+        .apply(posed.model.skeleton(), &rest)
+        .unwrap();
+    for (a, b) in back.local.iter().zip(&posed.pose.local) {
+        assert!(
+            (a.rotation - b.rotation).length() < 1e-12,
+            "{} vs {}",
+            a.rotation,
+            b.rotation
+        );
+        assert!((a.translation - b.translation).length() < 1e-12);
+    }
+    let _ = std::fs::remove_dir_all(out);
+}
+
 /// The Fox through Bevy's own glTF loader: `Poseable` on the scene root finds the skin and
 /// 24 joints; a handle on the head's vertices moves them, the feet joints pinned stay.
 #[test]
@@ -273,81 +359,7 @@ fn the_fox_from_bevys_gltf_loader_is_poseable() {
         );
     }
 
-    // Save the pose as a RON pose file and as a one-keyframe glTF clip; play the clip back
-    // through Bevy's loader on the same Fox, and load the RON file back.
-    let world = app.world();
-    let tracks = posed.clip_tracks(|e| {
-        (
-            world.get::<Name>(e).map(|n| n.as_str().to_string()),
-            world.get::<ChildOf>(e).map(|c| c.parent()),
-            world.get::<AnimationPlayer>(e).is_some(),
-        )
-    });
-    let glb = bevy_wii_deform::pose::write_gltf_pose_clip("pose", &tracks).unwrap();
-    let ron = posed.pose_file().to_ron().unwrap();
-    let out = std::env::temp_dir().join(format!("pose_ecs_{}", std::process::id()));
-    std::fs::create_dir_all(&out).unwrap();
-    std::fs::write(out.join("pose.glb"), glb).unwrap();
-    // Let go: no handles, and stop holding the pose so the clip drives the joints.
-    app.world_mut().despawn(handle);
-    app.world_mut()
-        .entity_mut(root)
-        .remove::<(Poseable, PosedSkeleton)>();
-    let rest = posed.model.skeleton().bind_pose();
-    let player = {
-        let w = app.world_mut();
-        let mut q = w.query_filtered::<Entity, With<AnimationPlayer>>();
-        q.iter(w).next().expect("the Fox has an AnimationPlayer")
-    };
-    // Knock the joints out of the pose, then play the saved clip.
-    for &j in &posed.joints {
-        app.world_mut().get_mut::<Transform>(j).unwrap().rotation = Quat::IDENTITY;
-    }
-    let clip: Handle<AnimationClip> = app.world().resource::<AssetServer>().load(
-        GltfAssetLabel::Animation(0)
-            .from_asset(bevy::asset::AssetPath::from_path_buf(out.join("pose.glb"))),
-    );
-    let node = common::play_clip(&mut app, player, clip.clone());
-    // Every joint of the Fox has a curve in the saved clip (same name paths).
-    {
-        let w = app.world();
-        let c = w.resource::<Assets<AnimationClip>>().get(&clip).unwrap();
-        let hits = posed
-            .joints
-            .iter()
-            .filter(|&&j| {
-                w.get::<bevy::animation::AnimationTargetId>(j)
-                    .is_some_and(|id| c.curves().contains_key(id))
-            })
-            .count();
-        assert_eq!(hits, posed.joints.len());
-    }
-    common::show_clip_at(&mut app, player, node, 0.0);
-    for (&j, t) in posed.joints.iter().zip(&posed.pose.local) {
-        let now = app.world().get::<Transform>(j).unwrap();
-        let (a, b) = (now.rotation, t.rotation.as_quat());
-        let b = if a.dot(b) < 0.0 { -b } else { b };
-        assert!(
-            (a - b).length() < 1e-5,
-            "joint {j}: clip gives {:?}, pose was {:?}",
-            now.rotation,
-            t.rotation
-        );
-    }
-    let back = bevy_wii_deform::pose::PoseFile::from_ron(&ron)
-        .unwrap()
-        .apply(posed.model.skeleton(), &rest)
-        .unwrap();
-    for (a, b) in back.local.iter().zip(&posed.pose.local) {
-        assert!(
-            (a.rotation - b.rotation).length() < 1e-12,
-            "{} vs {}",
-            a.rotation,
-            b.rotation
-        );
-        assert!((a.translation - b.translation).length() < 1e-12);
-    }
-    let _ = std::fs::remove_dir_all(out);
+    saved_pose_plays_back_and_loads(&mut app, root, handle, &posed);
 }
 
 /// The Wii Remote drives a character handle exactly like a static one: holding B and turning
