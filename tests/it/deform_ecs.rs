@@ -477,6 +477,76 @@ fn deformable_on_an_ancestor_applies_to_the_meshes_below_it() {
     );
 }
 
+/// The lowest and highest y of `positions`.
+fn height_range(positions: &[glam::DVec3]) -> (f64, f64) {
+    positions.iter().fold((f64::MAX, f64::MIN), |(lo, hi), p| {
+        (lo.min(p.y), hi.max(p.y))
+    })
+}
+
+/// The vertices between heights `a` and `b` (fractions of the height range).
+fn height_band(positions: &[glam::DVec3], a: f64, b: f64) -> Vec<u32> {
+    let (lo, hi) = height_range(positions);
+    (0..positions.len() as u32)
+        .filter(|&i| (lo + a * (hi - lo)..=lo + b * (hi - lo)).contains(&positions[i as usize].y))
+        .collect()
+}
+
+/// The normals and tangents of the turned `top` turned with it (within 3°, handedness kept);
+/// the middle's stayed.
+fn normals_and_tangents_turned(
+    app: &App,
+    e: Entity,
+    positions: &[glam::DVec3],
+    top: &[u32],
+    turn: Quat,
+    rest_normals: &[[f32; 3]],
+) {
+    let (lo, hi) = height_range(positions);
+    let band = |a: f64, b: f64| height_band(positions, a, b);
+    let handle = app.world().get::<Mesh3d>(e).unwrap().0.clone();
+    let meshes = app.world().resource::<Assets<Mesh>>();
+    let mesh = meshes.get(&handle).unwrap();
+    let (
+        Some(VertexAttributeValues::Float32x3(normals)),
+        Some(VertexAttributeValues::Float32x4(tangents)),
+    ) = (
+        mesh.attribute(Mesh::ATTRIBUTE_NORMAL),
+        mesh.attribute(Mesh::ATTRIBUTE_TANGENT),
+    )
+    else {
+        panic!("normals and tangents kept");
+    };
+    // (Cells whose whole one-ring is in the handle turn exactly with it: the band's inner ring.)
+    let inner = |v: &&u32| {
+        let y = positions[**v as usize].y;
+        y > lo + 0.95 * (hi - lo) && y < hi - 1e-9
+    };
+    let checked = top.iter().filter(inner).count();
+    assert!(checked >= 12, "{checked}");
+    for &v in top.iter().filter(inner) {
+        let n = Vec3::from_array(normals[v as usize]);
+        let want = turn * Vec3::from_array(rest_normals[v as usize]);
+        assert!(
+            n.angle_between(want) < 3f32.to_radians(),
+            "normal {v}: {n} vs {want}"
+        );
+        let t = Vec4::from_array(tangents[v as usize]);
+        assert!(
+            t.truncate().angle_between(turn * Vec3::Y) < 3f32.to_radians(),
+            "tangent {v}: {t}"
+        );
+        assert_eq!(t.w, -1.0);
+    }
+    for v in band(0.47, 0.53) {
+        let n = Vec3::from_array(normals[v as usize]);
+        assert!(
+            n.angle_between(Vec3::from_array(rest_normals[v as usize])) < 1e-3,
+            "middle {v}"
+        );
+    }
+}
+
 #[test]
 fn normals_and_tangents_turn_with_the_surface_and_two_handles_move_one_mesh() {
     let mut app = app();
@@ -491,19 +561,7 @@ fn normals_and_tangents_turn_with_the_surface_and_two_handles_move_one_mesh() {
         _ => unreachable!(),
     };
     // Fixed middle, a handle at each end.
-    let (lo, hi) = tri
-        .positions
-        .iter()
-        .fold((f64::MAX, f64::MIN), |(lo, hi), p| {
-            (lo.min(p.y), hi.max(p.y))
-        });
-    let band = |a: f64, b: f64| -> Vec<u32> {
-        (0..tri.positions.len() as u32)
-            .filter(|&i| {
-                (lo + a * (hi - lo)..=lo + b * (hi - lo)).contains(&tri.positions[i as usize].y)
-            })
-            .collect()
-    };
+    let band = |a: f64, b: f64| height_band(&tri.positions, a, b);
     let (bottom, middle, top) = (band(0.0, 0.08), band(0.4, 0.6), band(0.92, 1.0));
     let bundle_source = mesh.clone();
     let h = app.world_mut().resource_mut::<Assets<Mesh>>().add(mesh);
@@ -557,48 +615,7 @@ fn normals_and_tangents_turn_with_the_surface_and_two_handles_move_one_mesh() {
         let want = tri.positions[v as usize].as_vec3() - Vec3::X * 0.15;
         assert!(got[v as usize].distance(want) < 1e-4, "bottom {v}");
     }
-    // Normals and tangents of the turned end turned with it; the middle's stayed.
-    let handle = app.world().get::<Mesh3d>(e).unwrap().0.clone();
-    let meshes = app.world().resource::<Assets<Mesh>>();
-    let mesh = meshes.get(&handle).unwrap();
-    let (
-        Some(VertexAttributeValues::Float32x3(normals)),
-        Some(VertexAttributeValues::Float32x4(tangents)),
-    ) = (
-        mesh.attribute(Mesh::ATTRIBUTE_NORMAL),
-        mesh.attribute(Mesh::ATTRIBUTE_TANGENT),
-    )
-    else {
-        panic!("normals and tangents kept");
-    };
-    // (Cells whose whole one-ring is in the handle turn exactly with it: the band's inner ring.)
-    let inner = |v: &&u32| {
-        let y = tri.positions[**v as usize].y;
-        y > lo + 0.95 * (hi - lo) && y < hi - 1e-9
-    };
-    let checked = top.iter().filter(inner).count();
-    assert!(checked >= 12, "{checked}");
-    for &v in top.iter().filter(inner) {
-        let n = Vec3::from_array(normals[v as usize]);
-        let want = turn * Vec3::from_array(rest_normals[v as usize]);
-        assert!(
-            n.angle_between(want) < 3f32.to_radians(),
-            "normal {v}: {n} vs {want}"
-        );
-        let t = Vec4::from_array(tangents[v as usize]);
-        assert!(
-            t.truncate().angle_between(turn * Vec3::Y) < 3f32.to_radians(),
-            "tangent {v}: {t}"
-        );
-        assert_eq!(t.w, -1.0);
-    }
-    for v in band(0.47, 0.53) {
-        let n = Vec3::from_array(normals[v as usize]);
-        assert!(
-            n.angle_between(Vec3::from_array(rest_normals[v as usize])) < 1e-3,
-            "middle {v}"
-        );
-    }
+    normals_and_tangents_turned(&app, e, &tri.positions, &top, turn, &rest_normals);
 }
 
 /// The core's converged pose (render order) of the bar of [`spawn_bar`] with its handle
