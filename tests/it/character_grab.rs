@@ -10,6 +10,37 @@ use bevy_wii_deform::prelude::*;
 use crate::common;
 use common::{spawn_camera, to_screen, update_until};
 
+/// The joints of a posed character whose names say "foot".
+fn foot_joints(posed: &PosedSkeleton) -> Vec<Entity> {
+    posed
+        .model
+        .skeleton()
+        .joints()
+        .iter()
+        .enumerate()
+        .filter(|(_, j)| j.name.to_lowercase().contains("foot"))
+        .map(|(k, _)| posed.joints[k])
+        .collect()
+}
+
+/// Whether the grab on `target` has a handle placed at its pivot.
+fn grab_handle_placed(app: &App, target: Entity) -> bool {
+    app.world()
+        .get::<GrabHandle>(target)
+        .and_then(|h| app.world().get::<DeformHandle>(h.0))
+        .is_some_and(|h| h.pivot.is_some())
+}
+
+/// The centroid of `vertices` as the character is drawn now.
+fn skinned_centroid(app: &App, character: Entity, vertices: &[u32]) -> Vec3 {
+    let now = app
+        .world()
+        .get::<PosedSkeleton>(character)
+        .unwrap()
+        .skinned_positions();
+    vertices.iter().map(|&v| now[v as usize]).sum::<Vec3>() / vertices.len() as f32
+}
+
 #[test]
 fn a_character_grab_without_pins_bends_it() {
     let Some(dir) = common::shared::shared_asset("models") else {
@@ -40,15 +71,7 @@ fn a_character_grab_without_pins_bends_it() {
         .copied()
         .max_by(|a, b| a.z.total_cmp(&b.z))
         .unwrap();
-    let feet: Vec<Entity> = posed
-        .model
-        .skeleton()
-        .joints()
-        .iter()
-        .enumerate()
-        .filter(|(_, j)| j.name.to_lowercase().contains("foot"))
-        .map(|(k, _)| posed.joints[k])
-        .collect();
+    let feet = foot_joints(&posed);
     assert!(feet.len() >= 4, "the Fox's feet");
     let feet_at = |app: &App| -> Vec<Vec3> {
         feet.iter()
@@ -63,10 +86,7 @@ fn a_character_grab_without_pins_bends_it() {
         camera,
     });
     update_until(&mut app, "the grab's handle at its pivot", |a| {
-        a.world()
-            .get::<GrabHandle>(fox)
-            .and_then(|h| a.world().get::<DeformHandle>(h.0))
-            .is_some_and(|h| h.pivot.is_some())
+        grab_handle_placed(a, fox)
     });
     let anchor = app
         .world()
@@ -84,14 +104,7 @@ fn a_character_grab_without_pins_bends_it() {
         .unwrap()
         .vertices
         .clone();
-    let patch_centroid = |app: &App| -> Vec3 {
-        let now = app
-            .world()
-            .get::<PosedSkeleton>(fox)
-            .unwrap()
-            .skinned_positions();
-        patch.iter().map(|&v| now[v as usize]).sum::<Vec3>() / patch.len() as f32
-    };
+    let patch_centroid = |app: &App| skinned_centroid(app, fox, &patch);
     let start = patch_centroid(&app);
     // Drag up on screen by 10 % of the Fox's size (at the snout's depth).
     let from = to_screen(&mut app, camera, ear);
