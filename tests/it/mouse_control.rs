@@ -8,8 +8,8 @@ use crate::common;
 use crate::common::bar::*;
 use common::{app, cursor_to, spawn_camera, to_screen};
 
-#[test]
-fn a_mouse_drag_moves_a_handle_on_a_scaled_rotated_mesh_with_the_cursor() {
+/// A headless app with the mouse control and deformation.
+fn mouse_app() -> App {
     let mut app = app();
     app.add_plugins((
         bevy::window::WindowPlugin::default(),
@@ -20,6 +20,32 @@ fn a_mouse_drag_moves_a_handle_on_a_scaled_rotated_mesh_with_the_cursor() {
     ));
     app.finish();
     app.cleanup();
+    app
+}
+
+/// Shift + press at `start`, drag to `end` in `steps` moves, release.
+fn shift_drag(app: &mut App, start: Vec2, end: Vec2, steps: u32) {
+    cursor_to(app, start);
+    app.world_mut()
+        .resource_mut::<ButtonInput<KeyCode>>()
+        .press(KeyCode::ShiftLeft);
+    app.world_mut()
+        .resource_mut::<ButtonInput<MouseButton>>()
+        .press(MouseButton::Left);
+    app.update();
+    for k in 1..=steps {
+        cursor_to(app, start + (end - start) * k as f32 / steps as f32);
+        app.update();
+    }
+    app.world_mut()
+        .resource_mut::<ButtonInput<MouseButton>>()
+        .release(MouseButton::Left);
+    app.update();
+}
+
+#[test]
+fn a_mouse_drag_moves_a_handle_on_a_scaled_rotated_mesh_with_the_cursor() {
+    let mut app = mouse_app();
     let camera = spawn_camera(
         &mut app,
         Transform::from_xyz(0.5, 1.0, 6.0).looking_at(Vec3::new(0.0, 1.0, 0.0), Vec3::Y),
@@ -68,23 +94,7 @@ fn a_mouse_drag_moves_a_handle_on_a_scaled_rotated_mesh_with_the_cursor() {
     let start_world = world_of(&app, handle_transform.translation);
     let start = to_screen(&mut app, camera, start_world);
     let end = start + Vec2::new(60.0, -25.0);
-    // Shift + press at the handle, drag in three steps, release.
-    cursor_to(&mut app, start);
-    app.world_mut()
-        .resource_mut::<ButtonInput<KeyCode>>()
-        .press(KeyCode::ShiftLeft);
-    app.world_mut()
-        .resource_mut::<ButtonInput<MouseButton>>()
-        .press(MouseButton::Left);
-    app.update();
-    for k in 1..=3 {
-        cursor_to(&mut app, start + (end - start) * k as f32 / 3.0);
-        app.update();
-    }
-    app.world_mut()
-        .resource_mut::<ButtonInput<MouseButton>>()
-        .release(MouseButton::Left);
-    app.update();
+    shift_drag(&mut app, start, end, 3);
     // The handle is under the cursor, at its depth.
     let moved_world = world_of(
         &app,
