@@ -10,7 +10,7 @@ use bevy_wii_deform::prelude::*;
 
 use crate::common;
 use crate::common::bar::*;
-use common::{app, cursor_to, pointer, spawn_camera, to_screen};
+use common::{app, pointer, spawn_camera, to_screen};
 
 /// A headless app with deformation and grabs, and a camera at `eye` looking at `target`.
 fn grab_app(eye: Vec3, target: Vec3) -> (App, Entity) {
@@ -286,22 +286,7 @@ fn a_mouse_drag_moves_a_character_handle_with_the_cursor() {
     app.update();
     let start = to_screen(&mut app, camera, pivot);
     let end = start + Vec2::new(70.0, 0.0);
-    cursor_to(&mut app, start);
-    app.world_mut()
-        .resource_mut::<ButtonInput<KeyCode>>()
-        .press(KeyCode::ShiftLeft);
-    app.world_mut()
-        .resource_mut::<ButtonInput<MouseButton>>()
-        .press(MouseButton::Left);
-    app.update();
-    for k in 1..=3 {
-        cursor_to(&mut app, start + (end - start) * k as f32 / 3.0);
-        app.update();
-    }
-    app.world_mut()
-        .resource_mut::<ButtonInput<MouseButton>>()
-        .release(MouseButton::Left);
-    app.update();
+    common::shift_drag(&mut app, start, end, 3);
     let moved = app.world().get::<Transform>(handle).unwrap().translation;
     let expected = under_cursor(&mut app, camera, pivot, end);
     let drag = expected - pivot;

@@ -6,7 +6,7 @@ use bevy_wii_deform::prelude::*;
 
 use crate::common;
 use crate::common::bar::*;
-use common::{app, cursor_to, spawn_camera, to_screen};
+use common::{app, shift_drag, spawn_camera, to_screen};
 
 /// A headless app with the mouse control and deformation.
 fn mouse_app() -> App {
@@ -21,26 +21,6 @@ fn mouse_app() -> App {
     app.finish();
     app.cleanup();
     app
-}
-
-/// Shift + press at `start`, drag to `end` in `steps` moves, release.
-fn shift_drag(app: &mut App, start: Vec2, end: Vec2, steps: u32) {
-    cursor_to(app, start);
-    app.world_mut()
-        .resource_mut::<ButtonInput<KeyCode>>()
-        .press(KeyCode::ShiftLeft);
-    app.world_mut()
-        .resource_mut::<ButtonInput<MouseButton>>()
-        .press(MouseButton::Left);
-    app.update();
-    for k in 1..=steps {
-        cursor_to(app, start + (end - start) * k as f32 / steps as f32);
-        app.update();
-    }
-    app.world_mut()
-        .resource_mut::<ButtonInput<MouseButton>>()
-        .release(MouseButton::Left);
-    app.update();
 }
 
 #[test]

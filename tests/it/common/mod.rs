@@ -186,6 +186,26 @@ pub fn cursor_to(app: &mut App, at: Vec2) {
         .set_cursor_position(Some(at));
 }
 
+/// Shift + press at `start`, drag to `end` in `steps` moves, release.
+pub fn shift_drag(app: &mut App, start: Vec2, end: Vec2, steps: u32) {
+    cursor_to(app, start);
+    app.world_mut()
+        .resource_mut::<ButtonInput<KeyCode>>()
+        .press(KeyCode::ShiftLeft);
+    app.world_mut()
+        .resource_mut::<ButtonInput<MouseButton>>()
+        .press(MouseButton::Left);
+    app.update();
+    for k in 1..=steps {
+        cursor_to(app, start + (end - start) * k as f32 / steps as f32);
+        app.update();
+    }
+    app.world_mut()
+        .resource_mut::<ButtonInput<MouseButton>>()
+        .release(MouseButton::Left);
+    app.update();
+}
+
 /// Writes a raw pointer input for the mouse pointer at `at` on the primary window, as bevy's
 /// input plugin would (a press is preceded by a move to the same spot).
 pub fn pointer(app: &mut App, at: Vec2, action: bevy::picking::pointer::PointerAction) {
