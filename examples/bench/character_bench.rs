@@ -2,10 +2,12 @@
 //! drag, and the quality of the converged pose against the full-mesh ARAP solver.
 //!
 //! ```text
-//! cargo run --release --example character_bench -- [--model PATH | --cells N] [--json]
+//! cargo run --release --example character_bench -- [--model PATH | --cells N [--humanoid]] [--json]
 //! ```
 //! Without `--model`: the generated mannequin auto-rigged to 16 joints, meshed on `--cells`
-//! cells (default 200 ≈ 100k vertices; 110 ≈ 30k). With `--model`: the first skinned mesh of
+//! cells (default 200 ≈ 100k vertices; 110 ≈ 30k); `--humanoid`: the same mannequin rigged to
+//! 52 joints with Mixamo names and five three-bone fingers per hand (`synth_rig::humanoid_rig`),
+//! the joint count of game characters. With `--model`: the first skinned mesh of
 //! a rigged glTF (e.g. `../shared/models/Fox.glb`).
 //!
 //! Constraints (vertex sets, so the full-mesh solver gets exactly the same problem): the
@@ -42,13 +44,15 @@ use bevy_wii_deform::deform::{
     Acceleration, ArapSolver, Constraints, Handle, InitialGuess, RigidTransform, SolveOptions,
     SolverSettings, arap_energy, centroid,
 };
-use bevy_wii_deform::pose::synth_rig::mannequin_rig;
+use bevy_wii_deform::pose::synth_rig::{humanoid_rig, mannequin_rig};
 use bevy_wii_deform::pose::*;
 use glam::{DQuat, DVec3};
 
 struct Args {
     model: Option<PathBuf>,
     cells: u32,
+    /// The 52-joint humanoid instead of the 16-joint mannequin.
+    humanoid: bool,
     json: bool,
 }
 
@@ -56,6 +60,7 @@ fn args() -> Args {
     let mut out = Args {
         model: None,
         cells: 200,
+        humanoid: false,
         json: false,
     };
     let mut it = std::env::args().skip(1);
@@ -64,6 +69,7 @@ fn args() -> Args {
             "--model" => out.model = it.next().map(PathBuf::from),
             "--cells" => out.cells = it.next().and_then(|c| c.parse().ok()).unwrap_or(out.cells),
             "--json" => out.json = true,
+            "--humanoid" => out.humanoid = true,
             other => eprintln!("ignoring unknown argument {other}"),
         }
     }
@@ -165,6 +171,14 @@ fn load_rig(args: &Args) -> (String, Skeleton, SkinnedMesh) {
                 std::process::exit(2);
             }
         },
+        None if args.humanoid => {
+            let rig = humanoid_rig(args.cells);
+            (
+                format!("humanoid_rig({})", args.cells),
+                rig.skeleton,
+                rig.mesh,
+            )
+        }
         None => {
             let rig = mannequin_rig(args.cells);
             (

@@ -116,7 +116,7 @@ pub fn mannequin_rig(cells: u32) -> SyntheticRig {
     let mesh = synth::mannequin(cells);
     let v = DVec3::new;
     // (name, position, parent, end of the bone segment when it has no child on its axis)
-    let mut spec: Vec<(String, DVec3, Option<usize>, DVec3)> = vec![
+    let mut spec: Vec<JointSpec> = vec![
         ("hips".into(), v(0.0, 0.92, 0.0), None, v(0.0, 1.2, 0.0)),
         ("chest".into(), v(0.0, 1.2, 0.0), Some(0), v(0.0, 1.42, 0.0)),
         ("neck".into(), v(0.0, 1.42, 0.0), Some(1), v(0.0, 1.56, 0.0)),
@@ -161,11 +161,21 @@ pub fn mannequin_rig(cells: u32) -> SyntheticRig {
             v(s * 0.13, 0.05, 0.13),
         ));
     }
+    rig_from_segments(&mesh, &spec)
+}
+
+/// A joint of a generated humanoid: name, bind position, parent, and the end of its bone
+/// segment (for the automatic skin).
+type JointSpec = (String, DVec3, Option<usize>, DVec3);
+
+/// Skins `mesh` to the joints of `spec`: each vertex weighted to the (up to four) nearest bone
+/// segments with weights `∝ 1 / distance⁴`.
+fn rig_from_segments(mesh: &TriMesh, spec: &[JointSpec]) -> SyntheticRig {
     let names: Vec<String> = spec.iter().map(|s| s.0.clone()).collect();
     let positions: Vec<DVec3> = spec.iter().map(|s| s.1).collect();
     let parents: Vec<Option<usize>> = spec.iter().map(|s| s.2).collect();
     let segments: Vec<(DVec3, DVec3)> = spec.iter().map(|s| (s.1, s.3)).collect();
-    rig(&names, &positions, &parents, &mesh, |p| {
+    rig(&names, &positions, &parents, mesh, |p| {
         segments
             .iter()
             .enumerate()
@@ -175,4 +185,90 @@ pub fn mannequin_rig(cells: u32) -> SyntheticRig {
             })
             .collect()
     })
+}
+
+/// The mannequin auto-rigged to a 52-joint humanoid with Mixamo's joint names, the count of
+/// game characters: a four-bone spine (`Hips`, `Spine`, `Spine1`, `Spine2`), `Neck`, `Head`,
+/// and per side a clavicle, arm, forearm and hand with five three-bone fingers, and a thigh,
+/// shin, foot and toe. The skin as in [`mannequin_rig`].
+pub fn humanoid_rig(cells: u32) -> SyntheticRig {
+    let mesh = synth::mannequin(cells);
+    let v = DVec3::new;
+    let mut spec: Vec<JointSpec> = vec![
+        ("Hips".into(), v(0.0, 0.92, 0.0), None, v(0.0, 1.02, 0.0)),
+        (
+            "Spine".into(),
+            v(0.0, 1.02, 0.0),
+            Some(0),
+            v(0.0, 1.12, 0.0),
+        ),
+        (
+            "Spine1".into(),
+            v(0.0, 1.12, 0.0),
+            Some(1),
+            v(0.0, 1.24, 0.0),
+        ),
+        (
+            "Spine2".into(),
+            v(0.0, 1.24, 0.0),
+            Some(2),
+            v(0.0, 1.42, 0.0),
+        ),
+        ("Neck".into(), v(0.0, 1.42, 0.0), Some(3), v(0.0, 1.56, 0.0)),
+        ("Head".into(), v(0.0, 1.56, 0.0), Some(4), v(0.0, 1.76, 0.0)),
+    ];
+    for (side, s) in [("Left", 1.0), ("Right", -1.0)] {
+        let at = |spec: &Vec<JointSpec>| spec.len();
+        let clavicle = at(&spec);
+        spec.push((
+            format!("{side}Shoulder"),
+            v(s * 0.05, 1.38, 0.0),
+            Some(3),
+            v(s * 0.2, 1.4, 0.0),
+        ));
+        let limb = [
+            ("Arm", v(s * 0.2, 1.4, 0.0), v(s * 0.42, 1.14, 0.0)),
+            ("ForeArm", v(s * 0.42, 1.14, 0.0), v(s * 0.56, 0.9, 0.05)),
+            ("Hand", v(s * 0.56, 0.9, 0.05), v(s * 0.58, 0.86, 0.06)),
+        ];
+        let mut parent = clavicle;
+        for (name, a, b) in limb {
+            spec.push((format!("{side}{name}"), a, Some(parent), b));
+            parent = at(&spec) - 1;
+        }
+        let hand = parent;
+        let (wrist, palm) = (v(s * 0.56, 0.9, 0.05), v(s * 0.58, 0.86, 0.06));
+        let along = (palm - wrist).normalize();
+        for (k, finger) in ["Thumb", "Index", "Middle", "Ring", "Pinky"]
+            .iter()
+            .enumerate()
+        {
+            let spread = v(0.0, 0.0, (k as f64 - 2.0) * 0.012);
+            let mut at_joint = palm + spread;
+            let mut parent = hand;
+            for bone in 1..=3 {
+                let end = at_joint + along * 0.018;
+                spec.push((
+                    format!("{side}Hand{finger}{bone}"),
+                    at_joint,
+                    Some(parent),
+                    end,
+                ));
+                parent = spec.len() - 1;
+                at_joint = end;
+            }
+        }
+        let leg = [
+            ("UpLeg", v(s * 0.11, 0.85, 0.0), v(s * 0.12, 0.48, 0.0)),
+            ("Leg", v(s * 0.12, 0.48, 0.0), v(s * 0.13, 0.1, 0.0)),
+            ("Foot", v(s * 0.13, 0.1, 0.0), v(s * 0.13, 0.05, 0.1)),
+            ("ToeBase", v(s * 0.13, 0.05, 0.1), v(s * 0.13, 0.04, 0.16)),
+        ];
+        let mut parent = 0;
+        for (name, a, b) in leg {
+            spec.push((format!("{side}{name}"), a, Some(parent), b));
+            parent = spec.len() - 1;
+        }
+    }
+    rig_from_segments(&mesh, &spec)
 }

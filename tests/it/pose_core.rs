@@ -529,3 +529,71 @@ fn a_one_keyframe_clip_holds_the_pose_by_node_path() {
         Err(PoseFileError::EmptyPath)
     );
 }
+
+/// A humanoid of game-character joint count (52 joints, Mixamo names, five three-bone fingers
+/// per hand): the model builds, the mirror pairs every Left/Right joint by name, the humanoid
+/// preset recognises its limbs, and a hand drag with the feet pinned keeps every bone rigid and
+/// reaches the target.
+#[test]
+fn a_52_joint_humanoid_poses_with_rigid_bones_and_pairs_by_name() {
+    use bevy_wii_deform::pose::synth_rig::humanoid_rig;
+    let rig = humanoid_rig(24);
+    let joints = rig.skeleton.len();
+    assert!((50..=70).contains(&joints), "{joints} joints");
+    let mirror = Mirror::new(&rig.skeleton, &rig.rest);
+    assert_eq!(
+        mirror.pair_count(),
+        (joints - 6) / 2,
+        "every Left joint has its Right"
+    );
+    let twice = mirror.mirror(&mirror.mirror(&rig.rest));
+    for (a, b) in twice.local.iter().zip(&rig.rest.local) {
+        assert!(a.translation.distance(b.translation) < 1e-9);
+    }
+    let (_, found) = JointLimits::humanoid(&rig.skeleton, &rig.rest);
+    for name in ["LeftForeArm", "RightLeg", "Neck", "LeftFoot"] {
+        assert!(
+            found.iter().any(|(n, _)| n == name),
+            "{name} not recognised among {found:?}"
+        );
+    }
+    let model = model_of(&rig);
+    let hand = rig.skeleton.find("RightHand").unwrap();
+    let mut constraints = PoseConstraints {
+        fixed_joints: vec![
+            rig.skeleton.find("LeftFoot").unwrap(),
+            rig.skeleton.find("RightFoot").unwrap(),
+        ],
+        joint_handles: vec![JointHandle {
+            joint: hand,
+            transform: RigidTransform::IDENTITY,
+        }],
+        ..Default::default()
+    };
+    let solver = PoseSolver::new(
+        model,
+        &constraints,
+        &rig.rest,
+        PoseSolverSettings::default(),
+    )
+    .unwrap();
+    let lift = DVec3::new(-0.1, 0.35, 0.1);
+    constraints.joint_handles[0].transform.translation = lift;
+    let options = PoseSolveOptions {
+        max_iterations: 40,
+        tolerance: 1e-9,
+    };
+    let solved = solver
+        .solve(&constraints, &options, PoseStart::Pose(&rig.rest), &|| {
+            false
+        })
+        .unwrap();
+    let before = rig.skeleton.global_transforms(&rig.rest)[hand].translation;
+    let after = rig.skeleton.global_transforms(&solved.pose)[hand].translation;
+    assert!(
+        after.distance(before + lift) < 0.02,
+        "hand at {after}, wanted {}",
+        before + lift
+    );
+    assert!(max_bone_length_error(&rig.skeleton, &rig.rest, &solved.pose) < 1e-9);
+}

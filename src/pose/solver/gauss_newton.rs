@@ -321,24 +321,36 @@ pub(super) fn solve_damped(h: &[f64], g: &[f64], mu: f64) -> Vec<DVec3> {
 /// Lower Cholesky factor in place (row-major, lower triangle); false if not positive definite.
 fn cholesky_in_place(a: &mut [f64], n: usize) -> bool {
     for j in 0..n {
-        let mut d = a[j * n + j];
-        for k in 0..j {
-            d -= a[j * n + k] * a[j * n + k];
-        }
+        let row_j = &a[j * n..j * n + j];
+        let d = a[j * n + j] - dot(row_j, row_j);
         if d.is_nan() || d <= 0.0 {
             return false;
         }
         let d = d.sqrt();
         a[j * n + j] = d;
-        for i in j + 1..n {
-            let mut s = a[i * n + j];
-            for k in 0..j {
-                s -= a[i * n + k] * a[j * n + k];
-            }
-            a[i * n + j] = s / d;
+        // Column j below the diagonal: a[i][j] = (a[i][j] − Σ_k a[i][k] a[j][k]) / d.
+        let (upto, below) = a.split_at_mut((j + 1) * n);
+        let row_j = &upto[j * n..j * n + j];
+        for row_i in below.chunks_exact_mut(n) {
+            row_i[j] = (row_i[j] - dot(&row_i[..j], row_j)) / d;
         }
     }
     true
+}
+
+/// `Σ aᵢ bᵢ` with four running sums, so the compiler keeps it in vector registers (a plain
+/// fold is one dependent chain). The Cholesky above spends its time here.
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut acc = [0.0f64; 4];
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        for k in 0..4 {
+            acc[k] += x[k] * y[k];
+        }
+    }
+    let tail: f64 = ra.iter().zip(rb).map(|(x, y)| x * y).sum();
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
 #[cfg(test)]
