@@ -12,6 +12,9 @@
 //! * **R**: back to the pose the character was loaded in.
 //! * **Timeline** (bottom panel): scrub, play/loop, set/delete/move keys (step, linear or
 //!   cubic), import one of the model's own clips, export the clip to `poses/clip.glb`.
+//! * **Body** (right panel): joint limits from the humanoid preset, mirrored edits (an
+//!   effector on one side drives its mirror image) and feet planted by position effectors
+//!   (ankles free) instead of pinned.
 //! * **Poses** (right panel): the pose library in `poses/library/`: apply, apply mirrored,
 //!   blend two, save the current pose by name. **Ctrl+Z / Ctrl+Y**: undo / redo.
 //! * **`--author-demo OUT.glb`**: poses the character by three scripted grabs, keys them at
@@ -34,6 +37,7 @@
 //! glTF Sample Assets.
 
 mod authoring;
+mod body;
 mod files;
 mod grab;
 mod history;

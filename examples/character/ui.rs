@@ -1,9 +1,10 @@
-//! The egui panels: the timeline along the bottom, the pose library and undo/redo on the
-//! right. Presses on a panel do not reach the character (bevy_egui's picking).
+//! The egui panels: the timeline along the bottom; undo/redo, the body settings (limits,
+//! mirror, planted feet) and the pose library on the right. Presses on a panel do not reach the character (bevy_egui's picking).
 
 use bevy::prelude::*;
 use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
 
+use crate::body::{BodyPanel, body_ui};
 use crate::history::HistoryCommand;
 use crate::library::{LibraryPanel, library_ui};
 use crate::timeline::{TimelinePanel, timeline_ui};
@@ -21,7 +22,7 @@ impl Plugin for UiPlugin {
 fn panels(
     mut contexts: EguiContexts,
     // The timeline reads the character, the library writes its pose: one at a time.
-    mut panels: ParamSet<(TimelinePanel, LibraryPanel)>,
+    mut panels: ParamSet<(TimelinePanel, LibraryPanel, BodyPanel)>,
     mut history: MessageWriter<HistoryCommand>,
 ) -> Result {
     let ctx = contexts.ctx_mut()?.clone();
@@ -46,6 +47,9 @@ fn panels(
                     history.write(HistoryCommand::Redo);
                 }
             });
+            ui.separator();
+            ui.heading("Body");
+            body_ui(ui, &mut panels.p2());
             ui.separator();
             ui.heading("Poses");
             library_ui(ui, &mut panels.p1());
