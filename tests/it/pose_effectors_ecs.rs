@@ -184,3 +184,62 @@ fn symmetric_editing_drives_the_mirror_joint_too() {
         "right wrist at {right}, mirror goal {mirrored_goal}"
     );
 }
+
+/// What the character's held pose was at the end of `Update` (before `PostUpdate`).
+#[derive(Resource, Default)]
+struct PoseAtEndOfUpdate(Option<bevy_wii_deform::pose::SkeletonPose>);
+
+/// In-frame mode: a joint handle moved in `Update` is solved in that frame's `PostUpdate`
+/// (after animation, before propagation): at the end of `Update` the held pose has not
+/// changed (no background solve landed), and when the frame ends the joint is at its target
+/// — one `app.update()` after the move, with manual time.
+#[test]
+fn an_in_frame_solve_is_on_the_joints_in_the_frame_its_target_moved() {
+    let rig = bar_rig(3, 12, 30);
+    let mut app = app();
+    app.init_resource::<PoseAtEndOfUpdate>().add_systems(
+        Update,
+        (|characters: Query<&PosedSkeleton>, mut seen: ResMut<PoseAtEndOfUpdate>| {
+            seen.0 = characters.iter().next().map(|p| p.pose.clone());
+        })
+        .after(PoseSystems::Timeline),
+    );
+    let (root, joints) = posed_rig(&mut app, &rig, |joints: &[Entity]| {
+        (
+            Poseable {
+                tolerance: 0.0,
+                ..default()
+            },
+            PinnedJoints(vec![joints[0]]),
+            PoseInFrame { iterations: 8 },
+        )
+    });
+    let tip = joints[2];
+    let at = joint_position(&app, tip);
+    let handle = app
+        .world_mut()
+        .spawn((
+            PoseJointHandle::new(root, tip),
+            Transform::from_translation(at),
+        ))
+        .id();
+    // Let the handle be placed and the set start (the first frames rebase it).
+    settle_pose(&mut app, root);
+    let before = joint_position(&app, tip);
+    let held = app.world().get::<PosedSkeleton>(root).unwrap().pose.clone();
+    let goal = before + Vec3::new(0.08, -0.02, 0.05);
+    app.world_mut()
+        .get_mut::<Transform>(handle)
+        .unwrap()
+        .translation = goal;
+    app.update();
+    let in_update = app.world().resource::<PoseAtEndOfUpdate>().0.clone();
+    assert_eq!(in_update.as_ref(), Some(&held), "a solve landed in Update");
+    let after = joint_position(&app, tip);
+    let share = (after - before).dot((goal - before).normalize()) / (goal - before).length();
+    assert!(
+        share > 0.9,
+        "the joint went {:.0} % of the way in the frame",
+        share * 100.0
+    );
+}

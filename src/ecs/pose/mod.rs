@@ -33,6 +33,7 @@
 mod apply;
 mod blend;
 mod constraints;
+mod in_frame;
 mod picking;
 mod plugin;
 mod poll;
@@ -82,6 +83,27 @@ impl Default for Poseable {
             clusters: 100,
             hold_pose: true,
         }
+    }
+}
+
+/// Solve this character inside the frame instead of in the background: the solve of a
+/// frame's targets runs in `PostUpdate` (in [`PoseSystems::Apply`], after animation and
+/// before transform propagation), so its pose is on the joints in the frame the targets moved
+/// — for gameplay-driven targets (a hand on a door, feet on stairs). At most `iterations`
+/// iterations a frame (warm-started from the last frame's); all in-frame characters of a
+/// frame are solved in parallel on Bevy's compute pool. Without it (editing), solves run in
+/// the background and land a frame or more later.
+#[derive(Component, Debug, Clone, Copy, PartialEq, Reflect)]
+#[reflect(Component)]
+pub struct PoseInFrame {
+    /// Iterations per frame (the frame's budget for this character).
+    pub iterations: u32,
+}
+
+impl Default for PoseInFrame {
+    /// 3 iterations a frame.
+    fn default() -> Self {
+        Self { iterations: 3 }
     }
 }
 

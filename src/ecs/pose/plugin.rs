@@ -17,12 +17,13 @@ use bevy::transform::TransformSystems;
 use super::apply::apply_poses;
 use super::blend::BlendMemory;
 use super::constraints::SetKey;
+use super::in_frame::solve_in_frame;
 use super::picking::{ignore_bind_pose_picking, pick_posed_characters};
 use super::poll::{poll_pose_solves, show_timelines};
 use super::prepare::{find_skins, finish_models};
 use super::request::request_pose_solves;
 use super::{
-    GrabAnchor, HandlePositionOnly, PinnedJoints, PoseBlend, PoseEffector, PoseFailed,
+    GrabAnchor, HandlePositionOnly, PinnedJoints, PoseBlend, PoseEffector, PoseFailed, PoseInFrame,
     PoseJointHandle, PoseSolved, PoseStatus, PoseStiffness, Poseable, PoseableError,
     SymmetricEditing,
 };
@@ -97,7 +98,13 @@ impl Plugin for PosePlugin {
                     show_timelines.in_set(PoseSystems::Timeline),
                 ),
             )
-            .add_systems(PostUpdate, apply_poses.in_set(PoseSystems::Apply))
+            .add_systems(
+                PostUpdate,
+                (solve_in_frame, apply_poses)
+                    .chain()
+                    .in_set(PoseSystems::Apply),
+            )
+            .register_type::<PoseInFrame>()
             // Posed characters are a picking backend (when bevy_picking is in the app).
             .add_message::<PointerHits>()
             .add_systems(
@@ -139,6 +146,8 @@ pub(crate) struct PoseState {
     /// Where the next solve starts when not from [`PosedSkeleton::pose`] (an additive layer
     /// solves from the pose on screen).
     pub(super) start: Option<SkeletonPose>,
+    /// An in-frame solve's outcome, until its message is written (`in_frame.rs`).
+    pub(super) in_frame_outcome: Option<Result<f64, PoseableError>>,
 }
 
 pub(super) fn fail(

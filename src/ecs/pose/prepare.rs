@@ -312,6 +312,7 @@ pub(super) fn find_skins(
             mirror: None,
             blend: Default::default(),
             start: None,
+            in_frame_outcome: None,
         });
     }
 }

@@ -14,8 +14,8 @@ use super::plugin::{PoseState, fail};
 use super::prepare::joint_transform;
 use super::{
     GrabAnchor, HandlePositionOnly, PinnedJoints, PoseBlend, PoseBlendMode, PoseEffector,
-    PoseFailed, PoseJointHandle, PoseLimits, PoseStatus, PoseStiffness, Poseable, PosedSkeleton,
-    SymmetricEditing,
+    PoseFailed, PoseInFrame, PoseJointHandle, PoseLimits, PoseStatus, PoseStiffness, Poseable,
+    PosedSkeleton, SymmetricEditing,
 };
 use crate::ecs::{DeformHandle, DeformPhase};
 use crate::pose::{
@@ -77,7 +77,7 @@ type JointTransforms<'w, 's> =
 
 /// What a solve request reads of a character.
 type RequestingCharacter = (
-    Entity,
+    (Entity, Has<PoseInFrame>),
     &'static Poseable,
     &'static mut PosedSkeleton,
     Option<Ref<'static, PinnedJoints>>,
@@ -341,7 +341,7 @@ pub(super) fn request_pose_solves(
     (position_only, effectors): (Query<(), With<HandlePositionOnly>>, Effectors),
     mut failed: MessageWriter<PoseFailed>,
 ) {
-    for (entity, poseable, mut posed, pins, anchor, extras, mut state, mut status) in
+    for ((entity, in_frame), poseable, mut posed, pins, anchor, extras, mut state, mut status) in
         &mut characters
     {
         let mut drivers = Drivers::of(
@@ -383,6 +383,9 @@ pub(super) fn request_pose_solves(
             };
         state.pending = Some(constraints);
         state.start = start;
+        if in_frame {
+            continue; // solved in `PostUpdate`, after animation (`in_frame.rs`)
+        }
         state.solve.supersede();
         if !state.solve.is_running() {
             spawn_pose_solve(state, &posed, poseable, &mut status);
