@@ -13,6 +13,9 @@
 //! `effectors_per_character`, `solver_ms_per_frame_median`, `solver_ms_per_frame_p95`,
 //! `ms_per_solve` (median wall time of one character's solve), `frames`.
 
+#[path = "../common/headless_gltf.rs"]
+mod headless_gltf;
+
 use std::time::{Duration, Instant};
 
 use bevy::app::AnimationSystems;
@@ -160,16 +163,7 @@ fn main() {
 
 /// Loads the whole file (no materials: nothing is drawn) and returns its first scene.
 fn load_scene(app: &mut App, file: &str) -> Handle<WorldAsset> {
-    let gltf: Handle<bevy::gltf::Gltf> = app
-        .world()
-        .resource::<AssetServer>()
-        .load_builder()
-        .with_settings(|s: &mut bevy::gltf::GltfLoaderSettings| {
-            s.load_materials = bevy::asset::RenderAssetUsages::empty();
-            s.load_cameras = false;
-            s.load_lights = false;
-        })
-        .load(file.to_string());
+    let gltf = headless_gltf::load_gltf_without_materials(app, file);
     let start = Instant::now();
     loop {
         app.update();
@@ -197,44 +191,32 @@ struct KeepLoaded(#[allow(dead_code)] Handle<bevy::gltf::Gltf>);
 /// A headless app that loads glTF scenes and poses characters, time stepped 16 ms a frame.
 fn headless_app(dir: &std::path::Path) -> App {
     let mut app = App::new();
-    app.add_plugins((
-        // Two threads for the compute pool on a two-core machine (Bevy's default gives it
-        // what IO and async compute leave: one): in-frame solves run on it, when those pools
-        // are idle.
-        MinimalPlugins.set(bevy::app::TaskPoolPlugin {
-            task_pool_options: bevy::app::TaskPoolOptions::with_num_threads(
-                bevy::tasks::available_parallelism().max(2) + 2,
-            ),
-        }),
-        bevy::asset::AssetPlugin {
-            file_path: dir.display().to_string(),
-            ..default()
-        },
-        bevy::mesh::MeshPlugin,
-        bevy::transform::TransformPlugin,
-        bevy::image::ImagePlugin::default(),
-        bevy::world_serialization::WorldSerializationPlugin,
-        bevy::animation::AnimationPlugin,
-        bevy::gltf::GltfPlugin::default(),
-        PosePlugin,
-    ))
-    .init_asset::<StandardMaterial>()
-    .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_millis(
-        16,
-    )))
-    .init_resource::<SolverClock>()
-    .add_systems(
-        PostUpdate,
-        (
-            start_clock
-                .after(AnimationSystems)
-                .before(PoseSystems::Apply),
-            stop_clock
-                .after(PoseSystems::Apply)
-                .before(TransformSystems::Propagate),
+    // Two threads for the compute pool on a two-core machine (Bevy's default gives it what IO
+    // and async compute leave: one): in-frame solves run on it, when those pools are idle.
+    app.add_plugins(MinimalPlugins.set(bevy::app::TaskPoolPlugin {
+        task_pool_options: bevy::app::TaskPoolOptions::with_num_threads(
+            bevy::tasks::available_parallelism().max(2) + 2,
         ),
-    )
-    .add_systems(Update, bob_targets.before(PoseSystems::Request));
+    }));
+    headless_gltf::add_gltf_plugins(&mut app, dir);
+    app.add_plugins(PosePlugin)
+        .init_asset::<StandardMaterial>()
+        .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_millis(
+            16,
+        )))
+        .init_resource::<SolverClock>()
+        .add_systems(
+            PostUpdate,
+            (
+                start_clock
+                    .after(AnimationSystems)
+                    .before(PoseSystems::Apply),
+                stop_clock
+                    .after(PoseSystems::Apply)
+                    .before(TransformSystems::Propagate),
+            ),
+        )
+        .add_systems(Update, bob_targets.before(PoseSystems::Request));
     app.finish();
     app.cleanup();
     app

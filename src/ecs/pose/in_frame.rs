@@ -8,13 +8,12 @@ use std::time::Instant;
 
 use bevy::prelude::*;
 
-use super::apply::additive_layer;
 use super::plugin::PoseState;
+use super::poll::store_landed;
 use super::{
-    PoseBlend, PoseBlendMode, PoseFailed, PoseInFrame, PoseSolved, PoseStatus, Poseable,
-    PoseableError, PosedSkeleton,
+    PoseBlend, PoseFailed, PoseInFrame, PoseSolved, PoseStatus, Poseable, PoseableError,
+    PosedSkeleton,
 };
-use crate::ecs::DeformPhase;
 use crate::pose::{
     PoseSolution, PoseSolveOptions, PoseSolver, PoseSolverSettings, PoseStart, SkeletonPose,
 };
@@ -44,17 +43,7 @@ pub(super) fn solve_in_frame(
             };
             state.in_frame_outcome = Some(match outcome {
                 Ok((solver, solution, ms)) => {
-                    let pose = match blend {
-                        Some(b) if b.mode == PoseBlendMode::Additive => {
-                            additive_layer(&posed, &state.blend, b, &solution.pose)
-                        }
-                        _ => solution.pose.clone(),
-                    };
-                    store(state, &mut status, &solution, ms);
-                    posed.pose = pose.clone();
-                    state.written = Some(pose);
-                    state.solver = Some(solver);
-                    state.last = Some(Arc::new(solution));
+                    store_landed(&mut posed, state, &mut status, blend, solver, solution, ms);
                     Ok(ms)
                 }
                 Err(error) => {
@@ -132,23 +121,4 @@ fn solve_pending(
         state.pending = Some(constraints);
     }
     Some(outcome)
-}
-
-/// The status after a solve landed.
-fn store(state: &PoseState, status: &mut PoseStatus, solution: &PoseSolution, ms: f64) {
-    status.iterations = solution.stats.iterations;
-    status.energy = solution
-        .stats
-        .energies
-        .last()
-        .copied()
-        .unwrap_or(solution.stats.initial_energy);
-    status.solve_ms = ms;
-    status.solves += 1;
-    status.error = None;
-    status.phase = if state.pending.is_some() {
-        DeformPhase::Solving
-    } else {
-        DeformPhase::Idle
-    };
 }

@@ -13,6 +13,7 @@ use super::{
     PosedSkeleton,
 };
 use crate::ecs::DeformPhase;
+use crate::pose::{PoseSolution, PoseSolver};
 
 /// What [`poll_pose_solves`] reads and writes of a character.
 type PolledCharacter = (
@@ -53,31 +54,7 @@ pub(super) fn poll_pose_solves(
                 if settling && state.pending.is_none() {
                     state.pending = state.running.take();
                 }
-                status.iterations = solution.stats.iterations;
-                status.energy = solution
-                    .stats
-                    .energies
-                    .last()
-                    .copied()
-                    .unwrap_or(solution.stats.initial_energy);
-                status.solve_ms = ms;
-                status.solves += 1;
-                status.error = None;
-                status.phase = if state.pending.is_some() {
-                    DeformPhase::Solving
-                } else {
-                    DeformPhase::Idle
-                };
-                let pose = match blend {
-                    Some(b) if b.mode == PoseBlendMode::Additive => {
-                        additive_layer(&posed, &state.blend, b, &solution.pose)
-                    }
-                    _ => solution.pose.clone(),
-                };
-                posed.pose = pose.clone();
-                state.written = Some(pose);
-                state.solver = Some(solver);
-                state.last = Some(Arc::new(solution));
+                store_landed(&mut posed, state, &mut status, blend, solver, solution, ms);
                 solved.write(PoseSolved {
                     entity,
                     iterations: status.iterations,
@@ -97,6 +74,44 @@ pub(super) fn poll_pose_solves(
             spawn_pose_solve(state, &posed, poseable, &mut status);
         }
     }
+}
+
+/// Stores a landed solve: the status, the pose (as the layer over the animation under an
+/// additive blend), and the solver and solution the next solve warm-starts from.
+pub(super) fn store_landed(
+    posed: &mut PosedSkeleton,
+    state: &mut PoseState,
+    status: &mut PoseStatus,
+    blend: Option<&PoseBlend>,
+    solver: Arc<PoseSolver>,
+    solution: PoseSolution,
+    ms: f64,
+) {
+    status.iterations = solution.stats.iterations;
+    status.energy = solution
+        .stats
+        .energies
+        .last()
+        .copied()
+        .unwrap_or(solution.stats.initial_energy);
+    status.solve_ms = ms;
+    status.solves += 1;
+    status.error = None;
+    status.phase = if state.pending.is_some() {
+        DeformPhase::Solving
+    } else {
+        DeformPhase::Idle
+    };
+    let pose = match blend {
+        Some(b) if b.mode == PoseBlendMode::Additive => {
+            additive_layer(posed, &state.blend, b, &solution.pose)
+        }
+        _ => solution.pose.clone(),
+    };
+    posed.pose = pose.clone();
+    state.written = Some(pose);
+    state.solver = Some(solver);
+    state.last = Some(Arc::new(solution));
 }
 
 /// Advances playing timelines; writes the pose of every timeline that changed.

@@ -2,6 +2,8 @@
 #![allow(dead_code)] // each test crate uses some of them
 
 pub mod bar;
+#[path = "../../../examples/common/headless_gltf.rs"]
+pub mod headless_gltf;
 pub mod shared;
 
 use bevy::asset::RenderAssetUsages;
@@ -267,21 +269,8 @@ pub fn character_app<M>(
     use bevy::time::TimeUpdateStrategy;
     use bevy_wii_deform::prelude::{Poseable, PosedSkeleton};
     let mut app = App::new();
-    app.add_plugins((
-        MinimalPlugins,
-        bevy::asset::AssetPlugin {
-            file_path: dir.display().to_string(),
-            // The saved clip is written to a temporary directory outside the asset folder.
-            unapproved_path_mode: bevy::asset::UnapprovedPathMode::Allow,
-            ..default()
-        },
-        bevy::mesh::MeshPlugin,
-        bevy::transform::TransformPlugin,
-        bevy::image::ImagePlugin::default(),
-        bevy::world_serialization::WorldSerializationPlugin,
-        bevy::animation::AnimationPlugin,
-        bevy::gltf::GltfPlugin::default(),
-    ));
+    app.add_plugins(MinimalPlugins);
+    headless_gltf::add_gltf_plugins(&mut app, dir);
     app.add_plugins(plugins);
     app.init_asset::<StandardMaterial>();
     // The glTF loader is registered in `Plugin::finish` (which `App::run` calls).
@@ -293,17 +282,7 @@ pub fn character_app<M>(
     // The whole file is loaded once and kept (its clips too): loading a part of it later
     // with other settings would load the file again and respawn the scene.
     let path = file;
-    let file: Handle<bevy::gltf::Gltf> = app
-        .world()
-        .resource::<AssetServer>()
-        .load_builder()
-        .with_settings(|s: &mut bevy::gltf::GltfLoaderSettings| {
-            // Materials (and so textures) are not needed to pose; no renderer here.
-            s.load_materials = bevy::asset::RenderAssetUsages::empty();
-            s.load_cameras = false;
-            s.load_lights = false;
-        })
-        .load(path.to_string());
+    let file = headless_gltf::load_gltf_without_materials(&app, path);
     let waiting = file.clone();
     update_until(&mut app, "the glTF file", move |a| {
         a.world()
