@@ -569,19 +569,8 @@ mod tests {
             return None;
         }
         let mut app = App::new();
-        app.add_plugins((
-            MinimalPlugins,
-            bevy::asset::AssetPlugin {
-                file_path: dir.display().to_string(),
-                ..default()
-            },
-            bevy::mesh::MeshPlugin,
-            bevy::transform::TransformPlugin,
-            bevy::image::ImagePlugin::default(),
-            bevy::world_serialization::WorldSerializationPlugin,
-            bevy::animation::AnimationPlugin,
-            bevy::gltf::GltfPlugin::default(),
-        ));
+        app.add_plugins(MinimalPlugins);
+        crate::headless_gltf::add_gltf_plugins(&mut app, &dir);
         app.init_asset::<StandardMaterial>()
             .register_type::<MeshMaterial3d<StandardMaterial>>();
         app.finish();
@@ -715,19 +704,9 @@ mod tests {
     fn broken_gltf_files_reach_the_status_line_and_the_app_runs_on() {
         let (dir, files) = crate::broken_gltf::write_files("sandbox_broken_gltf");
         let mut app = App::new();
-        app.add_plugins((
-            MinimalPlugins,
-            bevy::asset::AssetPlugin {
-                unapproved_path_mode: bevy::asset::UnapprovedPathMode::Allow,
-                ..default()
-            },
-            bevy::mesh::MeshPlugin,
-            bevy::transform::TransformPlugin,
-            bevy::image::ImagePlugin::default(),
-            bevy::world_serialization::WorldSerializationPlugin,
-            bevy::animation::AnimationPlugin,
-            bevy::gltf::GltfPlugin::default(),
-        ));
+        app.add_plugins(MinimalPlugins);
+        // The broken files are read by absolute path (unapproved paths allowed).
+        crate::headless_gltf::add_gltf_plugins(&mut app, std::path::Path::new("assets"));
         app.init_asset::<StandardMaterial>()
             .init_resource::<Model>()
             .init_resource::<StatusLine>()

@@ -37,6 +37,10 @@ mod broken_gltf;
 mod camera;
 mod challenge;
 mod files;
+#[cfg(test)]
+#[path = "../common/headless_gltf.rs"]
+#[allow(dead_code)] // the sandbox's tests use the plugins, not the loading helper
+mod headless_gltf;
 mod history;
 mod loading;
 #[path = "../common/models.rs"]
