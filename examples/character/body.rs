@@ -1,7 +1,9 @@
 //! The "Body" panel: the full-body settings a game developer toggles while posing — joint
 //! limits from the humanoid preset (`PoseLimits::Humanoid`), mirrored editing
 //! (`SymmetricEditing`: an effector on one side drives its mirror image), and the feet planted
-//! by position effectors (ankles free) instead of pinned rigidly.
+//! by position effectors (ankles free) instead of pinned rigidly. A right-click on the
+//! character plants the joint nearest the click (a position effector where it is: the joint
+//! stays, the bones around it turn freely); a right-click there again lifts it.
 
 use bevy::ecs::system::SystemParam;
 use bevy::prelude::*;
@@ -13,6 +15,86 @@ use crate::scene::{Character, feet};
 /// Marks the effectors that plant the feet (so the toggle can take them back).
 #[derive(Component)]
 pub struct PlantedFoot;
+
+/// Marks the effectors placed by a right-click.
+#[derive(Component)]
+pub struct PlacedEffector;
+
+/// Right-clicks on the character place and lift position effectors; they are drawn.
+pub struct EffectorPlacementPlugin;
+
+impl Plugin for EffectorPlacementPlugin {
+    fn build(&self, app: &mut App) {
+        app.add_observer(toggle_effector_on_right_click)
+            .add_systems(Update, show_effectors);
+    }
+}
+
+/// The joint of `posed` nearest to `point` (world space).
+fn nearest_joint(
+    posed: &PosedSkeleton,
+    joints: &Query<&GlobalTransform>,
+    point: Vec3,
+) -> Option<Entity> {
+    posed
+        .joints
+        .iter()
+        .filter_map(|&j| Some((j, joints.get(j).ok()?.translation().distance(point))))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(j, _)| j)
+}
+
+fn toggle_effector_on_right_click(
+    press: On<Pointer<Press>>,
+    mut commands: Commands,
+    character: Query<&PosedSkeleton, With<Character>>,
+    joints: Query<&GlobalTransform>,
+    placed: Query<(Entity, &PoseEffector), With<PlacedEffector>>,
+) {
+    if press.button != PointerButton::Secondary {
+        return;
+    }
+    let target = press.entity;
+    let (Ok(posed), Some(point)) = (character.get(target), press.hit.position) else {
+        return;
+    };
+    let Some(joint) = nearest_joint(posed, &joints, point) else {
+        return;
+    };
+    if let Some((existing, _)) = placed.iter().find(|(_, e)| e.joint == joint) {
+        commands.entity(existing).despawn();
+        return;
+    }
+    let at = joints
+        .get(joint)
+        .map(GlobalTransform::translation)
+        .unwrap_or(point);
+    commands.spawn((
+        PoseEffector::position(target, joint),
+        Transform::from_translation(at),
+        PlacedEffector,
+        Name::new("placed effector"),
+    ));
+}
+
+/// Every effector as a small cyan ring at its target.
+fn show_effectors(
+    mut gizmos: Gizmos,
+    effectors: Query<&GlobalTransform, With<PoseEffector>>,
+    character: Query<&PosedSkeleton, With<Character>>,
+) {
+    let Some(posed) = character.iter().next() else {
+        return;
+    };
+    let size = posed.model.topology().bounding_diagonal() as f32;
+    for at in &effectors {
+        gizmos.sphere(
+            Isometry3d::from_translation(at.translation()),
+            0.012 * size,
+            Color::srgb(0.2, 0.9, 1.0),
+        );
+    }
+}
 
 /// What the panel reads of the character: its skeleton and which settings it has.
 type CharacterBody = (
@@ -107,6 +189,48 @@ fn plant_feet(
 mod tests {
     use super::*;
     use bevy::ecs::system::RunSystemOnce;
+
+    /// A right-click picks the joint nearest the clicked point.
+    #[test]
+    fn the_nearest_joint_to_a_click_is_picked() {
+        use bevy_wii_deform::pose::synth_rig::bar_rig;
+        use bevy_wii_deform::pose::{ModelSettings, SkinnedModel};
+        let rig = bar_rig(3, 8, 12);
+        let model = SkinnedModel::new(
+            rig.skeleton.clone(),
+            &rig.mesh,
+            &rig.rest,
+            ModelSettings::default(),
+        )
+        .unwrap();
+        let mut world = World::new();
+        let joints: Vec<Entity> = rig
+            .skeleton
+            .global_transforms(&rig.rest)
+            .iter()
+            .map(|g| {
+                let at = g.translation.as_vec3();
+                world.spawn(GlobalTransform::from_translation(at)).id()
+            })
+            .collect();
+        let posed = PosedSkeleton {
+            model: std::sync::Arc::new(model),
+            joints: joints.clone(),
+            primitives: Vec::new(),
+            pose: rig.rest.clone(),
+        };
+        let near_last = world
+            .get::<GlobalTransform>(joints[2])
+            .unwrap()
+            .translation()
+            + Vec3::new(0.01, -0.02, 0.0);
+        let picked = world
+            .run_system_once(move |transforms: Query<&GlobalTransform>| {
+                nearest_joint(&posed, &transforms, near_last)
+            })
+            .unwrap();
+        assert_eq!(picked, Some(joints[2]));
+    }
 
     /// Planting replaces the pins by one position effector per foot, at the foot.
     #[test]

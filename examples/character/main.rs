@@ -14,7 +14,8 @@
 //!   cubic), import one of the model's own clips, export the clip to `poses/clip.glb`.
 //! * **Body** (right panel): joint limits from the humanoid preset, mirrored edits (an
 //!   effector on one side drives its mirror image) and feet planted by position effectors
-//!   (ankles free) instead of pinned.
+//!   (ankles free) instead of pinned. **Right-click** on the character plants the joint nearest
+//!   the click (a position effector; right-click again to lift it).
 //! * **Poses** (right panel): the pose library in `poses/library/`: apply, apply mirrored,
 //!   blend two, save the current pose by name. **Ctrl+Z / Ctrl+Y**: undo / redo.
 //! * **`--author-demo OUT.glb`**: poses the character by three scripted grabs, keys them at
@@ -138,6 +139,7 @@ fn main() {
     .add_plugins((
         scene::ScenePlugin,
         grab::CharacterGrabPlugin,
+        body::EffectorPlacementPlugin,
         files::PoseFilesPlugin,
         timeline::TimelinePlugin,
         history::UndoPlugin,
