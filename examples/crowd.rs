@@ -104,14 +104,13 @@ fn plant_feet(
     joints: Query<&GlobalTransform>,
 ) {
     for (fox, posed) in &foxes {
-        let size = posed.model.topology().bounding_diagonal() as f32;
-        let at: Vec<(Entity, Vec3)> = posed
-            .joints
-            .iter()
-            .filter_map(|&j| Some((j, joints.get(j).ok()?.translation())))
+        let feet: Vec<(Entity, Vec3)> = posed
+            .lowest_joints(0.04)
+            .into_iter()
+            .filter_map(|j| Some((j, joints.get(j).ok()?.translation())))
             .collect();
-        let lowest = at.iter().map(|(_, p)| p.y).fold(f32::MAX, f32::min);
-        for (joint, p) in at.into_iter().filter(|(_, p)| p.y <= lowest + 0.04 * size) {
+        let lowest = feet.iter().map(|(_, p)| p.y).fold(f32::MAX, f32::min);
+        for (joint, p) in feet {
             commands.spawn((
                 PoseEffector::position(fox, joint),
                 Transform::from_translation(p),

@@ -247,16 +247,12 @@ fn plant_feet(app: &mut App, roots: &[Entity]) -> usize {
     for (k, &root) in roots.iter().enumerate() {
         let posed = app.world().get::<PosedSkeleton>(root).unwrap().clone();
         let size = posed.model.topology().bounding_diagonal() as f32;
-        let at: Vec<(Entity, Vec3)> = posed
-            .joints
-            .iter()
-            .map(|&j| {
-                let t = app.world().get::<GlobalTransform>(j).unwrap().translation();
-                (j, t)
-            })
-            .collect();
-        let lowest = at.iter().map(|(_, p)| p.y).fold(f32::MAX, f32::min);
-        for (joint, p) in at.into_iter().filter(|(_, p)| p.y <= lowest + 0.04 * size) {
+        for joint in posed.lowest_joints(0.04) {
+            let p = app
+                .world()
+                .get::<GlobalTransform>(joint)
+                .unwrap()
+                .translation();
             app.world_mut().spawn((
                 PoseEffector::position(root, joint),
                 Transform::from_translation(p),

@@ -91,23 +91,9 @@ fn frame_camera(
 }
 
 /// The joints the character stands on: every joint within 4 % of its size above the lowest
-/// one (a biped's feet; a quadruped's feet *and* front paws — the Fox's front paws are
-/// "Hand" joints, so names would not do).
+/// one (`PosedSkeleton::lowest_joints`).
 pub fn feet(posed: &PosedSkeleton) -> Vec<Entity> {
-    let skeleton = posed.model.skeleton();
-    let heights: Vec<f64> = skeleton
-        .global_transforms(&posed.pose)
-        .iter()
-        .map(|t| t.translation.y)
-        .collect();
-    let lowest = heights.iter().copied().fold(f64::MAX, f64::min);
-    let size = posed.model.topology().bounding_diagonal();
-    heights
-        .iter()
-        .zip(&posed.joints)
-        .filter(|(h, _)| **h <= lowest + 0.04 * size)
-        .map(|(_, &e)| e)
-        .collect()
+    posed.lowest_joints(0.04)
 }
 
 /// A character whose skeleton was just prepared.

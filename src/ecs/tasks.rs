@@ -49,10 +49,16 @@ impl<T: Send + 'static> LatestTask<T> {
 
     /// The finished solve's output, once (`None` while running or idle).
     pub(crate) fn poll(&mut self) -> Option<T> {
-        let out = check_ready(self.task.as_mut()?)?;
-        self.task = None;
-        Some(out)
+        poll_slot(&mut self.task)
     }
+}
+
+/// The output of the task in `slot` once it has finished, emptying the slot (`None` while it
+/// runs or when there is none).
+pub(crate) fn poll_slot<T>(slot: &mut Option<Task<T>>) -> Option<T> {
+    let out = check_ready(slot.as_mut()?)?;
+    *slot = None;
+    Some(out)
 }
 
 /// Handed to a background solve: asks whether a newer request superseded it.

@@ -374,6 +374,27 @@ impl PosedSkeleton {
             .collect()
     }
 
+    /// The joints within `within` × the character's size (its bounding diagonal) above its
+    /// lowest joint in the held pose: what it stands on (a biped's feet; a quadruped's feet
+    /// *and* front paws — the Fox's front paws are "Hand" joints, so names would not do).
+    pub fn lowest_joints(&self, within: f64) -> Vec<Entity> {
+        let heights: Vec<f64> = self
+            .model
+            .skeleton()
+            .global_transforms(&self.pose)
+            .iter()
+            .map(|t| t.translation.y)
+            .collect();
+        let lowest = heights.iter().copied().fold(f64::MAX, f64::min);
+        let size = self.model.topology().bounding_diagonal();
+        heights
+            .iter()
+            .zip(&self.joints)
+            .filter(|(h, _)| **h <= lowest + within * size)
+            .map(|(_, &e)| e)
+            .collect()
+    }
+
     /// The current pose as a [`PoseFile`] (joint name → local transform).
     pub fn pose_file(&self) -> PoseFile {
         PoseFile::from_pose(self.model.skeleton(), &self.pose)

@@ -8,9 +8,8 @@ use bevy::mesh::VertexAttributeValues;
 use bevy::mesh::skinning::{SkinnedMesh as BevySkin, SkinnedMeshInverseBindposes};
 use bevy::prelude::*;
 
-use crate::ecs::tasks::LatestTask;
+use crate::ecs::tasks::{LatestTask, poll_slot};
 use bevy::tasks::AsyncComputeTaskPool;
-use bevy::tasks::futures::check_ready;
 use bevy::world_serialization::WorldAssetRoot;
 use glam::DAffine3;
 
@@ -325,13 +324,9 @@ pub(super) fn finish_models(
     mut failed: MessageWriter<PoseFailed>,
 ) {
     for (entity, mut state, mut status) in &mut building {
-        let Some(task) = state.building.as_mut() else {
+        let Some(result) = poll_slot(&mut state.building) else {
             continue;
         };
-        let Some(result) = check_ready(task) else {
-            continue;
-        };
-        state.building = None;
         match result {
             Ok(model) => {
                 let pose = SkeletonPose {

@@ -2,6 +2,7 @@
 //! precomputing topology in the background, rest poses and regions of interest.
 
 use super::*;
+use crate::ecs::tasks::poll_slot;
 
 /// What the background preparation of a deformable needs from its mesh.
 struct MeshInput {
@@ -150,13 +151,9 @@ pub(super) fn prepare_deformables(
     }
     for (entity, mut state, mut status) in &mut building {
         let state = state.bypass_change_detection();
-        let Some(task) = state.building.as_mut() else {
+        let Some(result) = poll_slot(&mut state.building) else {
             continue;
         };
-        let Some(result) = check_ready(task) else {
-            continue;
-        };
-        state.building = None;
         match result {
             Ok(rest) => {
                 status.vertices = rest.topology.vertex_count();
