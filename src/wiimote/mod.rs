@@ -52,8 +52,8 @@ pub use motion::{
 };
 pub use rng::Rng;
 pub use session::{
-    ExtensionState, MotionPlusState, OrientationSample, RemoteInfo, RemoteKind, Session,
-    SessionConfig, SessionError, SessionEvent,
+    ExtensionState, MotionPlusState, OrientationSample, RemoteInfo, RemoteKind, SampleClock,
+    Session, SessionConfig, SessionError, SessionEvent,
 };
 #[cfg(feature = "hidapi")]
 pub use transport::{DeviceInfo, HidTransport, discover};

@@ -12,7 +12,10 @@ use glam::{DQuat, DVec3};
 
 mod commands;
 mod connect;
+mod sample_clock;
 mod stream;
+
+pub use sample_clock::SampleClock;
 
 use super::filter::{Calibration, FilterKind, ImuSample, OrientationFilter};
 use super::ir::{
@@ -234,9 +237,9 @@ pub struct Session<T: Transport> {
     kind: RemoteKind,
     discard_frames: u32,
     last_buttons: Buttons,
-    last_sample_us: Option<u64>,
-    last_gyro_us: Option<u64>,
-    dt_avg: f64,
+    sample_clock: sample_clock::SampleClock,
+    last_sample_s: Option<f64>,
+    last_gyro_s: Option<f64>,
     last_mp_frame_us: u64,
     last_battery_us: u64,
     next_mp_probe_us: u64,
@@ -274,9 +277,9 @@ impl<T: Transport> Session<T> {
             kind: RemoteKind::Original,
             discard_frames: 0,
             last_buttons: Buttons(0),
-            last_sample_us: None,
-            last_gyro_us: None,
-            dt_avg: 0.01,
+            sample_clock: sample_clock::SampleClock::default(),
+            last_sample_s: None,
+            last_gyro_s: None,
             last_mp_frame_us: 0,
             last_battery_us: 0,
             next_mp_probe_us: 0,

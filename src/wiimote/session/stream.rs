@@ -163,30 +163,25 @@ impl<T: Transport> Session<T> {
             }
         }
         let Some(accel_g) = accel else { return };
-        // dt from host timestamps: averaged against jitter, raw across drops, 0 after gaps.
-        // With pass-through frames the gyro updates every other report: its dt spans both.
-        let prev = if gyro.is_some() {
-            self.last_gyro_us.or(self.last_sample_us)
+        // dt between estimated sample times (bursts and jitter cost nothing, a lost report is
+        // made up; 0 after a dropout). With pass-through frames the gyro updates every other
+        // report: its dt spans both.
+        let sampled = self.sample_clock.sample_time(now);
+        let since = if gyro.is_some() {
+            self.last_gyro_s.or(self.last_sample_s)
         } else {
-            self.last_sample_us
+            self.last_sample_s
         };
-        let dt = match prev {
-            None => 0.0,
-            Some(prev) => {
-                let raw = now.saturating_sub(prev) as f64 * 1e-6;
-                if raw > 0.1 {
-                    0.0
-                } else if (raw - self.dt_avg).abs() > 0.005 {
-                    raw.clamp(0.002, 0.05)
-                } else {
-                    self.dt_avg += 0.05 * (raw - self.dt_avg);
-                    self.dt_avg.clamp(0.002, 0.05)
-                }
-            }
+        let dt = match (sampled, since) {
+            (Some(t), Some(since)) => (t - since).clamp(0.0, 0.1),
+            _ => 0.0,
         };
-        self.last_sample_us = Some(now);
+        if sampled.is_none() {
+            self.last_gyro_s = None;
+        }
+        self.last_sample_s = sampled;
         if gyro.is_some() {
-            self.last_gyro_us = Some(now);
+            self.last_gyro_s = sampled;
         }
         let sample = ImuSample {
             timestamp_us: now,
