@@ -1,6 +1,7 @@
 //! Rigged characters as converters export them: a humanoid whose mesh is split over three
 //! mesh nodes (body, head, legs) sharing one skin, its origin at the hips (as FBX conversions
-//! often come out), written as a glTF file and loaded through Bevy's own glTF loader.
+//! often come out), and one bound with a non-uniform scale under a ×100 armature, each
+//! written as a glTF file and loaded through Bevy's own glTF loader.
 
 use bevy::prelude::*;
 use bevy_wii_deform::deform::glb_container;
@@ -93,17 +94,18 @@ fn smooth_normals(positions: &[[f32; 3]], indices: &[u32]) -> Vec<glam::Vec3> {
         .collect()
 }
 
-/// One part as a glTF mesh (positions moved by −`hips`), and its vertex count.
+/// One part (`vertices` of `mesh` and its local triangles) as a glTF mesh named `name`, each
+/// bind position written as `place` gives it, and its vertex count.
 fn part_mesh(
     buffers: &mut GlbBuffers,
     mesh: &bevy_wii_deform::pose::SkinnedMesh,
-    part: usize,
-    hips: DVec3,
+    (vertices, indices): (Vec<usize>, Vec<u32>),
+    name: &str,
+    place: &dyn Fn(DVec3) -> DVec3,
 ) -> (serde_json::Value, usize) {
-    let (vertices, indices) = part_triangles(mesh, part);
     let positions: Vec<[f32; 3]> = vertices
         .iter()
-        .map(|&v| (mesh.positions[v].as_dvec3() - hips).as_vec3().to_array())
+        .map(|&v| place(mesh.positions[v].as_dvec3()).as_vec3().to_array())
         .collect();
     let (lo, hi) = positions
         .iter()
@@ -142,7 +144,7 @@ fn part_mesh(
         indices.iter().flat_map(|i| i.to_le_bytes()).collect(),
         json!({"componentType": 5125, "count": indices.len(), "type": "SCALAR"}),
     );
-    let json = json!({"name": PARTS[part], "primitives": [{
+    let json = json!({"name": name, "primitives": [{
         "attributes": {"POSITION": position, "NORMAL": normal, "JOINTS_0": joints, "WEIGHTS_0": weights},
         "indices": index,
     }]});
@@ -179,7 +181,10 @@ fn three_node_glb(rig: &SyntheticRig) -> (Vec<u8>, [usize; 3]) {
     let mut meshes = Vec::new();
     let mut counts = [0usize; 3];
     for (part, count) in counts.iter_mut().enumerate() {
-        let (mesh, n) = part_mesh(&mut buffers, &rig.mesh, part, hips);
+        let triangles = part_triangles(&rig.mesh, part);
+        let (mesh, n) = part_mesh(&mut buffers, &rig.mesh, triangles, PARTS[part], &|p| {
+            p - hips
+        });
         meshes.push(mesh);
         *count = n;
     }
@@ -313,4 +318,237 @@ fn a_character_of_several_mesh_nodes_poses_as_one() {
     }
     assert!(seams > 10, "the parts share seam vertices ({seams})");
     assert!(worst_gap < 1e-5, "a seam opened by {worst_gap}");
+}
+
+/// The scale of the armature node of [`converted_glb`] (joint translations are divided by it).
+const ARMATURE_SCALE: f64 = 100.0;
+
+/// The skinned mesh node's scale in [`converted_glb`]: not uniform.
+const MESH_NODE_SCALE: DVec3 = DVec3::new(1.2, 1.0, 1.0);
+
+/// Writes `rig` as an FBX converter does: the joints under an "Armature" node scaled ×100
+/// (their translations in hundredths), the skinned mesh node scaled (1.2, 1, 1) with its
+/// vertices in its own frame, and that node's bind folded into the inverse bind matrices —
+/// so the mesh is drawn where the rig's bind positions are, but every skin matrix carries
+/// the armature's scale and the node's non-uniform one. Returns the file and, per vertex, the
+/// position written (the mesh node's frame) and the inverse bind matrices.
+fn converted_glb(rig: &SyntheticRig) -> (Vec<u8>, Vec<DVec3>, Vec<glam::DAffine3>) {
+    use glam::DAffine3;
+    let node = DAffine3::from_scale(MESH_NODE_SCALE);
+    let to_node = node.inverse();
+    let mut buffers = GlbBuffers::default();
+    let vertices: Vec<usize> = (0..rig.mesh.positions.len()).collect();
+    let (mesh, _) = part_mesh(
+        &mut buffers,
+        &rig.mesh,
+        (vertices, rig.mesh.indices.clone()),
+        "Body",
+        &|p| to_node.transform_point3(p),
+    );
+    let written = rig
+        .mesh
+        .positions
+        .iter()
+        .map(|p| to_node.transform_point3(p.as_dvec3()))
+        .collect();
+    let joints = rig.skeleton.joints();
+    let unscale = DAffine3::from_scale(DVec3::splat(1.0 / ARMATURE_SCALE));
+    let inverse_binds: Vec<DAffine3> = joints
+        .iter()
+        .map(|j| unscale * j.inverse_bind * node)
+        .collect();
+    let ibm = buffers.push(
+        inverse_binds
+            .iter()
+            .flat_map(|m| glam::Mat4::from(m.as_affine3a()).to_cols_array())
+            .flat_map(|f| f.to_le_bytes())
+            .collect(),
+        json!({"componentType": 5126, "count": joints.len(), "type": "MAT4"}),
+    );
+    let mut nodes: Vec<serde_json::Value> = joints
+        .iter()
+        .enumerate()
+        .map(|(j, joint)| {
+            let local = rig.rest.local[j];
+            let mut n = json!({
+                "name": joint.name,
+                "translation": (local.translation / ARMATURE_SCALE).as_vec3().to_array(),
+                "rotation": local.rotation.as_quat().to_array(),
+            });
+            let children = rig.skeleton.children(j);
+            if !children.is_empty() {
+                n["children"] = json!(children);
+            }
+            n
+        })
+        .collect();
+    let body = nodes.len();
+    nodes.push(json!({"name": "Body", "mesh": 0, "skin": 0, "scale": MESH_NODE_SCALE.as_vec3().to_array()}));
+    nodes.push(json!({"name": "Armature", "scale": [ARMATURE_SCALE, ARMATURE_SCALE, ARMATURE_SCALE], "children": [0]}));
+    nodes.push(json!({"name": "Character", "children": [body + 1, body]}));
+    let document = json!({
+        "asset": {"version": "2.0", "generator": "bevy_wii_deform tests (FBX-converter layout)"},
+        "scene": 0,
+        "scenes": [{"nodes": [body + 2]}],
+        "nodes": nodes,
+        "meshes": [mesh],
+        "skins": [{"joints": (0..joints.len()).collect::<Vec<_>>(), "inverseBindMatrices": ibm, "skeleton": 0}],
+        "accessors": buffers.accessors,
+        "bufferViews": buffers.views,
+        "buffers": [{"byteLength": buffers.bin.len()}],
+    });
+    let glb = glb_container(serde_json::to_vec(&document).unwrap(), buffers.bin);
+    (glb, written, inverse_binds)
+}
+
+/// Where Bevy draws each vertex: the linear blend of its joints' `GlobalTransform` × inverse
+/// bind matrix applied to the position written in the file (the mesh node's own transform
+/// does not take part, as glTF specifies).
+fn drawn_by_bevy(
+    app: &App,
+    posed: &PosedSkeleton,
+    rig: &SyntheticRig,
+    written: &[DVec3],
+    inverse_binds: &[glam::DAffine3],
+) -> Vec<DVec3> {
+    let skeleton = posed.model.skeleton();
+    // The rig's joint k is the file's joint k; the model sorts joints: map by name.
+    let entity_of: Vec<Entity> = rig
+        .skeleton
+        .joints()
+        .iter()
+        .map(|j| posed.joints[skeleton.find(&j.name).expect("a joint of the rig")])
+        .collect();
+    let skin: Vec<glam::DAffine3> = entity_of
+        .iter()
+        .zip(inverse_binds)
+        .map(|(&e, ibm)| {
+            let g = app.world().get::<GlobalTransform>(e).unwrap().affine();
+            let g = glam::DAffine3::from_mat4(glam::Mat4::from(g).as_dmat4());
+            g * *ibm
+        })
+        .collect();
+    written
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| {
+            let (ji, w) = (rig.mesh.joint_indices[i], rig.mesh.joint_weights[i]);
+            (0..4)
+                .map(|k| skin[ji[k] as usize].transform_point3(v) * f64::from(w[k]))
+                .sum()
+        })
+        .collect()
+}
+
+/// Issue 30's converter rig: a skin bound with a non-uniform scale (the skinned mesh node at
+/// (1.2, 1, 1) under a ×100 armature, as FBX files come out of common converters) is drawn
+/// where the rig's bind is, poses where Bevy draws it (within 1e-4 of the size), keeps its
+/// bones rigid (lengths within 1e-4 of the size, every joint's skin matrix a rotation times
+/// the node's bind) and meets a reachable drag with its feet pinned.
+#[test]
+fn a_skin_bound_with_a_non_uniform_scale_poses_rigidly() {
+    let rig = mannequin_rig(12);
+    let (glb, written, inverse_binds) = converted_glb(&rig);
+    let dir = std::env::temp_dir().join(format!("character_converted_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("converted.glb"), glb).unwrap();
+    let (mut app, root) = common::character_app(&dir, "converted.glb", PosePlugin);
+    let posed = app.world().get::<PosedSkeleton>(root).unwrap().clone();
+    let size = posed.model.topology().bounding_diagonal();
+    let model_drawn = |app: &App| -> Vec<DVec3> {
+        let p = app.world().get::<PosedSkeleton>(root).unwrap();
+        p.skinned_positions().iter().map(|v| v.as_dvec3()).collect()
+    };
+    let worst = |a: &[DVec3], b: &[DVec3]| {
+        a.iter()
+            .zip(b)
+            .map(|(x, y)| x.distance(*y))
+            .fold(0.0, f64::max)
+    };
+    // The file really is bound with the node's scale: its vertices are not the rig's…
+    let bind: Vec<DVec3> = rig.mesh.positions.iter().map(|p| p.as_dvec3()).collect();
+    assert!(worst(&written, &bind) > 0.02 * size);
+    // …but Bevy draws them there, and so does the model.
+    let bevy = drawn_by_bevy(&app, &posed, &rig, &written, &inverse_binds);
+    assert!(worst(&bevy, &bind) < 1e-4 * size, "{}", worst(&bevy, &bind));
+    assert_eq!(model_drawn(&app).len(), bind.len());
+    assert!(worst(&model_drawn(&app), &bevy) < 1e-4 * size);
+    let skeleton = posed.model.skeleton();
+    let joint = |name: &str| posed.joints[skeleton.find(name).expect(name)];
+    let world_of =
+        |app: &App, e: Entity| app.world().get::<GlobalTransform>(e).unwrap().translation();
+    let bones = |app: &App| -> Vec<f64> {
+        (0..skeleton.len())
+            .filter_map(|j| {
+                let p = skeleton.joints()[j].parent?;
+                let d = world_of(app, posed.joints[j]).distance(world_of(app, posed.joints[p]));
+                Some(f64::from(d))
+            })
+            .collect()
+    };
+    let bones_before = bones(&app);
+    let feet = vec![joint("ankle_l"), joint("ankle_r")];
+    app.world_mut()
+        .entity_mut(root)
+        .insert(PinnedJoints(feet.clone()));
+    let feet_before: Vec<Vec3> = feet.iter().map(|&f| world_of(&app, f)).collect();
+    let top = bind.iter().map(|p| p.y).fold(f64::MIN, f64::max);
+    let head: Vec<u32> = (0..bind.len() as u32)
+        .filter(|&i| bind[i as usize].y > top - 0.1)
+        .collect();
+    let (handle, pivot) = spawn_handle(&mut app, root, head.clone(), ());
+    let shift = Vec3::new(0.12, -0.05, 0.0);
+    app.world_mut()
+        .get_mut::<Transform>(handle)
+        .unwrap()
+        .translation = pivot + shift;
+    drive_solves(&mut app, root, handle, 20);
+    settle_pose(&mut app, root);
+    // Posed where Bevy draws it.
+    let now = model_drawn(&app);
+    let bevy_now = drawn_by_bevy(&app, &posed, &rig, &written, &inverse_binds);
+    assert!(
+        worst(&now, &bevy_now) < 1e-4 * size,
+        "the model and Bevy disagree by {} (size {size})",
+        worst(&now, &bevy_now)
+    );
+    // The drag is met, the feet stay.
+    let moved = head
+        .iter()
+        .map(|&i| now[i as usize] - bind[i as usize])
+        .sum::<DVec3>()
+        / head.len() as f64;
+    let shift_d = shift.as_dvec3();
+    assert!(shift_d.length() > 0.1);
+    assert!(
+        moved.distance(shift_d) < 0.1 * shift_d.length(),
+        "the head moved {moved}, the drag was {shift}"
+    );
+    for (f, before) in feet.iter().zip(&feet_before) {
+        let d = f64::from(world_of(&app, *f).distance(*before));
+        assert!(d < 1e-3 * size, "a pinned foot moved {d} (size {size})");
+    }
+    // Rigid bones: lengths kept, and each joint's skin matrix is a rotation (and the
+    // translation) applied to the node's bind — no shear from the non-uniform scale.
+    for (a, b) in bones(&app).iter().zip(&bones_before) {
+        assert!((a - b).abs() < 1e-4 * size, "a bone went from {b} to {a}");
+    }
+    let node = glam::DAffine3::from_scale(MESH_NODE_SCALE);
+    for (k, j) in rig.skeleton.joints().iter().enumerate() {
+        let e = posed.joints[skeleton.find(&j.name).unwrap()];
+        let g = app.world().get::<GlobalTransform>(e).unwrap().affine();
+        let g = glam::DAffine3::from_mat4(glam::Mat4::from(g).as_dmat4());
+        let motion = (g * inverse_binds[k] * node.inverse()).matrix3;
+        let off = (motion.transpose() * motion - glam::DMat3::IDENTITY)
+            .to_cols_array()
+            .iter()
+            .fold(0.0f64, |m, x| m.max(x.abs()));
+        assert!(
+            off < 1e-4,
+            "joint {} moves its skin non-rigidly ({off})",
+            j.name
+        );
+    }
+    // The pose is not trivially the rest: something turned.
+    assert!(worst(&now, &bind) > 0.05 * size);
 }
