@@ -17,6 +17,7 @@ use std::collections::HashMap;
 use glam::{DAffine3, DMat3, DVec3};
 
 use super::effectors::{Effector, EffectorGoal};
+use crate::deform::RigidTransform;
 
 use super::humanoid::{Side, split_name};
 use super::skeleton::rotation_of;
@@ -103,9 +104,7 @@ impl Mirror {
         if partner == effector.joint {
             return None;
         }
-        let to_frame = frame.inverse();
-        let reflect_point =
-            |p: DVec3| frame.transform_point3(self.reflection * to_frame.transform_point3(p));
+        let reflect_point = |p: DVec3| self.reflect_point(p, frame);
         let frame_rotation = DMat3::from_quat(rotation_of(&frame.matrix3));
         let c = self.correction[partner];
         let goal = match effector.goal {
@@ -132,6 +131,51 @@ impl Mirror {
             goal,
             weight: effector.weight,
         })
+    }
+
+    /// The vertices mirroring `vertices`: for each, the one of `positions` (the welded
+    /// vertices where the character is symmetric, usually skinned in the bind pose, world
+    /// space) nearest to its reflection across the plane of `frame` (world ← character).
+    /// Sorted, without repeats; `None` when the mirrored set meets the original (a set on the
+    /// plane, the head say, mirrors onto itself) or an index is out of range.
+    pub fn mirror_vertices(
+        &self,
+        positions: &[DVec3],
+        vertices: &[u32],
+        frame: &DAffine3,
+    ) -> Option<Vec<u32>> {
+        let mut out = Vec::with_capacity(vertices.len());
+        for &v in vertices {
+            let at = self.reflect_point(*positions.get(v as usize)?, frame);
+            let nearest = positions
+                .iter()
+                .enumerate()
+                .map(|(i, p)| (i, p.distance_squared(at)))
+                .min_by(|a, b| a.1.total_cmp(&b.1))?
+                .0;
+            out.push(nearest as u32);
+        }
+        out.sort_unstable();
+        out.dedup();
+        let meets = out.iter().any(|v| vertices.contains(v));
+        (!meets).then_some(out)
+    }
+
+    /// `point` (world) reflected across the plane of `frame` (world ← character).
+    pub fn reflect_point(&self, point: DVec3, frame: &DAffine3) -> DVec3 {
+        frame.transform_point3(self.reflection * frame.inverse().transform_point3(point))
+    }
+
+    /// The rigid motion (world) that mirrors `motion` across the plane of `frame`: the
+    /// pivot reflected, the translation and the rotation conjugated by the reflection.
+    pub fn mirror_motion(&self, motion: &RigidTransform, frame: &DAffine3) -> RigidTransform {
+        let f = DMat3::from_quat(rotation_of(&frame.matrix3));
+        let m = f * self.reflection * f.transpose();
+        RigidTransform {
+            rotation: rotation_of(&(m * DMat3::from_quat(motion.rotation) * m)),
+            translation: m * motion.translation,
+            pivot: self.reflect_point(motion.pivot, frame),
+        }
     }
 
     /// Each joint's partner (itself when unpaired).

@@ -381,6 +381,53 @@ fn projection_keeps_swing_and_twist_inside_an_elliptic_cone() {
     );
 }
 
+/// A grab's mirror image: mirroring a motion twice gives it back, the mirrored motion moves
+/// reflected points to the reflected targets (in a character frame turned and moved in the
+/// world), and a vertex set maps onto the vertices nearest to its reflection, except for a
+/// set that meets its own mirror image.
+#[test]
+fn a_grab_mirrors_onto_the_vertices_and_motion_of_the_other_side() {
+    use glam::DAffine3;
+    let rig = mannequin_rig(10);
+    let mirror = Mirror::new(&rig.skeleton, &rig.rest);
+    let frame = DAffine3::from_rotation_translation(
+        DQuat::from_rotation_y(0.8),
+        DVec3::new(2.0, 0.0, -1.0),
+    );
+    let motion = RigidTransform::new(
+        DQuat::from_axis_angle(DVec3::new(0.3, 1.0, -0.2).normalize(), 0.9),
+        DVec3::new(0.2, 0.1, -0.3),
+        frame.transform_point3(DVec3::new(0.5, 1.0, 0.1)),
+    );
+    let mirrored = mirror.mirror_motion(&motion, &frame);
+    let twice = mirror.mirror_motion(&mirrored, &frame);
+    assert!(twice.rotation.angle_between(motion.rotation) < 1e-9);
+    assert!((twice.translation - motion.translation).length() < 1e-9);
+    assert!((twice.pivot - motion.pivot).length() < 1e-9);
+    for p in [DVec3::new(0.4, 1.2, 0.0), DVec3::new(0.7, 0.9, -0.2)] {
+        let p = frame.transform_point3(p);
+        let reflected_then_moved = mirrored.apply(mirror.reflect_point(p, &frame));
+        let moved_then_reflected = mirror.reflect_point(motion.apply(p), &frame);
+        assert!((reflected_then_moved - moved_then_reflected).length() < 1e-9);
+    }
+    // Vertices: a symmetric cloud, the left ones map onto the right ones.
+    let local = [
+        DVec3::new(0.3, 1.0, 0.0),
+        DVec3::new(-0.3, 1.0, 0.0),
+        DVec3::new(0.5, 0.2, 0.1),
+        DVec3::new(-0.5, 0.2, 0.1),
+        DVec3::new(0.0, 1.6, 0.0),
+    ];
+    let world: Vec<DVec3> = local.iter().map(|p| frame.transform_point3(*p)).collect();
+    assert_eq!(
+        mirror.mirror_vertices(&world, &[0, 2], &frame),
+        Some(vec![1, 3])
+    );
+    assert_eq!(mirror.mirror_vertices(&world, &[4], &frame), None);
+    assert_eq!(mirror.mirror_vertices(&world, &[0, 1], &frame), None);
+    assert_eq!(mirror.mirror_vertices(&world, &[9], &frame), None);
+}
+
 #[test]
 fn mirroring_twice_gives_the_pose_back_and_pairs_sides_by_name() {
     let rig = mannequin_rig(10);

@@ -39,6 +39,7 @@ mod plugin;
 mod poll;
 mod prepare;
 mod request;
+mod symmetry;
 mod timeline;
 
 use std::sync::Arc;
@@ -263,7 +264,10 @@ pub struct PoseStiffness(pub f32);
 
 /// Symmetric editing: every [`PoseEffector`] on a joint with a left/right partner (paired by
 /// name, [`crate::pose::mirror`]) drives the partner too, with its goal mirrored across the
-/// character's symmetry plane.
+/// character's symmetry plane; every grab (a [`crate::ecs::DeformHandle`] on the character,
+/// rigid or position-only) drives the vertices nearest to its vertices' mirror image (in the
+/// bind pose) with the mirrored motion. A set on the plane (the head) mirrors onto itself and
+/// adds nothing; a mirrored set that would share vertices with another constraint is left out.
 #[derive(Component, Debug, Clone, Copy, Default, PartialEq, Reflect)]
 #[reflect(Component, Default)]
 pub struct SymmetricEditing;

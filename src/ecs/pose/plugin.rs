@@ -30,7 +30,7 @@ use super::{
 use crate::ecs::scene::mark_scene_spawned;
 use crate::ecs::{DeformPhase, DeformSystems};
 use crate::pose::{
-    JointLimits, Mirror, PoseConstraints, PoseSolution, PoseSolver, SkeletonPose, SkinnedModel,
+    JointLimits, PoseConstraints, PoseSolution, PoseSolver, SkeletonPose, SkinnedModel,
 };
 
 /// Phases of the character systems. Prepare, Request, Poll and Timeline run in `Update` (Request after
@@ -139,8 +139,9 @@ pub(crate) struct PoseState {
     pub(super) written: Option<SkeletonPose>,
     /// The character's [`PoseLimits`], resolved against its skeleton.
     pub(super) limits: Option<Arc<JointLimits>>,
-    /// Left/right pairs, built when symmetric editing first needs them.
-    pub(super) mirror: Option<Arc<Mirror>>,
+    /// Left/right pairs and mirrored vertex sets, built when symmetric editing first needs
+    /// them.
+    pub(super) symmetry: Option<super::symmetry::Symmetry>,
     /// The blend layer's memory of the animation ([`PoseBlend`]).
     pub(super) blend: BlendMemory,
     /// Where the next solve starts when not from [`PosedSkeleton::pose`] (an additive layer

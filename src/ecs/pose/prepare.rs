@@ -308,7 +308,7 @@ pub(super) fn find_skins(
             running: None,
             written: None,
             limits: None,
-            mirror: None,
+            symmetry: None,
             blend: Default::default(),
             start: None,
             in_frame_outcome: None,

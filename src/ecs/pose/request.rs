@@ -12,6 +12,7 @@ use super::constraints::{
 };
 use super::plugin::{PoseState, fail};
 use super::prepare::joint_transform;
+use super::symmetry::Symmetry;
 use super::{
     GrabAnchor, HandlePositionOnly, PinnedJoints, PoseBlend, PoseBlendMode, PoseEffector,
     PoseFailed, PoseInFrame, PoseJointHandle, PoseLimits, PoseStatus, PoseStiffness, Poseable,
@@ -19,8 +20,8 @@ use super::{
 };
 use crate::ecs::{DeformHandle, DeformPhase};
 use crate::pose::{
-    Effector, JointTransform, Mirror, PoseConstraints, PoseSolveOptions, PoseSolver,
-    PoseSolverSettings, PoseStart, ReferenceStiffness, SkeletonPose,
+    Effector, JointTransform, PoseConstraints, PoseSolveOptions, PoseSolver, PoseSolverSettings,
+    PoseStart, ReferenceStiffness, SkeletonPose,
 };
 
 /// A character grabbed with no anchor (compared in place every frame, never allocated).
@@ -279,7 +280,7 @@ fn constraints_of(
         .collect();
     fixed_joints.sort_unstable();
     fixed_joints.dedup();
-    let (handles, centroid_effectors) = vertex_handles(
+    let (mut handles, mut centroid_effectors) = vertex_handles(
         posed,
         state.reference.as_ref(),
         &drivers.handles,
@@ -290,9 +291,6 @@ fn constraints_of(
         .iter()
         .filter_map(|(_, e, g)| core_effector(posed, e, g))
         .collect();
-    if extras.symmetric {
-        mirror_effectors(state, posed, &mut effectors);
-    }
     // An additive layer holds what nothing pulls on where the animation puts it now.
     let start = extras.additive().then(|| on_screen(posed, joints));
     let stiffness = extras
@@ -300,6 +298,17 @@ fn constraints_of(
         .as_ref()
         .zip(start.clone().or_else(|| state.reference.clone()))
         .map(|(k, pose)| ReferenceStiffness::uniform(pose, k.0.clamp(0.0, 1.0) as f64));
+    if extras.symmetric {
+        state
+            .symmetry
+            .get_or_insert_with(|| Symmetry::new(posed))
+            .mirror_drivers(
+                &mut effectors,
+                &mut handles,
+                &mut centroid_effectors,
+                &anchor.vertices,
+            );
+    }
     let constraints = PoseConstraints {
         centroid_effectors,
         handles,
@@ -315,21 +324,6 @@ fn constraints_of(
         limits,
     };
     Ok((constraints, start))
-}
-
-/// Adds the mirror image of every effector ([`super::SymmetricEditing`]).
-fn mirror_effectors(state: &mut PoseState, posed: &PosedSkeleton, effectors: &mut Vec<Effector>) {
-    let skeleton = posed.model.skeleton();
-    let mirror = state
-        .mirror
-        .get_or_insert_with(|| Arc::new(Mirror::new(skeleton, &skeleton.bind_pose())))
-        .clone();
-    let frame = skeleton.joints()[0].parent_frame;
-    let mirrored: Vec<Effector> = effectors
-        .iter()
-        .filter_map(|e| mirror.mirror_effector(e, &frame))
-        .collect();
-    effectors.extend(mirrored);
 }
 
 /// Starts a solve when a character's handles, pins or pose changed (latest wins).
