@@ -28,13 +28,14 @@ pub mod prelude {
         DeformableScene, FixedRegion, GrabAnchor, GrabButton, GrabEnd, GrabMove, GrabPlugin,
         GrabStart, GrabTurn, GrabTwist, Grabbable, InputSystems, JointMask, MouseControlPlugin,
         MouseHandleControl, PinnedJoints, PoseBlend, PoseBlendMode, PoseEffector, PoseEffectorKind,
-        PoseFailed, PoseInFrame, PoseJointHandle, PoseLimits, PosePlugin, PoseSolved, PoseStatus,
-        PoseStiffness, PoseSystems, PoseTimeline, Poseable, PoseableError, PosedSkeleton,
-        SymmetricEditing, WiiDeformPlugins, Wiimote, WiimoteButtonChanged, WiimoteCalibration,
-        WiimoteConnected, WiimoteControlPlugin, WiimoteDisconnected, WiimoteEmulators,
-        WiimoteFilter, WiimoteHandleControl, WiimoteLink, WiimoteOrientationChanged, WiimotePlugin,
-        WiimotePointer, WiimotePointerPlugin, WiimoteProblem, WiimoteProblems, WiimoteSettings,
-        WiimoteSource, WiimoteSystems, mesh_from_triangles,
+        PoseFailed, PoseInFrame, PoseJointHandle, PoseLimits, PoseModels, PosePlugin, PoseSolved,
+        PoseStatus, PoseStiffness, PoseSystems, PoseTimeline, Poseable, PoseableError,
+        PosedSkeleton, SymmetricEditing, WiiDeformPlugins, Wiimote, WiimoteButtonChanged,
+        WiimoteCalibration, WiimoteConnected, WiimoteControlPlugin, WiimoteDisconnected,
+        WiimoteEmulators, WiimoteFilter, WiimoteHandleControl, WiimoteLink,
+        WiimoteOrientationChanged, WiimotePlugin, WiimotePointer, WiimotePointerPlugin,
+        WiimoteProblem, WiimoteProblems, WiimoteSettings, WiimoteSource, WiimoteSystems,
+        mesh_from_triangles,
     };
     pub use crate::wiimote::{EmulatorConfig, EmulatorControls, FilterKind, RemoteProblem};
 }

@@ -218,6 +218,7 @@ mod tests {
             joints: joints.clone(),
             primitives: Vec::new(),
             pose: rig.rest.clone(),
+            placement: glam::DAffine3::IDENTITY,
         };
         let near_last = world
             .get::<GlobalTransform>(joints[2])

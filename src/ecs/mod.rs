@@ -39,8 +39,8 @@ pub use input::{
 pub use pose::{
     GrabAnchor, HandlePositionOnly, JointMask, PinnedJoints, PoseBlend, PoseBlendMode,
     PoseEffector, PoseEffectorKind, PoseFailed, PoseInFrame, PoseJointHandle, PoseLimits,
-    PosePlugin, PoseSolved, PoseStatus, PoseStiffness, PoseSystems, PoseTimeline, Poseable,
-    PoseableError, PosedSkeleton, SymmetricEditing,
+    PoseModels, PosePlugin, PoseSolved, PoseStatus, PoseStiffness, PoseSystems, PoseTimeline,
+    Poseable, PoseableError, PosedSkeleton, SymmetricEditing,
 };
 pub use scene::{DeformableFrom, DeformableScene, MESH_WAIT_FRAMES};
 pub use wiimote::{

@@ -47,6 +47,7 @@ pub mod library;
 pub mod limits;
 pub mod mirror;
 mod model;
+pub mod placement;
 mod skeleton;
 mod solver;
 pub mod synth_rig;

@@ -552,3 +552,131 @@ fn a_skin_bound_with_a_non_uniform_scale_poses_rigidly() {
     // The pose is not trivially the rest: something turned.
     assert!(worst(&now, &bind) > 0.05 * size);
 }
+
+/// Issue 30's sharing: two characters from one asset share one model (one build, one `Arc`),
+/// the second placed elsewhere, turned and scaled ×2; each poses on its own — a drag on the
+/// second's head is met where that character stands (within 10 % of the drag, its pinned
+/// feet within 1e-3 of its size) and leaves the first's pose as it was; moving the second
+/// moves what it draws with it.
+#[test]
+fn two_characters_from_one_asset_share_one_model_and_pose_independently() {
+    let rig = mannequin_rig(12);
+    let (glb, _) = three_node_glb(&rig);
+    let dir = std::env::temp_dir().join(format!("character_shared_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("humanoid.glb"), glb).unwrap();
+    let (mut app, first) = common::character_app(&dir, "humanoid.glb", PosePlugin);
+    let file = app.world().resource::<common::FoxFile>().0.clone();
+    let scene = app
+        .world()
+        .resource::<Assets<bevy::gltf::Gltf>>()
+        .get(&file)
+        .unwrap()
+        .scenes[0]
+        .clone();
+    let placed = Transform::from_xyz(3.0, 0.5, -2.0)
+        .with_rotation(Quat::from_rotation_y(1.2))
+        .with_scale(Vec3::splat(2.0));
+    let second = app
+        .world_mut()
+        .spawn((
+            bevy::world_serialization::WorldAssetRoot(scene),
+            Poseable::default(),
+            placed,
+        ))
+        .id();
+    common::update_until(&mut app, "the second character's model", |a| {
+        a.world().get::<PosedSkeleton>(second).is_some()
+    });
+    let a = app.world().get::<PosedSkeleton>(first).unwrap().clone();
+    let b = app.world().get::<PosedSkeleton>(second).unwrap().clone();
+    assert_eq!(app.world().resource::<PoseModels>().built(), 1, "one build");
+    assert!(std::sync::Arc::ptr_eq(&a.model, &b.model), "one model");
+    // The second is drawn where it stands: the first's vertices, placed.
+    let (drawn_a, drawn_b) = (a.skinned_positions(), b.skinned_positions());
+    let worst = drawn_a
+        .iter()
+        .zip(&drawn_b)
+        .map(|(p, q)| placed.transform_point(*p).distance(*q))
+        .fold(0.0f32, f32::max);
+    assert!(
+        worst < 1e-4,
+        "the second is drawn {worst} off its placement"
+    );
+    // Drag the second's head (world space) with its feet pinned.
+    let skeleton = b.model.skeleton();
+    let joint = |name: &str| b.joints[skeleton.find(name).expect(name)];
+    let feet = vec![joint("ankle_l"), joint("ankle_r")];
+    app.world_mut()
+        .entity_mut(second)
+        .insert(PinnedJoints(feet.clone()));
+    let world_of =
+        |app: &App, e: Entity| app.world().get::<GlobalTransform>(e).unwrap().translation();
+    let feet_before: Vec<Vec3> = feet.iter().map(|&f| world_of(&app, f)).collect();
+    let top = drawn_b.iter().map(|p| p.y).fold(f32::MIN, f32::max);
+    let head: Vec<u32> = (0..drawn_b.len() as u32)
+        .filter(|&i| drawn_b[i as usize].y > top - 0.2)
+        .collect();
+    let (handle, pivot) = spawn_handle(&mut app, second, head.clone(), ());
+    let shift = Vec3::new(0.2, -0.1, 0.1);
+    app.world_mut()
+        .get_mut::<Transform>(handle)
+        .unwrap()
+        .translation = pivot + shift;
+    drive_solves(&mut app, second, handle, 20);
+    settle_pose(&mut app, second);
+    let now = app
+        .world()
+        .get::<PosedSkeleton>(second)
+        .unwrap()
+        .skinned_positions();
+    let moved = head
+        .iter()
+        .map(|&i| now[i as usize] - drawn_b[i as usize])
+        .sum::<Vec3>()
+        / head.len() as f32;
+    assert!(
+        moved.distance(shift) < 0.1 * shift.length(),
+        "the second's head moved {moved}, the drag was {shift}"
+    );
+    let size = 2.0 * b.model.topology().bounding_diagonal() as f32;
+    for (f, before) in feet.iter().zip(&feet_before) {
+        let d = world_of(&app, *f).distance(*before);
+        assert!(d < 1e-3 * size, "a pinned foot moved {d} (size {size})");
+    }
+    assert_eq!(
+        app.world().get::<PosedSkeleton>(first).unwrap().pose,
+        a.pose,
+        "the first character did not move"
+    );
+    // Let go, then walk the second 1 m along x: what it draws follows.
+    app.world_mut().despawn(handle);
+    app.update();
+    let before = app
+        .world()
+        .get::<PosedSkeleton>(second)
+        .unwrap()
+        .skinned_positions();
+    app.world_mut()
+        .get_mut::<Transform>(second)
+        .unwrap()
+        .translation
+        .x += 1.0;
+    for _ in 0..3 {
+        app.update();
+    }
+    let after = app
+        .world()
+        .get::<PosedSkeleton>(second)
+        .unwrap()
+        .skinned_positions();
+    let walked = after
+        .iter()
+        .zip(&before)
+        .map(|(p, q)| (*p - *q - Vec3::X).length())
+        .fold(0.0f32, f32::max);
+    assert!(
+        walked < 1e-3,
+        "the drawn character lags its placement by {walked}"
+    );
+}

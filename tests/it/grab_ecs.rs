@@ -420,7 +420,7 @@ fn regrab_on_the_posed_surface_and_reset(
         std::thread::yield_now();
     }
     let now = app.world().get::<PosedSkeleton>(root).unwrap();
-    let reset = now.model.skin_render(&rest);
+    let reset = now.to_world(now.model.skin_render(&rest));
     let drift = now
         .skinned_positions()
         .iter()

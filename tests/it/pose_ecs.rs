@@ -83,7 +83,8 @@ fn a_vertex_handle_poses_the_skeleton_and_the_pinned_root_stays() {
     let pose = pose_of(&app, &joints);
     assert_eq!(pose.local.len(), 3);
     // The joints carry the solved pose, and the CPU-skinned handle vertices are on target.
-    let skinned = posed.model.skin_render(&pose);
+    // (The model is in character space; `placement` puts it where the character stands.)
+    let skinned = posed.to_world(posed.model.skin_render(&pose));
     let size = posed.model.topology().bounding_diagonal() as f32;
     let worst = top
         .iter()

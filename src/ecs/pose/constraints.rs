@@ -62,13 +62,18 @@ pub(super) fn rebase(
     joint_handles: &mut [(Entity, Mut<PoseJointHandle>, Mut<Transform>)],
 ) {
     let model = &posed.model;
-    let skinned = model.skin_render(reference);
+    let skinned = posed.to_world(model.skin_render(reference));
     for (_, h, t) in handles.iter_mut() {
         let c = centroid(&skinned, &h.vertices);
         h.pivot = Some(c.as_vec3());
         **t = Transform::from_translation(c.as_vec3());
     }
-    let globals = model.skeleton().global_transforms(reference);
+    let globals: Vec<glam::DAffine3> = model
+        .skeleton()
+        .global_transforms(reference)
+        .iter()
+        .map(|g| posed.placement * *g)
+        .collect();
     for (_, h, t) in joint_handles.iter_mut() {
         let Some(j) = posed.joint_index(h.joint) else {
             continue;
@@ -121,7 +126,9 @@ pub(super) fn vertex_handles(
         .filter(|(e, _, _)| follows(e))
         .filter_map(|(_, h, t)| {
             let vertices = model.topology().welded_set(&h.vertices);
-            let at_reference = model.skinned_centroid(reference?, &vertices);
+            let at_reference = posed
+                .placement
+                .transform_point3(model.skinned_centroid(reference?, &vertices));
             let moved = (t.translation - h.pivot?).as_dvec3();
             Some(CentroidEffector {
                 vertices,

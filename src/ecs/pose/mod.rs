@@ -46,6 +46,8 @@ use std::sync::Arc;
 
 use bevy::prelude::*;
 
+use glam::{DAffine3, DVec3};
+
 use crate::pose::{JointLimits, LimitError, PoseError, PoseFile, SkeletonPose, SkinnedModel};
 
 pub use blend::{JointMask, PoseBlend, PoseBlendMode};
@@ -347,6 +349,48 @@ pub struct PoseFailed {
     pub error: PoseableError,
 }
 
+/// The models of the prepared characters, one per asset: characters spawned from one glTF
+/// (the same meshes, skin and model settings, the same nodes between the [`Poseable`] entity
+/// and its skeleton) share one [`SkinnedModel`] through an `Arc`, built once — the model is
+/// in character space, so where each instance stands does not matter. Read
+/// [`PoseModels::built`] to count the builds.
+#[derive(Resource, Default)]
+pub struct PoseModels {
+    pub(super) entries: std::collections::HashMap<ModelKey, SharedModel>,
+    pub(super) built: u64,
+}
+
+impl PoseModels {
+    /// How many models have been built since the app started.
+    pub fn built(&self) -> u64 {
+        self.built
+    }
+
+    /// How many distinct models are alive (held by at least one character).
+    pub fn alive(&self) -> usize {
+        self.entries
+            .values()
+            .filter(|e| matches!(e, SharedModel::Ready(m) if m.strong_count() > 0))
+            .count()
+    }
+}
+
+/// What decides a character's model (see [`PoseModels`]).
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub(super) struct ModelKey {
+    pub(super) meshes: Vec<AssetId<Mesh>>,
+    pub(super) bindposes: AssetId<bevy::mesh::skinning::SkinnedMeshInverseBindposes>,
+    pub(super) clusters: u32,
+    /// Root parent frames and joint scales, rounded to 1e-5.
+    pub(super) numbers: Vec<i64>,
+}
+
+/// A shared model: being built by one instance, or built (held by the characters using it).
+pub(super) enum SharedModel {
+    Building,
+    Ready(std::sync::Weak<SkinnedModel>),
+}
+
 /// Inserted by the plugin on a prepared [`Poseable`]: the model, its joints and the pose it
 /// holds. Read it to save the pose or to pick on what is on screen; write `pose` to load one.
 ///
@@ -356,7 +400,9 @@ pub struct PoseFailed {
 /// [`PosedSkeleton::pose_file`] for a file.
 #[derive(Component, Debug, Clone)]
 pub struct PosedSkeleton {
-    /// The prepared model (skeleton in joint order of [`PosedSkeleton::joints`]).
+    /// The prepared model (skeleton in joint order of [`PosedSkeleton::joints`]), in character
+    /// space ([`PosedSkeleton::placement`] maps it into the world), shared by every instance
+    /// of the asset.
     pub model: Arc<SkinnedModel>,
     /// Joint entities, indexed like the model's skeleton.
     pub joints: Vec<Entity>,
@@ -364,6 +410,11 @@ pub struct PosedSkeleton {
     pub primitives: Vec<(Entity, u32)>,
     /// The pose written to the joints (local transforms).
     pub pose: SkeletonPose,
+    /// Where the character stands: world ← character space, the [`Poseable`] entity's
+    /// `GlobalTransform` (kept current by the plugin). The model is in character space, so
+    /// every instance of one asset shares it ([`PoseModels`]); a character placed with a
+    /// non-uniform scale has its model in world space and this identity.
+    pub placement: DAffine3,
 }
 
 impl PosedSkeleton {
@@ -374,8 +425,21 @@ impl PosedSkeleton {
         self.model
             .skin_render(&self.pose)
             .iter()
-            .map(|p| p.as_vec3())
+            .map(|p| self.placement.transform_point3(*p).as_vec3())
             .collect()
+    }
+
+    /// World positions of the model's welded vertices in the current pose.
+    pub fn skin_welded_world(&self) -> Vec<DVec3> {
+        self.to_world(self.model.skin_welded(&self.pose))
+    }
+
+    /// Character-space points of the model moved into the world ([`PosedSkeleton::placement`]).
+    pub fn to_world(&self, mut points: Vec<DVec3>) -> Vec<DVec3> {
+        for p in &mut points {
+            *p = self.placement.transform_point3(*p);
+        }
+        points
     }
 
     /// The joints within `within` × the character's size (its bounding diagonal) above its
@@ -446,11 +510,12 @@ impl PosedSkeleton {
     /// what a click picks, where Bevy 0.19's mesh ray cast would test the bind pose of a
     /// skinned mesh. Returns the hit point and its distance along `ray`.
     pub fn ray_cast(&self, ray: Ray3d) -> Option<(Vec3, f32)> {
-        self.ray_cast_skinned(&self.model.skin_welded(&self.pose), ray)
+        self.ray_cast_skinned(&self.skin_welded_world(), ray)
     }
 
     /// [`PosedSkeleton::ray_cast`] against welded positions already skinned in the current
-    /// pose (`model.skin_welded(&pose)`), so several rays share one skinning.
+    /// pose, in the world ([`PosedSkeleton::skin_welded_world`]), so several rays share one
+    /// skinning.
     pub fn ray_cast_skinned(&self, skinned: &[glam::DVec3], ray: Ray3d) -> Option<(Vec3, f32)> {
         let mut best: Option<f32> = None;
         for t in self.model.topology().triangles() {

@@ -31,7 +31,7 @@ pub(super) fn pick_posed_characters(
     let posed: Vec<(Entity, &PosedSkeleton, Vec<glam::DVec3>)> = characters
         .iter()
         .filter(|(_, _, pickable)| pickable.is_none_or(|p| p.is_hoverable))
-        .map(|(entity, posed, _)| (entity, posed, posed.model.skin_welded(&posed.pose)))
+        .map(|(entity, posed, _)| (entity, posed, posed.skin_welded_world()))
         .collect();
     for (&ray_id, &ray) in rays.iter() {
         let Ok(camera) = cameras.get(ray_id.camera) else {

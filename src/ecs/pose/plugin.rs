@@ -69,6 +69,7 @@ impl Plugin for PosePlugin {
             .register_type::<PoseBlend>()
             .add_message::<PoseSolved>()
             .add_message::<PoseFailed>()
+            .init_resource::<super::PoseModels>()
             .add_observer(mark_scene_spawned)
             .configure_sets(
                 Update,
@@ -149,6 +150,37 @@ pub(crate) struct PoseState {
     pub(super) start: Option<SkeletonPose>,
     /// An in-frame solve's outcome, until its message is written (`in_frame.rs`).
     pub(super) in_frame_outcome: Option<Result<f64, PoseableError>>,
+    /// World ← character space when the model is in character space (placed by a
+    /// similarity), `None` for a model in world space.
+    pub(super) placement: Option<glam::DAffine3>,
+    /// The [`super::PoseModels`] entry this character is building, if shared.
+    pub(super) shared_key: Option<super::ModelKey>,
+}
+
+impl PoseState {
+    /// The state of a character whose skin was found: its joints and primitives.
+    pub(super) fn new(joints: Vec<Entity>, primitives: Vec<(Entity, u32)>) -> Self {
+        Self {
+            building: None,
+            joints,
+            primitives,
+            key: None,
+            reference: None,
+            solver: None,
+            last: None,
+            solve: LatestTask::default(),
+            pending: None,
+            running: None,
+            written: None,
+            limits: None,
+            symmetry: None,
+            blend: Default::default(),
+            start: None,
+            in_frame_outcome: None,
+            placement: None,
+            shared_key: None,
+        }
+    }
 }
 
 pub(super) fn fail(

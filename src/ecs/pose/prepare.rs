@@ -8,15 +8,19 @@ use bevy::mesh::VertexAttributeValues;
 use bevy::mesh::skinning::{SkinnedMesh as BevySkin, SkinnedMeshInverseBindposes};
 use bevy::prelude::*;
 
-use crate::ecs::tasks::{LatestTask, poll_slot};
+use crate::ecs::tasks::poll_slot;
 use bevy::tasks::AsyncComputeTaskPool;
 use bevy::world_serialization::WorldAssetRoot;
 use glam::DAffine3;
 
 use super::plugin::{PoseState, fail};
-use super::{PoseFailed, PoseStatus, Poseable, PoseableError, PosedSkeleton};
+use super::{
+    ModelKey, PoseFailed, PoseModels, PoseStatus, Poseable, PoseableError, PosedSkeleton,
+    SharedModel,
+};
 use crate::ecs::DeformPhase;
 use crate::ecs::scene::{SceneSpawned, scene_load_failure};
+use crate::pose::placement::similarity;
 use crate::pose::{
     Joint, JointTransform, ModelSettings, Skeleton, SkeletonPose, SkinnedMesh, SkinnedModel,
 };
@@ -109,7 +113,11 @@ impl SkinSources<'_, '_> {
 
     /// Reads the skin of `primitives` (the first one's skin, and every primitive sharing its
     /// joints); `Ok(None)` while an asset is still loading.
-    fn read(&self, primitives: &[Entity]) -> Result<Option<FoundSkin>, PoseableError> {
+    fn read(
+        &self,
+        primitives: &[Entity],
+        to_character: &DAffine3,
+    ) -> Result<Option<FoundSkin>, PoseableError> {
         let Some((skin, _)) = primitives.first().and_then(|p| self.skins.get(*p).ok()) else {
             return Err(PoseableError::NoSkinnedMesh);
         };
@@ -134,7 +142,7 @@ impl SkinSources<'_, '_> {
             return Ok(None);
         }
         let (mut mesh, primitives) = self.combined_mesh(&members)?;
-        let (list, reference) = self.joints_of(skin, ibp)?;
+        let (list, reference) = self.joints_of(skin, ibp, to_character)?;
         let (skeleton, order) = Skeleton::sorted(list)?;
         let mut new_index = vec![u16::MAX; order.len()];
         for (new, &old) in order.iter().enumerate() {
@@ -182,11 +190,13 @@ impl SkinSources<'_, '_> {
     }
 
     /// The skin's joints in skin order: parents are the nearest joint ancestors; a root's parent
-    /// frame is its parent entity's world transform. With their current local transforms.
+    /// frame is its parent entity's world transform brought into character space by
+    /// `to_character`. With their current local transforms.
     fn joints_of(
         &self,
         skin: &BevySkin,
         ibp: &SkinnedMeshInverseBindposes,
+        to_character: &DAffine3,
     ) -> Result<(Vec<Joint>, Vec<JointTransform>), PoseableError> {
         let mut list = Vec::with_capacity(skin.joints.len());
         let mut reference = Vec::with_capacity(skin.joints.len());
@@ -196,11 +206,14 @@ impl SkinSources<'_, '_> {
             };
             let parent = self.joint_parent(skin, child_of);
             let parent_frame = match (parent, child_of) {
-                (None, Some(c)) => self
-                    .globals
-                    .get(c.parent())
-                    .map(affine)
-                    .unwrap_or(DAffine3::IDENTITY),
+                (None, Some(c)) => {
+                    *to_character
+                        * self
+                            .globals
+                            .get(c.parent())
+                            .map(affine)
+                            .unwrap_or(DAffine3::IDENTITY)
+                }
                 _ => DAffine3::IDENTITY,
             };
             let inverse_bind = ibp
@@ -216,6 +229,42 @@ impl SkinSources<'_, '_> {
             reference.push(joint_transform(transform));
         }
         Ok((list, reference))
+    }
+
+    /// What decides a character's model, for sharing it between instances of one asset: the
+    /// primitives' meshes, the skin's inverse binds, the model settings, and (rounded) each
+    /// root joint's parent frame in character space and every joint's scale. `None` while
+    /// the skin is not there.
+    fn model_key(
+        &self,
+        primitives: &[Entity],
+        to_character: &DAffine3,
+        clusters: u32,
+    ) -> Option<ModelKey> {
+        let (skin, _) = self.skins.get(*primitives.first()?).ok()?;
+        let meshes = primitives
+            .iter()
+            .filter_map(|&p| self.skins.get(p).ok())
+            .filter(|(s, _)| s.joints == skin.joints)
+            .map(|(_, m)| m.0.id())
+            .collect();
+        let round = |x: f64| (x * 1e5).round() as i64;
+        let mut numbers = Vec::new();
+        for &j in &skin.joints {
+            let (transform, child_of, _) = self.joints.get(j).ok()?;
+            numbers.extend(transform.scale.to_array().map(|x| round(f64::from(x))));
+            if self.joint_parent(skin, child_of).is_none() {
+                let parent = child_of.and_then(|c| self.globals.get(c.parent()).ok());
+                let frame = *to_character * parent.map(affine).unwrap_or(DAffine3::IDENTITY);
+                numbers.extend(frame.to_cols_array().map(round));
+            }
+        }
+        Some(ModelKey {
+            meshes,
+            bindposes: skin.inverse_bindposes.id(),
+            clusters,
+            numbers,
+        })
     }
 
     /// The skin index of the nearest ancestor (from `child_of` up) that is a joint of `skin`.
@@ -236,7 +285,8 @@ impl SkinSources<'_, '_> {
 }
 
 /// Finds the skinned primitives and joints of new [`Poseable`]s and starts building their
-/// models in the background.
+/// models in the background — or takes the model another instance of the same asset built
+/// ([`PoseModels`]), waiting while that one is still being built.
 #[allow(clippy::type_complexity)] // a system's queries, named by their parameters
 pub(super) fn find_skins(
     mut commands: Commands,
@@ -252,6 +302,8 @@ pub(super) fn find_skins(
     >,
     assets: Option<Res<AssetServer>>,
     sources: SkinSources,
+    mut models: ResMut<PoseModels>,
+    joints: Query<&Transform>,
     mut failed: MessageWriter<PoseFailed>,
 ) {
     for (entity, poseable, mut status, scene, spawned) in &mut new {
@@ -273,7 +325,23 @@ pub(super) fn find_skins(
             fail(entity, error, &mut status, &mut failed);
             continue;
         }
-        let found = match sources.read(&primitives) {
+        // Character space when the character is placed by a similarity (then the model is
+        // shared by every instance of the asset), else world space.
+        let placement = sources
+            .globals
+            .get(entity)
+            .ok()
+            .map(affine)
+            .and_then(|g| similarity(&g));
+        let to_character = placement.map_or(DAffine3::IDENTITY, |p| p.inverse());
+        let clusters = poseable.clusters.max(1);
+        let key = placement.and_then(|_| sources.model_key(&primitives, &to_character, clusters));
+        let shared = match key.as_ref().and_then(|k| models.entries.get(k)) {
+            Some(SharedModel::Building) => continue, // another instance is building it
+            Some(SharedModel::Ready(model)) => model.upgrade(),
+            None => None,
+        };
+        let found = match sources.read(&primitives, &to_character) {
             Ok(Some(found)) => found,
             Ok(None) => continue, // an asset is still loading
             Err(e) => {
@@ -281,72 +349,97 @@ pub(super) fn find_skins(
                 continue;
             }
         };
-        let settings = ModelSettings {
-            clusters: poseable.clusters.max(1) as usize,
-            ..Default::default()
-        };
         let FoundSkin {
             mesh,
             primitives,
             skeleton,
-            joints,
+            joints: joint_entities,
             reference,
         } = found;
-        let task = AsyncComputeTaskPool::get()
-            .spawn(async move { Ok(SkinnedModel::new(skeleton, &mesh, &reference, settings)?) });
+        let mut state = PoseState::new(joint_entities, primitives);
+        state.placement = placement;
+        if let Some(model) = shared {
+            let posed = posed_skeleton(model, &state, &joints);
+            status.phase = DeformPhase::Idle;
+            status.joints = posed.model.skeleton().len();
+            status.vertices = posed.model.topology().vertex_count();
+            commands.entity(entity).try_insert((state, posed));
+            continue;
+        }
+        if let Some(key) = key {
+            models.entries.insert(key.clone(), SharedModel::Building);
+            state.shared_key = Some(key);
+        }
+        let settings = ModelSettings {
+            clusters: clusters as usize,
+            ..Default::default()
+        };
+        state.building =
+            Some(AsyncComputeTaskPool::get().spawn(async move {
+                Ok(SkinnedModel::new(skeleton, &mesh, &reference, settings)?)
+            }));
         status.phase = DeformPhase::BuildingTopology;
-        commands.entity(entity).try_insert(PoseState {
-            building: Some(task),
-            joints,
-            primitives,
-            key: None,
-            reference: None,
-            solver: None,
-            last: None,
-            solve: LatestTask::default(),
-            pending: None,
-            running: None,
-            written: None,
-            limits: None,
-            symmetry: None,
-            blend: Default::default(),
-            start: None,
-            in_frame_outcome: None,
-        });
+        commands.entity(entity).try_insert(state);
     }
 }
 
-/// Collects built models; inserts [`PosedSkeleton`] with the joints' current pose.
+/// [`PosedSkeleton`] for a character whose model is ready: the joints' current pose.
+fn posed_skeleton(
+    model: Arc<SkinnedModel>,
+    state: &PoseState,
+    joints: &Query<&Transform>,
+) -> PosedSkeleton {
+    let pose = SkeletonPose {
+        local: state
+            .joints
+            .iter()
+            .map(|&j| joints.get(j).map(joint_transform).unwrap_or_default())
+            .collect(),
+    };
+    PosedSkeleton {
+        model,
+        joints: state.joints.clone(),
+        primitives: state.primitives.clone(),
+        pose,
+        placement: state.placement.unwrap_or(DAffine3::IDENTITY),
+    }
+}
+
+/// Collects built models (sharing each with later instances of the asset); inserts
+/// [`PosedSkeleton`] with the joints' current pose.
 pub(super) fn finish_models(
     mut commands: Commands,
     mut building: Query<(Entity, &mut PoseState, &mut PoseStatus)>,
     joints: Query<&Transform>,
+    mut models: ResMut<PoseModels>,
     mut failed: MessageWriter<PoseFailed>,
 ) {
     for (entity, mut state, mut status) in &mut building {
         let Some(result) = poll_slot(&mut state.building) else {
             continue;
         };
+        let key = state.shared_key.take();
         match result {
             Ok(model) => {
-                let pose = SkeletonPose {
-                    local: state
-                        .joints
-                        .iter()
-                        .map(|&j| joints.get(j).map(joint_transform).unwrap_or_default())
-                        .collect(),
-                };
+                let model = Arc::new(model);
+                models.built += 1;
+                if let Some(key) = key {
+                    models
+                        .entries
+                        .insert(key, SharedModel::Ready(Arc::downgrade(&model)));
+                }
+                let posed = posed_skeleton(model, &state, &joints);
                 status.phase = DeformPhase::Idle;
-                status.joints = model.skeleton().len();
-                status.vertices = model.topology().vertex_count();
-                commands.entity(entity).try_insert(PosedSkeleton {
-                    model: Arc::new(model),
-                    joints: state.joints.clone(),
-                    primitives: state.primitives.clone(),
-                    pose,
-                });
+                status.joints = posed.model.skeleton().len();
+                status.vertices = posed.model.topology().vertex_count();
+                commands.entity(entity).try_insert(posed);
             }
-            Err(e) => fail(entity, e, &mut status, &mut failed),
+            Err(e) => {
+                if let Some(key) = key {
+                    models.entries.remove(&key);
+                }
+                fail(entity, e, &mut status, &mut failed);
+            }
         }
     }
 }

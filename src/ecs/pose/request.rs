@@ -11,7 +11,7 @@ use super::constraints::{
     SetKey, core_effector, joint_handle, rebase, resolve_limits, vertex_handles,
 };
 use super::plugin::{PoseState, fail};
-use super::prepare::joint_transform;
+use super::prepare::{affine, joint_transform};
 use super::symmetry::Symmetry;
 use super::{
     GrabAnchor, HandlePositionOnly, PinnedJoints, PoseBlend, PoseBlendMode, PoseEffector,
@@ -19,6 +19,7 @@ use super::{
     PosedSkeleton, SymmetricEditing,
 };
 use crate::ecs::{DeformHandle, DeformPhase};
+use crate::pose::placement::similarity;
 use crate::pose::{
     Effector, JointTransform, PoseConstraints, PoseSolveOptions, PoseSolver, PoseSolverSettings,
     PoseStart, ReferenceStiffness, SkeletonPose,
@@ -37,6 +38,7 @@ pub(super) struct CharacterSettings {
     stiffness: Option<Ref<'static, PoseStiffness>>,
     symmetric: Has<SymmetricEditing>,
     blend: Option<&'static PoseBlend>,
+    global: Option<&'static GlobalTransform>,
 }
 
 impl CharacterSettingsItem<'_, '_> {
@@ -280,13 +282,13 @@ fn constraints_of(
         .collect();
     fixed_joints.sort_unstable();
     fixed_joints.dedup();
-    let (mut handles, mut centroid_effectors) = vertex_handles(
+    let (handles, centroid_effectors) = vertex_handles(
         posed,
         state.reference.as_ref(),
         &drivers.handles,
         &drivers.followers,
     );
-    let mut effectors: Vec<Effector> = drivers
+    let effectors: Vec<Effector> = drivers
         .effectors
         .iter()
         .filter_map(|(_, e, g)| core_effector(posed, e, g))
@@ -298,18 +300,7 @@ fn constraints_of(
         .as_ref()
         .zip(start.clone().or_else(|| state.reference.clone()))
         .map(|(k, pose)| ReferenceStiffness::uniform(pose, k.0.clamp(0.0, 1.0) as f64));
-    if extras.symmetric {
-        state
-            .symmetry
-            .get_or_insert_with(|| Symmetry::new(posed))
-            .mirror_drivers(
-                &mut effectors,
-                &mut handles,
-                &mut centroid_effectors,
-                &anchor.vertices,
-            );
-    }
-    let constraints = PoseConstraints {
+    let world = PoseConstraints {
         centroid_effectors,
         handles,
         fixed_vertices: anchor.vertices.clone(),
@@ -323,7 +314,42 @@ fn constraints_of(
         stiffness,
         limits,
     };
+    // The model is in character space: so are its constraints.
+    let mut constraints = world.transformed(&posed.placement.inverse());
+    if extras.symmetric {
+        let c = &mut constraints;
+        state
+            .symmetry
+            .get_or_insert_with(|| Symmetry::new(posed))
+            .mirror_drivers(
+                &mut c.effectors,
+                &mut c.handles,
+                &mut c.centroid_effectors,
+                &c.fixed_vertices,
+            );
+    }
     Ok((constraints, start))
+}
+
+/// Keeps [`PosedSkeleton::placement`] on the character's `GlobalTransform` (a model in
+/// character space only); true when it moved, so that world-space drivers are solved again.
+fn follow_placement(
+    state: &mut Mut<PoseState>,
+    posed: &mut Mut<PosedSkeleton>,
+    global: Option<&GlobalTransform>,
+) -> bool {
+    let (Some(_), Some(global)) = (state.placement, global) else {
+        return false;
+    };
+    let Some(now) = similarity(&affine(global)) else {
+        return false;
+    };
+    if now.abs_diff_eq(posed.placement, 1e-9) {
+        return false;
+    }
+    posed.placement = now;
+    state.bypass_change_detection().placement = Some(now);
+    true
 }
 
 /// Starts a solve when a character's handles, pins or pose changed (latest wins).
@@ -338,6 +364,7 @@ pub(super) fn request_pose_solves(
     for ((entity, in_frame), poseable, mut posed, pins, anchor, extras, mut state, mut status) in
         &mut characters
     {
+        let placed = follow_placement(&mut state, &mut posed, extras.global);
         let mut drivers = Drivers::of(
             entity,
             &mut handles,
@@ -360,6 +387,7 @@ pub(super) fn request_pose_solves(
         let settings_changed = extras.limits.as_ref().is_some_and(|l| l.is_changed())
             || extras.stiffness.as_ref().is_some_and(|s| s.is_changed());
         let changed = drivers.moved()
+            || placed
             || pins.as_ref().is_some_and(|p| p.is_changed())
             || settings_changed
             || extras.additive() && state.blend.moved;

@@ -56,6 +56,7 @@ impl Symmetry {
         centroids: &mut Vec<CentroidEffector>,
         fixed_vertices: &[u32],
     ) {
+        // In character space (the model's): the plane is the root parent frame's x = 0.
         let mirrored: Vec<Effector> = effectors
             .iter()
             .filter_map(|e| self.mirror.mirror_effector(e, &self.frame))

@@ -271,7 +271,7 @@ fn place_grabs(
             let pinned = pins.is_some_and(|p| !p.0.is_empty());
             // The seed on the surface as posed; distances along the welded bind surface
             // (rigid bones keep them).
-            let skinned = posed.model.skin_welded(&posed.pose);
+            let skinned = posed.skin_welded_world();
             let Some(seed) = nearest_vertex(&skinned, grab.point) else {
                 continue;
             };
