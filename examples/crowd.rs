@@ -1,7 +1,10 @@
-//! A field of Foxes standing on bumpy ground, every one posed inside the frame: a position
-//! effector plants each foot and paw on the ground under it (`PoseEffector`, ankles free), and
-//! `PoseInFrame` solves all of them every frame in parallel — the ground rolls slowly, so the
-//! legs keep adjusting.
+//! A field of Foxes standing on bumpy ground, every one playing its own animation and posed
+//! inside the frame over it: a position effector plants each foot and paw on the ground under
+//! it (`PoseEffector`, ankles free), a look-at effector turns each head toward a firefly that
+//! wanders over the field (the effectors are the firefly's children: targets that follow
+//! another entity), and `PoseInFrame` solves all of them every frame in parallel, added to
+//! the animation (`PoseBlend::additive`) — the ground rolls slowly, so the legs keep
+//! adjusting.
 //!
 //! ```text
 //! cargo run --release --example crowd [-- N] [--screenshot PATH --frames N]
@@ -16,6 +19,15 @@ use bevy_wii_deform::prelude::*;
 
 /// The Fox, relative to the asset folder (`..`: the shared folder beside the project).
 const FOX: &str = "shared/models/Fox.glb";
+/// The Fox's joints (with their children) that the pose drives over the clip: its four legs,
+/// and its neck and head.
+const POSED_JOINTS: [&str; 5] = [
+    "b_LeftLeg01_015",
+    "b_RightLeg01_019",
+    "b_LeftUpperArm_09",
+    "b_RightUpperArm_06",
+    "b_Neck_04",
+];
 /// Spacing of the Foxes, in the Fox's own units (it is about 100 long).
 const SPACING: f32 = 160.0;
 
@@ -29,11 +41,182 @@ fn main() {
             file_path: "..".into(),
             ..default()
         }))
-        .add_plugins(PosePlugin)
+        .add_plugins((PosePlugin, IdlePlugin, FireflyPlugin))
         .insert_resource(Crowd(count))
         .add_systems(Startup, setup)
         .add_systems(Update, (plant_feet, roll_ground, unattended))
         .run();
+}
+
+/// Every Fox plays the "Survey" clip, each from its own phase and at its own speed.
+struct IdlePlugin;
+
+impl Plugin for IdlePlugin {
+    fn build(&self, app: &mut App) {
+        app.add_systems(Startup, load_idle)
+            .add_systems(Update, play_idle);
+    }
+}
+
+/// The idle clip's graph.
+#[derive(Resource)]
+struct Idle {
+    graph: Handle<AnimationGraph>,
+    node: AnimationNodeIndex,
+}
+
+fn load_idle(
+    mut commands: Commands,
+    assets: Res<AssetServer>,
+    mut graphs: ResMut<Assets<AnimationGraph>>,
+) {
+    let clip = assets.load(GltfAssetLabel::Animation(0).from_asset(FOX));
+    let (graph, node) = AnimationGraph::from_clip(clip);
+    commands.insert_resource(Idle {
+        graph: graphs.add(graph),
+        node,
+    });
+}
+
+/// Starts the idle clip on each Fox's player as its scene spawns, phases and speeds spread.
+fn play_idle(
+    mut commands: Commands,
+    idle: Res<Idle>,
+    mut players: Query<(Entity, &mut AnimationPlayer), Added<AnimationPlayer>>,
+    mut started: Local<u32>,
+) {
+    for (entity, mut player) in &mut players {
+        *started += 1;
+        let k = *started as f32;
+        player
+            .play(idle.node)
+            .repeat()
+            .seek_to((k * 0.731).fract() * 3.0)
+            .set_speed(0.8 + 0.4 * (k * 0.377).fract());
+        commands
+            .entity(entity)
+            .insert(AnimationGraphHandle(idle.graph.clone()));
+    }
+}
+
+/// A firefly wanders over the field; every Fox's head looks at it.
+struct FireflyPlugin;
+
+impl Plugin for FireflyPlugin {
+    fn build(&self, app: &mut App) {
+        app.add_systems(Startup, spawn_firefly)
+            .add_systems(Update, (fly, look_at_firefly, fade_look_at));
+    }
+}
+
+/// The firefly (its children are the look-at targets).
+#[derive(Component)]
+struct Firefly;
+
+/// A Fox's look-at: its head joint and the way the Fox faces (world, level).
+#[derive(Component)]
+struct LookAt {
+    head: Entity,
+    forward: Vec3,
+}
+
+/// The strongest look-at, when the firefly is straight ahead.
+const LOOK_WEIGHT: f32 = 0.5;
+
+/// Fades each look-at out as the firefly goes round to the Fox's side: full within 25° of
+/// where it faces, none past 70° (a head that would have to turn further does not try, as
+/// game look-ats clamp their weight — FinalIK's `clampWeight`, Unity's Multi-Aim limits).
+fn fade_look_at(
+    firefly: Query<&GlobalTransform, With<Firefly>>,
+    joints: Query<&GlobalTransform>,
+    mut looks: Query<(&LookAt, &mut PoseEffector)>,
+) {
+    let Ok(firefly) = firefly.single() else {
+        return;
+    };
+    let (full, none) = (25f32.to_radians().cos(), 70f32.to_radians().cos());
+    for (look, mut effector) in &mut looks {
+        let Ok(head) = joints.get(look.head) else {
+            continue;
+        };
+        let to = (firefly.translation() - head.translation()).normalize_or_zero();
+        let facing = to.dot(look.forward);
+        let weight = LOOK_WEIGHT * ((facing - none) / (full - none)).clamp(0.0, 1.0);
+        if (effector.weight - weight).abs() > 1e-3 {
+            effector.weight = weight;
+        }
+    }
+}
+
+fn spawn_firefly(
+    mut commands: Commands,
+    mut meshes: ResMut<Assets<Mesh>>,
+    mut materials: ResMut<Assets<StandardMaterial>>,
+) {
+    commands.spawn((
+        Firefly,
+        Mesh3d(meshes.add(Sphere::new(12.0))),
+        MeshMaterial3d(materials.add(StandardMaterial {
+            base_color: Color::srgb(1.0, 0.9, 0.3),
+            emissive: LinearRgba::rgb(8.0, 6.0, 1.0),
+            ..default()
+        })),
+        Transform::default(),
+    ));
+}
+
+/// A slow figure eight above the field.
+fn fly(time: Res<Time>, crowd: Res<Crowd>, mut firefly: Query<&mut Transform, With<Firefly>>) {
+    let extent = (crowd.0 as f32).sqrt().ceil() * SPACING;
+    let t = time.elapsed_secs() * 0.3;
+    for mut transform in &mut firefly {
+        transform.translation = Vec3::new(
+            extent * (0.5 + 0.45 * t.sin()),
+            90.0 + 30.0 * (2.0 * t).cos(),
+            extent * (0.45 + 0.5 * (2.0 * t).sin()),
+        );
+    }
+}
+
+/// Once a Fox is poseable: a look-at effector on its head, a child of the firefly. The head's
+/// local axis that looks is the Fox's forward (from its hips to its head) in the head's frame.
+fn look_at_firefly(
+    mut commands: Commands,
+    foxes: Query<(Entity, &PosedSkeleton), Added<PosedSkeleton>>,
+    joints: Query<&GlobalTransform>,
+    firefly: Query<Entity, With<Firefly>>,
+) {
+    let Ok(firefly) = firefly.single() else {
+        return;
+    };
+    for (fox, posed) in &foxes {
+        let skeleton = posed.model.skeleton();
+        let find = |part: &str| {
+            let j = skeleton
+                .joints()
+                .iter()
+                .position(|j| j.name.to_lowercase().contains(part))?;
+            joints.get(posed.joints[j]).ok().map(|g| (j, *g))
+        };
+        let (Some((head, head_at)), Some((_, hips_at))) = (find("head"), find("hip")) else {
+            continue;
+        };
+        let forward = (head_at.translation() - hips_at.translation())
+            .with_y(0.0)
+            .normalize_or(Vec3::Z);
+        let axis = head_at.rotation().inverse() * forward;
+        let effector = commands
+            .spawn((
+                PoseEffector::look_at(fox, posed.joints[head], axis).with_weight(0.0),
+                LookAt {
+                    head: posed.joints[head],
+                    forward,
+                },
+                Transform::default(),
+            ))
+            .id();
+        commands.entity(firefly).add_child(effector);
+    }
 }
 
 /// How many Foxes.
@@ -86,6 +269,14 @@ fn setup(
             Transform::from_xyz(x, ground_height(x, z, 0.0), z),
             Poseable::default(),
             PoseInFrame { iterations: 3 },
+            // The pose holds the legs (feet on the ground) and the neck and head (the look);
+            // the rest — spine, tail — plays the clip.
+            PoseBlend {
+                mask: Some(JointMask::names(POSED_JOINTS, true)),
+                ..PoseBlend::overriding(1.0)
+            },
+            // Joints nothing pulls on stay with the animation.
+            PoseStiffness(0.3),
         ));
         commands.spawn((
             Mesh3d(disc.clone()),

@@ -11,7 +11,8 @@
 //! `PostUpdate` (every in-frame solve of the frame, in parallel on the compute pool, and the
 //! write to the joints). The last stdout line is one JSON object: `characters`,
 //! `effectors_per_character`, `solver_ms_per_frame_median`, `solver_ms_per_frame_p95`,
-//! `ms_per_solve` (median wall time of one character's solve), `frames`.
+//! `ms_per_solve` (median wall time of one character's solve), `frames`, `models_built` (the
+//! characters share one model per asset: 1).
 
 #[path = "../common/headless_gltf.rs"]
 mod headless_gltf;
@@ -157,6 +158,7 @@ fn main() {
             "solver_ms_per_frame_p95": pick(&frames, 0.95),
             "ms_per_solve": pick(&solve_ms, 0.5),
             "frames": frames.len(),
+            "models_built": app.world().resource::<PoseModels>().built(),
         })
     );
 }
