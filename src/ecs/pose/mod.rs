@@ -259,7 +259,9 @@ pub enum PoseLimits {
 
 /// A pull of every joint towards where it was when the current handles, pins and effectors
 /// were set (the pose on screen: the animation's, or the held pose), in [0, 1]: joints nothing
-/// pulls on stay put. 0 (or no component) leaves them to the shape energy alone.
+/// pulls on stay put. Under an additive [`PoseBlend`] the pull is towards the animation as it
+/// plays now, so the layer relaxes back to nothing where nothing pulls. 0 (or no component)
+/// leaves them to the shape energy alone.
 #[derive(Component, Debug, Clone, Copy, PartialEq, Reflect)]
 #[reflect(Component)]
 pub struct PoseStiffness(pub f32);

@@ -295,10 +295,20 @@ fn constraints_of(
         .collect();
     // An additive layer holds what nothing pulls on where the animation puts it now.
     let start = extras.additive().then(|| on_screen(posed, joints));
+    // Preferred angles: the animation itself under an additive layer (so the layer relaxes
+    // back to nothing where nothing pulls), else the reference the drivers were set on.
+    let animated = extras
+        .additive()
+        .then(|| state.blend.animated_pose())
+        .filter(|p| p.local.len() == posed.joints.len());
     let stiffness = extras
         .stiffness
         .as_ref()
-        .zip(start.clone().or_else(|| state.reference.clone()))
+        .zip(
+            animated
+                .or_else(|| start.clone())
+                .or_else(|| state.reference.clone()),
+        )
         .map(|(k, pose)| ReferenceStiffness::uniform(pose, k.0.clamp(0.0, 1.0) as f64));
     let world = PoseConstraints {
         centroid_effectors,
