@@ -3,7 +3,10 @@
 //! (`SymmetricEditing`: an effector on one side drives its mirror image), and the feet planted
 //! by position effectors (ankles free) instead of pinned rigidly. A right-click on the
 //! character plants the joint nearest the click (a position effector where it is: the joint
-//! stays, the bones around it turn freely); a right-click there again lifts it.
+//! stays, the bones around it turn freely); a right-click there again lifts it. Alt +
+//! right-click anywhere (the character, the ground) makes the head look there (a look-at
+//! effector: the head's axis that faces the character's forward turns to the point); Alt +
+//! right-click by the point again lets go.
 
 use bevy::ecs::system::SystemParam;
 use bevy::prelude::*;
@@ -19,6 +22,10 @@ pub struct PlantedFoot;
 /// Marks the effectors placed by a right-click.
 #[derive(Component)]
 pub struct PlacedEffector;
+
+/// Marks the look-at placed by Alt + right-click.
+#[derive(Component)]
+pub struct PlacedLookAt;
 
 /// Right-clicks on the character place and lift position effectors; they are drawn.
 pub struct EffectorPlacementPlugin;
@@ -44,36 +51,99 @@ fn nearest_joint(
         .map(|(j, _)| j)
 }
 
-fn toggle_effector_on_right_click(
-    press: On<Pointer<Press>>,
-    mut commands: Commands,
-    character: Query<&PosedSkeleton, With<Character>>,
-    joints: Query<&GlobalTransform>,
-    placed: Query<(Entity, &PoseEffector), With<PlacedEffector>>,
-) {
+/// What a right-click reads: the character, its joints and the effectors placed so far.
+#[derive(SystemParam)]
+struct Placement<'w, 's> {
+    commands: Commands<'w, 's>,
+    character: Query<'w, 's, (Entity, &'static PosedSkeleton), With<Character>>,
+    joints: Query<'w, 's, &'static GlobalTransform>,
+    placed: Query<'w, 's, (Entity, &'static PoseEffector), With<PlacedEffector>>,
+    looks: Query<'w, 's, (Entity, &'static GlobalTransform), With<PlacedLookAt>>,
+    keys: Res<'w, ButtonInput<KeyCode>>,
+}
+
+fn toggle_effector_on_right_click(press: On<Pointer<Press>>, mut p: Placement) {
     if press.button != PointerButton::Secondary {
         return;
     }
-    let target = press.entity;
-    let (Ok(posed), Some(point)) = (character.get(target), press.hit.position) else {
+    let Some(point) = press.hit.position else {
         return;
     };
-    let Some(joint) = nearest_joint(posed, &joints, point) else {
-        return;
-    };
-    if let Some((existing, _)) = placed.iter().find(|(_, e)| e.joint == joint) {
-        commands.entity(existing).despawn();
+    if p.keys.any_pressed([KeyCode::AltLeft, KeyCode::AltRight]) {
+        look_at_point(&mut p, point);
         return;
     }
-    let at = joints
+    let target = press.entity;
+    let Ok((_, posed)) = p.character.get(target) else {
+        return;
+    };
+    let Some(joint) = nearest_joint(posed, &p.joints, point) else {
+        return;
+    };
+    if let Some((existing, _)) = p.placed.iter().find(|(_, e)| e.joint == joint) {
+        p.commands.entity(existing).despawn();
+        return;
+    }
+    let at = p
+        .joints
         .get(joint)
         .map(GlobalTransform::translation)
         .unwrap_or(point);
-    commands.spawn((
+    p.commands.spawn((
         PoseEffector::position(target, joint),
         Transform::from_translation(at),
         PlacedEffector,
         Name::new("placed effector"),
+    ));
+}
+
+/// Points the character's head at `point` (a look-at effector, moved if there is one), or
+/// lets go when `point` is by the current target. The head is the joint named "head" (any
+/// case), else the highest joint; its looking axis is the character's forward (+Z of the
+/// character, as glTF characters face) in the head's frame now.
+fn look_at_point(p: &mut Placement, point: Vec3) {
+    let Some((character, posed)) = p.character.iter().next() else {
+        return;
+    };
+    let size = posed.model.topology().bounding_diagonal() as f32;
+    if let Some((look, at)) = p.looks.iter().next() {
+        if at.translation().distance(point) < 0.05 * size {
+            p.commands.entity(look).despawn();
+        } else {
+            p.commands
+                .entity(look)
+                .insert(Transform::from_translation(point));
+        }
+        return;
+    }
+    let skeleton = posed.model.skeleton();
+    let named = skeleton
+        .joints()
+        .iter()
+        .position(|j| j.name.to_lowercase().contains("head"));
+    let highest = || {
+        (0..posed.joints.len()).max_by(|&a, &b| {
+            let y = |j: usize| {
+                p.joints
+                    .get(posed.joints[j])
+                    .map_or(f32::MIN, |g| g.translation().y)
+            };
+            y(a).total_cmp(&y(b))
+        })
+    };
+    let Some(head) = named.or_else(highest).map(|j| posed.joints[j]) else {
+        return;
+    };
+    let (Ok(head_at), Ok(body)) = (p.joints.get(head), p.joints.get(character)) else {
+        return;
+    };
+    let forward = (body.rotation() * Vec3::Z).normalize_or(Vec3::Z);
+    let axis = head_at.rotation().inverse() * forward;
+    p.commands.spawn((
+        PoseEffector::look_at(character, head, axis),
+        Transform::from_translation(point),
+        PlacedLookAt,
+        Name::new("look-at"),
     ));
 }
 

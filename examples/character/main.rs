@@ -15,7 +15,8 @@
 //! * **Body** (right panel): joint limits from the humanoid preset, mirrored edits (an
 //!   effector on one side drives its mirror image) and feet planted by position effectors
 //!   (ankles free) instead of pinned. **Right-click** on the character plants the joint nearest
-//!   the click (a position effector; right-click again to lift it).
+//!   the click (a position effector; right-click again to lift it); **Alt + right-click**
+//!   anywhere makes the head look there (again by the point to let go).
 //! * **Poses** (right panel): the pose library in `poses/library/`: apply, apply mirrored,
 //!   blend two, save the current pose by name. **Ctrl+Z / Ctrl+Y**: undo / redo.
 //! * **`--author-demo OUT.glb`**: poses the character by three scripted grabs, keys them at
