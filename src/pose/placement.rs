@@ -8,7 +8,7 @@
 
 use glam::{DAffine3, DMat3, DQuat, DVec3};
 
-use super::effectors::EffectorGoal;
+use super::effectors::{Effector, EffectorGoal};
 use super::skeleton::rotation_of;
 use super::solver::PoseConstraints;
 use crate::deform::RigidTransform;
@@ -70,6 +70,17 @@ impl Similarity {
     }
 }
 
+impl Effector {
+    /// This effector, its goal given in one frame, expressed in another (`to`, a
+    /// [`similarity`]; see [`PoseConstraints::transformed`]).
+    pub fn transformed(&self, to: &DAffine3) -> Effector {
+        Effector {
+            goal: Similarity::new(to).goal(&self.goal),
+            ..*self
+        }
+    }
+}
+
 impl PoseConstraints {
     /// These constraints, given in one frame, expressed in another: `to` maps the first
     /// into the second (character ← world, the inverse of the character's placement) and must
@@ -98,7 +109,7 @@ impl PoseConstraints {
 mod tests {
     use super::*;
     use crate::deform::Handle;
-    use crate::pose::{CentroidEffector, Effector, JointHandle};
+    use crate::pose::{CentroidEffector, JointHandle};
 
     #[test]
     fn similarities_are_told_apart() {

@@ -340,3 +340,63 @@ fn an_in_frame_solve_is_on_the_joints_in_the_frame_its_target_moved() {
         share * 100.0
     );
 }
+
+/// Moves the carrier of an effector in `PostUpdate`, before the pose is solved: as an
+/// animation (or any late system) moves the thing a target is attached to.
+#[derive(Resource)]
+struct Carrier(Entity, Vec3);
+
+/// In-frame mode reads effector targets after animation: an effector parented to a carrier
+/// that a `PostUpdate` system moves (before `PoseSystems::Apply`, like the animation does) is
+/// met in that same frame — its joint ends the frame where the carrier is now, not where it
+/// was when `Update` ran (which is a whole step behind).
+#[test]
+fn an_in_frame_effector_follows_a_target_moved_after_update() {
+    let rig = bar_rig(3, 12, 30);
+    let mut app = app();
+    let (root, joints) = posed_rig(&mut app, &rig, |joints: &[Entity]| {
+        (
+            Poseable::default(),
+            PinnedJoints(vec![joints[0]]),
+            PoseInFrame { iterations: 8 },
+        )
+    });
+    let tip = joints[2];
+    let at = joint_position(&app, tip);
+    let carrier = app.world_mut().spawn(Transform::from_translation(at)).id();
+    let effector = app
+        .world_mut()
+        .spawn((PoseEffector::position(root, tip), Transform::default()))
+        .id();
+    app.world_mut().entity_mut(carrier).add_child(effector);
+    // Let the effector's set start and the pose settle on the target where it is.
+    for _ in 0..30 {
+        app.update();
+    }
+    let step = Vec3::new(0.015, -0.004, 0.01);
+    app.insert_resource(Carrier(carrier, step));
+    app.add_systems(
+        PostUpdate,
+        (|carrier: Res<Carrier>, mut transforms: Query<&mut Transform>| {
+            if let Ok(mut t) = transforms.get_mut(carrier.0) {
+                t.translation += carrier.1;
+            }
+        })
+        .before(PoseSystems::Apply),
+    );
+    for frame in 0..5 {
+        app.update();
+        let goal = app
+            .world()
+            .get::<GlobalTransform>(carrier)
+            .unwrap()
+            .translation();
+        let tip_at = joint_position(&app, tip);
+        // A frame late the joint would be a whole step (0.019) short.
+        assert!(
+            tip_at.distance(goal) < 0.2 * step.length(),
+            "frame {frame}: the joint is {} from the target moved this frame",
+            tip_at.distance(goal)
+        );
+    }
+}

@@ -8,6 +8,7 @@ use std::time::Instant;
 
 use bevy::prelude::*;
 
+use super::constraints::core_effector;
 use super::plugin::PoseState;
 use super::poll::store_landed;
 use super::{
@@ -29,15 +30,21 @@ type InFrameCharacter = (
     Option<&'static PoseBlend>,
 );
 
+/// The local transforms and parents of every entity: effector targets are composed from them
+/// after animation, before propagation.
+type Locals<'w, 's> = Query<'w, 's, (&'static Transform, Option<&'static ChildOf>)>;
+
 /// Solves the pending targets of every in-frame character (in parallel) and stores the poses.
 pub(super) fn solve_in_frame(
     mut characters: Query<InFrameCharacter>,
+    locals: Locals,
     mut solved: MessageWriter<PoseSolved>,
     mut failed: MessageWriter<PoseFailed>,
 ) {
     characters.par_iter_mut().for_each(
         |(_, poseable, in_frame, mut posed, mut state, mut status, blend)| {
             let state = state.bypass_change_detection();
+            refresh_goals(state, &posed, &locals);
             let Some(outcome) = solve_pending(state, &posed, poseable, in_frame) else {
                 return;
             };
@@ -70,6 +77,58 @@ pub(super) fn solve_in_frame(
             }
             None => {}
         }
+    }
+}
+
+/// `entity`'s world transform composed from the local transforms up its hierarchy as they
+/// are now (after animation: `GlobalTransform` is last frame's until propagation runs);
+/// `None` when an ancestor has no `Transform` or the chain is implausibly deep.
+fn current_global(entity: Entity, locals: &Locals) -> Option<GlobalTransform> {
+    let mut chain = Vec::new();
+    let mut at = Some(entity);
+    while let Some(e) = at {
+        let (transform, parent) = locals.get(e).ok()?;
+        chain.push(*transform);
+        at = parent.map(ChildOf::parent);
+        if chain.len() > 512 {
+            return None;
+        }
+    }
+    let mut global = GlobalTransform::IDENTITY;
+    for t in chain.iter().rev() {
+        global = global.mul_transform(*t);
+    }
+    Some(global)
+}
+
+/// Reads the effectors' goals again from their entities as they are now (after this frame's
+/// animation), in character space: into the pending constraints, or — when nothing was asked
+/// in `Update` but a target moved since (an animated carrier) — into a new request made from
+/// the last solved constraints.
+fn refresh_goals(state: &mut PoseState, posed: &PosedSkeleton, locals: &Locals) {
+    if state.effector_sources.is_empty() {
+        return;
+    }
+    let requested = state.pending.is_some();
+    let Some(mut constraints) = state.pending.take().or_else(|| state.solved.clone()) else {
+        return;
+    };
+    let to_character = posed.placement.inverse();
+    let mut moved = false;
+    for (index, entity, effector) in &state.effector_sources {
+        let Some(global) = current_global(*entity, locals) else {
+            continue;
+        };
+        let fresh = core_effector(posed, effector, &global).map(|e| e.transformed(&to_character));
+        if let (Some(fresh), Some(slot)) = (fresh, constraints.effectors.get_mut(*index))
+            && slot.goal != fresh.goal
+        {
+            slot.goal = fresh.goal;
+            moved = true;
+        }
+    }
+    if requested || moved {
+        state.pending = Some(constraints);
     }
 }
 
@@ -112,6 +171,9 @@ fn solve_pending(
         Ok((solver, solution, t0.elapsed().as_secs_f64() * 1e3))
     };
     let outcome = solve();
+    if !state.effector_sources.is_empty() {
+        state.solved = Some(constraints.clone());
+    }
     // The whole budget used and still improving: the same targets go on next frame
     // (warm-started), so a pose whose targets stop moving settles over a few frames.
     if let Ok((_, solution, _)) = &outcome

@@ -94,8 +94,10 @@ impl Default for Poseable {
 /// before transform propagation), so its pose is on the joints in the frame the targets moved
 /// — for gameplay-driven targets (a hand on a door, feet on stairs). At most `iterations`
 /// iterations a frame (warm-started from the last frame's); all in-frame characters of a
-/// frame are solved in parallel on Bevy's compute pool. Without it (editing), solves run in
-/// the background and land a frame or more later.
+/// frame are solved in parallel on Bevy's compute pool. Effector targets are read again
+/// there, from the local transforms up their hierarchy after animation, so a target an
+/// animation or a late system carried is met in the frame it moved. Without it (editing),
+/// solves run in the background and land a frame or more later.
 #[derive(Component, Debug, Clone, Copy, PartialEq, Reflect)]
 #[reflect(Component)]
 pub struct PoseInFrame {

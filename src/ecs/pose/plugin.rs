@@ -155,6 +155,13 @@ pub(crate) struct PoseState {
     pub(super) placement: Option<glam::DAffine3>,
     /// The [`super::PoseModels`] entry this character is building, if shared.
     pub(super) shared_key: Option<super::ModelKey>,
+    /// Where each effector of the pending constraints came from (index in
+    /// `PoseConstraints::effectors`, its entity and component): an in-frame solve reads their
+    /// goals again after animation (`in_frame.rs`).
+    pub(super) effector_sources: Vec<(usize, Entity, super::PoseEffector)>,
+    /// The constraints of the last in-frame solve (with effectors), to ask again when only
+    /// their targets moved after `Update`.
+    pub(super) solved: Option<PoseConstraints>,
 }
 
 impl PoseState {
@@ -179,6 +186,8 @@ impl PoseState {
             in_frame_outcome: None,
             placement: None,
             shared_key: None,
+            effector_sources: Vec::new(),
+            solved: None,
         }
     }
 }

@@ -288,11 +288,16 @@ fn constraints_of(
         &drivers.handles,
         &drivers.followers,
     );
-    let effectors: Vec<Effector> = drivers
-        .effectors
-        .iter()
-        .filter_map(|(_, e, g)| core_effector(posed, e, g))
-        .collect();
+    let mut effectors: Vec<Effector> = Vec::with_capacity(drivers.effectors.len());
+    state.effector_sources.clear();
+    for (entity, e, g) in &drivers.effectors {
+        if let Some(effector) = core_effector(posed, e, g) {
+            state
+                .effector_sources
+                .push((effectors.len(), *entity, (**e).clone()));
+            effectors.push(effector);
+        }
+    }
     // An additive layer holds what nothing pulls on where the animation puts it now.
     let start = extras.additive().then(|| on_screen(posed, joints));
     // Preferred angles: the animation itself under an additive layer (so the layer relaxes
