@@ -228,6 +228,73 @@ fn three_node_glb(rig: &SyntheticRig) -> (Vec<u8>, [usize; 3]) {
     )
 }
 
+/// What [`drag_head_with_feet_pinned`] saw.
+struct HeadDrag {
+    /// The head's vertices (render indices).
+    head: Vec<u32>,
+    /// Their mean motion.
+    moved: Vec3,
+    /// The farthest a pinned foot moved.
+    foot_drift: f32,
+    /// Every vertex as drawn after the drag (world).
+    now: Vec<Vec3>,
+}
+
+/// Pins `character`'s ankles, grabs its head (the vertices within `band` of the top of
+/// `drawn`, its render vertices as drawn, world space), drags it by `shift` and lets the pose
+/// settle.
+fn drag_head_with_feet_pinned(
+    app: &mut App,
+    character: Entity,
+    drawn: &[Vec3],
+    band: f32,
+    shift: Vec3,
+) -> HeadDrag {
+    let posed = app.world().get::<PosedSkeleton>(character).unwrap().clone();
+    let skeleton = posed.model.skeleton();
+    let joint = |name: &str| posed.joints[skeleton.find(name).expect(name)];
+    let feet = vec![joint("ankle_l"), joint("ankle_r")];
+    app.world_mut()
+        .entity_mut(character)
+        .insert(PinnedJoints(feet.clone()));
+    let world_of =
+        |app: &App, e: Entity| app.world().get::<GlobalTransform>(e).unwrap().translation();
+    let feet_before: Vec<Vec3> = feet.iter().map(|&f| world_of(app, f)).collect();
+    let top = drawn.iter().map(|p| p.y).fold(f32::MIN, f32::max);
+    let head: Vec<u32> = (0..drawn.len() as u32)
+        .filter(|&i| drawn[i as usize].y > top - band)
+        .collect();
+    let (handle, pivot) = spawn_handle(app, character, head.clone(), ());
+    app.world_mut()
+        .get_mut::<Transform>(handle)
+        .unwrap()
+        .translation = pivot + shift;
+    drive_solves(app, character, handle, 20);
+    settle_pose(app, character);
+    let now = app
+        .world()
+        .get::<PosedSkeleton>(character)
+        .unwrap()
+        .skinned_positions();
+    let moved = head
+        .iter()
+        .map(|&i| now[i as usize] - drawn[i as usize])
+        .sum::<Vec3>()
+        / head.len() as f32;
+    let foot_drift = feet
+        .iter()
+        .zip(&feet_before)
+        .map(|(f, before)| world_of(app, *f).distance(*before))
+        .fold(0.0, f32::max);
+    app.world_mut().despawn(handle);
+    HeadDrag {
+        head,
+        moved,
+        foot_drift,
+        now,
+    }
+}
+
 /// The model holds all three nodes' vertices, and a drag on the head bends the body (its
 /// vertices by the neck go a quarter of the way or more) with the seams between the nodes
 /// closed, while the pinned feet stay (within 1e-3 of the size) and the head follows the drag
@@ -248,52 +315,25 @@ fn a_character_of_several_mesh_nodes_poses_as_one() {
     assert_eq!(posed.primitives.len(), 3, "one model from the three nodes");
     let drawn = posed.skinned_positions();
     assert_eq!(drawn.len(), counts.iter().sum::<usize>());
-    let skeleton = posed.model.skeleton();
-    let joint = |name: &str| posed.joints[skeleton.find(name).expect(name)];
-    let feet = vec![joint("ankle_l"), joint("ankle_r")];
-    app.world_mut()
-        .entity_mut(root)
-        .insert(PinnedJoints(feet.clone()));
-    let world_of =
-        |app: &App, e: Entity| app.world().get::<GlobalTransform>(e).unwrap().translation();
-    let feet_before: Vec<Vec3> = feet.iter().map(|&f| world_of(&app, f)).collect();
     // The head: the highest vertices as drawn (the origin is at the hips: the head is at
     // y ≈ 0.6-0.8 here, the feet below zero).
     let size = posed.model.topology().bounding_diagonal() as f32;
-    let top = drawn.iter().map(|p| p.y).fold(f32::MIN, f32::max);
-    let head: Vec<u32> = (0..drawn.len() as u32)
-        .filter(|&i| drawn[i as usize].y > top - 0.1)
-        .collect();
     assert!(
         drawn.iter().any(|p| p.y < -0.5),
         "the feet are below the origin"
     );
-    let (handle, pivot) = spawn_handle(&mut app, root, head.clone(), ());
     let shift = Vec3::new(0.12, -0.05, 0.0);
-    app.world_mut()
-        .get_mut::<Transform>(handle)
-        .unwrap()
-        .translation = pivot + shift;
-    drive_solves(&mut app, root, handle, 20);
-    settle_pose(&mut app, root);
-    let now = app
-        .world()
-        .get::<PosedSkeleton>(root)
-        .unwrap()
-        .skinned_positions();
-    let moved = head
-        .iter()
-        .map(|&i| now[i as usize] - drawn[i as usize])
-        .sum::<Vec3>()
-        / head.len() as f32;
+    let drag = drag_head_with_feet_pinned(&mut app, root, &drawn, 0.1, shift);
+    let (moved, now) = (drag.moved, drag.now);
     assert!(
         moved.distance(shift) < 0.1 * shift.length(),
         "the head moved {moved}, the drag was {shift}"
     );
-    for (f, before) in feet.iter().zip(&feet_before) {
-        let d = world_of(&app, *f).distance(*before);
-        assert!(d < 1e-3 * size, "a pinned foot moved {d} (size {size})");
-    }
+    assert!(
+        drag.foot_drift < 1e-3 * size,
+        "a pinned foot moved {} (size {size})",
+        drag.foot_drift
+    );
     // The body carries the head: its vertices near the neck moved with the drag, and the
     // seams between the nodes stay closed (a vertex on a seam is in two nodes: both copies
     // end up at one place).
@@ -474,7 +514,6 @@ fn a_skin_bound_with_a_non_uniform_scale_poses_rigidly() {
     assert_eq!(model_drawn(&app).len(), bind.len());
     assert!(worst(&model_drawn(&app), &bevy) < 1e-4 * size);
     let skeleton = posed.model.skeleton();
-    let joint = |name: &str| posed.joints[skeleton.find(name).expect(name)];
     let world_of =
         |app: &App, e: Entity| app.world().get::<GlobalTransform>(e).unwrap().translation();
     let bones = |app: &App| -> Vec<f64> {
@@ -487,23 +526,9 @@ fn a_skin_bound_with_a_non_uniform_scale_poses_rigidly() {
             .collect()
     };
     let bones_before = bones(&app);
-    let feet = vec![joint("ankle_l"), joint("ankle_r")];
-    app.world_mut()
-        .entity_mut(root)
-        .insert(PinnedJoints(feet.clone()));
-    let feet_before: Vec<Vec3> = feet.iter().map(|&f| world_of(&app, f)).collect();
-    let top = bind.iter().map(|p| p.y).fold(f64::MIN, f64::max);
-    let head: Vec<u32> = (0..bind.len() as u32)
-        .filter(|&i| bind[i as usize].y > top - 0.1)
-        .collect();
-    let (handle, pivot) = spawn_handle(&mut app, root, head.clone(), ());
     let shift = Vec3::new(0.12, -0.05, 0.0);
-    app.world_mut()
-        .get_mut::<Transform>(handle)
-        .unwrap()
-        .translation = pivot + shift;
-    drive_solves(&mut app, root, handle, 20);
-    settle_pose(&mut app, root);
+    let drawn: Vec<Vec3> = bind.iter().map(|p| p.as_vec3()).collect();
+    let drag = drag_head_with_feet_pinned(&mut app, root, &drawn, 0.1, shift);
     // Posed where Bevy draws it.
     let now = model_drawn(&app);
     let bevy_now = drawn_by_bevy(&app, &posed, &rig, &written, &inverse_binds);
@@ -513,21 +538,16 @@ fn a_skin_bound_with_a_non_uniform_scale_poses_rigidly() {
         worst(&now, &bevy_now)
     );
     // The drag is met, the feet stay.
-    let moved = head
-        .iter()
-        .map(|&i| now[i as usize] - bind[i as usize])
-        .sum::<DVec3>()
-        / head.len() as f64;
-    let shift_d = shift.as_dvec3();
-    assert!(shift_d.length() > 0.1);
     assert!(
-        moved.distance(shift_d) < 0.1 * shift_d.length(),
-        "the head moved {moved}, the drag was {shift}"
+        drag.moved.distance(shift) < 0.1 * shift.length(),
+        "the head moved {}, the drag was {shift}",
+        drag.moved
     );
-    for (f, before) in feet.iter().zip(&feet_before) {
-        let d = f64::from(world_of(&app, *f).distance(*before));
-        assert!(d < 1e-3 * size, "a pinned foot moved {d} (size {size})");
-    }
+    assert!(
+        f64::from(drag.foot_drift) < 1e-3 * size,
+        "a pinned foot moved {} (size {size})",
+        drag.foot_drift
+    );
     // Rigid bones: lengths kept, and each joint's skin matrix is a rotation (and the
     // translation) applied to the node's bind — no shear from the non-uniform scale.
     for (a, b) in bones(&app).iter().zip(&bones_before) {
@@ -566,14 +586,7 @@ fn two_characters_from_one_asset_share_one_model_and_pose_independently() {
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(dir.join("humanoid.glb"), glb).unwrap();
     let (mut app, first) = common::character_app(&dir, "humanoid.glb", PosePlugin);
-    let file = app.world().resource::<common::FoxFile>().0.clone();
-    let scene = app
-        .world()
-        .resource::<Assets<bevy::gltf::Gltf>>()
-        .get(&file)
-        .unwrap()
-        .scenes[0]
-        .clone();
+    let scene = common::loaded_scene(&app);
     let placed = Transform::from_xyz(3.0, 0.5, -2.0)
         .with_rotation(Quat::from_rotation_y(1.2))
         .with_scale(Vec3::splat(2.0));
@@ -604,53 +617,27 @@ fn two_characters_from_one_asset_share_one_model_and_pose_independently() {
         "the second is drawn {worst} off its placement"
     );
     // Drag the second's head (world space) with its feet pinned.
-    let skeleton = b.model.skeleton();
-    let joint = |name: &str| b.joints[skeleton.find(name).expect(name)];
-    let feet = vec![joint("ankle_l"), joint("ankle_r")];
-    app.world_mut()
-        .entity_mut(second)
-        .insert(PinnedJoints(feet.clone()));
-    let world_of =
-        |app: &App, e: Entity| app.world().get::<GlobalTransform>(e).unwrap().translation();
-    let feet_before: Vec<Vec3> = feet.iter().map(|&f| world_of(&app, f)).collect();
-    let top = drawn_b.iter().map(|p| p.y).fold(f32::MIN, f32::max);
-    let head: Vec<u32> = (0..drawn_b.len() as u32)
-        .filter(|&i| drawn_b[i as usize].y > top - 0.2)
-        .collect();
-    let (handle, pivot) = spawn_handle(&mut app, second, head.clone(), ());
     let shift = Vec3::new(0.2, -0.1, 0.1);
-    app.world_mut()
-        .get_mut::<Transform>(handle)
-        .unwrap()
-        .translation = pivot + shift;
-    drive_solves(&mut app, second, handle, 20);
-    settle_pose(&mut app, second);
-    let now = app
-        .world()
-        .get::<PosedSkeleton>(second)
-        .unwrap()
-        .skinned_positions();
-    let moved = head
-        .iter()
-        .map(|&i| now[i as usize] - drawn_b[i as usize])
-        .sum::<Vec3>()
-        / head.len() as f32;
+    let drag = drag_head_with_feet_pinned(&mut app, second, &drawn_b, 0.2, shift);
+    assert!(drag.head.len() > 5);
     assert!(
-        moved.distance(shift) < 0.1 * shift.length(),
-        "the second's head moved {moved}, the drag was {shift}"
+        drag.moved.distance(shift) < 0.1 * shift.length(),
+        "the second's head moved {}, the drag was {shift}",
+        drag.moved
     );
     let size = 2.0 * b.model.topology().bounding_diagonal() as f32;
-    for (f, before) in feet.iter().zip(&feet_before) {
-        let d = world_of(&app, *f).distance(*before);
-        assert!(d < 1e-3 * size, "a pinned foot moved {d} (size {size})");
-    }
+    assert!(
+        drag.foot_drift < 1e-3 * size,
+        "a pinned foot moved {} (size {size})",
+        drag.foot_drift
+    );
     assert_eq!(
         app.world().get::<PosedSkeleton>(first).unwrap().pose,
         a.pose,
         "the first character did not move"
     );
-    // Let go, then walk the second 1 m along x: what it draws follows.
-    app.world_mut().despawn(handle);
+    // Let go (the drag's handle is gone), then walk the second 1 m along x: what it draws
+    // follows.
     app.update();
     let before = app
         .world()

@@ -290,14 +290,8 @@ pub fn character_app<M>(
             .get(&waiting)
             .is_some()
     });
-    let scene = app
-        .world()
-        .resource::<Assets<bevy::gltf::Gltf>>()
-        .get(&file)
-        .unwrap()
-        .scenes[0]
-        .clone();
     app.insert_resource(FoxFile(file));
+    let scene = loaded_scene(&app);
     let root = app
         .world_mut()
         .spawn((
@@ -313,6 +307,14 @@ pub fn character_app<M>(
     });
     assert_eq!(app.world().get::<PoseStatus>(root).unwrap().error, None);
     (app, root)
+}
+
+/// The first scene of the file [`character_app`] loaded (spawn it again for another
+/// instance of the character).
+pub fn loaded_scene(app: &App) -> Handle<bevy::world_serialization::WorldAsset> {
+    let file = &app.world().resource::<FoxFile>().0;
+    let gltf = app.world().resource::<Assets<bevy::gltf::Gltf>>().get(file);
+    gltf.expect("character_app loaded the file").scenes[0].clone()
 }
 
 /// Animation `index` of the Fox loaded by [`fox_app`] (0 Survey, 1 Walk, 2 Run).
