@@ -400,3 +400,63 @@ fn an_in_frame_effector_follows_a_target_moved_after_update() {
         );
     }
 }
+
+/// With symmetric editing in-frame, the mirrored effector follows a target moved after
+/// `Update` in the same frame too: the right wrist ends each frame nearer the mirror of where
+/// the left wrist's target is now than of where it was a step before.
+#[test]
+fn an_in_frame_mirrored_effector_follows_in_the_same_frame() {
+    let rig = mannequin_rig(10);
+    let mut app = app();
+    let (root, joints) = posed_rig(&mut app, &rig, |joints: &[Entity]| {
+        let find = |n: &str| joints[rig.skeleton.find(n).unwrap()];
+        (
+            Poseable::default(),
+            PinnedJoints(vec![find("hips"), find("ankle_l"), find("ankle_r")]),
+            SymmetricEditing,
+            PoseStiffness(0.05),
+            PoseInFrame { iterations: 8 },
+        )
+    });
+    let find = |n: &str| joints[rig.skeleton.find(n).unwrap()];
+    let start = Vec3::new(0.45, 1.3, 0.25);
+    let carrier = app.world_mut().spawn(Transform::from_translation(start)).id();
+    let effector = app
+        .world_mut()
+        .spawn((
+            PoseEffector::position(root, find("wrist_l")),
+            Transform::default(),
+        ))
+        .id();
+    app.world_mut().entity_mut(carrier).add_child(effector);
+    for _ in 0..40 {
+        app.update();
+    }
+    let step = Vec3::new(0.0, 0.0, -0.03);
+    app.insert_resource(Carrier(carrier, step));
+    app.add_systems(
+        PostUpdate,
+        (|carrier: Res<Carrier>, mut transforms: Query<&mut Transform>| {
+            if let Ok(mut t) = transforms.get_mut(carrier.0) {
+                t.translation += carrier.1;
+            }
+        })
+        .before(PoseSystems::Apply),
+    );
+    let mirror = |p: Vec3| Vec3::new(-p.x, p.y, p.z);
+    for frame in 0..4 {
+        app.update();
+        let goal = app
+            .world()
+            .get::<GlobalTransform>(carrier)
+            .unwrap()
+            .translation();
+        let right = joint_position(&app, find("wrist_r"));
+        let now = right.distance(mirror(goal));
+        let before = right.distance(mirror(goal - step));
+        assert!(
+            now < before && now < 0.5 * step.length(),
+            "frame {frame}: the right wrist is {now} from the mirrored target now, {before} from where it was"
+        );
+    }
+}

@@ -127,6 +127,18 @@ fn refresh_goals(state: &mut PoseState, posed: &PosedSkeleton, locals: &Locals) 
             moved = true;
         }
     }
+    // Mirrored effectors (symmetric editing) follow their originals.
+    if moved && let Some(symmetry) = &state.symmetry {
+        for &(original, mirrored) in &symmetry.mirrored_effectors {
+            let image = constraints
+                .effectors
+                .get(original)
+                .and_then(|e| symmetry.mirror_effector(e));
+            if let (Some(image), Some(slot)) = (image, constraints.effectors.get_mut(mirrored)) {
+                slot.goal = image.goal;
+            }
+        }
+    }
     if requested || moved {
         state.pending = Some(constraints);
     }

@@ -18,6 +18,8 @@ pub(super) struct Symmetry {
     frame: DAffine3,
     bind: Vec<DVec3>,
     sets: Vec<(Vec<u32>, Option<Vec<u32>>)>,
+    /// For the last constraints mirrored: each mirrored effector's (original, mirror) index.
+    pub(super) mirrored_effectors: Vec<(usize, usize)>,
 }
 
 impl Symmetry {
@@ -30,7 +32,13 @@ impl Symmetry {
             frame: skeleton.joints()[0].parent_frame,
             bind: posed.model.skin_welded(&bind_pose),
             sets: Vec::new(),
+            mirrored_effectors: Vec::new(),
         }
+    }
+
+    /// The mirror image of `effector` (character space), `None` for an unpaired joint.
+    pub(super) fn mirror_effector(&self, effector: &Effector) -> Option<Effector> {
+        self.mirror.mirror_effector(effector, &self.frame)
     }
 
     /// The vertices mirroring `set` (cached), `None` for a set that mirrors onto itself.
@@ -57,11 +65,14 @@ impl Symmetry {
         fixed_vertices: &[u32],
     ) {
         // In character space (the model's): the plane is the root parent frame's x = 0.
-        let mirrored: Vec<Effector> = effectors
-            .iter()
-            .filter_map(|e| self.mirror.mirror_effector(e, &self.frame))
-            .collect();
-        effectors.extend(mirrored);
+        let originals = effectors.len();
+        self.mirrored_effectors.clear();
+        for i in 0..originals {
+            if let Some(m) = self.mirror_effector(&effectors[i]) {
+                self.mirrored_effectors.push((i, effectors.len()));
+                effectors.push(m);
+            }
+        }
         let mut used: std::collections::HashSet<u32> = fixed_vertices
             .iter()
             .chain(handles.iter().flat_map(|h| &h.vertices))
