@@ -420,7 +420,10 @@ fn an_in_frame_mirrored_effector_follows_in_the_same_frame() {
     });
     let find = |n: &str| joints[rig.skeleton.find(n).unwrap()];
     let start = Vec3::new(0.45, 1.3, 0.25);
-    let carrier = app.world_mut().spawn(Transform::from_translation(start)).id();
+    let carrier = app
+        .world_mut()
+        .spawn(Transform::from_translation(start))
+        .id();
     let effector = app
         .world_mut()
         .spawn((
