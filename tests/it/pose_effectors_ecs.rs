@@ -346,6 +346,20 @@ fn an_in_frame_solve_is_on_the_joints_in_the_frame_its_target_moved() {
 #[derive(Resource)]
 struct Carrier(Entity, Vec3);
 
+/// Moves `carrier` by `step` every frame in `PostUpdate`, before `PoseSystems::Apply`.
+fn move_in_post_update(app: &mut App, carrier: Entity, step: Vec3) {
+    app.insert_resource(Carrier(carrier, step));
+    app.add_systems(
+        PostUpdate,
+        (|carrier: Res<Carrier>, mut transforms: Query<&mut Transform>| {
+            if let Ok(mut t) = transforms.get_mut(carrier.0) {
+                t.translation += carrier.1;
+            }
+        })
+        .before(PoseSystems::Apply),
+    );
+}
+
 /// In-frame mode reads effector targets after animation: an effector parented to a carrier
 /// that a `PostUpdate` system moves (before `PoseSystems::Apply`, like the animation does) is
 /// met in that same frame — its joint ends the frame where the carrier is now, not where it
@@ -374,23 +388,10 @@ fn an_in_frame_effector_follows_a_target_moved_after_update() {
         app.update();
     }
     let step = Vec3::new(0.015, -0.004, 0.01);
-    app.insert_resource(Carrier(carrier, step));
-    app.add_systems(
-        PostUpdate,
-        (|carrier: Res<Carrier>, mut transforms: Query<&mut Transform>| {
-            if let Ok(mut t) = transforms.get_mut(carrier.0) {
-                t.translation += carrier.1;
-            }
-        })
-        .before(PoseSystems::Apply),
-    );
+    move_in_post_update(&mut app, carrier, step);
     for frame in 0..5 {
         app.update();
-        let goal = app
-            .world()
-            .get::<GlobalTransform>(carrier)
-            .unwrap()
-            .translation();
+        let goal = joint_position(&app, carrier); // (any entity's world position)
         let tip_at = joint_position(&app, tip);
         // A frame late the joint would be a whole step (0.019) short.
         assert!(
@@ -436,24 +437,11 @@ fn an_in_frame_mirrored_effector_follows_in_the_same_frame() {
         app.update();
     }
     let step = Vec3::new(0.0, 0.0, -0.03);
-    app.insert_resource(Carrier(carrier, step));
-    app.add_systems(
-        PostUpdate,
-        (|carrier: Res<Carrier>, mut transforms: Query<&mut Transform>| {
-            if let Ok(mut t) = transforms.get_mut(carrier.0) {
-                t.translation += carrier.1;
-            }
-        })
-        .before(PoseSystems::Apply),
-    );
+    move_in_post_update(&mut app, carrier, step);
     let mirror = |p: Vec3| Vec3::new(-p.x, p.y, p.z);
     for frame in 0..4 {
         app.update();
-        let goal = app
-            .world()
-            .get::<GlobalTransform>(carrier)
-            .unwrap()
-            .translation();
+        let goal = joint_position(&app, carrier); // (any entity's world position)
         let right = joint_position(&app, find("wrist_r"));
         let now = right.distance(mirror(goal));
         let before = right.distance(mirror(goal - step));
