@@ -16,7 +16,8 @@ use super::{
     PosedSkeleton,
 };
 use crate::pose::{
-    PoseSolution, PoseSolveOptions, PoseSolver, PoseSolverSettings, PoseStart, SkeletonPose,
+    EffectorGoal, PoseSolution, PoseSolveOptions, PoseSolver, PoseSolverSettings, PoseStart,
+    SkeletonPose,
 };
 
 /// What an in-frame solve reads and writes of a character.
@@ -109,26 +110,32 @@ fn refresh_goals(state: &mut PoseState, posed: &PosedSkeleton, locals: &Locals) 
     if state.effector_sources.is_empty() {
         return;
     }
-    let requested = state.pending.is_some();
+    let Some(base) = state.pending.as_ref().or(state.solved.as_ref()) else {
+        return;
+    };
+    // The goals that changed, read without touching (or copying) the constraints: most frames
+    // of a character whose targets stand still change nothing.
+    let to_character = posed.placement.inverse();
+    let changed: Vec<(usize, EffectorGoal)> = state
+        .effector_sources
+        .iter()
+        .filter_map(|(index, entity, effector)| {
+            let global = current_global(*entity, locals)?;
+            let fresh = core_effector(posed, effector, &global)?.transformed(&to_character);
+            (base.effectors.get(*index)?.goal != fresh.goal).then_some((*index, fresh.goal))
+        })
+        .collect();
+    if changed.is_empty() {
+        return;
+    }
     let Some(mut constraints) = state.pending.take().or_else(|| state.solved.clone()) else {
         return;
     };
-    let to_character = posed.placement.inverse();
-    let mut moved = false;
-    for (index, entity, effector) in &state.effector_sources {
-        let Some(global) = current_global(*entity, locals) else {
-            continue;
-        };
-        let fresh = core_effector(posed, effector, &global).map(|e| e.transformed(&to_character));
-        if let (Some(fresh), Some(slot)) = (fresh, constraints.effectors.get_mut(*index))
-            && slot.goal != fresh.goal
-        {
-            slot.goal = fresh.goal;
-            moved = true;
-        }
+    for (index, goal) in changed {
+        constraints.effectors[index].goal = goal;
     }
     // Mirrored effectors (symmetric editing) follow their originals.
-    if moved && let Some(symmetry) = &state.symmetry {
+    if let Some(symmetry) = &state.symmetry {
         for &(original, mirrored) in &symmetry.mirrored_effectors {
             let image = constraints
                 .effectors
@@ -139,9 +146,7 @@ fn refresh_goals(state: &mut PoseState, posed: &PosedSkeleton, locals: &Locals) 
             }
         }
     }
-    if requested || moved {
-        state.pending = Some(constraints);
-    }
+    state.pending = Some(constraints);
 }
 
 type Solved = Result<(Arc<PoseSolver>, PoseSolution, f64), PoseableError>;
@@ -183,16 +188,21 @@ fn solve_pending(
         Ok((solver, solution, t0.elapsed().as_secs_f64() * 1e3))
     };
     let outcome = solve();
-    if !state.effector_sources.is_empty() {
-        state.solved = Some(constraints.clone());
-    }
     // The whole budget used and still improving: the same targets go on next frame
     // (warm-started), so a pose whose targets stop moving settles over a few frames.
-    if let Ok((_, solution, _)) = &outcome
-        && solution.stats.iterations >= in_frame.iterations.max(1)
-        && state.pending.is_none()
-    {
-        state.pending = Some(constraints);
+    let again = matches!(&outcome, Ok((_, solution, _))
+        if solution.stats.iterations >= in_frame.iterations.max(1))
+        && state.pending.is_none();
+    // Kept (with effectors) so that a target moved after `Update` can ask again.
+    let keep = !state.effector_sources.is_empty();
+    match (again, keep) {
+        (true, true) => {
+            state.solved = Some(constraints.clone());
+            state.pending = Some(constraints);
+        }
+        (true, false) => state.pending = Some(constraints),
+        (false, true) => state.solved = Some(constraints),
+        (false, false) => {}
     }
     Some(outcome)
 }

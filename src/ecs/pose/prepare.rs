@@ -359,10 +359,7 @@ pub(super) fn find_skins(
         let mut state = PoseState::new(joint_entities, primitives);
         state.placement = placement;
         if let Some(model) = shared {
-            let posed = posed_skeleton(model, &state, &joints);
-            status.phase = DeformPhase::Idle;
-            status.joints = posed.model.skeleton().len();
-            status.vertices = posed.model.topology().vertex_count();
+            let posed = posed_skeleton(model, &state, &joints, &mut status);
             commands.entity(entity).try_insert((state, posed));
             continue;
         }
@@ -383,12 +380,17 @@ pub(super) fn find_skins(
     }
 }
 
-/// [`PosedSkeleton`] for a character whose model is ready: the joints' current pose.
+/// [`PosedSkeleton`] for a character whose model is ready (the joints' current pose), and its
+/// status: idle, with the model's joint and vertex counts.
 fn posed_skeleton(
     model: Arc<SkinnedModel>,
     state: &PoseState,
     joints: &Query<&Transform>,
+    status: &mut PoseStatus,
 ) -> PosedSkeleton {
+    status.phase = DeformPhase::Idle;
+    status.joints = model.skeleton().len();
+    status.vertices = model.topology().vertex_count();
     let pose = SkeletonPose {
         local: state
             .joints
@@ -428,10 +430,7 @@ pub(super) fn finish_models(
                         .entries
                         .insert(key, SharedModel::Ready(Arc::downgrade(&model)));
                 }
-                let posed = posed_skeleton(model, &state, &joints);
-                status.phase = DeformPhase::Idle;
-                status.joints = posed.model.skeleton().len();
-                status.vertices = posed.model.topology().vertex_count();
+                let posed = posed_skeleton(model, &state, &joints, &mut status);
                 commands.entity(entity).try_insert(posed);
             }
             Err(e) => {

@@ -85,8 +85,7 @@ impl Symmetry {
             Some(set)
         };
         let new_handles: Vec<CoreHandle> = handles
-            .clone()
-            .into_iter()
+            .iter()
             .filter_map(|h| {
                 let vertices = claim(self.mirrored_set(&h.vertices))?;
                 Some(CoreHandle {
@@ -96,8 +95,7 @@ impl Symmetry {
             })
             .collect();
         let new_centroids: Vec<CentroidEffector> = centroids
-            .clone()
-            .into_iter()
+            .iter()
             .filter_map(|c| {
                 let vertices = claim(self.mirrored_set(&c.vertices))?;
                 Some(CentroidEffector {
