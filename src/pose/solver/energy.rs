@@ -13,16 +13,10 @@ impl PoseSolver {
     /// exactly (Horn) or by Newton steps from the previous rotation, which is kept if the fit
     /// is not better (so the energy cannot rise).
     pub(super) fn local_step(&self, x: &[f64], rotations: &mut [DQuat], exact: bool) {
-        let dim = x.len() / 3;
         for (c, r) in rotations.iter_mut().enumerate() {
-            let k = &self.model.k[c * dim * 3..][..dim * 3];
             let mut a = [0.0; 9];
-            for row in 0..dim {
-                let xr = &x[row * 3..row * 3 + 3];
-                let kr = &k[row * 3..row * 3 + 3];
-                if kr[0] == 0.0 && kr[1] == 0.0 && kr[2] == 0.0 {
-                    continue;
-                }
+            for &(row, kr) in self.cluster_rows(c) {
+                let xr = &x[row as usize * 3..][..3];
                 for i in 0..3 {
                     for j in 0..3 {
                         a[i * 3 + j] += xr[i] * kr[j];
@@ -48,22 +42,22 @@ impl PoseSolver {
         }
     }
 
+    /// Cluster `c`'s non-zero rows of `K_c` (row index, row).
+    fn cluster_rows(&self, c: usize) -> &[(u32, DVec3)] {
+        &self.cluster_rows[self.cluster_row_start[c]..self.cluster_row_start[c + 1]]
+    }
+
     /// `B += Σ_c K_c R_cᵀ`.
     pub(super) fn add_rotation_terms(&self, rotations: &[DQuat], b: &mut [f64]) {
-        let dim = b.len() / 3;
         for (c, q) in rotations.iter().enumerate() {
             let r = DMat3::from_quat(*q);
-            let k = &self.model.k[c * dim * 3..][..dim * 3];
-            for row in 0..dim {
-                let kr = DVec3::new(k[row * 3], k[row * 3 + 1], k[row * 3 + 2]);
-                if kr == DVec3::ZERO {
-                    continue;
-                }
+            for &(row, kr) in self.cluster_rows(c) {
                 // (K Rᵀ)[row][col] = Σ_m K[row][m] R[col][m] = (R kr)[col]
                 let v = r * kr;
-                b[row * 3] += v.x;
-                b[row * 3 + 1] += v.y;
-                b[row * 3 + 2] += v.z;
+                let out = &mut b[row as usize * 3..][..3];
+                out[0] += v.x;
+                out[1] += v.y;
+                out[2] += v.z;
             }
         }
     }
@@ -93,11 +87,10 @@ impl PoseSolver {
         out
     }
 
-    /// `tr(XᵀQX) − 2 tr(XᵀB) + constant`.
-    pub(super) fn objective(&self, x: &[f64], b: &[f64], constant: f64) -> f64 {
-        let qx = self.q_times(x);
+    /// `tr(XᵀQX) − 2 tr(XᵀB) + constant`, with `qx = Q X`.
+    pub(super) fn objective(&self, x: &[f64], qx: &[f64], b: &[f64], constant: f64) -> f64 {
         let mut f = constant;
-        for ((xv, qv), bv) in x.iter().zip(&qx).zip(b) {
+        for ((xv, qv), bv) in x.iter().zip(qx).zip(b) {
             f += xv * qv - 2.0 * xv * bv;
         }
         f.max(0.0)

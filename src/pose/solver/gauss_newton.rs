@@ -6,7 +6,8 @@ use glam::{DAffine3, DMat3, DMat4, DVec3};
 
 use super::super::effectors::skew;
 use super::super::limits::JointLimits;
-use super::{ParamKind, PoseSolver};
+use super::block_cholesky::{BlockCholesky, BlockPattern};
+use super::{ParamKind, PoseSolver, Posed};
 
 impl PoseSolver {
     /// Restricts each hinge joint's own rotation parameter to its hinge axis (world `a`):
@@ -70,11 +71,12 @@ impl PoseSolver {
     /// root translations; 3 numbers each): `f(θ) ≈ f + gᵀθ + ½ θᵀHθ`, as `(H, g)`.
     pub(super) fn gauss_newton_system(
         &self,
-        x: &[f64],
+        posed: &Posed,
         b: &[f64],
-        globals: &[DAffine3],
+        scratch: &mut HessianScratch,
     ) -> (Vec<f64>, Vec<f64>) {
         let joints = self.model.skeleton().len();
+        let x = &posed.x;
         // S̄_k rows (4 × 4 homogeneous) from X.
         let s_bar: Vec<[[f64; 4]; 4]> = (0..joints)
             .map(|k| {
@@ -88,16 +90,15 @@ impl PoseSolver {
                 s
             })
             .collect();
-        let gsum = self.subtree_gradients(x, b, &s_bar);
-        let z = self.subtree_hessian_blocks(&s_bar);
-        self.parameter_system(&gsum, &z, globals)
+        let gsum = self.subtree_gradients(&posed.qx, b, &s_bar);
+        self.subtree_hessian_blocks(&s_bar, scratch);
+        self.parameter_system(&gsum, scratch, &posed.globals)
     }
 
     /// Per joint, the gradient of the objective in that joint's twist, summed over its
     /// subtree: g_k[g] = 2 tr(G_g S̄_k Γ_k), Γ = QX − B.
-    fn subtree_gradients(&self, x: &[f64], b: &[f64], s_bar: &[[[f64; 4]; 4]]) -> Vec<[f64; 6]> {
+    fn subtree_gradients(&self, qx: &[f64], b: &[f64], s_bar: &[[[f64; 4]; 4]]) -> Vec<[f64; 6]> {
         let skeleton = self.model.skeleton();
-        let qx = self.q_times(x);
         let mut gsum: Vec<[f64; 6]> = (0..skeleton.len())
             .map(|k| {
                 let mut p = [[0.0; 3]; 4];
@@ -134,36 +135,54 @@ impl PoseSolver {
     }
 
     /// Hessian blocks M_kl[g][h] = tr(G_g N_kl G_hᵀ), N_kl = S̄_k Q_kl S̄_lᵀ, summed over
-    /// subtrees: Z[a][b] = Σ_{k∈sub(a), l∈sub(b)} M_kl.
-    fn subtree_hessian_blocks(&self, s_bar: &[[[f64; 4]; 4]]) -> Vec<TwistBlock> {
+    /// subtrees: Z[a][b] = Σ_{k∈sub(a), l∈sub(b)} M_kl, into `scratch` as the sums of the
+    /// `N_kl` (M is linear in N); only the blocks it flags non-zero are written: joints on
+    /// branches that share no edge stay uncoupled.
+    fn subtree_hessian_blocks(&self, s_bar: &[[[f64; 4]; 4]], scratch: &mut HessianScratch) {
         let skeleton = self.model.skeleton();
         let joints = skeleton.len();
         let s_mat: Vec<DMat4> = s_bar
             .iter()
             .map(|s| DMat4::from_cols_array_2d(s).transpose())
             .collect();
-        let mut z = vec![TwistBlock::ZERO; joints * joints];
-        for &(k, l, ref q_kl) in &self.q_blocks {
+        scratch.reset(joints);
+        let HessianScratch { z, nonzero } = scratch;
+        // Q is symmetric: N_lk = N_klᵀ, so each pair is multiplied once.
+        for &(k, l, ref q_kl) in self.q_blocks.iter().filter(|(k, l, _)| k <= l) {
             let n = s_mat[k] * *q_kl * s_mat[l].transpose();
-            z[k * joints + l] = TwistBlock::of(&n);
+            z[k * joints + l] = n;
+            nonzero[k * joints + l] = true;
+            if k != l {
+                z[l * joints + k] = n.transpose();
+                nonzero[l * joints + k] = true;
+            }
         }
+        let mut accumulate = |from: usize, to: usize| {
+            if !nonzero[from] {
+                return;
+            }
+            let v = z[from];
+            if nonzero[to] {
+                z[to] += v;
+            } else {
+                z[to] = v;
+                nonzero[to] = true;
+            }
+        };
         for l in (0..joints).rev() {
             if let Some(p) = skeleton.joints()[l].parent {
                 for k in 0..joints {
-                    let v = z[k * joints + l];
-                    z[k * joints + p].add(&v);
+                    accumulate(k * joints + l, k * joints + p);
                 }
             }
         }
         for k in (0..joints).rev() {
             if let Some(p) = skeleton.joints()[k].parent {
                 for l in 0..joints {
-                    let v = z[k * joints + l];
-                    z[p * joints + l].add(&v);
+                    accumulate(k * joints + l, p * joints + l);
                 }
             }
         }
-        z
     }
 
     /// The system in the solver's parameters, through the maps A (6 × 3): rotation about o:
@@ -171,9 +190,10 @@ impl PoseSolver {
     fn parameter_system(
         &self,
         gsum: &[[f64; 6]],
-        z: &[TwistBlock],
+        scratch: &HessianScratch,
         globals: &[DAffine3],
     ) -> (Vec<f64>, Vec<f64>) {
+        let HessianScratch { z, nonzero } = scratch;
         let joints = self.model.skeleton().len();
         let params = &self.params;
         let np = params.len() * 3;
@@ -199,7 +219,10 @@ impl PoseSolver {
             g[pa * 3..pa * 3 + 3].copy_from_slice(&ga.to_array());
             // H is symmetric: fill the upper triangle of blocks and mirror it.
             for (pb, &(jb, _)) in params.iter().enumerate().skip(pa) {
-                let TwistBlock { ww, wv, vw, vv } = z[ja * joints + jb];
+                if !nonzero[ja * joints + jb] {
+                    continue;
+                }
+                let TwistBlock { ww, wv, vw, vv } = TwistBlock::of(&z[ja * joints + jb]);
                 // Z A_b = [Z_ωω + Z_ωv Ob ; Z_vω + Z_vv Ob] (rotation) or [Z_ωv; Z_vv].
                 let (top, bottom) = match maps[pb] {
                     Some(ob) => (ww + wv * ob, vw + vv * ob),
@@ -219,6 +242,25 @@ impl PoseSolver {
             }
         }
         (h, g)
+    }
+}
+
+/// The subtree-summed Hessian blocks of one iteration (joints × joints), kept between
+/// iterations of a solve so they are not reallocated. A block is kept as the 4 × 4 `N`
+/// its [`TwistBlock`] is linear in (16 numbers instead of 36), and is meaningful only where
+/// `nonzero` says so.
+#[derive(Default)]
+pub(super) struct HessianScratch {
+    z: Vec<DMat4>,
+    nonzero: Vec<bool>,
+}
+
+impl HessianScratch {
+    /// Every block zero, for `joints` joints.
+    fn reset(&mut self, joints: usize) {
+        self.z.resize(joints * joints, DMat4::ZERO);
+        self.nonzero.clear();
+        self.nonzero.resize(joints * joints, false);
     }
 }
 
@@ -245,13 +287,6 @@ struct TwistBlock {
 }
 
 impl TwistBlock {
-    const ZERO: Self = Self {
-        ww: DMat3::ZERO,
-        wv: DMat3::ZERO,
-        vw: DMat3::ZERO,
-        vv: DMat3::ZERO,
-    };
-
     fn of(n: &DMat4) -> Self {
         let n3 = DMat3::from_mat4(*n);
         let col = n.w_axis.truncate();
@@ -264,48 +299,25 @@ impl TwistBlock {
             vv: DMat3::from_diagonal(DVec3::splat(n.w_axis.w)),
         }
     }
-
-    fn add(&mut self, o: &Self) {
-        self.ww += o.ww;
-        self.wv += o.wv;
-        self.vw += o.vw;
-        self.vv += o.vv;
-    }
 }
 
 /// Solves `(H + μ·diag(H) + ε I) x = −g` (Marquardt's scaling, so rotations and
-/// translations of any scale are damped alike) by Cholesky, returned as per-parameter
-/// 3-vectors; raises the damping until the matrix factors. All zeros if it never does.
+/// translations of any scale are damped alike) by a block-sparse Cholesky factorization
+/// ([`BlockCholesky`]), returned as per-parameter 3-vectors; raises the damping until the
+/// matrix factors. All zeros if it never does.
 pub(super) fn solve_damped(h: &[f64], g: &[f64], mu: f64) -> Vec<DVec3> {
     let n = g.len();
     let scale = (0..n)
         .map(|i| h[i * n + i])
         .fold(0.0f64, f64::max)
         .max(1e-300);
-    let mut a = vec![0.0; n * n];
+    let pattern = BlockPattern::of(h, n);
     let mut mu = mu;
     for _ in 0..12 {
-        a.copy_from_slice(h);
-        for i in 0..n {
-            a[i * n + i] += mu * h[i * n + i] + 1e-12 * scale;
-        }
-        if cholesky_in_place(&mut a, n) {
+        let shift: Vec<f64> = (0..n).map(|i| mu * h[i * n + i] + 1e-12 * scale).collect();
+        if let Some(factor) = BlockCholesky::factor(h, &shift, &pattern) {
             let mut x: Vec<f64> = g.iter().map(|v| -v).collect();
-            // L y = b, Lᵀ x = y
-            for i in 0..n {
-                let mut s = x[i];
-                for k in 0..i {
-                    s -= a[i * n + k] * x[k];
-                }
-                x[i] = s / a[i * n + i];
-            }
-            for i in (0..n).rev() {
-                let mut s = x[i];
-                for k in i + 1..n {
-                    s -= a[k * n + i] * x[k];
-                }
-                x[i] = s / a[i * n + i];
-            }
+            factor.solve_in_place(&mut x);
             if x.iter().all(|v| v.is_finite()) {
                 return x
                     .chunks_exact(3)
@@ -316,41 +328,6 @@ pub(super) fn solve_damped(h: &[f64], g: &[f64], mu: f64) -> Vec<DVec3> {
         mu = mu.max(1e-9) * 100.0;
     }
     vec![DVec3::ZERO; n / 3]
-}
-
-/// Lower Cholesky factor in place (row-major, lower triangle); false if not positive definite.
-fn cholesky_in_place(a: &mut [f64], n: usize) -> bool {
-    for j in 0..n {
-        let row_j = &a[j * n..j * n + j];
-        let d = a[j * n + j] - dot(row_j, row_j);
-        if d.is_nan() || d <= 0.0 {
-            return false;
-        }
-        let d = d.sqrt();
-        a[j * n + j] = d;
-        // Column j below the diagonal: a[i][j] = (a[i][j] − Σ_k a[i][k] a[j][k]) / d.
-        let (upto, below) = a.split_at_mut((j + 1) * n);
-        let row_j = &upto[j * n..j * n + j];
-        for row_i in below.chunks_exact_mut(n) {
-            row_i[j] = (row_i[j] - dot(&row_i[..j], row_j)) / d;
-        }
-    }
-    true
-}
-
-/// `Σ aᵢ bᵢ` with four running sums, so the compiler keeps it in vector registers (a plain
-/// fold is one dependent chain). The Cholesky above spends its time here.
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let mut acc = [0.0f64; 4];
-    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
-    let (ra, rb) = (ca.remainder(), cb.remainder());
-    for (x, y) in ca.zip(cb) {
-        for k in 0..4 {
-            acc[k] += x[k] * y[k];
-        }
-    }
-    let tail: f64 = ra.iter().zip(rb).map(|(x, y)| x * y).sum();
-    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
 #[cfg(test)]

@@ -5,6 +5,7 @@ use std::time::Instant;
 
 use glam::{DAffine3, DMat3, DMat4, DQuat, DVec3, DVec4};
 
+mod block_cholesky;
 mod energy;
 mod gauss_newton;
 mod setup;
@@ -18,7 +19,7 @@ use super::model::SkinnedModel;
 use super::skeleton::{JointTransform, SkeletonPose};
 use crate::deform::constraints::same_keys;
 use crate::deform::{Handle, RigidTransform};
-use gauss_newton::solve_damped;
+use gauss_newton::{HessianScratch, solve_damped};
 use setup::{check_indices, joint_frames, nonzero_blocks, set_sums};
 
 /// A joint driven to a rigid motion of where it was in the reference pose.
@@ -197,6 +198,11 @@ pub struct PoseSolver {
     fixed_b: Vec<f64>,
     fixed_c: f64,
     joint_u: Vec<[DVec4; 4]>,
+    /// The non-zero rows of every cluster's `K_c` (row index, row), cluster after cluster
+    /// (a cluster's vertices are skinned by a few joints: most of its 4J rows are zero).
+    cluster_rows: Vec<(u32, DVec3)>,
+    /// Where each cluster's rows start in `cluster_rows` (one more entry than clusters).
+    cluster_row_start: Vec<usize>,
     vertex_weight: f64,
     joint_weight: f64,
     length_scale: f64,
@@ -259,7 +265,10 @@ impl PoseSolver {
         }
         let (block_nonzero, q_blocks) = nonzero_blocks(&q, joints);
         let params = parameters_for(skeleton, &block_nonzero);
+        let (cluster_rows, cluster_row_start) = sparse_cluster_rows(&model);
         Ok(Self {
+            cluster_rows,
+            cluster_row_start,
             params,
             model,
             constraints: constraints.clone(),
@@ -325,6 +334,7 @@ impl PoseSolver {
         let mut current = self.posed(pose);
         let mut stats = PoseSolveStats::default();
         let mut b = vec![0.0; b_pen.len()];
+        let mut scratch = HessianScratch::default();
         let mut last = f64::NAN;
         for it in 0..options.max_iterations {
             if cancel() {
@@ -349,7 +359,7 @@ impl PoseSolver {
                 last = f0;
             }
             // Levenberg–Marquardt: damp the Gauss–Newton step until it lowers the energy.
-            let (mut h, mut g) = self.gauss_newton_system(&current.x, &b, &current.globals);
+            let (mut h, mut g) = self.gauss_newton_system(&current, &b, &mut scratch);
             if !extras.is_empty() {
                 let params = self.param_list();
                 extras.add_system(&current.globals, &current.skin, &params, &mut h, &mut g);
@@ -433,17 +443,19 @@ impl PoseSolver {
         let globals = skeleton.global_transforms(&pose);
         let skin = skinning(&globals, skeleton);
         let x = self.model.stack(&skin);
+        let qx = self.q_times(&x);
         Posed {
             pose,
             globals,
             skin,
             x,
+            qx,
         }
     }
 
     /// The energy of a posed skeleton.
     fn energy(&self, posed: &Posed, objective: &Objective) -> f64 {
-        self.objective(&posed.x, objective.b, objective.constant)
+        self.objective(&posed.x, &posed.qx, objective.b, objective.constant)
             + objective.extras.energy(&posed.globals, &posed.skin)
     }
 
@@ -580,7 +592,10 @@ fn parameters_for(skeleton: &super::Skeleton, block_nonzero: &[bool]) -> Vec<(us
             active[p] |= active[j];
         }
     }
+    // Children before parents, root translations last: the order the block Cholesky
+    // eliminates in, so that a joint's elimination fills in only among its ancestors.
     let mut out: Vec<(usize, ParamKind)> = (0..n)
+        .rev()
         .filter(|&j| active[j])
         .map(|j| (j, ParamKind::Rotation))
         .collect();
@@ -597,7 +612,28 @@ struct Posed {
     pose: SkeletonPose,
     globals: Vec<DAffine3>,
     skin: Vec<DAffine3>,
+    /// The stacked skinning matrices `X` and `Q X`.
     x: Vec<f64>,
+    qx: Vec<f64>,
+}
+
+/// The non-zero rows of each cluster's `K_c` in the model's dense `k` (clusters × 4J × 3),
+/// and where each cluster's start.
+fn sparse_cluster_rows(model: &SkinnedModel) -> (Vec<(u32, DVec3)>, Vec<usize>) {
+    let dim = 4 * model.skeleton().len();
+    let mut rows = Vec::new();
+    let mut start = vec![0];
+    for c in 0..model.cluster_count() {
+        let k = &model.k[c * dim * 3..][..dim * 3];
+        rows.extend(
+            k.chunks_exact(3)
+                .enumerate()
+                .map(|(row, v)| (row as u32, DVec3::new(v[0], v[1], v[2])))
+                .filter(|(_, v)| *v != DVec3::ZERO),
+        );
+        start.push(rows.len());
+    }
+    (rows, start)
 }
 
 /// What an iteration's energy is made of besides the pose: the linear term of the rotation
