@@ -603,3 +603,97 @@ fn a_mirrored_effector_gives_a_mirror_symmetric_pose() {
     };
     assert!(mirror.mirror_effector(&head, &frame).is_none());
 }
+
+/// A shape at rest other than the bind pose (an additive layer's animation): with nothing
+/// pulling, a solve leaves that pose as it is (with the bind shape at rest the same solve
+/// bends it back towards the bind pose), and an effector on one wrist bends the body from it
+/// while the far leg keeps most of the rest pose's bend (2° off it; 10° with the bind shape).
+#[test]
+fn a_shape_rest_pose_stays_put_and_effectors_bend_from_it() {
+    let rig = mannequin_rig(10);
+    let model = model_of(&rig);
+    let find = |n: &str| rig.skeleton.find(n).unwrap();
+    // The "animation": elbows and knees bent, the spine leaning.
+    let mut animated = rig.rest.clone();
+    for (joint, angle) in [("elbow_l", 0.9), ("knee_r", -0.7), ("chest", 0.25)] {
+        animated.local[find(joint)].rotation = DQuat::from_rotation_x(angle);
+    }
+    let solver_for = |constraints: &PoseConstraints| {
+        PoseSolver::new(
+            model.clone(),
+            constraints,
+            &rig.rest,
+            PoseSolverSettings::default(),
+        )
+        .unwrap()
+    };
+    let options = PoseSolveOptions {
+        max_iterations: 30,
+        tolerance: 0.0,
+    };
+    let turned = |a: &SkeletonPose, b: &SkeletonPose| {
+        a.local
+            .iter()
+            .zip(&b.local)
+            .map(|(x, y)| rotation_angle(x.rotation, y.rotation).to_degrees())
+            .fold(0.0, f64::max)
+    };
+    let free = |shape_rest: Option<SkeletonPose>| {
+        let constraints = PoseConstraints {
+            shape_rest,
+            ..Default::default()
+        };
+        solver_for(&constraints)
+            .solve(&constraints, &options, PoseStart::Pose(&animated), &|| {
+                false
+            })
+            .unwrap()
+            .pose
+    };
+    let kept = turned(&free(Some(animated.clone())), &animated);
+    assert!(kept < 1e-4, "the rest pose moved by {kept}°");
+    let relaxed = turned(&free(None), &animated);
+    assert!(
+        relaxed > 5.0,
+        "without it the bind shape should pull the bends back ({relaxed}°)"
+    );
+    // A wrist pulled up: the right knee (nothing pulls on it directly; the whole body still
+    // shares the pull, being one shape) keeps most of its bend.
+    let wrist = find("wrist_l");
+    let knee = find("knee_r");
+    let globals = rig.skeleton.global_transforms(&animated);
+    let goal = globals[wrist].translation + DVec3::new(0.0, 0.15, 0.1);
+    let pulled = |shape_rest: Option<SkeletonPose>| {
+        let constraints = PoseConstraints {
+            effectors: vec![Effector {
+                joint: wrist,
+                goal: EffectorGoal::Position(goal),
+                weight: 1.0,
+            }],
+            shape_rest,
+            ..Default::default()
+        };
+        solver_for(&constraints)
+            .solve(&constraints, &options, PoseStart::Pose(&animated), &|| {
+                false
+            })
+            .unwrap()
+            .pose
+    };
+    let pose = pulled(Some(animated.clone()));
+    let reached = rig.skeleton.global_transforms(&pose)[wrist]
+        .translation
+        .distance(goal);
+    assert!(reached < 1e-3, "the wrist is {reached} from its goal");
+    let knee_bend =
+        rotation_angle(pose.local[knee].rotation, animated.local[knee].rotation).to_degrees();
+    let knee_bind = rotation_angle(
+        pulled(None).local[knee].rotation,
+        animated.local[knee].rotation,
+    )
+    .to_degrees();
+    assert!(
+        knee_bend < 0.3 * knee_bind && knee_bind > 5.0,
+        "the unpulled knee turned {knee_bend}° from its bend (bind shape at rest: {knee_bind}°)"
+    );
+}

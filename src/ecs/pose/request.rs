@@ -311,6 +311,7 @@ fn constraints_of(
         .as_ref()
         .zip(
             animated
+                .clone()
                 .or_else(|| start.clone())
                 .or_else(|| state.reference.clone()),
         )
@@ -328,6 +329,9 @@ fn constraints_of(
         effectors,
         stiffness,
         limits,
+        // The animation is the shape an additive layer keeps: with nothing pulling, the layer
+        // is nothing (not the body relaxing towards its bind shape, frame after frame).
+        shape_rest: animated,
     };
     // The model is in character space: so are its constraints.
     let mut constraints = world.transformed(&posed.placement.inverse());

@@ -93,6 +93,6 @@ impl PoseSolver {
         for ((xv, qv), bv) in x.iter().zip(qx).zip(b) {
             f += xv * qv - 2.0 * xv * bv;
         }
-        f.max(0.0)
+        f
     }
 }

@@ -9,6 +9,7 @@ mod block_cholesky;
 mod energy;
 mod gauss_newton;
 mod setup;
+mod shape_rest;
 
 use super::PoseError;
 use super::effectors::{
@@ -56,6 +57,12 @@ pub struct PoseConstraints {
     pub stiffness: Option<ReferenceStiffness>,
     /// Joint limits every step respects ([`super::limits`]); `None` = every joint free.
     pub limits: Option<Arc<JointLimits>>,
+    /// The pose whose shape the ARAP energy keeps (`None`: the bind pose). With it, the
+    /// energy is tilted so this pose is at rest: a solve with nothing pulling leaves it as it
+    /// is, and effectors bend the body away from it (an additive layer sets it to the
+    /// animation under it; see `shape_rest.rs`). The energies in [`PoseSolveStats`] are then
+    /// relative to it and may be negative.
+    pub shape_rest: Option<SkeletonPose>,
 }
 
 impl PoseConstraints {
@@ -325,7 +332,14 @@ impl PoseSolver {
             }
             _ => (vec![DQuat::IDENTITY; clusters], INITIAL_DAMPING, true),
         };
-        let (b_pen, c_pen) = self.penalty_terms(constraints);
+        let (mut b_pen, mut c_pen) = self.penalty_terms(constraints);
+        if let Some(rest) = &constraints.shape_rest {
+            let (tilt, constant) = self.shape_tilt(rest);
+            for (b, t) in b_pen.iter_mut().zip(tilt) {
+                *b += t;
+            }
+            c_pen += constant;
+        }
         let c0 = self.model.c0.max(1e-300);
         let mut pose = start.clone();
         if let Some(limits) = limits {
@@ -434,6 +448,9 @@ impl PoseSolver {
             PoseStart::Warm(s) => &s.pose,
         };
         skeleton.check_pose(pose)?;
+        if let Some(rest) = &constraints.shape_rest {
+            skeleton.check_pose(rest)?;
+        }
         Ok(())
     }
 
