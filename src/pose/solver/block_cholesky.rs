@@ -214,9 +214,7 @@ fn factor_diagonal(d: &mut Block) -> Option<Block> {
         for i in j + 1..3 {
             d[i][j] = (d[i][j] - (0..j).map(|m| d[i][m] * d[j][m]).sum::<f64>()) / d[j][j];
         }
-        for c in j + 1..3 {
-            d[j][c] = 0.0;
-        }
+        d[j][j + 1..].fill(0.0);
     }
     Some(*d)
 }
