@@ -613,23 +613,35 @@ fn a_shape_rest_pose_stays_put_and_effectors_bend_from_it() {
     let rig = mannequin_rig(10);
     let model = model_of(&rig);
     let find = |n: &str| rig.skeleton.find(n).unwrap();
-    // The "animation": elbows and knees bent, the spine leaning.
+    // The "animation": the left elbow and the right knee bent, the chest leaning.
     let mut animated = rig.rest.clone();
     for (joint, angle) in [("elbow_l", 0.9), ("knee_r", -0.7), ("chest", 0.25)] {
         animated.local[find(joint)].rotation = DQuat::from_rotation_x(angle);
     }
-    let solver_for = |constraints: &PoseConstraints| {
+    // 30 iterations from the animated pose, with the effectors given and the shape at rest
+    // in `shape_rest` (the bind pose when `None`).
+    let solve_from_animated = |effectors: Vec<Effector>, shape_rest: Option<SkeletonPose>| {
+        let constraints = PoseConstraints {
+            effectors,
+            shape_rest,
+            ..Default::default()
+        };
+        let options = PoseSolveOptions {
+            max_iterations: 30,
+            tolerance: 0.0,
+        };
         PoseSolver::new(
             model.clone(),
-            constraints,
+            &constraints,
             &rig.rest,
             PoseSolverSettings::default(),
         )
         .unwrap()
-    };
-    let options = PoseSolveOptions {
-        max_iterations: 30,
-        tolerance: 0.0,
+        .solve(&constraints, &options, PoseStart::Pose(&animated), &|| {
+            false
+        })
+        .unwrap()
+        .pose
     };
     let turned = |a: &SkeletonPose, b: &SkeletonPose| {
         a.local
@@ -638,18 +650,7 @@ fn a_shape_rest_pose_stays_put_and_effectors_bend_from_it() {
             .map(|(x, y)| rotation_angle(x.rotation, y.rotation).to_degrees())
             .fold(0.0, f64::max)
     };
-    let free = |shape_rest: Option<SkeletonPose>| {
-        let constraints = PoseConstraints {
-            shape_rest,
-            ..Default::default()
-        };
-        solver_for(&constraints)
-            .solve(&constraints, &options, PoseStart::Pose(&animated), &|| {
-                false
-            })
-            .unwrap()
-            .pose
-    };
+    let free = |shape_rest: Option<SkeletonPose>| solve_from_animated(Vec::new(), shape_rest);
     let kept = turned(&free(Some(animated.clone())), &animated);
     assert!(kept < 1e-4, "the rest pose moved by {kept}°");
     let relaxed = turned(&free(None), &animated);
@@ -664,21 +665,12 @@ fn a_shape_rest_pose_stays_put_and_effectors_bend_from_it() {
     let globals = rig.skeleton.global_transforms(&animated);
     let goal = globals[wrist].translation + DVec3::new(0.0, 0.15, 0.1);
     let pulled = |shape_rest: Option<SkeletonPose>| {
-        let constraints = PoseConstraints {
-            effectors: vec![Effector {
-                joint: wrist,
-                goal: EffectorGoal::Position(goal),
-                weight: 1.0,
-            }],
-            shape_rest,
-            ..Default::default()
+        let effector = Effector {
+            joint: wrist,
+            goal: EffectorGoal::Position(goal),
+            weight: 1.0,
         };
-        solver_for(&constraints)
-            .solve(&constraints, &options, PoseStart::Pose(&animated), &|| {
-                false
-            })
-            .unwrap()
-            .pose
+        solve_from_animated(vec![effector], shape_rest)
     };
     let pose = pulled(Some(animated.clone()));
     let reached = rig.skeleton.global_transforms(&pose)[wrist]
