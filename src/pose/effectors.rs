@@ -73,13 +73,41 @@ pub struct ReferenceStiffness {
     /// Per joint, in [0, 1]: 1 holds a joint as firmly as one constrained vertex at the
     /// model's size; 0 leaves it free.
     pub per_joint: Vec<f64>,
+    /// How `per_joint` is scaled joint by joint.
+    pub weighting: StiffnessWeighting,
+}
+
+/// How a [`ReferenceStiffness`] weighs its joints against each other.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum StiffnessWeighting {
+    /// `per_joint` as it is: turning the hips costs what turning the neck costs.
+    #[default]
+    Uniform,
+    /// `per_joint` times the share of the body the joint's rotation carries
+    /// ([`super::SkinnedModel::relative_inertia`]): the stiffness measured in how far the mesh
+    /// moves, so a pull is met by the light joints near it before the heavy ones (a look-at
+    /// turns the neck, not the hips).
+    Inertia,
 }
 
 impl ReferenceStiffness {
     /// The same stiffness `k` on every joint.
     pub fn uniform(pose: SkeletonPose, k: f64) -> Self {
         let per_joint = vec![k; pose.local.len()];
-        Self { pose, per_joint }
+        Self {
+            pose,
+            per_joint,
+            weighting: StiffnessWeighting::Uniform,
+        }
+    }
+
+    /// Stiffness `k` weighted by the share of the body each joint carries
+    /// ([`StiffnessWeighting::Inertia`]).
+    pub fn by_inertia(pose: SkeletonPose, k: f64) -> Self {
+        Self {
+            weighting: StiffnessWeighting::Inertia,
+            ..Self::uniform(pose, k)
+        }
     }
 }
 
@@ -147,6 +175,7 @@ pub(crate) struct ExtraInputs<'a> {
     pub reference_globals: &'a [DAffine3],
     pub reference_skinning: &'a [DAffine3],
     pub influences: &'a [super::VertexInfluences],
+    pub relative_inertia: &'a [f64],
     pub bind: &'a [DVec3],
     pub joint_weight: f64,
     pub vertex_weight: f64,
@@ -282,6 +311,12 @@ impl<'a> ExtraTerms<'a> {
             });
         }
         if let Some(s) = input.stiffness {
+            let scale = |j: usize| match s.weighting {
+                StiffnessWeighting::Uniform => 1.0,
+                StiffnessWeighting::Inertia => {
+                    input.relative_inertia.get(j).copied().unwrap_or(1.0)
+                }
+            };
             for (j, &k) in s.per_joint.iter().enumerate().filter(|(_, k)| **k > 0.0) {
                 let joint = &skeleton.joints()[j];
                 let root_translation = joint.parent.is_none().then(|| {
@@ -293,7 +328,7 @@ impl<'a> ExtraTerms<'a> {
                     joint: j,
                     reference: DMat3::from_quat(s.pose.local[j].rotation),
                     root_translation,
-                    weight: input.vertex_weight * k,
+                    weight: input.vertex_weight * k * scale(j),
                 });
             }
         }

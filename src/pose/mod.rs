@@ -43,6 +43,7 @@ pub mod effectors;
 mod file;
 pub mod gltf_clip;
 pub mod humanoid;
+mod inertia;
 pub mod library;
 pub mod limits;
 pub mod mirror;
@@ -54,7 +55,9 @@ pub mod synth_rig;
 
 pub use blend::{BlendMode, additive_layer_for, blend_joint, blend_pose};
 pub use clip::{ClipError, KEY_TIME_EPSILON, KeyInterpolation, PoseClip, PoseKey};
-pub use effectors::{CentroidEffector, Effector, EffectorGoal, ReferenceStiffness};
+pub use effectors::{
+    CentroidEffector, Effector, EffectorGoal, ReferenceStiffness, StiffnessWeighting,
+};
 pub use file::{PoseFile, PoseFileError};
 pub use gltf_clip::{read_gltf_clip, write_gltf_clip, write_gltf_pose_clip};
 pub use humanoid::{HumanoidRole, Side, humanoid_role};

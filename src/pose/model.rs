@@ -117,6 +117,8 @@ pub struct SkinnedModel {
     cluster_of: Vec<u32>,
     cluster_count: usize,
     rest_scale: f64,
+    /// Per joint, the share of the body its rotation carries ([`super::inertia`]).
+    relative_inertia: Vec<f64>,
     pub(crate) q: Vec<f64>,
     pub(crate) k: Vec<f64>,
     pub(crate) c0: f64,
@@ -167,7 +169,9 @@ impl SkinnedModel {
             settings.clusters,
             settings.cluster_iterations,
         );
+        let relative_inertia = super::inertia::relative_inertia(&skeleton, &bind, &influences);
         let mut model = Self {
+            relative_inertia,
             skeleton,
             topology,
             render_influences,
@@ -184,6 +188,13 @@ impl SkinnedModel {
         };
         model.reduce();
         Ok(model)
+    }
+
+    /// Per joint, the moment of inertia of what its rotation carries (its subtree's skinned
+    /// vertices about it, bind pose) relative to the mean over the joints: ≫ 1 for the hips,
+    /// ≪ 1 for a finger tip ([`super::StiffnessWeighting::Inertia`]).
+    pub fn relative_inertia(&self) -> &[f64] {
+        &self.relative_inertia
     }
 
     /// The skeleton.

@@ -242,13 +242,12 @@ fn joint_positions_by_name(app: &mut App, root: Entity) -> std::collections::Has
 }
 
 /// An unmasked additive look-at solved inside the frame over the Fox's playing idle clip
-/// (stiffness 0.3, as a crowd would use it), for 4 s: the head keeps meeting its aim (within
-/// 1° on every sampled frame), and the layer does not drift — the body shares the look-at
-/// (its hips shift off where a second Fox playing the same clip without a layer has them,
-/// the energy's answer to an unmasked chain), but that offset follows the clip and does not
-/// grow: its largest value over the last second is no larger than over the first 1.5 s.
+/// (stiffness 0.3), for 4 s: the head keeps meeting its aim (within 1° on every sampled
+/// frame), and the neck turns, not the body: the hips stay within 3 % of the Fox's size of
+/// where a second Fox playing the same clip without a layer has them (2 % measured; with every
+/// joint's stiffness weighed alike the hips shared the turn and swung up to 15 % off).
 #[test]
-fn an_additive_look_at_over_a_playing_clip_keeps_its_aim_without_drifting() {
+fn an_additive_look_at_over_a_playing_clip_turns_the_neck_not_the_body() {
     let Some(dir) = common::shared::shared_asset("models") else {
         return;
     };
@@ -305,7 +304,6 @@ fn an_additive_look_at_over_a_playing_clip_keeps_its_aim_without_drifting() {
         PoseEffector::look_at(root, head, Vec3::Y),
         Transform::from_translation(target),
     ));
-    let mut offsets = Vec::new();
     for frame in 1..=250 {
         app.update();
         if frame % 10 != 0 {
@@ -313,7 +311,11 @@ fn an_additive_look_at_over_a_playing_clip_keeps_its_aim_without_drifting() {
         }
         let layered = joint_positions_by_name(&mut app, root);
         let clip_only = joint_positions_by_name(&mut app, plain);
-        offsets.push(layered["b_Hip_01"].distance(clip_only["b_Hip_01"]) / size);
+        let hips = layered["b_Hip_01"].distance(clip_only["b_Hip_01"]) / size;
+        assert!(
+            hips < 0.03,
+            "frame {frame}: the hips are {hips} of the size off the clip"
+        );
         let g = app.world().get::<GlobalTransform>(head).unwrap();
         let error = (g.affine().matrix3 * Vec3A::Y)
             .angle_between(Vec3A::from(target) - g.translation_vec3a())
@@ -323,17 +325,4 @@ fn an_additive_look_at_over_a_playing_clip_keeps_its_aim_without_drifting() {
             "frame {frame}: the head is {error}° off its aim"
         );
     }
-    let largest = |s: &[f32]| s.iter().copied().fold(0.0f32, f32::max);
-    let (early, late) = (
-        largest(&offsets[..9]),
-        largest(&offsets[offsets.len() - 6..]),
-    );
-    assert!(
-        early > 0.01,
-        "an unmasked look-at should move the hips a little ({early} of size)"
-    );
-    assert!(
-        late <= early,
-        "the layer drifts: the hips are {late} of size off the clip in the last second, {early} in the first 1.5 s"
-    );
 }

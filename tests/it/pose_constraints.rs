@@ -689,3 +689,49 @@ fn a_shape_rest_pose_stays_put_and_effectors_bend_from_it() {
         "the unpulled knee turned {knee_bend}° from its bend (bind shape at rest: {knee_bind}°)"
     );
 }
+
+/// Stiffness weighted by what each joint carries: the hips carry more than the chest, the
+/// chest more than the neck, the neck more than the head; and a look-at to the side under it
+/// turns the neck and head while the hips keep (nearly) their rest rotation — with every
+/// joint weighed alike the hips take a share of the turn like any other ancestor.
+#[test]
+fn an_inertia_weighted_stiffness_turns_the_light_joints_first() {
+    let rig = mannequin_rig(10);
+    let model = model_of(&rig);
+    let find = |n: &str| rig.skeleton.find(n).unwrap();
+    let inertia = model.relative_inertia();
+    let chain = ["hips", "chest", "neck", "head"].map(|n| inertia[find(n)]);
+    assert!(
+        chain.windows(2).all(|w| w[0] > w[1]) && chain[0] > 4.0 * chain[3],
+        "hips, chest, neck, head carry {chain:?}"
+    );
+    let head = find("head");
+    let globals = rig.skeleton.global_transforms(&rig.rest);
+    let target = globals[head].translation + DVec3::new(0.8, 0.1, 0.4);
+    let hips_turn = |stiffness: ReferenceStiffness| {
+        let constraints = PoseConstraints {
+            effectors: vec![Effector {
+                joint: head,
+                goal: EffectorGoal::Aim {
+                    axis: DVec3::Y,
+                    target,
+                    up: None,
+                },
+                weight: 1.0,
+            }],
+            stiffness: Some(stiffness),
+            ..Default::default()
+        };
+        let pose = solve(&model, &rig, &constraints, 40);
+        let now = rig.skeleton.global_transforms(&pose);
+        let aim = (now[head].matrix3 * DVec3::Y).angle_between(target - now[head].translation);
+        assert!(aim.to_degrees() < 1.0, "the head aims {}° off", aim.to_degrees());
+        rotation_angle(pose.local[0].rotation, rig.rest.local[0].rotation).to_degrees()
+    };
+    let weighted = hips_turn(ReferenceStiffness::by_inertia(rig.rest.clone(), 0.3));
+    let alike = hips_turn(ReferenceStiffness::uniform(rig.rest.clone(), 0.3));
+    assert!(
+        weighted < 0.3 * alike,
+        "the hips turn {weighted}° weighted by inertia, {alike}° weighed alike"
+    );
+}

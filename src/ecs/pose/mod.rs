@@ -264,6 +264,12 @@ pub enum PoseLimits {
 /// pulls on stay put. Under an additive [`PoseBlend`] the pull is towards the animation as it
 /// plays now, so the layer relaxes back to nothing where nothing pulls. 0 (or no component)
 /// leaves them to the shape energy alone.
+///
+/// Each joint's pull is weighted by the share of the body its rotation carries
+/// ([`crate::pose::StiffnessWeighting::Inertia`]): turning the hips, which carry the whole
+/// body, costs far more than turning the neck, so a look-at turns the neck and head and
+/// leaves the legs on the animation (an unmasked look-at over the Fox's idle clip moves its
+/// hips ≤ 2 % of its size off the clip; with every joint weighed alike, up to 15 %).
 #[derive(Component, Debug, Clone, Copy, PartialEq, Reflect)]
 #[reflect(Component)]
 pub struct PoseStiffness(pub f32);

@@ -315,7 +315,7 @@ fn constraints_of(
                 .or_else(|| start.clone())
                 .or_else(|| state.reference.clone()),
         )
-        .map(|(k, pose)| ReferenceStiffness::uniform(pose, k.0.clamp(0.0, 1.0) as f64));
+        .map(|(k, pose)| ReferenceStiffness::by_inertia(pose, k.0.clamp(0.0, 1.0) as f64));
     let world = PoseConstraints {
         centroid_effectors,
         handles,

@@ -524,6 +524,7 @@ impl PoseSolver {
                 reference_globals: &self.reference_globals,
                 reference_skinning: &reference_skinning,
                 influences: self.model.influences(),
+                relative_inertia: self.model.relative_inertia(),
                 bind: self.model.bind_positions(),
                 joint_weight: self.joint_weight,
                 vertex_weight: self.vertex_weight,
