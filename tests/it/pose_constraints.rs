@@ -725,7 +725,11 @@ fn an_inertia_weighted_stiffness_turns_the_light_joints_first() {
         let pose = solve(&model, &rig, &constraints, 40);
         let now = rig.skeleton.global_transforms(&pose);
         let aim = (now[head].matrix3 * DVec3::Y).angle_between(target - now[head].translation);
-        assert!(aim.to_degrees() < 1.0, "the head aims {}° off", aim.to_degrees());
+        assert!(
+            aim.to_degrees() < 1.0,
+            "the head aims {}° off",
+            aim.to_degrees()
+        );
         rotation_angle(pose.local[0].rotation, rig.rest.local[0].rotation).to_degrees()
     };
     let weighted = hips_turn(ReferenceStiffness::by_inertia(rig.rest.clone(), 0.3));

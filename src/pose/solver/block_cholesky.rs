@@ -36,8 +36,19 @@ impl BlockPattern {
         let mut nonzero = vec![false; nb * nb];
         for i in 0..nb {
             for j in 0..=i {
-                nonzero[i * nb + j] = i == j || block_is_nonzero(a, n, i, j);
+                nonzero[i * nb + j] = block_is_nonzero(a, n, i, j);
             }
+        }
+        Self::from_blocks(nb, nonzero)
+    }
+
+    /// The pattern of a matrix of `nb × nb` blocks whose non-zero lower blocks `(i, j)`,
+    /// `i ≥ j`, are flagged in `nonzero[i * nb + j]` (diagonal blocks are always taken).
+    pub(super) fn from_blocks(nb: usize, mut nonzero: Vec<bool>) -> Self {
+        debug_assert_eq!(nonzero.len(), nb * nb);
+        let n = 3 * nb;
+        for i in 0..nb {
+            nonzero[i * nb + i] = true;
         }
         // Symbolic elimination: the rows below k that are non-zero in column k fill in among
         // themselves.

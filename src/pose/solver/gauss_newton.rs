@@ -6,7 +6,8 @@ use glam::{DAffine3, DMat3, DMat4, DVec3};
 
 use super::super::effectors::skew;
 use super::super::limits::JointLimits;
-use super::block_cholesky::{BlockCholesky, BlockPattern};
+use super::block_cholesky::BlockCholesky;
+pub(super) use super::block_cholesky::BlockPattern;
 use super::{ParamKind, PoseSolver, Posed};
 
 impl PoseSolver {
@@ -146,7 +147,7 @@ impl PoseSolver {
             .map(|s| DMat4::from_cols_array_2d(s).transpose())
             .collect();
         scratch.reset(joints);
-        let HessianScratch { z, nonzero } = scratch;
+        let HessianScratch { z, nonzero, .. } = scratch;
         // Q is symmetric: N_lk = N_klᵀ, so each pair is multiplied once.
         for &(k, l, ref q_kl) in self.q_blocks.iter().filter(|(k, l, _)| k <= l) {
             let n = s_mat[k] * *q_kl * s_mat[l].transpose();
@@ -190,19 +191,29 @@ impl PoseSolver {
     fn parameter_system(
         &self,
         gsum: &[[f64; 6]],
-        scratch: &HessianScratch,
+        scratch: &mut HessianScratch,
         globals: &[DAffine3],
     ) -> (Vec<f64>, Vec<f64>) {
-        let HessianScratch { z, nonzero } = scratch;
         let joints = self.model.skeleton().len();
         let params = &self.params;
         let np = params.len() * 3;
-        let mut h = vec![0.0; np * np];
+        // The last iteration's matrix, zeroed: no fresh allocation (and page faults) per
+        // iteration. The caller hands it back with `HessianScratch::return_matrix`.
+        let mut h = std::mem::take(&mut scratch.h);
+        h.clear();
+        h.resize(np * np, 0.0);
+        let blocks = params.len();
+        scratch.pairs.clear();
+        scratch.pairs.resize(blocks * blocks, false);
+        let HessianScratch {
+            z, nonzero, pairs, ..
+        } = scratch;
         let mut g = vec![0.0; np];
-        let maps: Vec<Option<DMat3>> = params
+        // A rotation parameter turns about its joint's origin; a translation has none.
+        let origins: Vec<Option<DVec3>> = params
             .iter()
             .map(|&(j, kind)| match kind {
-                ParamKind::Rotation => Some(skew(globals[j].translation)),
+                ParamKind::Rotation => Some(globals[j].translation),
                 ParamKind::Translation => None,
             })
             .collect();
@@ -212,8 +223,8 @@ impl PoseSolver {
                 DVec3::new(gsum[ja][3], gsum[ja][4], gsum[ja][5]),
             );
             // A_aᵀ g = g_ω + [o]×ᵀ g_v (rotation) or g_v (translation).
-            let ga = match (kind_a, maps[pa]) {
-                (ParamKind::Rotation, Some(o)) => gw + o.transpose() * gv,
+            let ga = match (kind_a, origins[pa]) {
+                (ParamKind::Rotation, Some(o)) => gw + skew(o).transpose() * gv,
                 _ => gv,
             };
             g[pa * 3..pa * 3 + 3].copy_from_slice(&ga.to_array());
@@ -222,16 +233,8 @@ impl PoseSolver {
                 if !nonzero[ja * joints + jb] {
                     continue;
                 }
-                let TwistBlock { ww, wv, vw, vv } = TwistBlock::of(&z[ja * joints + jb]);
-                // Z A_b = [Z_ωω + Z_ωv Ob ; Z_vω + Z_vv Ob] (rotation) or [Z_ωv; Z_vv].
-                let (top, bottom) = match maps[pb] {
-                    Some(ob) => (ww + wv * ob, vw + vv * ob),
-                    None => (wv, vv),
-                };
-                let hab = match maps[pa] {
-                    Some(oa) => top + oa.transpose() * bottom,
-                    None => bottom,
-                };
+                pairs[pb * blocks + pa] = true;
+                let hab = parameter_block(&z[ja * joints + jb], origins[pa], origins[pb]);
                 for r in 0..3 {
                     for c in 0..3 {
                         let v = 2.0 * hab.col(c)[r];
@@ -245,17 +248,46 @@ impl PoseSolver {
     }
 }
 
-/// The subtree-summed Hessian blocks of one iteration (joints × joints), kept between
-/// iterations of a solve so they are not reallocated. A block is kept as the 4 × 4 `N`
-/// its [`TwistBlock`] is linear in (16 numbers instead of 36), and is meaningful only where
-/// `nonzero` says so.
+/// The subtree-summed Hessian blocks of one iteration (joints × joints) and the system's
+/// matrix, kept between iterations and solves (one per thread) so they are not reallocated.
+/// A block is kept as the 4 × 4 `N` its quadratic form is linear in (16 numbers instead of
+/// the 36 of a 6 × 6 twist block), and is meaningful only where `nonzero` says so.
 #[derive(Default)]
 pub(super) struct HessianScratch {
     z: Vec<DMat4>,
     nonzero: Vec<bool>,
+    h: Vec<f64>,
+    /// Which parameter blocks `(pb, pa)`, `pb ≥ pa`, the last system wrote.
+    pairs: Vec<bool>,
+}
+
+thread_local! {
+    /// The scratch of the last solve on this thread.
+    static SCRATCH: std::cell::Cell<Option<HessianScratch>> = const { std::cell::Cell::new(None) };
 }
 
 impl HessianScratch {
+    /// This thread's scratch (a new one the first time, or while another solve holds it).
+    pub(super) fn take() -> Self {
+        SCRATCH.with(|s| s.take()).unwrap_or_default()
+    }
+
+    /// Gives the scratch back for this thread's next solve.
+    pub(super) fn keep(self) {
+        SCRATCH.with(|s| s.set(Some(self)));
+    }
+
+    /// The block pattern of the last system [`PoseSolver::gauss_newton_system`] built (terms
+    /// added to it afterwards must add no block of their own).
+    pub(super) fn pattern(&self) -> BlockPattern {
+        BlockPattern::from_blocks(self.pairs.len().isqrt(), self.pairs.clone())
+    }
+
+    /// Takes back an iteration's system matrix for the next iteration to reuse.
+    pub(super) fn return_matrix(&mut self, h: Vec<f64>) {
+        self.h = h;
+    }
+
     /// Every block zero, for `joints` joints.
     fn reset(&mut self, joints: usize) {
         self.z.resize(joints * joints, DMat4::ZERO);
@@ -275,9 +307,33 @@ const GENERATORS: [&[(usize, usize, f64)]; 6] = [
     &[(2, 3, 1.0)],
 ];
 
+/// One 3 × 3 block of the system in the solver's parameters, `A_aᵀ M(N) A_b` (half of `H_ab`),
+/// straight from `N`: a rotation about `o` (`Some(o)`) is a rotation about the origin of points
+/// shifted by `−o`, so with `N = [[N₃, n], [mᵀ, n₃₃]]` two rotations give
+/// `tr(N₃') I − N₃'ᵀ` with `N₃' = N₃ − o_a mᵀ − n o_bᵀ + n₃₃ o_a o_bᵀ`; a rotation against a
+/// translation `[n − n₃₃ o_a]×` (or `−[m − n₃₃ o_b]×`); two translations `n₃₃ I`. The same as
+/// [`TwistBlock`] through the maps `[I; [o]×]`, at a fraction of the products.
+fn parameter_block(n: &DMat4, oa: Option<DVec3>, ob: Option<DVec3>) -> DMat3 {
+    let col = n.w_axis.truncate();
+    let row = DVec3::new(n.x_axis.w, n.y_axis.w, n.z_axis.w);
+    let n33 = n.w_axis.w;
+    let outer = |u: DVec3, v: DVec3| DMat3::from_cols(u * v.x, u * v.y, u * v.z);
+    match (oa, ob) {
+        (Some(a), Some(b)) => {
+            let shifted = DMat3::from_mat4(*n) - outer(a, row) - outer(col, b) + outer(a, b * n33);
+            let trace = shifted.x_axis.x + shifted.y_axis.y + shifted.z_axis.z;
+            DMat3::from_diagonal(DVec3::splat(trace)) - shifted.transpose()
+        }
+        (Some(a), None) => skew(col - a * n33),
+        (None, Some(b)) => -skew(row - b * n33),
+        (None, None) => DMat3::from_diagonal(DVec3::splat(n33)),
+    }
+}
+
 /// The 6 × 6 quadratic form `M[g][h] = tr(G_g N G_hᵀ)` of the twist generators (ω then v)
 /// for a 4 × 4 `N`, as four 3 × 3 blocks. With `N = [[N₃, n], [mᵀ, n₃₃]]` it is, in closed
 /// form, `M_ωω = tr(N₃) I − N₃ᵀ`, `M_ωv = [n]×`, `M_vω = −[m]×`, `M_vv = n₃₃ I`.
+#[cfg(test)]
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct TwistBlock {
     ww: DMat3,
@@ -286,6 +342,7 @@ struct TwistBlock {
     vv: DMat3,
 }
 
+#[cfg(test)]
 impl TwistBlock {
     fn of(n: &DMat4) -> Self {
         let n3 = DMat3::from_mat4(*n);
@@ -305,17 +362,16 @@ impl TwistBlock {
 /// translations of any scale are damped alike) by a block-sparse Cholesky factorization
 /// ([`BlockCholesky`]), returned as per-parameter 3-vectors; raises the damping until the
 /// matrix factors. All zeros if it never does.
-pub(super) fn solve_damped(h: &[f64], g: &[f64], mu: f64) -> Vec<DVec3> {
+pub(super) fn solve_damped(h: &[f64], g: &[f64], mu: f64, pattern: &BlockPattern) -> Vec<DVec3> {
     let n = g.len();
     let scale = (0..n)
         .map(|i| h[i * n + i])
         .fold(0.0f64, f64::max)
         .max(1e-300);
-    let pattern = BlockPattern::of(h, n);
     let mut mu = mu;
     for _ in 0..12 {
         let shift: Vec<f64> = (0..n).map(|i| mu * h[i * n + i] + 1e-12 * scale).collect();
-        if let Some(factor) = BlockCholesky::factor(h, &shift, &pattern) {
+        if let Some(factor) = BlockCholesky::factor(h, &shift, pattern) {
             let mut x: Vec<f64> = g.iter().map(|v| -v).collect();
             factor.solve_in_place(&mut x);
             if x.iter().all(|v| v.is_finite()) {
@@ -333,6 +389,33 @@ pub(super) fn solve_damped(h: &[f64], g: &[f64], mu: f64) -> Vec<DVec3> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// [`parameter_block`] equals the twist block taken through the maps `[I; [o]×]`
+    /// (rotation about `o`) or `[0; I]` (translation), for every pairing of the two kinds.
+    #[test]
+    fn parameter_blocks_match_the_twist_block_through_the_maps() {
+        let n = DMat4::from_cols_array(&std::array::from_fn(|i| ((i * 5 + 2) % 7) as f64 - 2.5));
+        let TwistBlock { ww, wv, vw, vv } = TwistBlock::of(&n);
+        let (oa, ob) = (DVec3::new(0.3, -1.2, 0.7), DVec3::new(-0.4, 0.9, 2.1));
+        let (ma, mb) = (skew(oa), skew(ob));
+        let cases = [
+            (
+                Some(oa),
+                Some(ob),
+                ww + wv * mb + ma.transpose() * (vw + vv * mb),
+            ),
+            (Some(oa), None, wv + ma.transpose() * vv),
+            (None, Some(ob), vw + vv * mb),
+            (None, None, vv),
+        ];
+        for (a, b, expected) in cases {
+            let got = parameter_block(&n, a, b);
+            assert!(
+                got.abs_diff_eq(expected, 1e-12),
+                "{a:?}, {b:?}: {got} vs {expected}"
+            );
+        }
+    }
 
     /// The closed form of [`TwistBlock`] equals `tr(G_g N G_hᵀ)` computed from the
     /// generators.

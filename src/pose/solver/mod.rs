@@ -20,7 +20,7 @@ use super::model::SkinnedModel;
 use super::skeleton::{JointTransform, SkeletonPose};
 use crate::deform::constraints::same_keys;
 use crate::deform::{Handle, RigidTransform};
-use gauss_newton::{HessianScratch, solve_damped};
+use gauss_newton::{BlockPattern, HessianScratch, solve_damped};
 use setup::{check_indices, joint_frames, nonzero_blocks, set_sums};
 
 /// A joint driven to a rigid motion of where it was in the reference pose.
@@ -348,7 +348,7 @@ impl PoseSolver {
         let mut current = self.posed(pose);
         let mut stats = PoseSolveStats::default();
         let mut b = vec![0.0; b_pen.len()];
-        let mut scratch = HessianScratch::default();
+        let mut scratch = HessianScratch::take();
         let mut last = f64::NAN;
         for it in 0..options.max_iterations {
             if cancel() {
@@ -381,8 +381,20 @@ impl PoseSolver {
             if let Some(limits) = limits {
                 self.restrict_hinges(limits, &current.globals, &mut h, &mut g);
             }
+            // The effector terms may couple joints the shape energy does not: read their
+            // blocks off the matrix; else the system's own pattern (hinges add none).
+            let pattern = if extras.is_empty() {
+                scratch.pattern()
+            } else {
+                BlockPattern::of(&h, g.len())
+            };
             stats.system_s += t.elapsed().as_secs_f64();
-            let step = DampedSystem { h: &h, g: &g, f0 };
+            let step = DampedSystem {
+                h: &h,
+                g: &g,
+                f0,
+                pattern: &pattern,
+            };
             let accepted = self.damped_step(
                 &current,
                 &step,
@@ -392,6 +404,7 @@ impl PoseSolver {
                 &mut stats,
             );
             stats.global_s += t.elapsed().as_secs_f64();
+            scratch.return_matrix(h);
             let f = match accepted {
                 Some((next, f)) => {
                     current = next;
@@ -407,6 +420,7 @@ impl PoseSolver {
                 break;
             }
         }
+        scratch.keep();
         let pose = current.pose;
         if !pose.local.iter().all(|t| t.is_valid()) {
             return Err(PoseError::NonFiniteResult);
@@ -489,7 +503,7 @@ impl PoseSolver {
         stats: &mut PoseSolveStats,
     ) -> Option<(Posed, f64)> {
         for _ in 0..12 {
-            let step = solve_damped(system.h, system.g, *damping);
+            let step = solve_damped(system.h, system.g, *damping, system.pattern);
             for (k, length) in [1.0, 0.5].into_iter().enumerate() {
                 let mut candidate = retract(&current.pose, &current.globals, &step, length, self);
                 if let Some(limits) = limits {
@@ -667,6 +681,8 @@ struct DampedSystem<'a> {
     h: &'a [f64],
     g: &'a [f64],
     f0: f64,
+    /// Where `h`'s Cholesky factor has non-zero blocks.
+    pattern: &'a BlockPattern,
 }
 
 /// Every handle's target is a finite rigid transform.
