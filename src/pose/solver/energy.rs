@@ -64,23 +64,18 @@ impl PoseSolver {
 
     /// `Q X` using the block structure.
     pub(super) fn q_times(&self, x: &[f64]) -> Vec<f64> {
-        let dim = x.len() / 3;
-        let joints = dim / 4;
-        let mut out = vec![0.0; dim * 3];
-        for k in 0..joints {
-            for l in 0..joints {
-                if !self.block_nonzero[k * joints + l] {
-                    continue;
-                }
+        let mut out = vec![0.0; x.len()];
+        for &(k, l, ref q_kl) in &self.q_blocks {
+            let xl = &x[12 * l..][..12];
+            let out_k = &mut out[12 * k..][..12];
+            for c in 0..4 {
+                let column = q_kl.col(c);
+                let xr = &xl[3 * c..][..3];
                 for r in 0..4 {
-                    let row = 4 * k + r;
-                    let qrow = &self.q[row * dim + 4 * l..][..4];
-                    for (c, &qv) in qrow.iter().enumerate() {
-                        let xr = &x[(4 * l + c) * 3..][..3];
-                        out[row * 3] += qv * xr[0];
-                        out[row * 3 + 1] += qv * xr[1];
-                        out[row * 3 + 2] += qv * xr[2];
-                    }
+                    let qv = column[r];
+                    out_k[3 * r] += qv * xr[0];
+                    out_k[3 * r + 1] += qv * xr[1];
+                    out_k[3 * r + 2] += qv * xr[2];
                 }
             }
         }

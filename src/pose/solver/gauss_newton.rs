@@ -2,6 +2,8 @@
 //! (twist generators, their closed-form quadratic blocks summed over subtrees), the hinge
 //! restriction of that system, and the damped Cholesky solve of a Levenberg–Marquardt step.
 
+use std::rc::Rc;
+
 use glam::{DAffine3, DMat3, DMat4, DVec3};
 
 use super::super::effectors::skew;
@@ -259,6 +261,8 @@ pub(super) struct HessianScratch {
     h: Vec<f64>,
     /// Which parameter blocks `(pb, pa)`, `pb ≥ pa`, the last system wrote.
     pairs: Vec<bool>,
+    /// The last pattern made from `pairs`, with the pairs it was made from.
+    pattern: Option<(Vec<bool>, Rc<BlockPattern>)>,
 }
 
 thread_local! {
@@ -279,8 +283,18 @@ impl HessianScratch {
 
     /// The block pattern of the last system [`PoseSolver::gauss_newton_system`] built (terms
     /// added to it afterwards must add no block of their own).
-    pub(super) fn pattern(&self) -> BlockPattern {
-        BlockPattern::from_blocks(self.pairs.len().isqrt(), self.pairs.clone())
+    /// The pattern is kept with the blocks it was made from and reused while they repeat
+    /// (every iteration of a drag, usually).
+    pub(super) fn pattern(&mut self) -> Rc<BlockPattern> {
+        match &self.pattern {
+            Some((pairs, pattern)) if *pairs == self.pairs => pattern.clone(),
+            _ => {
+                let blocks = self.pairs.len().isqrt();
+                let pattern = Rc::new(BlockPattern::from_blocks(blocks, self.pairs.clone()));
+                self.pattern = Some((self.pairs.clone(), pattern.clone()));
+                pattern
+            }
+        }
     }
 
     /// Takes back an iteration's system matrix for the next iteration to reuse.

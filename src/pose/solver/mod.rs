@@ -195,8 +195,6 @@ pub struct PoseSolver {
     reference_globals: Vec<DAffine3>,
     /// `Q` plus the constraint penalties (4J × 4J).
     q: Vec<f64>,
-    /// Which 4 × 4 blocks of `q` are non-zero.
-    block_nonzero: Vec<bool>,
     /// The non-zero 4 × 4 blocks `(k, l, Q_kl)`.
     q_blocks: Vec<(usize, usize, DMat4)>,
     /// The bone parameters solved for.
@@ -282,7 +280,6 @@ impl PoseSolver {
             q_blocks,
             reference_globals,
             q,
-            block_nonzero,
             handle_sums,
             fixed_b,
             fixed_c,
@@ -386,7 +383,7 @@ impl PoseSolver {
             let pattern = if extras.is_empty() {
                 scratch.pattern()
             } else {
-                BlockPattern::of(&h, g.len())
+                std::rc::Rc::new(BlockPattern::of(&h, g.len()))
             };
             stats.system_s += t.elapsed().as_secs_f64();
             let step = DampedSystem {
