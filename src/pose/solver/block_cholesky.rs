@@ -6,15 +6,17 @@
 //! the parameters ordered children before parents (the solver's order), eliminating a joint
 //! fills in only among its ancestors and the few branches it touches, so a right-looking
 //! factorization over 3 × 3 blocks that skips the blocks that stay zero does a fraction of the
-//! dense work (52-joint humanoid: about a sixth). The matrix stays in the solver's dense
-//! row-major layout; the block structure is read off the values, so any term may add to it.
+//! dense work (52-joint humanoid: about a fifth of the block updates). The matrix stays in
+//! the solver's dense row-major layout; the block structure is the blocks the system wrote
+//! ([`BlockPattern::from_blocks`]), or is read off the values when effector terms added
+//! blocks of their own ([`BlockPattern::of`]).
 
 /// A 3 × 3 block, as rows.
 type Block = [[f64; 3]; 3];
 
 /// Where the non-zero blocks of a system's lower Cholesky factor are: the blocks non-zero in
-/// the matrix and the fill its elimination adds. Read once per Gauss–Newton system and
-/// shared by every damped factorization of it.
+/// the matrix and the fill its elimination adds. Made once per Gauss–Newton system (and kept
+/// while the systems' blocks repeat) and shared by every damped factorization of it.
 pub(super) struct BlockPattern {
     n: usize,
     /// Per block row, its non-zero block columns `≤` it, ascending, and their slots.

@@ -193,9 +193,8 @@ pub struct PoseSolver {
     model: Arc<SkinnedModel>,
     constraints: PoseConstraints,
     reference_globals: Vec<DAffine3>,
-    /// `Q` plus the constraint penalties (4J × 4J).
-    q: Vec<f64>,
-    /// The non-zero 4 × 4 blocks `(k, l, Q_kl)`.
+    /// The non-zero 4 × 4 blocks `(k, l, Q_kl)` of `Q` plus the constraint penalties (the
+    /// dense 4J × 4J matrix is only assembled in [`PoseSolver::new`]).
     q_blocks: Vec<(usize, usize, DMat4)>,
     /// The bone parameters solved for.
     params: Vec<(usize, ParamKind)>,
@@ -279,7 +278,6 @@ impl PoseSolver {
             constraints: constraints.clone(),
             q_blocks,
             reference_globals,
-            q,
             handle_sums,
             fixed_b,
             fixed_c,
@@ -563,7 +561,7 @@ impl PoseSolver {
         for (h, s) in constraints.handles.iter().zip(&self.handle_sums) {
             c += set_target(s, &h.transform, self.vertex_weight, &mut b);
         }
-        let dim = self.q.len().isqrt();
+        let dim = 4 * self.model.skeleton().len();
         let fixed = self
             .constraints
             .fixed_joints
