@@ -2,9 +2,9 @@
 //! inside the frame over it: a position effector plants each foot and paw on the ground under
 //! it (`PoseEffector`, ankles free), a look-at effector turns each head toward a firefly that
 //! wanders over the field (the effectors are the firefly's children: targets that follow
-//! another entity), and `PoseInFrame` solves all of them every frame in parallel, added to
-//! the animation (`PoseBlend::additive`) — the ground rolls slowly, so the legs keep
-//! adjusting.
+//! another entity), and `PoseInFrame` solves all of them every frame in parallel. The pose
+//! overrides the clip on the legs, neck and head only (`PoseBlend` with a `JointMask`); the
+//! spine and tail play on. The ground rolls slowly, so the legs keep adjusting.
 //!
 //! ```text
 //! cargo run --release --example crowd [-- N] [--screenshot PATH --frames N]
