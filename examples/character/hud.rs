@@ -48,6 +48,8 @@ fn spawn_hud(mut commands: Commands) {
             position_type: PositionType::Absolute,
             top: px(10),
             left: px(10),
+            // Long lines (a model's credits) wrap before the side panel (~390 px wide).
+            right: px(400),
             ..default()
         },
         Hud,
