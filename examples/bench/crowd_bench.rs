@@ -3,16 +3,18 @@
 //! frame — the feet-on-uneven-ground case of a game.
 //!
 //! ```text
-//! cargo run --release --example crowd_bench -- [--characters N] [--frames F] [--iterations I] [--model PATH] --json
+//! cargo run --release --example crowd_bench -- [--characters N] [--frames F] [--iterations I] [--model PATH] [--playing] --json
 //! ```
 //! Defaults: 100 characters, 120 measured frames (after 20 warm-up frames), 3 iterations per
-//! character and frame, `../shared/models/Fox.glb`. Headless (no renderer), no animation
-//! playing. The solver time of a frame is the wall time of `PoseSystems::Apply` in
+//! character and frame, `../shared/models/Fox.glb`. Headless (no renderer). Without
+//! `--playing` no animation plays; with it every character plays the file's first clip (each
+//! at its own phase and speed) and the pose is an additive layer over it (`PoseBlend::additive`,
+//! `PoseStiffness(0.3)`: the solve starts from and is held towards the animation of the frame). The solver time of a frame is the wall time of `PoseSystems::Apply` in
 //! `PostUpdate` (every in-frame solve of the frame, in parallel on the compute pool, and the
 //! write to the joints). The last stdout line is one JSON object: `characters`,
 //! `effectors_per_character`, `solver_ms_per_frame_median`, `solver_ms_per_frame_p95`,
 //! `ms_per_solve` (median wall time of one character's solve), `frames`, `models_built` (the
-//! characters share one model per asset: 1).
+//! characters share one model per asset: 1), `playing`.
 
 #[path = "../common/headless_gltf.rs"]
 mod headless_gltf;
@@ -32,6 +34,7 @@ struct Args {
     frames: usize,
     iterations: u32,
     model: String,
+    playing: bool,
 }
 
 fn args() -> Args {
@@ -53,6 +56,7 @@ fn args() -> Args {
             .and_then(|v| v.parse().ok())
             .unwrap_or(3),
         model: value("--model").unwrap_or_else(|| "../shared/models/Fox.glb".into()),
+        playing: args.iter().any(|a| a == "--playing"),
     }
 }
 
@@ -86,7 +90,16 @@ fn main() {
     // Bevy resolves a relative asset folder against the executable's; make it absolute.
     let dir = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
     let mut app = headless_app(&dir);
-    let scene = load_scene(&mut app, &file.to_string_lossy());
+    let (scene, clip) = load_scene(&mut app, &file.to_string_lossy());
+    let clip = if args.playing {
+        let Some(clip) = clip else {
+            eprintln!("--playing: {} has no animation", path.display());
+            std::process::exit(2);
+        };
+        Some(clip)
+    } else {
+        None
+    };
     let side = (args.characters as f32).sqrt().ceil() as usize;
     let roots: Vec<Entity> = (0..args.characters)
         .map(|k| {
@@ -130,6 +143,14 @@ fn main() {
         roots.len(),
         setup.elapsed().as_secs_f64()
     );
+    if let Some(clip) = clip {
+        play_clip_on_every_player(&mut app, clip);
+        for &root in &roots {
+            app.world_mut()
+                .entity_mut(root)
+                .insert((PoseBlend::additive(1.0), PoseStiffness(0.3)));
+        }
+    }
     let effectors = plant_feet(&mut app, &roots);
     for _ in 0..20 {
         app.update();
@@ -159,12 +180,14 @@ fn main() {
             "ms_per_solve": pick(&solve_ms, 0.5),
             "frames": frames.len(),
             "models_built": app.world().resource::<PoseModels>().built(),
+            "playing": args.playing,
         })
     );
 }
 
-/// Loads the whole file (no materials: nothing is drawn) and returns its first scene.
-fn load_scene(app: &mut App, file: &str) -> Handle<WorldAsset> {
+/// Loads the whole file (no materials: nothing is drawn) and returns its first scene and its
+/// first clip, if it has one.
+fn load_scene(app: &mut App, file: &str) -> (Handle<WorldAsset>, Option<Handle<AnimationClip>>) {
     let gltf = headless_gltf::load_gltf_without_materials(app, file);
     let start = Instant::now();
     loop {
@@ -175,8 +198,9 @@ fn load_scene(app: &mut App, file: &str) -> Handle<WorldAsset> {
             .get(&gltf)
         {
             let scene = loaded.scenes[0].clone();
+            let clip = loaded.animations.first().cloned();
             app.insert_resource(KeepLoaded(gltf));
-            return scene;
+            return (scene, clip);
         }
         if start.elapsed() > Duration::from_secs(60) {
             eprintln!("{file} did not load");
@@ -231,6 +255,33 @@ fn start_clock(mut clock: ResMut<SolverClock>) {
 fn stop_clock(mut clock: ResMut<SolverClock>) {
     if let (true, Some(t0)) = (clock.measuring, clock.started) {
         clock.frames_ms.push(t0.elapsed().as_secs_f64() * 1e3);
+    }
+}
+
+/// Every animation player plays `clip` on repeat, each from its own phase at its own speed
+/// (as the crowd example does).
+fn play_clip_on_every_player(app: &mut App, clip: Handle<AnimationClip>) {
+    let (graph, node) = AnimationGraph::from_clip(clip);
+    let graph = app
+        .world_mut()
+        .resource_mut::<Assets<AnimationGraph>>()
+        .add(graph);
+    let world = app.world_mut();
+    let players: Vec<Entity> = world
+        .query_filtered::<Entity, With<AnimationPlayer>>()
+        .iter(world)
+        .collect();
+    for (k, player) in players.into_iter().enumerate() {
+        let k = k as f32;
+        let mut entity = world.entity_mut(player);
+        entity.insert(AnimationGraphHandle(graph.clone()));
+        entity
+            .get_mut::<AnimationPlayer>()
+            .expect("queried")
+            .play(node)
+            .repeat()
+            .seek_to((k * 0.731).fract() * 3.0)
+            .set_speed(0.8 + 0.4 * (k * 0.377).fract());
     }
 }
 

@@ -373,6 +373,10 @@ impl<'a> ExtraTerms<'a> {
     /// Each term's weight and residual (stacked 3-vectors) at `globals` / `skinning`.
     fn residuals(&self, globals: &[DAffine3], skinning: &[DAffine3]) -> Vec<(f64, Vec<DVec3>)> {
         let l = self.length_scale;
+        // Each joint's world rotation once (a stiffness term reads its joint's and its
+        // parent's, which is the next term's joint).
+        let mut cache: Vec<Option<DMat3>> = vec![None; globals.len()];
+        let mut rotation = |j: usize| *cache[j].get_or_insert_with(|| Self::rotation(globals, j));
         self.terms
             .iter()
             .map(|term| match term {
@@ -386,7 +390,7 @@ impl<'a> ExtraTerms<'a> {
                     target,
                     weight,
                 } => {
-                    let r = Self::rotation(globals, *joint);
+                    let r = rotation(*joint);
                     (*weight, columns(&((r - *target) * l)))
                 }
                 Term::Aim {
@@ -396,7 +400,7 @@ impl<'a> ExtraTerms<'a> {
                     up,
                     weight,
                 } => {
-                    let r = Self::rotation(globals, *joint);
+                    let r = rotation(*joint);
                     let d = r * *axis;
                     let u = (*target - globals[*joint].translation).normalize_or(d);
                     let mut out = vec![(d - u) * l];
@@ -418,8 +422,12 @@ impl<'a> ExtraTerms<'a> {
                     root_translation,
                     weight,
                 } => {
-                    let r = Self::rotation(globals, *joint);
-                    let goal = self.parent_rotation(globals, *joint) * *reference;
+                    let r = rotation(*joint);
+                    let parent = match self.skeleton.joints()[*joint].parent {
+                        Some(p) => rotation(p),
+                        None => self.parent_rotation(globals, *joint),
+                    };
+                    let goal = parent * *reference;
                     let mut out = columns(&((r - goal) * l));
                     if let Some(t) = root_translation {
                         out.push(globals[*joint].translation - *t);
@@ -516,6 +524,14 @@ impl<'a> ExtraTerms<'a> {
                 root_translation,
                 ..
             } => {
+                // An ancestor turns the joint and its goal together: the residual turns
+                // rigidly, its length does not change — no gradient and no curvature (the
+                // Gauss–Newton blocks `JᵀJ` it would add are spurious stiffness on the
+                // ancestors). Only a root's translation term sees an ancestor or a
+                // translation, and a root has no ancestor.
+                if root_translation.is_none() && !(rotation && a == *joint) {
+                    return None;
+                }
                 if !self.moves(a, *joint) {
                     return None;
                 }
@@ -529,7 +545,6 @@ impl<'a> ExtraTerms<'a> {
                         .map(|c| direction(*c) * l)
                         .collect()
                 } else {
-                    // An ancestor turns the joint and its goal together: the residual turns.
                     residual[..3].iter().map(|c| direction(*c)).collect()
                 };
                 if root_translation.is_some() {

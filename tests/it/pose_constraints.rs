@@ -690,6 +690,115 @@ fn a_shape_rest_pose_stays_put_and_effectors_bend_from_it() {
     );
 }
 
+/// An additive layer's next frame: the clip moved a little (the rest shape with it), the solve
+/// starts from the new pose seeded by last frame's solution (`PoseStart::Near`): its tilt's
+/// cluster rotations are refined from last frame's, not fitted afresh. With nothing pulling the
+/// new rest pose stays put (as with a cold start); with a wrist pulled the seeded solve meets
+/// the wrist's goal and ends at least as low as the cold one; and the solution carries the rest
+/// shape's rotations, equal to a cold fit's.
+#[test]
+fn a_solve_seeded_by_last_frames_solution_tilts_the_shape_like_a_cold_one() {
+    let rig = mannequin_rig(10);
+    let model = model_of(&rig);
+    let find = |n: &str| rig.skeleton.find(n).unwrap();
+    let animated_at = |t: f64| {
+        let mut pose = rig.rest.clone();
+        for (joint, angle) in [("elbow_l", 0.9), ("knee_r", -0.7), ("chest", 0.25)] {
+            pose.local[find(joint)].rotation = DQuat::from_rotation_x(angle * (1.0 + t));
+        }
+        pose
+    };
+    let (frame0, frame1) = (animated_at(0.0), animated_at(0.06));
+    let wrist = find("wrist_l");
+    let goal =
+        rig.skeleton.global_transforms(&frame1)[wrist].translation + DVec3::new(0.0, 0.12, 0.08);
+    let constraints_of = |rest: &SkeletonPose, pulled: bool| PoseConstraints {
+        effectors: pulled
+            .then_some(Effector {
+                joint: wrist,
+                goal: EffectorGoal::Position(goal),
+                weight: 1.0,
+            })
+            .into_iter()
+            .collect(),
+        shape_rest: Some(rest.clone()),
+        ..Default::default()
+    };
+    let options = PoseSolveOptions {
+        max_iterations: 40,
+        tolerance: 0.0,
+    };
+    let max_turn = |a: &SkeletonPose, b: &SkeletonPose| {
+        a.local
+            .iter()
+            .zip(&b.local)
+            .map(|(x, y)| rotation_angle(x.rotation, y.rotation).to_degrees())
+            .fold(0.0, f64::max)
+    };
+    for pulled in [false, true] {
+        let solver = PoseSolver::new(
+            model.clone(),
+            &constraints_of(&frame0, pulled),
+            &rig.rest,
+            PoseSolverSettings::default(),
+        )
+        .unwrap();
+        let last = solver
+            .solve(
+                &constraints_of(&frame0, pulled),
+                &options,
+                PoseStart::Pose(&frame0),
+                &|| false,
+            )
+            .unwrap();
+        assert_eq!(last.shape_rest_rotations.len(), model.cluster_count());
+        let next = constraints_of(&frame1, pulled);
+        let seeded = solver
+            .solve(
+                &next,
+                &options,
+                PoseStart::Near {
+                    pose: &frame1,
+                    last: &last,
+                },
+                &|| false,
+            )
+            .unwrap();
+        let cold = solver
+            .solve(&next, &options, PoseStart::Pose(&frame1), &|| false)
+            .unwrap();
+        let rotations_off = seeded
+            .shape_rest_rotations
+            .iter()
+            .zip(&cold.shape_rest_rotations)
+            .map(|(a, b)| rotation_angle(*a, *b))
+            .fold(0.0, f64::max);
+        assert!(
+            rotations_off < 1e-9,
+            "pulled {pulled}: the seeded tilt's rotations are {rotations_off} rad off a cold fit"
+        );
+        // Both descend the same objective; seeded by a nearby solution it gets at least as
+        // low within the same iterations (the pulled solve is still descending at 40: lower).
+        let energy = |sol: &PoseSolution| *sol.stats.energies.last().unwrap();
+        assert!(
+            energy(&seeded) <= energy(&cold) * (1.0 + 1e-9),
+            "pulled {pulled}: seeded {} vs cold {}",
+            energy(&seeded),
+            energy(&cold)
+        );
+        if pulled {
+            let reached = rig.skeleton.global_transforms(&seeded.pose)[wrist]
+                .translation
+                .distance(goal);
+            assert!(reached < 1e-3, "the wrist is {reached} from its goal");
+        }
+        if !pulled {
+            let moved = max_turn(&seeded.pose, &frame1);
+            assert!(moved < 1e-4, "the new rest pose moved by {moved}°");
+        }
+    }
+}
+
 /// Stiffness weighted by what each joint carries: the hips carry more than the chest, the
 /// chest more than the neck, the neck more than the head; and a look-at to the side under it
 /// turns the neck and head while the hips keep (nearly) their rest rotation — with every

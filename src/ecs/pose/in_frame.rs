@@ -165,7 +165,9 @@ fn solve_pending(
     let reuse = state.solver.clone().filter(|s| s.accepts(&constraints));
     let start: Option<SkeletonPose> = state.start.take();
     let solve = || -> Solved {
-        let warm = reuse.is_some() && start.is_none();
+        // The last solution seeds this one when its solver is reused: as the start itself,
+        // or (a start given: an additive layer's pose on screen) for its cluster rotations.
+        let last = state.last.as_deref().filter(|_| reuse.is_some());
         let solver = match reuse {
             Some(s) => s,
             None => Arc::new(PoseSolver::new(
@@ -175,10 +177,14 @@ fn solve_pending(
                 PoseSolverSettings::default(),
             )?),
         };
-        let current = start.unwrap_or_else(|| posed.pose.clone());
-        let from = match state.last.as_deref() {
-            Some(last) if warm => PoseStart::Warm(last),
-            _ => PoseStart::Pose(&current),
+        let current = start.as_ref().unwrap_or(&posed.pose);
+        let from = match (last, start.is_some()) {
+            (Some(last), false) => PoseStart::Warm(last),
+            (Some(last), true) => PoseStart::Near {
+                pose: current,
+                last,
+            },
+            (None, _) => PoseStart::Pose(current),
         };
         let options = PoseSolveOptions {
             max_iterations: in_frame.iterations.max(1),

@@ -149,6 +149,10 @@ pub struct PoseSolution {
     pub cluster_rotations: Vec<DQuat>,
     /// The Levenberg–Marquardt damping the solve ended with (warm-start data).
     pub damping: f64,
+    /// With a [`PoseConstraints::shape_rest`]: each cluster's best-fit rotation at that rest
+    /// pose (warm-start data for the next solve's tilt, whose rest moves little from frame
+    /// to frame); empty without one.
+    pub shape_rest_rotations: Vec<DQuat>,
     /// Statistics.
     pub stats: PoseSolveStats,
 }
@@ -162,6 +166,16 @@ pub enum PoseStart<'a> {
     /// From a previous solution: its pose, cluster rotations and step damping (use for every
     /// frame of a drag).
     Warm(&'a PoseSolution),
+    /// From `pose`, with the cluster rotations and damping of `last` as first guesses: for a
+    /// start that moved a little since that solution (an additive layer starts every frame
+    /// from the clip's new pose plus the layer). The rotations are refined by Newton steps
+    /// instead of fitted from scratch.
+    Near {
+        /// The pose the solve starts from.
+        pose: &'a SkeletonPose,
+        /// A solution of the same solver from a pose close to `pose`.
+        last: &'a PoseSolution,
+    },
 }
 
 /// Levenberg–Marquardt damping of a cold start (relative to the Hessian's diagonal).
@@ -318,6 +332,7 @@ impl PoseSolver {
         let (start, warm) = match start {
             PoseStart::Pose(p) => (p, None),
             PoseStart::Warm(s) => (&s.pose, Some(s)),
+            PoseStart::Near { pose, last } => (pose, Some(last)),
         };
         let extras = self.extra_terms(constraints);
         let limits = constraints.limits.as_deref();
@@ -328,8 +343,13 @@ impl PoseSolver {
             _ => (vec![DQuat::IDENTITY; clusters], INITIAL_DAMPING, true),
         };
         let (mut b_pen, mut c_pen) = self.penalty_terms(constraints);
+        let mut shape_rest_rotations = Vec::new();
         if let Some(rest) = &constraints.shape_rest {
-            let (tilt, constant) = self.shape_tilt(rest);
+            let guess = warm
+                .map(|w| &w.shape_rest_rotations[..])
+                .filter(|r| r.len() == clusters);
+            let (tilt, constant, fitted) = self.shape_tilt(rest, guess);
+            shape_rest_rotations = fitted;
             for (b, t) in b_pen.iter_mut().zip(tilt) {
                 *b += t;
             }
@@ -425,6 +445,7 @@ impl PoseSolver {
             pose,
             cluster_rotations: rotations,
             damping,
+            shape_rest_rotations,
             stats,
         })
     }
@@ -453,7 +474,7 @@ impl PoseSolver {
             constraints.stiffness.as_ref(),
         )?;
         let pose = match start {
-            PoseStart::Pose(p) => p,
+            PoseStart::Pose(p) | PoseStart::Near { pose: p, .. } => p,
             PoseStart::Warm(s) => &s.pose,
         };
         skeleton.check_pose(pose)?;

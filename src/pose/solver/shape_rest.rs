@@ -22,17 +22,31 @@ use crate::pose::SkeletonPose;
 
 impl PoseSolver {
     /// The linear term `T` (4J × 3, added to `B`) and the constant `2 tr(Tᵀ X_a)` that tilt
-    /// the shape energy so that `rest` is at rest.
-    pub(super) fn shape_tilt(&self, rest: &SkeletonPose) -> (Vec<f64>, f64) {
+    /// the shape energy so that `rest` is at rest, with the clusters' rotations fitted to
+    /// `rest` — from scratch, or refined from `guess` (the last solve's, for a rest pose that
+    /// moved little since: Newton steps instead of an eigen-solve per cluster).
+    pub(super) fn shape_tilt(
+        &self,
+        rest: &SkeletonPose,
+        guess: Option<&[DQuat]>,
+    ) -> (Vec<f64>, f64, Vec<DQuat>) {
         let posed = self.posed(rest.clone());
-        let mut rotations = vec![DQuat::IDENTITY; self.model.cluster_count()];
-        self.local_step(&posed.x, &mut rotations, true);
+        let (mut rotations, exact) = match guess {
+            Some(g) => (g.to_vec(), false),
+            None => (vec![DQuat::IDENTITY; self.model.cluster_count()], true),
+        };
+        self.local_step(&posed.x, &mut rotations, exact);
+        if !exact {
+            // A second round of Newton steps: converged clusters stop after one; a guess far
+            // from a cluster's fit (a layer turned a joint a lot) gets there.
+            self.local_step(&posed.x, &mut rotations, false);
+        }
         let mut tilt = vec![0.0; posed.x.len()];
         self.add_rotation_terms(&rotations, &mut tilt);
         for (t, qx) in tilt.iter_mut().zip(&posed.qx) {
             *t = qx - *t;
         }
         let constant = 2.0 * tilt.iter().zip(&posed.x).map(|(t, x)| t * x).sum::<f64>();
-        (tilt, constant)
+        (tilt, constant, rotations)
     }
 }
