@@ -50,6 +50,15 @@ fn hinge_angle_deg(rig: &SyntheticRig, pose: &SkeletonPose, j: usize) -> f64 {
     (2.0 * d.x.atan2(d.w)).to_degrees()
 }
 
+/// The largest turn (degrees) of any joint's local rotation between two poses.
+fn largest_turn_deg(a: &SkeletonPose, b: &SkeletonPose) -> f64 {
+    a.local
+        .iter()
+        .zip(&b.local)
+        .map(|(x, y)| rotation_angle(x.rotation, y.rotation).to_degrees())
+        .fold(0.0, f64::max)
+}
+
 /// A three-bone arm along +y: shoulder (joint 0) pinned, a position effector pulling the wrist
 /// (joint 2) behind the arm (−z), where only a backward elbow bend goes.
 fn arm_pulled_backwards(limits: Option<Arc<JointLimits>>) -> (SyntheticRig, SkeletonPose) {
@@ -643,17 +652,10 @@ fn a_shape_rest_pose_stays_put_and_effectors_bend_from_it() {
         .unwrap()
         .pose
     };
-    let turned = |a: &SkeletonPose, b: &SkeletonPose| {
-        a.local
-            .iter()
-            .zip(&b.local)
-            .map(|(x, y)| rotation_angle(x.rotation, y.rotation).to_degrees())
-            .fold(0.0, f64::max)
-    };
     let free = |shape_rest: Option<SkeletonPose>| solve_from_animated(Vec::new(), shape_rest);
-    let kept = turned(&free(Some(animated.clone())), &animated);
+    let kept = largest_turn_deg(&free(Some(animated.clone())), &animated);
     assert!(kept < 1e-4, "the rest pose moved by {kept}°");
-    let relaxed = turned(&free(None), &animated);
+    let relaxed = largest_turn_deg(&free(None), &animated);
     assert!(
         relaxed > 5.0,
         "without it the bind shape should pull the bends back ({relaxed}°)"
@@ -728,13 +730,6 @@ fn a_solve_seeded_by_last_frames_solution_tilts_the_shape_like_a_cold_one() {
         max_iterations: 40,
         tolerance: 0.0,
     };
-    let max_turn = |a: &SkeletonPose, b: &SkeletonPose| {
-        a.local
-            .iter()
-            .zip(&b.local)
-            .map(|(x, y)| rotation_angle(x.rotation, y.rotation).to_degrees())
-            .fold(0.0, f64::max)
-    };
     for pulled in [false, true] {
         let solver = PoseSolver::new(
             model.clone(),
@@ -793,7 +788,7 @@ fn a_solve_seeded_by_last_frames_solution_tilts_the_shape_like_a_cold_one() {
             assert!(reached < 1e-3, "the wrist is {reached} from its goal");
         }
         if !pulled {
-            let moved = max_turn(&seeded.pose, &frame1);
+            let moved = largest_turn_deg(&seeded.pose, &frame1);
             assert!(moved < 1e-4, "the new rest pose moved by {moved}°");
         }
     }
