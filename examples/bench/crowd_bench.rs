@@ -91,15 +91,11 @@ fn main() {
     let dir = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
     let mut app = headless_app(&dir);
     let (scene, clip) = load_scene(&mut app, &file.to_string_lossy());
-    let clip = if args.playing {
-        let Some(clip) = clip else {
-            eprintln!("--playing: {} has no animation", path.display());
-            std::process::exit(2);
-        };
-        Some(clip)
-    } else {
-        None
-    };
+    if args.playing && clip.is_none() {
+        eprintln!("--playing: {} has no animation", path.display());
+        std::process::exit(2);
+    }
+    let clip = clip.filter(|_| args.playing);
     let side = (args.characters as f32).sqrt().ceil() as usize;
     let roots: Vec<Entity> = (0..args.characters)
         .map(|k| {

@@ -450,7 +450,6 @@ impl<'a> ExtraTerms<'a> {
     fn jacobian(
         &self,
         term: &Term,
-        residual: &[DVec3],
         param: Param,
         globals: &[DAffine3],
         skinning: &[DAffine3],
@@ -524,28 +523,22 @@ impl<'a> ExtraTerms<'a> {
                 root_translation,
                 ..
             } => {
-                // An ancestor turns the joint and its goal together: the residual turns
-                // rigidly, its length does not change — no gradient and no curvature (the
-                // Gauss–Newton blocks `JᵀJ` it would add are spurious stiffness on the
-                // ancestors). Only a root's translation term sees an ancestor or a
-                // translation, and a root has no ancestor.
-                if root_translation.is_none() && !(rotation && a == *joint) {
+                // Only the joint's own parameters: an ancestor turns the joint and its goal
+                // together, so the residual turns rigidly and its length does not change — no
+                // gradient and no curvature (the Gauss–Newton blocks `JᵀJ` it would add are
+                // spurious stiffness on the ancestors). A translation is a root's own, and
+                // counts only where the term holds the root's position.
+                if a != *joint || (!rotation && root_translation.is_none()) {
                     return None;
                 }
-                if !self.moves(a, *joint) {
-                    return None;
-                }
-                let mut out: Vec<DMat3> = if !rotation {
-                    vec![DMat3::ZERO; 3]
-                } else if a == *joint {
-                    // Only its own rotation changes a joint's local rotation.
+                let mut out: Vec<DMat3> = if rotation {
                     let r = Self::rotation(globals, *joint);
                     [r.x_axis, r.y_axis, r.z_axis]
                         .iter()
                         .map(|c| direction(*c) * l)
                         .collect()
                 } else {
-                    residual[..3].iter().map(|c| direction(*c)).collect()
+                    vec![DMat3::ZERO; 3]
                 };
                 if root_translation.is_some() {
                     out.push(point(globals[*joint].translation));
@@ -572,7 +565,7 @@ impl<'a> ExtraTerms<'a> {
                 .iter()
                 .enumerate()
                 .filter_map(|(p, &param)| {
-                    self.jacobian(term, r, param, globals, skinning)
+                    self.jacobian(term, param, globals, skinning)
                         .map(|j| (p, j))
                 })
                 .collect();

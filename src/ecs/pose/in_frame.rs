@@ -165,8 +165,8 @@ fn solve_pending(
     let reuse = state.solver.clone().filter(|s| s.accepts(&constraints));
     let start: Option<SkeletonPose> = state.start.take();
     let solve = || -> Solved {
-        // The last solution seeds this one when its solver is reused: as the start itself,
-        // or (a start given: an additive layer's pose on screen) for its cluster rotations.
+        // Only a solution of the reused solver seeds this one (a start given: an additive
+        // layer's pose on screen).
         let last = state.last.as_deref().filter(|_| reuse.is_some());
         let solver = match reuse {
             Some(s) => s,
@@ -178,14 +178,7 @@ fn solve_pending(
             )?),
         };
         let current = start.as_ref().unwrap_or(&posed.pose);
-        let from = match (last, start.is_some()) {
-            (Some(last), false) => PoseStart::Warm(last),
-            (Some(last), true) => PoseStart::Near {
-                pose: current,
-                last,
-            },
-            (None, _) => PoseStart::Pose(current),
-        };
+        let from = PoseStart::following(last, current, start.is_some());
         let options = PoseSolveOptions {
             max_iterations: in_frame.iterations.max(1),
             tolerance: poseable.tolerance.max(0.0) as f64,

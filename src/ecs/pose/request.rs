@@ -448,8 +448,8 @@ pub(super) fn spawn_pose_solve(
     state.running = Some(constraints.clone());
     let model = posed.model.clone();
     let reuse = state.solver.clone().filter(|s| s.accepts(&constraints));
-    // The last solution seeds this one when its solver is reused: as the start itself, or
-    // (a start given: an additive layer's pose on screen) for its cluster rotations.
+    // Only a solution of the reused solver seeds this one (a start given: an additive
+    // layer's pose on screen).
     let last = state.last.clone().filter(|_| reuse.is_some());
     let given = state.start.is_some();
     let current = state.start.take().unwrap_or_else(|| posed.pose.clone());
@@ -469,14 +469,7 @@ pub(super) fn spawn_pose_solve(
                 PoseSolverSettings::default(),
             )?),
         };
-        let start = match (last.as_deref(), given) {
-            (Some(last), false) => PoseStart::Warm(last),
-            (Some(last), true) => PoseStart::Near {
-                pose: &current,
-                last,
-            },
-            (None, _) => PoseStart::Pose(&current),
-        };
+        let start = PoseStart::following(last.as_deref(), &current, given);
         let cancel = || cancellation.superseded();
         let solution = solver.solve(&constraints, &options, start, &cancel)?;
         Ok((solver, solution, t0.elapsed().as_secs_f64() * 1e3))

@@ -8,11 +8,20 @@ use super::PoseSolver;
 use crate::deform::{best_rotation_exact, fit_rotation_warm};
 use crate::pose::model::mat3_from_rows;
 
+/// How [`PoseSolver::local_step`] fits each cluster's rotation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum ClusterFit {
+    /// From scratch (Horn's eigen-solve).
+    Exact,
+    /// At most this many Newton steps from the rotation given.
+    Newton(u32),
+}
+
 impl PoseSolver {
     /// Fits each cluster's rotation to the current skinning matrices: `A_c = Xᵀ K_c`;
     /// exactly (Horn) or by Newton steps from the previous rotation, which is kept if the fit
     /// is not better (so the energy cannot rise).
-    pub(super) fn local_step(&self, x: &[f64], rotations: &mut [DQuat], exact: bool) {
+    pub(super) fn local_step(&self, x: &[f64], rotations: &mut [DQuat], fit: ClusterFit) {
         for (c, r) in rotations.iter_mut().enumerate() {
             let mut a = [0.0; 9];
             for &(row, kr) in self.cluster_rows(c) {
@@ -24,10 +33,8 @@ impl PoseSolver {
                 }
             }
             let a = mat3_from_rows(&a);
-            if exact {
-                *r = best_rotation_exact(&a);
-            } else {
-                let fitted = fit_rotation_warm(&a, *r, 4, 1e-10);
+            if let ClusterFit::Newton(steps) = fit {
+                let fitted = fit_rotation_warm(&a, *r, steps, 1e-10);
                 let score = |q: DQuat| {
                     (DMat3::from_quat(q).transpose() * a)
                         .to_cols_array()
@@ -38,6 +45,8 @@ impl PoseSolver {
                 if score(fitted) >= score(*r) {
                     *r = fitted;
                 }
+            } else {
+                *r = best_rotation_exact(&a);
             }
         }
     }

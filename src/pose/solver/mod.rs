@@ -20,6 +20,7 @@ use super::model::SkinnedModel;
 use super::skeleton::{JointTransform, SkeletonPose};
 use crate::deform::constraints::same_keys;
 use crate::deform::{Handle, RigidTransform};
+use energy::ClusterFit;
 use gauss_newton::{BlockPattern, HessianScratch, solve_damped};
 use setup::{check_indices, joint_frames, nonzero_blocks, set_sums};
 
@@ -176,6 +177,19 @@ pub enum PoseStart<'a> {
         /// A solution of the same solver from a pose close to `pose`.
         last: &'a PoseSolution,
     },
+}
+
+impl<'a> PoseStart<'a> {
+    /// Where a solve after `last` (a solution of the same solver, if any) starts: on from
+    /// `last` ([`PoseStart::Warm`]); or, when `pose` is a new start (`moved`), at `pose`
+    /// seeded by `last` ([`PoseStart::Near`]); at `pose` without a `last`.
+    pub fn following(last: Option<&'a PoseSolution>, pose: &'a SkeletonPose, moved: bool) -> Self {
+        match (last, moved) {
+            (Some(last), false) => Self::Warm(last),
+            (Some(last), true) => Self::Near { pose, last },
+            (None, _) => Self::Pose(pose),
+        }
+    }
 }
 
 /// Levenberg–Marquardt damping of a cold start (relative to the Hessian's diagonal).
@@ -371,7 +385,12 @@ impl PoseSolver {
                 break;
             }
             let t = Instant::now();
-            self.local_step(&current.x, &mut rotations, exact);
+            let fit = if exact {
+                ClusterFit::Exact
+            } else {
+                ClusterFit::Newton(4)
+            };
+            self.local_step(&current.x, &mut rotations, fit);
             exact = false;
             stats.local_s += t.elapsed().as_secs_f64();
             let t = Instant::now();

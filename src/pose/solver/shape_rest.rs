@@ -18,6 +18,7 @@
 use glam::DQuat;
 
 use super::PoseSolver;
+use super::energy::ClusterFit;
 use crate::pose::SkeletonPose;
 
 impl PoseSolver {
@@ -31,16 +32,16 @@ impl PoseSolver {
         guess: Option<&[DQuat]>,
     ) -> (Vec<f64>, f64, Vec<DQuat>) {
         let posed = self.posed(rest.clone());
-        let (mut rotations, exact) = match guess {
-            Some(g) => (g.to_vec(), false),
-            None => (vec![DQuat::IDENTITY; self.model.cluster_count()], true),
+        // Up to 8 Newton steps from a guess: converged clusters stop after one; a guess far
+        // from a cluster's fit (a layer turned a joint a lot) gets there.
+        let (mut rotations, fit) = match guess {
+            Some(g) => (g.to_vec(), ClusterFit::Newton(8)),
+            None => (
+                vec![DQuat::IDENTITY; self.model.cluster_count()],
+                ClusterFit::Exact,
+            ),
         };
-        self.local_step(&posed.x, &mut rotations, exact);
-        if !exact {
-            // A second round of Newton steps: converged clusters stop after one; a guess far
-            // from a cluster's fit (a layer turned a joint a lot) gets there.
-            self.local_step(&posed.x, &mut rotations, false);
-        }
+        self.local_step(&posed.x, &mut rotations, fit);
         let mut tilt = vec![0.0; posed.x.len()];
         self.add_rotation_terms(&rotations, &mut tilt);
         for (t, qx) in tilt.iter_mut().zip(&posed.qx) {
