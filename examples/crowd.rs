@@ -9,16 +9,27 @@
 //! ```text
 //! cargo run --release --example crowd [-- N] [--screenshot PATH --frames N]
 //! ```
-//! N Foxes (default 100) from `../shared/models/Fox.glb`. Solver time per frame for N
+//! N Foxes (default 100) from `assets/models/Fox.glb` (credits in `assets/CREDITS.md`). Solver time per frame for N
 //! characters: `cargo run --release --example crowd_bench -- --characters N --json`.
 
 use bevy::prelude::*;
-use bevy::render::view::screenshot::{Screenshot, save_to_disk};
 use bevy::world_serialization::WorldAssetRoot;
 use bevy_wii_deform::prelude::*;
 
-/// The Fox, relative to the asset folder (`..`: the shared folder beside the project).
-const FOX: &str = "shared/models/Fox.glb";
+#[path = "common/cli.rs"]
+mod cli;
+#[path = "common/screenshot.rs"]
+mod screenshot;
+
+/// The Fox, relative to the asset folder.
+const FOX: &str = "models/Fox.glb";
+
+const USAGE: &str = "\
+usage: crowd [N] [--screenshot PATH [--frames N]]
+
+  N                  Foxes in the field (default 100)
+  --screenshot PATH  save frame N to PATH, exit
+  --frames N         the frame to save (default 120)";
 /// The Fox's joints (with their children) that the pose drives over the clip: its four legs,
 /// and its neck and head.
 const POSED_JOINTS: [&str; 5] = [
@@ -32,20 +43,27 @@ const POSED_JOINTS: [&str; 5] = [
 const SPACING: f32 = 160.0;
 
 fn main() {
-    let count = std::env::args()
-        .nth(1)
-        .and_then(|a| a.parse().ok())
-        .unwrap_or(100usize);
-    App::new()
-        .add_plugins(DefaultPlugins.set(AssetPlugin {
-            file_path: "..".into(),
-            ..default()
-        }))
+    let mut count = 100usize;
+    let (mut screenshot, mut frames) = (None, 120);
+    let mut parser = cli::Parser::from_env();
+    while let Some(arg) = cli::next(&mut parser, USAGE) {
+        match arg {
+            cli::Arg::Value(n) => count = cli::parse_positional(n, USAGE),
+            cli::Arg::Long("screenshot") => screenshot = Some(cli::string(&mut parser, USAGE)),
+            cli::Arg::Long("frames") => frames = cli::value(&mut parser, USAGE),
+            other => cli::unexpected(other, USAGE),
+        }
+    }
+    let mut app = App::new();
+    app.add_plugins(DefaultPlugins)
         .add_plugins((PosePlugin, IdlePlugin, FireflyPlugin))
         .insert_resource(Crowd(count))
         .add_systems(Startup, setup)
-        .add_systems(Update, (plant_feet, roll_ground, unattended))
-        .run();
+        .add_systems(Update, (plant_feet, roll_ground));
+    if let Some(path) = screenshot {
+        app.add_plugins(screenshot::ScreenshotPlugin { path, frames });
+    }
+    app.run();
 }
 
 /// Every Fox plays the "Survey" clip, each from its own phase and at its own speed.
@@ -320,30 +338,5 @@ fn roll_ground(time: Res<Time>, mut targets: Query<(&OnGround, &mut Transform)>)
     let t = time.elapsed_secs();
     for (on, mut transform) in &mut targets {
         transform.translation.y = ground_height(on.x, on.z, t) + on.lift;
-    }
-}
-
-/// `--screenshot PATH --frames N`: saves frame N and exits.
-fn unattended(mut commands: Commands, mut frame: Local<u32>, mut exit: MessageWriter<AppExit>) {
-    let args: Vec<String> = std::env::args().collect();
-    let value = |name: &str| {
-        args.iter()
-            .position(|a| a == name)
-            .and_then(|i| args.get(i + 1))
-    };
-    let Some(path) = value("--screenshot").cloned() else {
-        return;
-    };
-    let frames: u32 = value("--frames")
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(120);
-    *frame += 1;
-    if *frame == frames {
-        commands
-            .spawn(Screenshot::primary_window())
-            .observe(save_to_disk(path));
-    }
-    if *frame == frames + 10 {
-        exit.write(AppExit::Success);
     }
 }

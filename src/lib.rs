@@ -25,17 +25,17 @@ pub mod prelude {
     pub use crate::ecs::{
         ConnectionState, DeformConfig, DeformError, DeformFailed, DeformHandle, DeformPhase,
         DeformPlugin, DeformSolved, DeformStatus, DeformSystems, Deformable, DeformableFrom,
-        DeformableScene, FixedRegion, GrabAnchor, GrabButton, GrabEnd, GrabMove, GrabPlugin,
-        GrabStart, GrabTurn, GrabTwist, Grabbable, InputSystems, JointMask, MouseControlPlugin,
-        MouseHandleControl, PinnedJoints, PoseBlend, PoseBlendMode, PoseEffector, PoseEffectorKind,
-        PoseFailed, PoseInFrame, PoseJointHandle, PoseLimits, PoseModels, PosePlugin, PoseSolved,
-        PoseStatus, PoseStiffness, PoseSystems, PoseTimeline, Poseable, PoseableError,
-        PosedSkeleton, SymmetricEditing, WiiDeformPlugins, Wiimote, WiimoteButtonChanged,
-        WiimoteCalibration, WiimoteConnected, WiimoteControlPlugin, WiimoteDisconnected,
-        WiimoteEmulators, WiimoteFilter, WiimoteHandleControl, WiimoteLink,
-        WiimoteOrientationChanged, WiimotePlugin, WiimotePointer, WiimotePointerPlugin,
-        WiimoteProblem, WiimoteProblems, WiimoteSettings, WiimoteSource, WiimoteSystems,
-        mesh_from_triangles,
+        DeformableScene, FixedRegion, GrabButton, GrabEnd, GrabMove, GrabPlugin, GrabStart,
+        GrabTurn, GrabTwist, Grabbable, InputSystems, JointMask, MissingSceneAssets,
+        MouseControlPlugin, MouseHandleControl, PinnedJoints, PoseAnchor, PoseBlend, PoseBlendMode,
+        PoseEffector, PoseEffectorKind, PoseFailed, PoseInFrame, PoseJointHandle, PoseLimits,
+        PoseModels, PosePlugin, PoseSolved, PoseStatus, PoseStiffness, PoseSystems, PoseTimeline,
+        Poseable, PoseableError, PosedSkeleton, SceneAssetsMissing, SymmetricEditing,
+        WiiDeformPlugins, Wiimote, WiimoteButtonChanged, WiimoteCalibration, WiimoteConnected,
+        WiimoteControlPlugin, WiimoteDisconnected, WiimoteEmulators, WiimoteFilter,
+        WiimoteHandleControl, WiimoteLink, WiimoteOrientationChanged, WiimotePlugin,
+        WiimotePointer, WiimotePointerPlugin, WiimoteProblem, WiimoteProblems, WiimoteSettings,
+        WiimoteSource, WiimoteSystems, mesh_from_triangles,
     };
     pub use crate::wiimote::{EmulatorConfig, EmulatorControls, FilterKind, RemoteProblem};
 }

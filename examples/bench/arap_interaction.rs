@@ -48,6 +48,9 @@
 //! "lbfgs", "newton", "best"}, "settle_back_substitutions": {…}, "settle_ms": {…},
 //! "settle_converged_energy": {…}}]}`.
 
+#[path = "../common/cli.rs"]
+mod cli;
+
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -338,12 +341,27 @@ fn close(topology: &Topology, x: &[DVec3], star: &[DVec3], e_star: f64, diagonal
     e <= 1.01 * e_star && worst <= 5e-4 * diagonal
 }
 
+const USAGE: &str = "\
+usage: arap_interaction [--json] [--set-change-only] [--only NAME] [--methods A,B,...]
+
+  --json             print the JSON line
+  --set-change-only  skip the (long) settling runs
+  --only PREFIX      only the meshes whose name starts with it
+  --methods A,B,...  the settling methods to run";
+
 fn main() {
-    let json = std::env::args().any(|a| a == "--json");
-    // `--set-change-only`: skip the (long) settling runs.
-    let settle = !std::env::args().any(|a| a == "--set-change-only");
-    let only = std::env::args().skip_while(|a| a != "--only").nth(1);
-    let chosen = std::env::args().skip_while(|a| a != "--methods").nth(1);
+    let (mut json, mut settle) = (false, true);
+    let (mut only, mut chosen) = (None::<String>, None::<String>);
+    let mut parser = cli::Parser::from_env();
+    while let Some(arg) = cli::next(&mut parser, USAGE) {
+        match arg {
+            cli::Arg::Long("json") => json = true,
+            cli::Arg::Long("set-change-only") => settle = false,
+            cli::Arg::Long("only") => only = Some(cli::string(&mut parser, USAGE)),
+            cli::Arg::Long("methods") => chosen = Some(cli::string(&mut parser, USAGE)),
+            other => cli::unexpected(other, USAGE),
+        }
+    }
     let settles = |method: &str| {
         chosen
             .as_ref()

@@ -15,6 +15,9 @@
 //! OUT.bin: n×3 little-endian f64 positions of the last repeat, input vertex order. The last
 //! stdout line is `{"precompute_s": [..], "solve_s": [..]}`; energies go to stderr.
 
+#[path = "../common/cli.rs"]
+mod cli;
+
 use std::process::ExitCode;
 use std::sync::Arc;
 use std::time::Instant;
@@ -73,60 +76,63 @@ struct PeerOptions {
     weld: WeldPolicy,
 }
 
+const USAGE: &str = "\
+usage: arap_peer MESH.off CONSTRAINTS.txt ITERS REPEATS OUT.bin [--init laplacian|rest]
+                 [--factorization auto|simplicial|supernodal] [--anderson DEPTH]
+                 [--weld none|seams|all]";
+
 impl PeerOptions {
-    fn parse(args: &[String]) -> Result<Self, String> {
-        let init = match args
-            .iter()
-            .position(|a| a == "--init")
-            .map(|i| args.get(i + 1))
-        {
-            None => "laplacian",
-            Some(Some(v)) if v == "rest" => "rest",
-            Some(Some(v)) if v == "laplacian" => "laplacian",
-            Some(v) => return Err(format!("--init must be laplacian or rest, got {v:?}")),
+    /// Parses the command line: the five positional arguments and the flags.
+    fn parse() -> Result<(Vec<String>, Self), String> {
+        let mut positional = Vec::new();
+        let mut options = PeerOptions {
+            init: "laplacian",
+            factorization: Factorization::Auto,
+            anderson_depth: 0,
+            // The peers solve the mesh's own index topology: weld nothing unless asked.
+            weld: WeldPolicy::None,
         };
-        let factorization = match args
-            .iter()
-            .position(|a| a == "--factorization")
-            .map(|i| args.get(i + 1))
-        {
-            None => Factorization::Auto,
-            Some(Some(v)) if v == "simplicial" => Factorization::Simplicial,
-            Some(Some(v)) if v == "supernodal" => Factorization::Supernodal,
-            Some(Some(v)) if v == "auto" => Factorization::Auto,
-            Some(v) => {
-                return Err(format!(
-                    "--factorization must be auto, simplicial or supernodal, got {v:?}"
-                ));
+        let mut parser = cli::Parser::from_env();
+        while let Some(arg) = cli::next(&mut parser, USAGE) {
+            match arg {
+                cli::Arg::Value(v) => positional.push(cli::positional(v, USAGE)),
+                cli::Arg::Long("init") => {
+                    options.init = match cli::string(&mut parser, USAGE).as_str() {
+                        "rest" => "rest",
+                        "laplacian" => "laplacian",
+                        v => return Err(format!("--init must be laplacian or rest, got {v:?}")),
+                    }
+                }
+                cli::Arg::Long("factorization") => {
+                    options.factorization = match cli::string(&mut parser, USAGE).as_str() {
+                        "simplicial" => Factorization::Simplicial,
+                        "supernodal" => Factorization::Supernodal,
+                        "auto" => Factorization::Auto,
+                        v => {
+                            return Err(format!(
+                                "--factorization must be auto, simplicial or supernodal, got {v:?}"
+                            ));
+                        }
+                    }
+                }
+                cli::Arg::Long("anderson") => {
+                    options.anderson_depth = cli::value(&mut parser, USAGE)
+                }
+                cli::Arg::Long("weld") => {
+                    options.weld = match cli::string(&mut parser, USAGE).as_str() {
+                        "none" => WeldPolicy::None,
+                        "seams" => WeldPolicy::Seams,
+                        "all" => WeldPolicy::AllCoincident,
+                        v => return Err(format!("--weld must be none, seams or all, got {v:?}")),
+                    }
+                }
+                other => cli::unexpected(other, USAGE),
             }
-        };
-        let anderson_depth = match args
-            .iter()
-            .position(|a| a == "--anderson")
-            .map(|i| args.get(i + 1).and_then(|v| v.parse::<usize>().ok()))
-        {
-            None => 0,
-            Some(Some(depth)) => depth,
-            Some(None) => return Err("--anderson needs a history depth (0 = off)".into()),
-        };
-        // The peers solve the mesh's own index topology: weld nothing unless asked.
-        let weld = match args
-            .iter()
-            .position(|a| a == "--weld")
-            .map(|i| args.get(i + 1))
-        {
-            None => WeldPolicy::None,
-            Some(Some(v)) if v == "none" => WeldPolicy::None,
-            Some(Some(v)) if v == "seams" => WeldPolicy::Seams,
-            Some(Some(v)) if v == "all" => WeldPolicy::AllCoincident,
-            Some(v) => return Err(format!("--weld must be none, seams or all, got {v:?}")),
-        };
-        Ok(Self {
-            init,
-            factorization,
-            anderson_depth,
-            weld,
-        })
+        }
+        if positional.len() != 5 {
+            return Err(USAGE.into());
+        }
+        Ok((positional, options))
     }
 }
 
@@ -143,10 +149,7 @@ fn write_positions(path: &str, topology: &Topology, positions: &[DVec3]) -> Resu
 }
 
 fn run() -> Result<(), String> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    if args.len() < 5 {
-        return Err("usage: arap_peer MESH.off CONSTRAINTS.txt ITERS REPEATS OUT.bin [--init laplacian|rest]".into());
-    }
+    let (args, options) = PeerOptions::parse()?;
     let mesh = TriMesh::read(&args[0]).map_err(|e| e.to_string())?;
     let text = std::fs::read_to_string(&args[1]).map_err(|e| format!("{}: {e}", args[1]))?;
     let (fixed, targets) = parse_constraints(&text)?;
@@ -157,7 +160,7 @@ fn run() -> Result<(), String> {
         factorization,
         anderson_depth,
         weld,
-    } = PeerOptions::parse(&args)?;
+    } = options;
     let settings = SolverSettings {
         factorization,
         ..Default::default()

@@ -15,6 +15,9 @@
 //! Energies are exact ([`arap_energy`]) after 1, 3 and 10 iterations from the Laplacian start,
 //! and after 300 (as "converged").
 
+#[path = "../common/cli.rs"]
+mod cli;
+
 use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
@@ -129,45 +132,54 @@ fn profile(
     }))
 }
 
+const USAGE: &str = "\
+usage: arap_profile [--mesh PATH]... [--repeats N] [--anderson DEPTH] [--ordering amd|halves]
+                    [--factorization auto|simplicial|supernodal]";
+
 fn main() -> std::process::ExitCode {
-    let args: Vec<String> = std::env::args().skip(1).collect();
     let mut repeats = 7;
     let mut meshes = Vec::new();
     let mut settings = SolverSettings::default();
     let mut depth = 0;
-    let mut it = args.iter();
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "--repeats" => repeats = it.next().and_then(|v| v.parse().ok()).unwrap_or(7),
-            "--anderson" => depth = it.next().and_then(|v| v.parse().ok()).unwrap_or(depth),
-            "--ordering" => {
-                settings.ordering = match it.next().map(String::as_str) {
-                    Some("amd") => FillOrdering::MinimumDegree,
-                    _ => FillOrdering::Halves,
+    let mut parser = cli::Parser::from_env();
+    while let Some(arg) = cli::next(&mut parser, USAGE) {
+        match arg {
+            cli::Arg::Long("repeats") => repeats = cli::value(&mut parser, USAGE),
+            cli::Arg::Long("anderson") => depth = cli::value(&mut parser, USAGE),
+            cli::Arg::Long("ordering") => {
+                settings.ordering = match cli::string(&mut parser, USAGE).as_str() {
+                    "amd" => FillOrdering::MinimumDegree,
+                    "halves" => FillOrdering::Halves,
+                    v => cli::fail(
+                        format!("--ordering must be amd or halves, got {v:?}"),
+                        USAGE,
+                    ),
                 }
             }
-            "--factorization" => {
-                settings.factorization = match it.next().map(String::as_str) {
-                    Some("simplicial") => Factorization::Simplicial,
-                    Some("supernodal") => Factorization::Supernodal,
-                    _ => Factorization::Auto,
+            cli::Arg::Long("factorization") => {
+                settings.factorization = match cli::string(&mut parser, USAGE).as_str() {
+                    "simplicial" => Factorization::Simplicial,
+                    "supernodal" => Factorization::Supernodal,
+                    "auto" => Factorization::Auto,
+                    v => cli::fail(
+                        format!(
+                            "--factorization must be auto, simplicial or supernodal, got {v:?}"
+                        ),
+                        USAGE,
+                    ),
                 }
             }
-            "--mesh" => match it.next().map(|p| (p, TriMesh::read(Path::new(p)))) {
-                Some((p, Ok(m))) => meshes.push((p.clone(), m)),
-                Some((p, Err(e))) => {
-                    eprintln!("arap_profile: {p}: {e}");
-                    return std::process::ExitCode::FAILURE;
+            cli::Arg::Long("mesh") => {
+                let path = cli::string(&mut parser, USAGE);
+                match TriMesh::read(Path::new(&path)) {
+                    Ok(m) => meshes.push((path, m)),
+                    Err(e) => {
+                        eprintln!("arap_profile: {path}: {e}");
+                        return std::process::ExitCode::FAILURE;
+                    }
                 }
-                None => {
-                    eprintln!("arap_profile: --mesh needs a path");
-                    return std::process::ExitCode::FAILURE;
-                }
-            },
-            other => {
-                eprintln!("arap_profile: unknown argument {other:?}");
-                return std::process::ExitCode::FAILURE;
             }
+            other => cli::unexpected(other, USAGE),
         }
     }
     if meshes.is_empty() {

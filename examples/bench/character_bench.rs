@@ -7,8 +7,11 @@
 //! Without `--model`: the generated mannequin auto-rigged to 16 joints, meshed on `--cells`
 //! cells (default 200 ≈ 100k vertices; 110 ≈ 30k); `--humanoid`: the same mannequin rigged to
 //! 52 joints with Mixamo names and five three-bone fingers per hand (`synth_rig::humanoid_rig`),
-//! the joint count of game characters. With `--model`: the first skinned mesh of
-//! a rigged glTF (e.g. `../shared/models/Fox.glb`).
+//! the joint count of game characters. With `--model`: the first skin of a rigged glTF (e.g.
+//! `assets/models/Fox.glb`), loaded through Bevy's glTF loader and read by the pose plugin's
+//! own code (`CharacterSkin::read`: every skinned mesh node of that skin, the joints'
+//! frames, the pose the file places them in), so the model measured is the one `Poseable`
+//! builds; it is posed from that pose.
 //!
 //! Constraints (vertex sets, so the full-mesh solver gets exactly the same problem): the
 //! lowest 6 % of the model's height is fixed (the feet); the handle is the vertices near one
@@ -33,10 +36,12 @@
 //!
 //! The last stdout line is the JSON object.
 
-#[path = "../common/rigged_gltf.rs"]
-mod rigged_gltf;
+#[path = "../common/cli.rs"]
+mod cli;
+#[path = "../common/headless_gltf.rs"]
+mod headless_gltf;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -44,6 +49,7 @@ use bevy_wii_deform::deform::{
     Acceleration, ArapSolver, Constraints, Handle, InitialGuess, RigidTransform, SolveOptions,
     SolverSettings, arap_energy, centroid,
 };
+use bevy_wii_deform::ecs::{CharacterSkin, Poseable};
 use bevy_wii_deform::pose::synth_rig::{humanoid_rig, mannequin_rig};
 use bevy_wii_deform::pose::*;
 use glam::{DQuat, DVec3};
@@ -56,6 +62,14 @@ struct Args {
     json: bool,
 }
 
+const USAGE: &str = "\
+usage: character_bench [--model PATH] [--cells N] [--humanoid] [--json]
+
+  --model PATH  a rigged glTF (default: a generated 16-joint mannequin)
+  --cells N     the generated rig's grid resolution (default 200)
+  --humanoid    the generated 52-joint humanoid instead of the mannequin
+  --json        the JSON line only";
+
 fn args() -> Args {
     let mut out = Args {
         model: None,
@@ -63,14 +77,16 @@ fn args() -> Args {
         humanoid: false,
         json: false,
     };
-    let mut it = std::env::args().skip(1);
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "--model" => out.model = it.next().map(PathBuf::from),
-            "--cells" => out.cells = it.next().and_then(|c| c.parse().ok()).unwrap_or(out.cells),
-            "--json" => out.json = true,
-            "--humanoid" => out.humanoid = true,
-            other => eprintln!("ignoring unknown argument {other}"),
+    let mut parser = cli::Parser::from_env();
+    while let Some(arg) = cli::next(&mut parser, USAGE) {
+        match arg {
+            cli::Arg::Long("model") => {
+                out.model = Some(PathBuf::from(cli::string(&mut parser, USAGE)))
+            }
+            cli::Arg::Long("cells") => out.cells = cli::value(&mut parser, USAGE),
+            cli::Arg::Long("json") => out.json = true,
+            cli::Arg::Long("humanoid") => out.humanoid = true,
+            other => cli::unexpected(other, USAGE),
         }
     }
     out
@@ -78,12 +94,10 @@ fn args() -> Args {
 
 fn main() {
     let args = args();
-    let (name, skeleton, mesh) = load_rig(&args);
-    let bind = skeleton.bind_pose();
+    let (name, skeleton, mesh, bind, settings) = load_rig(&args);
     let t0 = Instant::now();
-    let model = Arc::new(
-        SkinnedModel::new(skeleton.clone(), &mesh, &bind, ModelSettings::default()).expect("model"),
-    );
+    let model =
+        Arc::new(SkinnedModel::new(skeleton.clone(), &mesh, &bind, settings).expect("model"));
     let model_ms = t0.elapsed().as_secs_f64() * 1e3;
     let rest = model.topology().positions().to_vec();
     let diagonal = model.topology().bounding_diagonal();
@@ -161,31 +175,99 @@ fn main() {
     );
 }
 
-/// The rig to pose: `--model`'s file (every mesh node of its skin) or the generated mannequin.
-fn load_rig(args: &Args) -> (String, Skeleton, SkinnedMesh) {
+/// The rig to pose, the pose it is built and dragged from, and the model settings: `--model`'s
+/// file read as the pose plugin reads it, or a generated rig in its bind pose.
+fn load_rig(args: &Args) -> (String, Skeleton, SkinnedMesh, SkeletonPose, ModelSettings) {
     match &args.model {
-        Some(path) => match rigged_gltf::load(path) {
-            Ok(rig) => (path.display().to_string(), rig.skeleton, rig.mesh),
+        Some(path) => match read_with_the_plugin(path) {
+            Ok(skin) => {
+                // The settings the plugin builds a default `Poseable`'s model with.
+                let settings = ModelSettings {
+                    clusters: Poseable::default().clusters.max(1) as usize,
+                    ..Default::default()
+                };
+                let name = path.display().to_string();
+                (name, skin.skeleton, skin.mesh, skin.reference, settings)
+            }
             Err(e) => {
-                eprintln!("cannot read {}: {e}", path.display());
+                eprintln!("{}: {e}", path.display());
                 std::process::exit(2);
             }
         },
-        None if args.humanoid => {
-            let rig = humanoid_rig(args.cells);
-            (
-                format!("humanoid_rig({})", args.cells),
-                rig.skeleton,
-                rig.mesh,
-            )
-        }
         None => {
-            let rig = mannequin_rig(args.cells);
-            (
-                format!("mannequin_rig({})", args.cells),
-                rig.skeleton,
-                rig.mesh,
-            )
+            let rig = if args.humanoid {
+                humanoid_rig(args.cells)
+            } else {
+                mannequin_rig(args.cells)
+            };
+            let kind = if args.humanoid {
+                "humanoid"
+            } else {
+                "mannequin"
+            };
+            let bind = rig.skeleton.bind_pose();
+            let name = format!("{kind}_rig({})", args.cells);
+            (name, rig.skeleton, rig.mesh, bind, ModelSettings::default())
+        }
+    }
+}
+
+/// Loads `path` through Bevy's glTF loader (headless, without materials: a missing texture
+/// is not needed) and reads its character with the pose plugin's own code
+/// ([`CharacterSkin::read`]): the model measured is the one `Poseable` builds.
+fn read_with_the_plugin(path: &Path) -> Result<CharacterSkin, String> {
+    use bevy::prelude::*;
+    let absolute = std::fs::canonicalize(path).map_err(|e| format!("cannot open: {e}"))?;
+    let (Some(dir), Some(file)) = (absolute.parent(), absolute.file_name()) else {
+        return Err("not a file".into());
+    };
+    let mut app = App::new();
+    app.add_plugins(MinimalPlugins);
+    headless_gltf::add_gltf_plugins(&mut app, dir);
+    app.init_asset::<StandardMaterial>();
+    app.finish();
+    app.cleanup();
+    let gltf = headless_gltf::load_gltf_without_materials(&app, &file.to_string_lossy());
+    let deadline = Instant::now() + std::time::Duration::from_secs(60);
+    let scene = loop {
+        app.update();
+        if let Some(loaded) = app.world().resource::<Assets<Gltf>>().get(&gltf) {
+            break loaded
+                .scenes
+                .first()
+                .cloned()
+                .ok_or("the file has no scene")?;
+        }
+        if let Some(bevy::asset::LoadState::Failed(e)) =
+            app.world().resource::<AssetServer>().get_load_state(&gltf)
+        {
+            return Err(e.to_string());
+        }
+        if Instant::now() > deadline {
+            return Err("did not load within 60 s".into());
+        }
+    };
+    let root = app
+        .world_mut()
+        .spawn((WorldAssetRoot(scene), Transform::default()))
+        .id();
+    loop {
+        app.update();
+        let spawned = app
+            .world()
+            .get::<Children>(root)
+            .is_some_and(|c| !c.is_empty());
+        if spawned {
+            // Global transforms of the spawned nodes: one more frame propagates them.
+            app.update();
+            match CharacterSkin::read(app.world_mut(), root) {
+                Ok(Some(skin)) => return Ok(skin),
+                Ok(None) => {}
+                Err(e) => return Err(e.to_string()),
+            }
+        }
+        if Instant::now() > deadline {
+            return Err("its scene did not spawn within 60 s".into());
         }
     }
 }

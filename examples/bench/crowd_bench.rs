@@ -6,7 +6,7 @@
 //! cargo run --release --example crowd_bench -- [--characters N] [--frames F] [--iterations I] [--model PATH] [--playing] --json
 //! ```
 //! Defaults: 100 characters, 120 measured frames (after 20 warm-up frames), 3 iterations per
-//! character and frame, `../shared/models/Fox.glb`. Headless (no renderer). Without
+//! character and frame, `assets/models/Fox.glb`. Headless (no renderer). Without
 //! `--playing` no animation plays; with it every character plays the file's first clip (each
 //! at its own phase and speed) and the pose is an additive layer over it (`PoseBlend::additive`,
 //! `PoseStiffness(0.3)`: the solve starts from and is held towards the animation of the frame). The solver time of a frame is the wall time of `PoseSystems::Apply` in
@@ -14,8 +14,12 @@
 //! write to the joints). The last stdout line is one JSON object: `characters`,
 //! `effectors_per_character`, `solver_ms_per_frame_median`, `solver_ms_per_frame_p95`,
 //! `ms_per_solve` (median wall time of one character's solve), `frames`, `models_built` (the
-//! characters share one model per asset: 1), `playing`.
+//! characters share one model per asset: 1), `playing`, `peak_rss_mb` (the process's peak
+//! resident memory) and `rss_growth_kb_per_frame` (resident memory from frame 500 — or half
+//! the run, when shorter — to the end, per frame: flat under in-frame posing).
 
+#[path = "../common/cli.rs"]
+mod cli;
 #[path = "../common/headless_gltf.rs"]
 mod headless_gltf;
 
@@ -37,27 +41,37 @@ struct Args {
     playing: bool,
 }
 
+const USAGE: &str = "\
+usage: crowd_bench [--characters N] [--frames N] [--iterations N] [--model PATH] [--playing] [--json]
+
+  --characters N  Foxes (default 100)
+  --frames N      measured frames (default 120)
+  --iterations N  solver iterations per frame (default 3)
+  --model PATH    the rigged glTF (default assets/models/Fox.glb)
+  --playing       each plays its clip; the pose is an additive layer over it
+  --json          accepted for older command lines: the JSON is always the last line";
+
 fn args() -> Args {
-    let args: Vec<String> = std::env::args().collect();
-    let value = |name: &str| {
-        args.iter()
-            .position(|a| a == name)
-            .and_then(|i| args.get(i + 1))
-            .cloned()
+    let mut args = Args {
+        characters: 100,
+        frames: 120,
+        iterations: 3,
+        model: "assets/models/Fox.glb".into(),
+        playing: false,
     };
-    Args {
-        characters: value("--characters")
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(100),
-        frames: value("--frames")
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(120),
-        iterations: value("--iterations")
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(3),
-        model: value("--model").unwrap_or_else(|| "../shared/models/Fox.glb".into()),
-        playing: args.iter().any(|a| a == "--playing"),
+    let mut parser = cli::Parser::from_env();
+    while let Some(arg) = cli::next(&mut parser, USAGE) {
+        match arg {
+            cli::Arg::Long("characters") => args.characters = cli::value(&mut parser, USAGE),
+            cli::Arg::Long("frames") => args.frames = cli::value(&mut parser, USAGE),
+            cli::Arg::Long("iterations") => args.iterations = cli::value(&mut parser, USAGE),
+            cli::Arg::Long("model") => args.model = cli::string(&mut parser, USAGE),
+            cli::Arg::Long("playing") => args.playing = true,
+            cli::Arg::Long("json") => {}
+            other => cli::unexpected(other, USAGE),
+        }
     }
+    args
 }
 
 /// When this frame's `PoseSystems::Apply` started, and the measured durations, ms.
@@ -151,20 +165,37 @@ fn main() {
     for _ in 0..20 {
         app.update();
     }
-    app.world_mut().resource_mut::<SolverClock>().measuring = true;
-    let mut solve_ms = Vec::new();
-    for _ in 0..args.frames {
-        app.update();
-        solve_ms.extend(
-            roots
-                .iter()
-                .filter_map(|&r| app.world().get::<PoseStatus>(r))
-                .map(|s| s.solve_ms),
-        );
+    {
+        let mut clock = app.world_mut().resource_mut::<SolverClock>();
+        clock.measuring = true;
+        clock.frames_ms.reserve_exact(args.frames);
     }
+    // Every character's solve time every frame, kept as a histogram: a list of them grew by
+    // 800 bytes a frame for 100 characters (the growth the in-frame memory check found).
+    let mut solve_ms = LogHistogram::default();
+    // Resident memory from frame `from` to the end: flat when nothing grows per frame.
+    let from = 500.min(args.frames / 2);
+    let mut rss_from = None;
+    for frame in 0..args.frames {
+        if frame == from {
+            rss_from = resident_kb();
+        }
+        app.update();
+        for status in roots
+            .iter()
+            .filter_map(|&r| app.world().get::<PoseStatus>(r))
+        {
+            solve_ms.add(status.solve_ms);
+        }
+    }
+    let rss_growth_kb_per_frame = match (rss_from, resident_kb()) {
+        (Some(a), Some(b)) if args.frames > from => {
+            Some((b as f64 - a as f64) / (args.frames - from) as f64)
+        }
+        _ => None,
+    };
     let mut frames = std::mem::take(&mut app.world_mut().resource_mut::<SolverClock>().frames_ms);
     frames.sort_by(f64::total_cmp);
-    solve_ms.sort_by(f64::total_cmp);
     let pick = |v: &[f64], p: f64| v[((v.len() - 1) as f64 * p).round() as usize];
     println!(
         "{}",
@@ -173,12 +204,76 @@ fn main() {
             "effectors_per_character": effectors as f64 / roots.len() as f64,
             "solver_ms_per_frame_median": pick(&frames, 0.5),
             "solver_ms_per_frame_p95": pick(&frames, 0.95),
-            "ms_per_solve": pick(&solve_ms, 0.5),
+            "ms_per_solve": solve_ms.quantile(0.5),
             "frames": frames.len(),
             "models_built": app.world().resource::<PoseModels>().built(),
             "playing": args.playing,
+            "peak_rss_mb": peak_resident_kb().map(|kb| kb as f64 / 1024.0),
+            "rss_growth_kb_per_frame": rss_growth_kb_per_frame,
         })
     );
+}
+
+/// A histogram of positive durations on a log scale (0.1 µs to 10 s, 0.23 % wide bins):
+/// quantiles within a quarter of a percent, in constant memory however long the run.
+struct LogHistogram {
+    counts: Vec<u64>,
+    total: u64,
+}
+
+impl LogHistogram {
+    const LOW_MS: f64 = 1e-4;
+    const PER_DECADE: f64 = 1000.0;
+    const DECADES: f64 = 8.0;
+
+    fn add(&mut self, ms: f64) {
+        if !ms.is_finite() {
+            return;
+        }
+        let bin = ((ms.max(Self::LOW_MS) / Self::LOW_MS).log10() * Self::PER_DECADE) as usize;
+        let last = self.counts.len() - 1;
+        self.counts[bin.min(last)] += 1;
+        self.total += 1;
+    }
+
+    /// The `q` quantile (the centre of its bin), 0 when empty.
+    fn quantile(&self, q: f64) -> f64 {
+        let rank = ((self.total.max(1) - 1) as f64 * q).round() as u64;
+        let mut seen = 0;
+        for (bin, &count) in self.counts.iter().enumerate() {
+            seen += count;
+            if seen > rank {
+                return Self::LOW_MS * 10f64.powf((bin as f64 + 0.5) / Self::PER_DECADE);
+            }
+        }
+        0.0
+    }
+}
+
+impl Default for LogHistogram {
+    fn default() -> Self {
+        Self {
+            counts: vec![0; (Self::PER_DECADE * Self::DECADES) as usize + 1],
+            total: 0,
+        }
+    }
+}
+
+/// A field of `/proc/self/status`, in kB (Linux; `None` elsewhere).
+fn proc_status_kb(field: &str) -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with(field))?;
+    line.split_whitespace().nth(1)?.parse().ok()
+}
+
+/// Resident memory now, kB.
+fn resident_kb() -> Option<u64> {
+    proc_status_kb("VmRSS:")
+}
+
+/// Peak resident memory, kB.
+fn peak_resident_kb() -> Option<u64> {
+    proc_status_kb("VmHWM:")
 }
 
 /// Loads the whole file (no materials: nothing is drawn) and returns its first scene and its

@@ -19,6 +19,9 @@
 //! model). Metrics include BROAD-style `heading_rmse_deg` and
 //! `inclination_rmse_deg`.
 
+#[path = "../common/cli.rs"]
+mod cli;
+
 use bevy_wii_deform::wiimote::{
     FilterKind, SensorModel,
     drift::{self, SessionSet},
@@ -180,22 +183,43 @@ fn filters_json(report: &SetReport) -> String {
     fields.join(", ")
 }
 
+const USAGE: &str = "\
+usage: orientation_drift [--seeds N] [--first-seed N] [--seconds S] [--set NAME] [--ideal WHAT]
+                         [--in-view SHARE] [--json]
+
+  --seeds N        sessions per set (default 5)
+  --first-seed N   the first seed (default 1)
+  --seconds S      session length (default 600)
+  --set NAME       default, no_warm_up, continuous or pointing (default: all)
+  --ideal WHAT     sensor errors to remove (an ablation)
+  --in-view SHARE  share of the pointing session with the sensor bar in view
+  --json           print the JSON line";
+
 fn main() {
-    let args: Vec<String> = std::env::args().collect();
-    let value = |name: &str| {
-        args.iter()
-            .position(|a| a == name)
-            .and_then(|i| args.get(i + 1))
-    };
-    let number =
-        |name: &str, default: f64| value(name).and_then(|v| v.parse().ok()).unwrap_or(default);
-    let seeds = number("--seeds", 5.0).max(1.0) as u64;
-    let first = number("--first-seed", 1.0).max(0.0) as u64;
-    let seconds = number("--seconds", 600.0);
-    let json = args.iter().any(|a| a == "--json");
-    let ideal = value("--ideal").map(String::as_str).unwrap_or("");
-    let in_view = number("--in-view", drift::DEFAULT_IN_VIEW_SHARE);
-    let sets: Vec<SessionSet> = match value("--set") {
+    let (mut seeds, mut first, mut seconds) = (5.0f64, 1.0f64, 600.0);
+    let (mut json, mut ideal, mut in_view, mut set) = (
+        false,
+        String::new(),
+        drift::DEFAULT_IN_VIEW_SHARE,
+        None::<String>,
+    );
+    let mut parser = cli::Parser::from_env();
+    while let Some(arg) = cli::next(&mut parser, USAGE) {
+        match arg {
+            cli::Arg::Long("seeds") => seeds = cli::value(&mut parser, USAGE),
+            cli::Arg::Long("first-seed") => first = cli::value(&mut parser, USAGE),
+            cli::Arg::Long("seconds") => seconds = cli::value(&mut parser, USAGE),
+            cli::Arg::Long("json") => json = true,
+            cli::Arg::Long("ideal") => ideal = cli::string(&mut parser, USAGE),
+            cli::Arg::Long("in-view") => in_view = cli::value(&mut parser, USAGE),
+            cli::Arg::Long("set") => set = Some(cli::string(&mut parser, USAGE)),
+            other => cli::unexpected(other, USAGE),
+        }
+    }
+    let seeds = seeds.max(1.0) as u64;
+    let first = first.max(0.0) as u64;
+    let ideal = ideal.as_str();
+    let sets: Vec<SessionSet> = match set.as_deref() {
         Some(name) => match SessionSet::from_name(name) {
             Some(set) => vec![set],
             None => {

@@ -26,6 +26,9 @@ use bevy::prelude::*;
 use bevy_wii_deform::deform::{TriMesh, synth};
 use bevy_wii_deform::prelude::*;
 
+#[path = "../common/cli.rs"]
+mod cli;
+
 #[derive(Resource, Default)]
 struct Timing {
     start: Option<Instant>,
@@ -120,21 +123,73 @@ fn drag(time: Res<Time>, timing: Res<Timing>, mut q: Query<&mut Transform, With<
     }
 }
 
+const USAGE: &str = "\
+usage: plugin_bench [--mesh PATH | --bar VERTICES] [--seconds S] [--iterations N] [--fps F]
+                    [--grab | --set-changes [--no-preview]] [--plain] [--json]
+
+  --mesh PATH     an OBJ/OFF mesh (default ../shared/meshes/armadillo.off, else a 26k bar)
+  --bar VERTICES  a generated bar of about that many vertices
+  --seconds S     measured seconds (default 5)
+  --iterations N  iterations per solve (default 1)
+  --fps F         the simulated game's frame rate (default 120)
+  --grab          a new pointer grab every second (grab latency)
+  --set-changes   a new handle set every second (first-pose latency)
+  --no-preview    no preview pose for a new constraint set
+  --plain         plain local/global iterations, no settling
+  --json          accepted for older command lines: the JSON is always the last line";
+
+/// The command line.
+#[derive(Debug, Clone)]
+struct Args {
+    seconds: f64,
+    iterations: u32,
+    /// Frame rate of the simulated game (the handle moves every frame).
+    fps: f64,
+    mesh: Option<String>,
+    bar: Option<u32>,
+    grab: bool,
+    set_changes: bool,
+    no_preview: bool,
+    plain: bool,
+}
+
+impl Args {
+    fn parse() -> Self {
+        let mut args = Args {
+            seconds: 5.0,
+            iterations: 1,
+            fps: 120.0,
+            mesh: None,
+            bar: None,
+            grab: false,
+            set_changes: false,
+            no_preview: false,
+            plain: false,
+        };
+        let mut parser = cli::Parser::from_env();
+        while let Some(arg) = cli::next(&mut parser, USAGE) {
+            match arg {
+                cli::Arg::Long("seconds") => args.seconds = cli::value(&mut parser, USAGE),
+                cli::Arg::Long("iterations") => args.iterations = cli::value(&mut parser, USAGE),
+                cli::Arg::Long("fps") => args.fps = cli::value(&mut parser, USAGE),
+                cli::Arg::Long("mesh") => args.mesh = Some(cli::string(&mut parser, USAGE)),
+                cli::Arg::Long("bar") => args.bar = Some(cli::value(&mut parser, USAGE)),
+                cli::Arg::Long("grab") => args.grab = true,
+                cli::Arg::Long("set-changes") => args.set_changes = true,
+                cli::Arg::Long("no-preview") => args.no_preview = true,
+                cli::Arg::Long("plain") => args.plain = true,
+                cli::Arg::Long("json") => {}
+                other => cli::unexpected(other, USAGE),
+            }
+        }
+        args
+    }
+}
+
 fn main() {
-    let args: Vec<String> = std::env::args().collect();
-    let arg = |name: &str| {
-        args.iter()
-            .position(|a| a == name)
-            .and_then(|i| args.get(i + 1))
-            .cloned()
-    };
-    let seconds: f64 = arg("--seconds").and_then(|v| v.parse().ok()).unwrap_or(5.0);
-    let iterations: u32 = arg("--iterations")
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(1);
-    // Frame rate of the simulated game (the handle moves every frame).
-    let fps: f64 = arg("--fps").and_then(|v| v.parse().ok()).unwrap_or(120.0);
-    let tri = bench_mesh(arg("--mesh"), arg("--bar").and_then(|v| v.parse().ok()));
+    let args = Args::parse();
+    let (seconds, iterations, fps) = (args.seconds, args.iterations, args.fps);
+    let tri = bench_mesh(args.mesh.clone(), args.bar);
     let deform_plugin = deform_plugin(&args);
     let mut app = App::new();
     app.add_plugins((
@@ -151,7 +206,7 @@ fn main() {
     )
     .add_systems(Update, start_timer.before(DeformSystems::Prepare))
     .add_systems(Update, stop_timer.after(DeformSystems::Writeback));
-    let grab = args.iter().any(|a| a == "--grab");
+    let grab = args.grab;
     if grab {
         app.add_plugins(GrabPlugin);
     }
@@ -193,7 +248,7 @@ fn main() {
     if grab {
         return run_grabs(&mut app, e, &tri, seconds, fps);
     }
-    if args.iter().any(|a| a == "--set-changes") {
+    if args.set_changes {
         return run_set_changes(&mut app, e, &tri, &fixed_set, diagonal, seconds, fps);
     }
     run_drag(&mut app, e, seconds, fps);
@@ -261,13 +316,13 @@ fn bench_mesh(path: Option<String>, bar: Option<u32>) -> TriMesh {
 /// The plugin as the flags ask: `--plain` (plain local/global and no settling, the plugin
 /// before L-BFGS, for side-by-side comparisons), `--no-preview` (a new constraint set waits
 /// for the whole mesh, `DeformConfig::preview`).
-fn deform_plugin(args: &[String]) -> DeformPlugin {
+fn deform_plugin(args: &Args) -> DeformPlugin {
     let mut config = DeformConfig::default();
-    if args.iter().any(|a| a == "--plain") {
+    if args.plain {
         config.acceleration = bevy_wii_deform::deform::Acceleration::None;
         config.settle_iterations = 0;
     }
-    if args.iter().any(|a| a == "--no-preview") {
+    if args.no_preview {
         config.preview = None;
     }
     DeformPlugin { config }

@@ -11,10 +11,9 @@ use crate::scene::Character;
 #[derive(Resource, Default)]
 struct Credits(Option<String>);
 
-/// Reads `asset.copyright` of the glTF at `path` (relative to the asset folder, `..`).
+/// Reads `asset.copyright` of the glTF at the asset path `path`.
 fn credits_of(path: &str) -> Option<String> {
-    let file = std::path::Path::new("..").join(path);
-    let gltf = gltf::Gltf::open(&file).ok()?;
+    let gltf = gltf::Gltf::open(crate::cli::asset_file(path)).ok()?;
     gltf.document.as_json().asset.copyright.clone()
 }
 
@@ -61,6 +60,7 @@ fn update_hud(
     character: Query<(&PoseStatus, Option<&PinnedJoints>), With<Character>>,
     message: Res<LastMessage>,
     credits: Res<Credits>,
+    args: Res<Args>,
 ) {
     let Some((status, pins)) = character.iter().next() else {
         return;
@@ -71,6 +71,12 @@ fn update_hud(
          {} joints, {} vertices | last solve {} iterations, {:.2} ms | {}",
         status.joints, status.vertices, status.iterations, status.solve_ms, message.0
     );
+    if let Some(error) = &status.error {
+        line.push_str(&format!("\n{}: {error}", args.model));
+    }
+    if let Some(warning) = &status.warning {
+        line.push_str(&format!("\nmissing, drawn without it: {warning}"));
+    }
     if let Some(credits) = &credits.0 {
         line.push('\n');
         line.push_str(credits);

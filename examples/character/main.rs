@@ -40,11 +40,15 @@
 
 mod authoring;
 mod body;
+#[path = "../common/cli.rs"]
+mod cli;
 mod files;
 mod grab;
 mod history;
 mod hud;
 mod library;
+#[path = "../common/missing_textures.rs"]
+mod missing_textures;
 #[path = "../common/remote_cursor.rs"]
 mod remote_cursor;
 mod scene;
@@ -60,7 +64,7 @@ use bevy_wii_deform::prelude::*;
 /// Command-line options.
 #[derive(Resource, Debug, Clone)]
 pub struct Args {
-    /// The glTF file (relative to the project's parent directory, or absolute).
+    /// The glTF file, as Bevy's asset server loads it (relative to `assets/`, or absolute).
     pub model: String,
     /// `--screenshot PATH`: script a grab, save frame `frames`, exit.
     pub screenshot: Option<String>,
@@ -76,45 +80,58 @@ pub struct Args {
     pub author_demo: Option<String>,
 }
 
+const USAGE: &str = "\
+usage: character [MODEL.glb] [--model MODEL.glb] [--remote [emulated]] [--pointer [emulated]]
+                 [--screenshot PATH [--frames N]] [--author-demo OUT.glb]
+
+  MODEL.glb             a rigged glTF (default: the Fox, assets/models/Fox.glb); a path
+                        relative to the working directory, to assets/, or absolute
+  --remote [emulated]   a Wii Remote turns a handle on the head (emulated: the built-in emulator)
+  --pointer [emulated]  the Wii Remote's IR camera points; A grabs
+  --screenshot PATH     script a grab, save frame N to PATH, exit
+  --frames N            the frame to save (default 120)
+  --author-demo OUT.glb author a three-key clip by script, export it, play it back, exit";
+
 impl Args {
     fn parse() -> Self {
-        let args: Vec<String> = std::env::args().skip(1).collect();
-        let value = |name: &str| {
-            args.iter()
-                .position(|a| a == name)
-                .and_then(|i| args.get(i + 1))
-                .cloned()
+        let mut args = Args {
+            model: "models/Fox.glb".into(),
+            screenshot: None,
+            frames: 120,
+            remote: None,
+            pointer: None,
+            author_demo: None,
         };
-        let author_demo = value("--author-demo");
-        let model = value("--model")
-            .or_else(|| {
-                args.iter()
-                    .find(|a| {
-                        (a.ends_with(".glb") || a.ends_with(".gltf"))
-                            && Some(*a) != author_demo.as_ref()
-                    })
-                    .cloned()
-            })
-            .unwrap_or_else(|| "shared/models/Fox.glb".into());
-        Self {
-            model,
-            screenshot: value("--screenshot"),
-            frames: value("--frames")
-                .and_then(|v| v.parse().ok())
-                .unwrap_or(120),
-            author_demo,
-            pointer: args
-                .iter()
-                .any(|a| a == "--pointer")
-                .then(|| value("--pointer").as_deref() == Some("emulated")),
-            remote: args.iter().any(|a| a == "--remote").then(|| {
-                if value("--remote").as_deref() == Some("emulated") {
-                    WiimotePlugin::emulated()
-                } else {
-                    WiimotePlugin::default()
+        let mut parser = cli::Parser::from_env();
+        while let Some(arg) = cli::next(&mut parser, USAGE) {
+            match arg {
+                cli::Arg::Value(path) => {
+                    args.model = cli::asset_path(&cli::positional(path, USAGE))
                 }
-            }),
+                cli::Arg::Long("model") => {
+                    args.model = cli::asset_path(&cli::string(&mut parser, USAGE))
+                }
+                cli::Arg::Long("screenshot") => {
+                    args.screenshot = Some(cli::string(&mut parser, USAGE))
+                }
+                cli::Arg::Long("frames") => args.frames = cli::value(&mut parser, USAGE),
+                cli::Arg::Long("author-demo") => {
+                    args.author_demo = Some(cli::string(&mut parser, USAGE))
+                }
+                cli::Arg::Long("pointer") => {
+                    args.pointer = Some(cli::optional_word(&mut parser, "emulated"))
+                }
+                cli::Arg::Long("remote") => {
+                    args.remote = Some(if cli::optional_word(&mut parser, "emulated") {
+                        WiimotePlugin::emulated()
+                    } else {
+                        WiimotePlugin::default()
+                    })
+                }
+                other => cli::unexpected(other, USAGE),
+            }
         }
+        args
     }
 }
 
@@ -130,8 +147,7 @@ fn main() {
         ));
     }
     app.add_plugins(DefaultPlugins.set(AssetPlugin {
-        // The shared models live beside the project, not in its assets folder.
-        file_path: "..".into(),
+        // A model may be given by any path (see `cli::asset_path`).
         unapproved_path_mode: bevy::asset::UnapprovedPathMode::Allow,
         ..default()
     }))
@@ -148,6 +164,7 @@ fn main() {
         hud::HudPlugin,
         unattended::UnattendedPlugin,
         authoring::AuthorDemoPlugin,
+        missing_textures::MissingTexturesPlugin,
     ))
     .run();
 }

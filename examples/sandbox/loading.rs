@@ -15,6 +15,7 @@ use glam::{DAffine3, DVec3};
 
 use crate::challenge::{ChallengeSetup, TaskList, TaskTarget};
 use crate::history::History;
+use crate::missing_textures::MissingImages;
 use crate::parts::{PartRange, needs_parts, spawn_parts};
 use crate::selection::{FIXED, FREE, HANDLE, RegionsChanged, Selection, selection_colors};
 use crate::{Model, SandboxSet, StatusLine, models, tasks};
@@ -35,6 +36,7 @@ impl Plugin for LoadingPlugin {
                     start_loading,
                     watch_scene_load,
                     finish_loading,
+                    mention_missing_images,
                 )
                     .chain()
                     .in_set(SandboxSet::Load),
@@ -390,6 +392,18 @@ fn normalise(mut m: TriMesh) -> TriMesh {
     m
 }
 
+/// A loaded model whose images are missing says which (it is drawn without them:
+/// `MissingTexturesPlugin`).
+fn mention_missing_images(missing: Option<Res<MissingImages>>, mut status: ResMut<StatusLine>) {
+    if let Some(last) = missing.as_ref().and_then(|m| m.0.last())
+        && status.0.starts_with("loaded ")
+        && !status.0.contains("missing")
+    {
+        let message = format!("{} | missing {last}: drawn without it", status.0);
+        status.set(message);
+    }
+}
+
 /// Spawns a prepared model in place of the old one, with the task's regions painted.
 fn finish_loading(
     mut commands: Commands,
@@ -571,17 +585,9 @@ mod tests {
         let mut app = App::new();
         app.add_plugins(MinimalPlugins);
         crate::headless_gltf::add_gltf_plugins(&mut app, &dir);
-        app.init_asset::<StandardMaterial>()
-            .register_type::<MeshMaterial3d<StandardMaterial>>();
         app.finish();
         app.cleanup();
-        // What the renderer's PBR plugin does for the app: glTF materials as
-        // `StandardMaterial`s on the mesh entities (the test has no renderer).
-        app.world_mut()
-            .resource_mut::<bevy::gltf::extensions::GltfExtensionHandlers>()
-            .0
-            .write_blocking()
-            .push(Box::new(StandardMaterials));
+        crate::headless_gltf::add_standard_materials(&mut app);
         let scene = app
             .world()
             .resource::<AssetServer>()
@@ -655,46 +661,6 @@ mod tests {
         let triangles: usize = look.parts.iter().map(|p| p.triangles.len()).sum();
         assert_eq!(vertices as usize, mesh.positions.len());
         assert_eq!(triangles, mesh.triangles.len());
-    }
-
-    /// Turns each glTF material into a `StandardMaterial` on its meshes (see the test above).
-    #[derive(Clone)]
-    struct StandardMaterials;
-
-    impl bevy::gltf::extensions::GltfExtensionHandler for StandardMaterials {
-        fn dyn_clone(&self) -> Box<dyn bevy::gltf::extensions::ErasedGltfExtensionHandler> {
-            Box::new(self.clone())
-        }
-
-        fn on_material(
-            &mut self,
-            load_context: &mut bevy::asset::LoadContext<'_>,
-            _gltf_material: &gltf::Material,
-            _material: Handle<bevy::gltf::GltfMaterial>,
-            material_asset: &bevy::gltf::GltfMaterial,
-            material_label: &str,
-        ) {
-            let standard = StandardMaterial {
-                base_color: material_asset.base_color,
-                base_color_texture: material_asset.base_color_texture.clone(),
-                ..default()
-            };
-            load_context.add_labeled_asset(format!("{material_label}/test"), standard);
-        }
-
-        fn on_spawn_mesh_and_material(
-            &mut self,
-            load_context: &mut bevy::asset::LoadContext<'_>,
-            _primitive: &gltf::Primitive,
-            _mesh: &gltf::Mesh,
-            _material: &gltf::Material,
-            entity: &mut EntityWorldMut,
-            material_label: &str,
-        ) {
-            let label = format!("{material_label}/test");
-            let handle = load_context.get_label_handle::<StandardMaterial>(label);
-            entity.insert(MeshMaterial3d(handle));
-        }
     }
 
     /// Broken glTF files loaded into the sandbox as a user drops them: each ends with a

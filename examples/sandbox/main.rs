@@ -32,10 +32,12 @@
 //! Remote) and `ChallengeState` (off, running, done).
 
 #[cfg(test)]
-#[path = "../common/broken_gltf.rs"]
+#[path = "../../tests/it/fixtures/broken_gltf.rs"]
 mod broken_gltf;
 mod camera;
 mod challenge;
+#[path = "../common/cli.rs"]
+mod cli;
 mod files;
 #[cfg(test)]
 #[path = "../common/headless_gltf.rs"]
@@ -43,6 +45,8 @@ mod files;
 mod headless_gltf;
 mod history;
 mod loading;
+#[path = "../common/missing_textures.rs"]
+mod missing_textures;
 #[path = "../common/models.rs"]
 mod models;
 mod parts;
@@ -164,49 +168,61 @@ struct Args {
     unattended: Unattended,
 }
 
-fn arg_value(args: &[String], name: &str) -> Option<String> {
-    args.iter()
-        .position(|a| a == name)
-        .and_then(|i| args.get(i + 1))
-        .cloned()
-}
+const USAGE: &str = "\
+usage: sandbox [MODEL] [--task NAME] [--demo] [--emulate] [--pointer] [--bend]
+               [--screenshot PATH [--frames N]] [--windowless [--check-not-blank]]
+
+  MODEL              a built-in model (bar, cactus, mannequin: the default) or an OBJ, OFF,
+                     glTF or GLB file
+  --task NAME        start a challenge task (assets/tasks/NAME.ron)
+  --demo             an emulated Wii Remote plays the mannequin_wave task
+  --emulate          the built-in Wii Remote emulator instead of a real remote
+  --pointer          the remote's IR camera points; A paints
+  --bend             fix the lowest quarter, turn and move the top fifth (unattended runs)
+  --screenshot PATH  save frame N to PATH, exit
+  --frames N         the frame to save (default 30)
+  --windowless       render into an image, no window (with --screenshot)
+  --check-not-blank  exit non-zero when the saved frame is blank";
 
 impl Args {
     fn parse() -> Self {
-        let args: Vec<String> = std::env::args().collect();
-        let flag = |name: &str| args.iter().any(|a| a == name);
-        let windowless = flag("--windowless");
-        let demo = flag("--demo");
-        let is_value = |a: &String| {
-            args.iter()
-                .any(|b| b.starts_with("--") && arg_value(&args, b).as_ref() == Some(a))
-        };
-        let model = args
-            .iter()
-            .skip(1)
-            .find(|a| !a.starts_with("--") && !is_value(a))
-            .cloned()
-            .unwrap_or_else(|| "mannequin".into());
-        let task = arg_value(&args, "--task").or_else(|| demo.then(|| "mannequin_wave".into()));
-        Self {
-            model,
-            task,
-            demo,
-            emulate: demo || windowless || flag("--emulate"),
-            pointer: flag("--pointer"),
-            windowless,
+        let mut args = Args {
+            model: "mannequin".into(),
+            task: None,
+            demo: false,
+            emulate: false,
+            pointer: false,
+            windowless: false,
             unattended: Unattended {
-                screenshot: arg_value(&args, "--screenshot"),
-                frames: arg_value(&args, "--frames")
-                    .and_then(|v| v.parse().ok())
-                    .unwrap_or(30),
-                demo,
-                bend: flag("--bend"),
-                windowless,
-                check_not_blank: flag("--check-not-blank"),
+                frames: 30,
                 ..default()
             },
+        };
+        let mut parser = cli::Parser::from_env();
+        while let Some(arg) = cli::next(&mut parser, USAGE) {
+            match arg {
+                cli::Arg::Value(model) => args.model = cli::positional(model, USAGE),
+                cli::Arg::Long("task") => args.task = Some(cli::string(&mut parser, USAGE)),
+                cli::Arg::Long("demo") => args.demo = true,
+                cli::Arg::Long("emulate") => args.emulate = true,
+                cli::Arg::Long("pointer") => args.pointer = true,
+                cli::Arg::Long("windowless") => args.windowless = true,
+                cli::Arg::Long("bend") => args.unattended.bend = true,
+                cli::Arg::Long("check-not-blank") => args.unattended.check_not_blank = true,
+                cli::Arg::Long("screenshot") => {
+                    args.unattended.screenshot = Some(cli::string(&mut parser, USAGE))
+                }
+                cli::Arg::Long("frames") => args.unattended.frames = cli::value(&mut parser, USAGE),
+                other => cli::unexpected(other, USAGE),
+            }
         }
+        if args.demo && args.task.is_none() {
+            args.task = Some("mannequin_wave".into());
+        }
+        args.emulate |= args.demo || args.windowless;
+        args.unattended.demo = args.demo;
+        args.unattended.windowless = args.windowless;
+        args
     }
 }
 
@@ -275,6 +291,7 @@ fn main() -> AppExit {
         WiimoteControlPlugin,
         MouseControlPlugin,
         MeshPickingPlugin,
+        missing_textures::MissingTexturesPlugin,
     ))
     .init_state::<EditMode>()
     .insert_state(if args.demo {

@@ -4,10 +4,18 @@
 //! cargo run --release --example make_assets
 //! ```
 
+#[path = "../common/cli.rs"]
+mod cli;
 #[path = "../common/models.rs"]
 mod models;
 
+const USAGE: &str = "usage: make_assets (writes assets/models/{bar,cactus,mannequin}.obj)";
+
 fn main() {
+    let mut parser = cli::Parser::from_env();
+    if let Some(arg) = cli::next(&mut parser, USAGE) {
+        cli::unexpected(arg, USAGE);
+    }
     std::fs::create_dir_all("assets/models").expect("create assets/models");
     for name in models::MODELS {
         let mesh = models::generate(name).expect("built-in model");

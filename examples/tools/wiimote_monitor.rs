@@ -8,6 +8,9 @@
 //! fix: hidraw permissions → the udev rule to add; the hid-wiimote kernel driver bound → the
 //! unbind line with the remote's real HID id, or the blacklist line; busy; no answer.
 
+#[path = "../common/cli.rs"]
+mod cli;
+
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -124,26 +127,32 @@ fn print_event(event: &ManagerEvent) {
     }
 }
 
+const USAGE: &str = "\
+usage: wiimote_monitor [--emulate] [--seconds S] [--filter fusion|paper|vqf|raw]
+
+  --emulate    the built-in emulator instead of a real remote
+  --seconds S  how long to print samples (default 30)
+  --filter F   the orientation filter (default fusion)";
+
 fn main() {
-    let args: Vec<String> = std::env::args().collect();
-    let emulate = args.iter().any(|a| a == "--emulate");
-    let seconds: f64 = args
-        .iter()
-        .position(|a| a == "--seconds")
-        .and_then(|i| args.get(i + 1))
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(30.0);
-    let filter = match args
-        .iter()
-        .position(|a| a == "--filter")
-        .and_then(|i| args.get(i + 1))
-        .map(String::as_str)
-    {
-        Some("paper") => FilterKind::Paper,
-        Some("raw") => FilterKind::Raw,
-        Some("vqf") => FilterKind::Vqf,
-        _ => FilterKind::Fusion,
-    };
+    let (mut emulate, mut seconds, mut filter) = (false, 30.0f64, FilterKind::Fusion);
+    let mut parser = cli::Parser::from_env();
+    while let Some(arg) = cli::next(&mut parser, USAGE) {
+        match arg {
+            cli::Arg::Long("emulate") => emulate = true,
+            cli::Arg::Long("seconds") => seconds = cli::value(&mut parser, USAGE),
+            cli::Arg::Long("filter") => {
+                filter = match cli::string(&mut parser, USAGE).as_str() {
+                    "paper" => FilterKind::Paper,
+                    "raw" => FilterKind::Raw,
+                    "vqf" => FilterKind::Vqf,
+                    "fusion" => FilterKind::Fusion,
+                    v => cli::fail(format!("unknown filter {v:?}"), USAGE),
+                }
+            }
+            other => cli::unexpected(other, USAGE),
+        }
+    }
     let Some(source) = remote_source(emulate) else {
         return;
     };

@@ -20,6 +20,7 @@ mod deform;
 mod input;
 mod pose;
 mod scene;
+mod space;
 mod tasks;
 mod wiimote;
 
@@ -28,7 +29,8 @@ use bevy::prelude::*;
 
 pub use deform::{
     DeformConfig, DeformError, DeformFailed, DeformHandle, DeformPhase, DeformPlugin, DeformSolved,
-    DeformState, DeformStatus, DeformSystems, Deformable, FixedRegion, mesh_from_triangles,
+    DeformState, DeformStatus, DeformSystems, Deformable, DeformableFrom, DeformableScene,
+    FixedRegion, MESH_WAIT_FRAMES, mesh_from_triangles,
 };
 pub use input::{
     ActiveGrabs, GrabButton, GrabEnd, GrabHandle, GrabMove, GrabPlugin, GrabStart, GrabTurn,
@@ -36,13 +38,15 @@ pub use input::{
     WiimoteControlPlugin, WiimoteHandleControl, WiimotePointer, WiimotePointerPlugin,
     arcball_rotation,
 };
+#[allow(deprecated)]
+pub use pose::GrabAnchor;
 pub use pose::{
-    GrabAnchor, HandlePositionOnly, JointMask, PinnedJoints, PoseBlend, PoseBlendMode,
-    PoseEffector, PoseEffectorKind, PoseFailed, PoseInFrame, PoseJointHandle, PoseLimits,
-    PoseModels, PosePlugin, PoseSolved, PoseStatus, PoseStiffness, PoseSystems, PoseTimeline,
-    Poseable, PoseableError, PosedSkeleton, SymmetricEditing,
+    CharacterSkin, HandlePositionOnly, JointMask, PinnedJoints, PoseAnchor, PoseBlend,
+    PoseBlendMode, PoseEffector, PoseEffectorKind, PoseFailed, PoseInFrame, PoseJointHandle,
+    PoseLimits, PoseModels, PosePlugin, PoseSolved, PoseStatus, PoseStiffness, PoseSystems,
+    PoseTimeline, Poseable, PoseableError, PosedSkeleton, SymmetricEditing,
 };
-pub use scene::{DeformableFrom, DeformableScene, MESH_WAIT_FRAMES};
+pub use scene::{MissingSceneAssets, SceneAssetsMissing, SceneRootPlugin};
 pub use wiimote::{
     ConnectionState, Wiimote, WiimoteButtonChanged, WiimoteCalibration, WiimoteConnected,
     WiimoteDisconnected, WiimoteEmulators, WiimoteFilter, WiimoteLink, WiimoteOrientationChanged,

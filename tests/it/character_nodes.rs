@@ -360,21 +360,67 @@ fn a_character_of_several_mesh_nodes_poses_as_one() {
     assert!(worst_gap < 1e-5, "a seam opened by {worst_gap}");
 }
 
-/// The scale of the armature node of [`converted_glb`] (joint translations are divided by it).
-const ARMATURE_SCALE: f64 = 100.0;
+/// How a converter laid the rig out: the armature node's scale (joint translations are divided
+/// by it) and turn, the skinned mesh node's scale (not uniform) and turn — the node's bind
+/// folded into the inverse bind matrices — and whether a second root bone chain (an IK
+/// target, bound to no vertex) hangs under the armature beside the body's.
+#[derive(Clone, Copy, Debug)]
+struct ConverterLayout {
+    armature_scale: f64,
+    turn: glam::DQuat,
+    mesh_scale: DVec3,
+    second_root_chain: bool,
+}
 
-/// The skinned mesh node's scale in [`converted_glb`]: not uniform.
-const MESH_NODE_SCALE: DVec3 = DVec3::new(1.2, 1.0, 1.0);
+impl ConverterLayout {
+    /// Issue 30's layout: ×100 armature, the mesh node a sibling scaled (1.2, 1, 1).
+    const SCALED: Self = Self {
+        armature_scale: 100.0,
+        turn: glam::DQuat::IDENTITY,
+        mesh_scale: DVec3::new(1.2, 1.0, 1.0),
+        second_root_chain: false,
+    };
 
-/// Writes `rig` as an FBX converter does: the joints under an "Armature" node scaled ×100
-/// (their translations in hundredths), the skinned mesh node scaled (1.2, 1, 1) with its
-/// vertices in its own frame, and that node's bind folded into the inverse bind matrices —
-/// so the mesh is drawn where the rig's bind positions are, but every skin matrix carries
-/// the armature's scale and the node's non-uniform one. Returns the file and, per vertex, the
-/// position written (the mesh node's frame) and the inverse bind matrices.
-fn converted_glb(rig: &SyntheticRig) -> (Vec<u8>, Vec<DVec3>, Vec<glam::DAffine3>) {
+    /// Issue 40's layout, as common FBX converters write a Z-up rig: two root bone chains
+    /// under one armature node scaled ×100 and turned −90° about X, the skinned mesh node its
+    /// sibling with the same turn and a (1.21, 1, 1) scale.
+    fn turned() -> Self {
+        Self {
+            armature_scale: 100.0,
+            turn: glam::DQuat::from_rotation_x(-std::f64::consts::FRAC_PI_2),
+            mesh_scale: DVec3::new(1.21, 1.0, 1.0),
+            second_root_chain: true,
+        }
+    }
+
+    /// The armature node's transform.
+    fn armature(&self) -> glam::DAffine3 {
+        glam::DAffine3::from_rotation_translation(self.turn, DVec3::ZERO)
+            * glam::DAffine3::from_scale(DVec3::splat(self.armature_scale))
+    }
+
+    /// The skinned mesh node's transform.
+    fn mesh_node(&self) -> glam::DAffine3 {
+        glam::DAffine3::from_rotation_translation(self.turn, DVec3::ZERO)
+            * glam::DAffine3::from_scale(self.mesh_scale)
+    }
+}
+
+/// Writes `rig` as an FBX converter does (`layout`): the joints under the armature node (a
+/// joint's local transform `X` written as `C⁻¹ X C`, `C` the armature's transform, so that the
+/// armature brings them back where the rig has them), the skinned mesh node beside the
+/// armature with its vertices in its own frame, and that node's bind folded into the inverse
+/// bind matrices — so the mesh is drawn where the rig's bind positions are, but every skin
+/// matrix carries the armature's scale and turn and the node's non-uniform scale. Returns the
+/// file and, per vertex, the position written (the mesh node's frame) and the inverse bind
+/// matrices of the rig's joints (the second chain's follow them in the file).
+fn converted_glb(
+    rig: &SyntheticRig,
+    layout: ConverterLayout,
+) -> (Vec<u8>, Vec<DVec3>, Vec<glam::DAffine3>) {
     use glam::DAffine3;
-    let node = DAffine3::from_scale(MESH_NODE_SCALE);
+    let node = layout.mesh_node();
+    let armature = layout.armature();
     let to_node = node.inverse();
     let mut buffers = GlbBuffers::default();
     let vertices: Vec<usize> = (0..rig.mesh.positions.len()).collect();
@@ -392,39 +438,64 @@ fn converted_glb(rig: &SyntheticRig) -> (Vec<u8>, Vec<DVec3>, Vec<glam::DAffine3
         .map(|p| to_node.transform_point3(p.as_dvec3()))
         .collect();
     let joints = rig.skeleton.joints();
-    let unscale = DAffine3::from_scale(DVec3::splat(1.0 / ARMATURE_SCALE));
     let inverse_binds: Vec<DAffine3> = joints
         .iter()
-        .map(|j| unscale * j.inverse_bind * node)
+        .map(|j| armature.inverse() * j.inverse_bind * node)
         .collect();
-    let ibm = buffers.push(
-        inverse_binds
-            .iter()
-            .flat_map(|m| glam::Mat4::from(m.as_affine3a()).to_cols_array())
-            .flat_map(|f| f.to_le_bytes())
-            .collect(),
-        json!({"componentType": 5126, "count": joints.len(), "type": "MAT4"}),
-    );
+    // In the file's frame: a joint's local `X` becomes `C⁻¹ X C`.
+    let in_file = |x: DAffine3| armature.inverse() * x * armature;
+    let node_of = |name: &str, x: DAffine3, children: Vec<usize>| {
+        let (_, rotation, translation) = in_file(x).to_scale_rotation_translation();
+        let mut n = json!({
+            "name": name,
+            "translation": translation.as_vec3().to_array(),
+            "rotation": rotation.as_quat().normalize().to_array(),
+        });
+        if !children.is_empty() {
+            n["children"] = json!(children);
+        }
+        n
+    };
     let mut nodes: Vec<serde_json::Value> = joints
         .iter()
         .enumerate()
         .map(|(j, joint)| {
             let local = rig.rest.local[j];
-            let mut n = json!({
-                "name": joint.name,
-                "translation": (local.translation / ARMATURE_SCALE).as_vec3().to_array(),
-                "rotation": local.rotation.as_quat().to_array(),
-            });
-            let children = rig.skeleton.children(j);
-            if !children.is_empty() {
-                n["children"] = json!(children);
-            }
-            n
+            let x = DAffine3::from_rotation_translation(local.rotation, local.translation);
+            node_of(&joint.name, x, rig.skeleton.children(j).to_vec())
         })
         .collect();
+    let mut all_inverse_binds = inverse_binds.clone();
+    let mut roots = vec![0];
+    if layout.second_root_chain {
+        // An IK target beside the feet and its tip: joints of the skin, bound to no vertex.
+        let first = nodes.len();
+        let base = DAffine3::from_translation(DVec3::new(0.3, 0.05, 0.2));
+        let tip = DAffine3::from_translation(DVec3::new(0.0, 0.1, 0.0));
+        nodes.push(node_of("ik_target", base, vec![first + 1]));
+        nodes.push(node_of("ik_target_tip", tip, vec![]));
+        for global in [base, base * tip] {
+            all_inverse_binds.push(armature.inverse() * global.inverse() * node);
+        }
+        roots.push(first);
+    }
+    let skin_joints: Vec<usize> = (0..nodes.len()).collect();
+    let ibm = buffers.push(
+        all_inverse_binds
+            .iter()
+            .flat_map(|m| glam::Mat4::from(m.as_affine3a()).to_cols_array())
+            .flat_map(|f| f.to_le_bytes())
+            .collect(),
+        json!({"componentType": 5126, "count": all_inverse_binds.len(), "type": "MAT4"}),
+    );
     let body = nodes.len();
-    nodes.push(json!({"name": "Body", "mesh": 0, "skin": 0, "scale": MESH_NODE_SCALE.as_vec3().to_array()}));
-    nodes.push(json!({"name": "Armature", "scale": [ARMATURE_SCALE, ARMATURE_SCALE, ARMATURE_SCALE], "children": [0]}));
+    let (_, node_turn, _) = node.to_scale_rotation_translation();
+    nodes.push(json!({"name": "Body", "mesh": 0, "skin": 0,
+        "rotation": node_turn.as_quat().normalize().to_array(),
+        "scale": layout.mesh_scale.as_vec3().to_array()}));
+    let s = layout.armature_scale;
+    nodes.push(json!({"name": "Armature", "scale": [s, s, s],
+        "rotation": layout.turn.as_quat().normalize().to_array(), "children": roots}));
     nodes.push(json!({"name": "Character", "children": [body + 1, body]}));
     let document = json!({
         "asset": {"version": "2.0", "generator": "bevy_wii_deform tests (FBX-converter layout)"},
@@ -432,7 +503,7 @@ fn converted_glb(rig: &SyntheticRig) -> (Vec<u8>, Vec<DVec3>, Vec<glam::DAffine3
         "scenes": [{"nodes": [body + 2]}],
         "nodes": nodes,
         "meshes": [mesh],
-        "skins": [{"joints": (0..joints.len()).collect::<Vec<_>>(), "inverseBindMatrices": ibm, "skeleton": 0}],
+        "skins": [{"joints": skin_joints, "inverseBindMatrices": ibm}],
         "accessors": buffers.accessors,
         "bufferViews": buffers.views,
         "buffers": [{"byteLength": buffers.bin.len()}],
@@ -480,19 +551,33 @@ fn drawn_by_bevy(
         .collect()
 }
 
-/// Issue 30's converter rig: a skin bound with a non-uniform scale (the skinned mesh node at
-/// (1.2, 1, 1) under a ×100 armature, as FBX files come out of common converters) is drawn
-/// where the rig's bind is, poses where Bevy draws it (within 1e-4 of the size), keeps its
-/// bones rigid (lengths within 1e-4 of the size, every joint's skin matrix a rotation times
-/// the node's bind) and meets a reachable drag with its feet pinned.
+/// Converter rigs (issue 30's: the skinned mesh node at (1.2, 1, 1) beside a ×100 armature;
+/// issue 40's: both turned −90° about X, the node at (1.21, 1, 1), a second root bone chain)
+/// are drawn where the rig's bind is, pose where Bevy draws them (within 1e-4 of the size),
+/// keep their bones rigid (lengths within 1e-4 of the size, every joint's skin matrix a
+/// rotation times the node's bind) and meet a reachable drag with the feet pinned. Set
+/// `BWD_WRITE_FIXTURES=DIR` to keep the files (`character_bench --model DIR/converted_turned.glb`).
 #[test]
-fn a_skin_bound_with_a_non_uniform_scale_poses_rigidly() {
+fn a_skin_bound_by_a_converter_poses_rigidly() {
+    for (name, layout) in [
+        ("scaled", ConverterLayout::SCALED),
+        ("turned", ConverterLayout::turned()),
+    ] {
+        converter_rig_poses_rigidly(name, layout);
+    }
+}
+
+fn converter_rig_poses_rigidly(name: &str, layout: ConverterLayout) {
     let rig = mannequin_rig(12);
-    let (glb, written, inverse_binds) = converted_glb(&rig);
+    let (glb, written, inverse_binds) = converted_glb(&rig, layout);
     let dir = std::env::temp_dir().join(format!("character_converted_{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    std::fs::write(dir.join("converted.glb"), glb).unwrap();
-    let (mut app, root) = common::character_app(&dir, "converted.glb", PosePlugin);
+    let file = format!("converted_{name}.glb");
+    std::fs::write(dir.join(&file), &glb).unwrap();
+    if let Some(keep) = std::env::var_os("BWD_WRITE_FIXTURES") {
+        std::fs::write(std::path::Path::new(&keep).join(&file), &glb).unwrap();
+    }
+    let (mut app, root) = common::character_app(&dir, &file, PosePlugin);
     let posed = app.world().get::<PosedSkeleton>(root).unwrap().clone();
     let size = posed.model.topology().bounding_diagonal();
     let model_drawn = |app: &App| -> Vec<DVec3> {
@@ -510,7 +595,11 @@ fn a_skin_bound_with_a_non_uniform_scale_poses_rigidly() {
     assert!(worst(&written, &bind) > 0.02 * size);
     // …but Bevy draws them there, and so does the model.
     let bevy = drawn_by_bevy(&app, &posed, &rig, &written, &inverse_binds);
-    assert!(worst(&bevy, &bind) < 1e-4 * size, "{}", worst(&bevy, &bind));
+    assert!(
+        worst(&bevy, &bind) < 1e-4 * size,
+        "{name}: {}",
+        worst(&bevy, &bind)
+    );
     assert_eq!(model_drawn(&app).len(), bind.len());
     assert!(worst(&model_drawn(&app), &bevy) < 1e-4 * size);
     let skeleton = posed.model.skeleton();
@@ -534,26 +623,29 @@ fn a_skin_bound_with_a_non_uniform_scale_poses_rigidly() {
     let bevy_now = drawn_by_bevy(&app, &posed, &rig, &written, &inverse_binds);
     assert!(
         worst(&now, &bevy_now) < 1e-4 * size,
-        "the model and Bevy disagree by {} (size {size})",
+        "{name}: the model and Bevy disagree by {} (size {size})",
         worst(&now, &bevy_now)
     );
     // The drag is met, the feet stay.
     assert!(
         drag.moved.distance(shift) < 0.1 * shift.length(),
-        "the head moved {}, the drag was {shift}",
+        "{name}: the head moved {}, the drag was {shift}",
         drag.moved
     );
     assert!(
         f64::from(drag.foot_drift) < 1e-3 * size,
-        "a pinned foot moved {} (size {size})",
+        "{name}: a pinned foot moved {} (size {size})",
         drag.foot_drift
     );
     // Rigid bones: lengths kept, and each joint's skin matrix is a rotation (and the
     // translation) applied to the node's bind — no shear from the non-uniform scale.
     for (a, b) in bones(&app).iter().zip(&bones_before) {
-        assert!((a - b).abs() < 1e-4 * size, "a bone went from {b} to {a}");
+        assert!(
+            (a - b).abs() < 1e-4 * size,
+            "{name}: a bone went from {b} to {a} (size {size})"
+        );
     }
-    let node = glam::DAffine3::from_scale(MESH_NODE_SCALE);
+    let node = layout.mesh_node();
     for (k, j) in rig.skeleton.joints().iter().enumerate() {
         let e = posed.joints[skeleton.find(&j.name).unwrap()];
         let g = app.world().get::<GlobalTransform>(e).unwrap().affine();
@@ -565,7 +657,7 @@ fn a_skin_bound_with_a_non_uniform_scale_poses_rigidly() {
             .fold(0.0f64, |m, x| m.max(x.abs()));
         assert!(
             off < 1e-4,
-            "joint {} moves its skin non-rigidly ({off})",
+            "{name}: joint {} moves its skin non-rigidly ({off})",
             j.name
         );
     }

@@ -2,9 +2,8 @@
 //! instead of once per file (each link is ~1.7 GB with debug info and half a minute on two
 //! cores). Run one module with `cargo test --test it pose_clip::`.
 
-#[path = "../../examples/common/broken_gltf.rs"]
-mod broken_gltf;
 mod common;
+mod fixtures;
 
 mod character_grab;
 mod character_nodes;
@@ -14,6 +13,7 @@ mod grab_ecs;
 mod grab_picking;
 mod input_turns;
 mod malformed_gltf;
+mod missing_texture;
 mod mouse_control;
 mod pose_blend;
 mod pose_clip;

@@ -9,8 +9,8 @@ use bevy::prelude::*;
 use bevy::world_serialization::WorldAssetRoot;
 use bevy_wii_deform::prelude::*;
 
-use crate::broken_gltf::write_files;
 use crate::common;
+use crate::fixtures::broken_gltf::write_files;
 use bevy_wii_deform::ecs::MESH_WAIT_FRAMES;
 
 fn gltf_app(dir: &Path) -> App {

@@ -61,7 +61,7 @@ fn a_scene_round_trip_keeps_handles_pins_and_controls_pointing_at_the_right_enti
         ))
         .id();
     world.entity_mut(mesh).insert(GrabHandle(handle));
-    world.entity_mut(character).insert(GrabAnchor {
+    world.entity_mut(character).insert(PoseAnchor {
         joints: vec![foot],
         vertices: vec![7],
     });
@@ -109,7 +109,7 @@ fn a_scene_round_trip_keeps_handles_pins_and_controls_pointing_at_the_right_enti
     );
     assert_eq!(w.get::<GrabHandle>(new(mesh)).unwrap().0, new(handle));
     assert_eq!(
-        w.get::<GrabAnchor>(new(character)).unwrap().joints,
+        w.get::<PoseAnchor>(new(character)).unwrap().joints,
         vec![new(foot)]
     );
 }

@@ -15,7 +15,7 @@ use glam::DVec3;
 
 use crate::deform::{Acceleration, MeshError, PreviewRegion, RigidTransform, SolveError, centroid};
 
-pub use plugin::{DeformPlugin, DeformState, DeformSystems};
+pub use plugin::{DeformPlugin, DeformState, DeformSystems, MESH_WAIT_FRAMES};
 
 /// [`Acceleration`] (a core type, no Bevy) as the reflection of [`DeformConfig`] sees it, so
 /// inspectors and scenes show and edit it.
@@ -216,6 +216,11 @@ pub struct DeformStatus {
     /// Last error, if the last attempt failed.
     #[reflect(ignore)]
     pub error: Option<DeformError>,
+    /// Something missing that does not stop deforming: a dependency of the glTF scene this
+    /// is on (a texture's image file) that failed to load, with the loader's message naming
+    /// it (from [`MissingSceneAssets`](crate::ecs::MissingSceneAssets)).
+    #[reflect(ignore)]
+    pub warning: Option<String>,
 }
 
 /// Why a [`Deformable`] could not be prepared or solved (in [`DeformFailed`] and
@@ -327,3 +332,19 @@ pub fn mesh_from_triangles(positions: &[DVec3], triangles: &[[u32; 3]]) -> Mesh 
     .with_inserted_attribute(Mesh::ATTRIBUTE_NORMAL, normals)
     .with_inserted_indices(Indices::U32(triangles.iter().flatten().copied().collect()))
 }
+
+/// On an ancestor whose [`Deformable`] was handed to the mesh primitives below it: those
+/// primitives, in hierarchy order.
+#[derive(Component, Debug, Clone, Default, PartialEq, Reflect)]
+#[reflect(Component, Default)]
+pub struct DeformableScene {
+    /// The primitive entities that are deformable because of this ancestor.
+    #[entities]
+    pub primitives: Vec<Entity>,
+}
+
+/// On a mesh primitive that is deformable because an ancestor is: that ancestor. Its
+/// [`Deformable`] follows the ancestor's.
+#[derive(Component, Debug, Clone, Copy, PartialEq, Eq, Reflect)]
+#[reflect(Component)]
+pub struct DeformableFrom(#[entities] pub Entity);

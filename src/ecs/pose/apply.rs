@@ -4,43 +4,15 @@
 use bevy::prelude::*;
 
 use super::blend::BlendMemory;
-use super::plugin::PoseState;
 use super::{PoseBlend, Poseable, PosedSkeleton};
-use crate::pose::{SkeletonPose, additive_layer_for, blend_pose};
-
-/// The additive layer that shows `full` over the animation the blend last read.
-pub(super) fn additive_layer(
-    posed: &PosedSkeleton,
-    memory: &BlendMemory,
-    blend: &PoseBlend,
-    full: &SkeletonPose,
-) -> SkeletonPose {
-    let skeleton = posed.model.skeleton();
-    let reference = memory
-        .reference
-        .clone()
-        .unwrap_or_else(|| blend.reference_pose(skeleton));
-    let animated = memory.animated_pose();
-    let local = full
-        .local
-        .iter()
-        .enumerate()
-        .map(
-            |(j, f)| match (animated.local.get(j), reference.local.get(j)) {
-                (Some(a), Some(r)) => additive_layer_for(a, f, r),
-                _ => *f,
-            },
-        )
-        .collect();
-    SkeletonPose { local }
-}
+use crate::pose::{SkeletonPose, blend_pose};
 
 /// What [`apply_poses`] reads and writes of a character.
 type AppliedCharacter = (
     &'static Poseable,
     Ref<'static, PosedSkeleton>,
     Option<Ref<'static, PoseBlend>>,
-    &'static mut PoseState,
+    &'static mut BlendMemory,
 );
 
 /// Writes each character's pose to its joints: blended over the animation with a
@@ -49,16 +21,15 @@ pub(super) fn apply_poses(
     mut characters: Query<AppliedCharacter>,
     mut joints: Query<&mut Transform>,
 ) {
-    for (poseable, posed, blend, mut state) in &mut characters {
-        let state = state.bypass_change_detection();
+    for (poseable, posed, blend, mut memory) in &mut characters {
+        let memory = memory.bypass_change_detection();
         let Some(blend) = blend else {
-            state.blend.clear();
+            memory.clear();
             if poseable.hold_pose || posed.is_changed() {
                 write_pose(&posed.joints, &posed.pose, &mut joints, None);
             }
             continue;
         };
-        let memory = &mut state.blend;
         let current: Vec<Option<Transform>> = posed
             .joints
             .iter()

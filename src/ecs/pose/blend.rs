@@ -7,8 +7,9 @@
 use bevy::ecs::entity::MapEntities;
 use bevy::prelude::*;
 
-use super::prepare::joint_transform;
-use crate::pose::{BlendMode, Skeleton, SkeletonPose};
+use super::PosedSkeleton;
+use super::convert::joint_transform;
+use crate::pose::{BlendMode, Skeleton, SkeletonPose, additive_layer_for};
 
 /// Blends a [`Poseable`](super::Poseable) character's pose ([`super::PosedSkeleton::pose`])
 /// over what the animation put on its joints this frame. Without it, the pose replaces the
@@ -156,9 +157,10 @@ impl JointMask {
     }
 }
 
-/// What the blend layer remembers between frames (part of the character's internal state).
-#[derive(Debug, Default)]
-pub(crate) struct BlendMemory {
+/// What the blend layer remembers between frames (part of the character's internal state,
+/// see `state.rs`).
+#[derive(Component, Debug, Default)]
+pub(super) struct BlendMemory {
     /// The animated local transforms the blend last read (per joint).
     pub(super) animated: Vec<Transform>,
     /// What the blend last wrote (per joint): a joint still holding it was not animated since.
@@ -198,4 +200,31 @@ impl BlendMemory {
     pub(super) fn clear(&mut self) {
         *self = Self::default();
     }
+}
+
+/// The additive layer that shows `full` over the animation the blend last read.
+pub(super) fn additive_layer(
+    posed: &PosedSkeleton,
+    memory: &BlendMemory,
+    blend: &PoseBlend,
+    full: &SkeletonPose,
+) -> SkeletonPose {
+    let skeleton = posed.model.skeleton();
+    let reference = memory
+        .reference
+        .clone()
+        .unwrap_or_else(|| blend.reference_pose(skeleton));
+    let animated = memory.animated_pose();
+    let local = full
+        .local
+        .iter()
+        .enumerate()
+        .map(
+            |(j, f)| match (animated.local.get(j), reference.local.get(j)) {
+                (Some(a), Some(r)) => additive_layer_for(a, f, r),
+                _ => *f,
+            },
+        )
+        .collect();
+    SkeletonPose { local }
 }

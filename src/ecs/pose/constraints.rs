@@ -7,11 +7,11 @@ use std::sync::Arc;
 use bevy::prelude::*;
 
 use super::{
-    GrabAnchor, PoseEffector, PoseEffectorKind, PoseJointHandle, PoseLimits, PosedSkeleton,
+    PoseAnchor, PoseEffector, PoseEffectorKind, PoseJointHandle, PoseLimits, PosedSkeleton,
 };
 use crate::deform::{Handle as CoreHandle, RigidTransform, centroid};
 use crate::ecs::DeformHandle;
-use crate::ecs::input::view::rotation_of_space;
+use crate::ecs::space::rotation_of_space;
 use crate::pose::{
     CentroidEffector, Effector, EffectorGoal, JointHandle, JointLimits, LimitError, SkeletonPose,
 };
@@ -22,7 +22,7 @@ pub(super) struct SetKey {
     pub(super) handles: Vec<(Entity, Vec<u32>)>,
     pub(super) joint_handles: Vec<(Entity, Entity)>,
     pub(super) pins: Vec<Entity>,
-    pub(super) anchor: GrabAnchor,
+    pub(super) anchor: PoseAnchor,
     pub(super) position_only: Vec<Entity>,
     pub(super) effectors: Vec<(Entity, Entity)>,
 }

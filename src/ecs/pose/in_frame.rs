@@ -3,30 +3,26 @@
 //! in parallel on Bevy's compute pool; the pose is then written to the joints by `apply.rs`
 //! in the same frame.
 
-use std::sync::Arc;
-use std::time::Instant;
-
 use bevy::prelude::*;
 
+use super::blend::BlendMemory;
 use super::constraints::core_effector;
-use super::plugin::PoseState;
-use super::poll::store_landed;
-use super::{
-    PoseBlend, PoseFailed, PoseInFrame, PoseSolved, PoseStatus, Poseable, PoseableError,
-    PosedSkeleton,
-};
-use crate::pose::{
-    EffectorGoal, PoseSolution, PoseSolveOptions, PoseSolver, PoseSolverSettings, PoseStart,
-    SkeletonPose,
-};
+use super::solve::{SolveJob, SolveResult, store_landed};
+use super::state::{LastSolve, PoseDrivers, PoseSolves};
+use super::{PoseBlend, PoseFailed, PoseInFrame, PoseSolved, PoseStatus, Poseable, PosedSkeleton};
+use crate::pose::EffectorGoal;
 
 /// What an in-frame solve reads and writes of a character.
 type InFrameCharacter = (
     Entity,
-    &'static Poseable,
-    &'static PoseInFrame,
+    (&'static Poseable, &'static PoseInFrame),
     &'static mut PosedSkeleton,
-    &'static mut PoseState,
+    (
+        &'static PoseDrivers,
+        &'static mut PoseSolves,
+        &'static mut LastSolve,
+        &'static BlendMemory,
+    ),
     &'static mut PoseStatus,
     Option<&'static PoseBlend>,
 );
@@ -43,15 +39,18 @@ pub(super) fn solve_in_frame(
     mut failed: MessageWriter<PoseFailed>,
 ) {
     characters.par_iter_mut().for_each(
-        |(_, poseable, in_frame, mut posed, mut state, mut status, blend)| {
-            let state = state.bypass_change_detection();
-            refresh_goals(state, &posed, &locals);
-            let Some(outcome) = solve_pending(state, &posed, poseable, in_frame) else {
+        |(_, settings, mut posed, (drivers, mut solves, mut last, memory), mut status, blend)| {
+            let solves = solves.bypass_change_detection();
+            let last = last.bypass_change_detection();
+            refresh_goals(drivers, solves, &posed, &locals);
+            let Some(outcome) = solve_pending(solves, drivers, last, &posed, settings) else {
                 return;
             };
-            state.in_frame_outcome = Some(match outcome {
-                Ok((solver, solution, ms)) => {
-                    store_landed(&mut posed, state, &mut status, blend, solver, solution, ms);
+            solves.in_frame_outcome = Some(match outcome {
+                Ok(landed) => {
+                    let ms = landed.ms;
+                    let more = solves.pending.is_some();
+                    store_landed(&mut posed, last, &mut status, (blend, memory), landed, more);
                     Ok(ms)
                 }
                 Err(error) => {
@@ -61,8 +60,8 @@ pub(super) fn solve_in_frame(
             });
         },
     );
-    for (entity, .., mut state, status, _) in &mut characters {
-        match state.bypass_change_detection().in_frame_outcome.take() {
+    for (entity, _, _, (_, mut solves, ..), status, _) in &mut characters {
+        match solves.bypass_change_detection().in_frame_outcome.take() {
             Some(Ok(ms)) => {
                 solved.write(PoseSolved {
                     entity,
@@ -106,17 +105,22 @@ fn current_global(entity: Entity, locals: &Locals) -> Option<GlobalTransform> {
 /// animation), in character space: into the pending constraints, or — when nothing was asked
 /// in `Update` but a target moved since (an animated carrier) — into a new request made from
 /// the last solved constraints.
-fn refresh_goals(state: &mut PoseState, posed: &PosedSkeleton, locals: &Locals) {
-    if state.effector_sources.is_empty() {
+fn refresh_goals(
+    drivers: &PoseDrivers,
+    solves: &mut PoseSolves,
+    posed: &PosedSkeleton,
+    locals: &Locals,
+) {
+    if drivers.effector_sources.is_empty() {
         return;
     }
-    let Some(base) = state.pending.as_ref().or(state.solved.as_ref()) else {
+    let Some(base) = solves.pending.as_ref().or(solves.solved.as_ref()) else {
         return;
     };
     // The goals that changed, read without touching (or copying) the constraints: most frames
     // of a character whose targets stand still change nothing.
     let to_character = posed.placement.inverse();
-    let changed: Vec<(usize, EffectorGoal)> = state
+    let changed: Vec<(usize, EffectorGoal)> = drivers
         .effector_sources
         .iter()
         .filter_map(|(index, entity, effector)| {
@@ -128,14 +132,14 @@ fn refresh_goals(state: &mut PoseState, posed: &PosedSkeleton, locals: &Locals) 
     if changed.is_empty() {
         return;
     }
-    let Some(mut constraints) = state.pending.take().or_else(|| state.solved.clone()) else {
+    let Some(mut constraints) = solves.pending.take().or_else(|| solves.solved.clone()) else {
         return;
     };
     for (index, goal) in changed {
         constraints.effectors[index].goal = goal;
     }
     // Mirrored effectors (symmetric editing) follow their originals.
-    if let Some(symmetry) = &state.symmetry {
+    if let Some(symmetry) = &drivers.symmetry {
         for &(original, mirrored) in &symmetry.mirrored_effectors {
             let image = constraints
                 .effectors
@@ -146,61 +150,35 @@ fn refresh_goals(state: &mut PoseState, posed: &PosedSkeleton, locals: &Locals) 
             }
         }
     }
-    state.pending = Some(constraints);
+    solves.pending = Some(constraints);
 }
-
-type Solved = Result<(Arc<PoseSolver>, PoseSolution, f64), PoseableError>;
 
 /// Solves the pending constraints within the frame's iteration budget (`None`: nothing
 /// pending), warm-started from the last solve when its solver still fits.
 fn solve_pending(
-    state: &mut PoseState,
+    solves: &mut PoseSolves,
+    drivers: &PoseDrivers,
+    last: &LastSolve,
     posed: &PosedSkeleton,
-    poseable: &Poseable,
-    in_frame: &PoseInFrame,
-) -> Option<Solved> {
-    let constraints = state.pending.take()?;
-    let reference = state.reference.clone()?;
-    let t0 = Instant::now();
-    let reuse = state.solver.clone().filter(|s| s.accepts(&constraints));
-    let start: Option<SkeletonPose> = state.start.take();
-    let solve = || -> Solved {
-        // Only a solution of the reused solver seeds this one (a start given: an additive
-        // layer's pose on screen).
-        let last = state.last.as_deref().filter(|_| reuse.is_some());
-        let solver = match reuse {
-            Some(s) => s,
-            None => Arc::new(PoseSolver::new(
-                posed.model.clone(),
-                &constraints,
-                &reference,
-                PoseSolverSettings::default(),
-            )?),
-        };
-        let current = start.as_ref().unwrap_or(&posed.pose);
-        let from = PoseStart::following(last, current, start.is_some());
-        let options = PoseSolveOptions {
-            max_iterations: in_frame.iterations.max(1),
-            tolerance: poseable.tolerance.max(0.0) as f64,
-        };
-        let solution = solver.solve(&constraints, &options, from, &|| false)?;
-        Ok((solver, solution, t0.elapsed().as_secs_f64() * 1e3))
-    };
-    let outcome = solve();
+    (poseable, in_frame): (&Poseable, &PoseInFrame),
+) -> Option<SolveResult> {
+    let budget = in_frame.iterations.max(1);
+    let job = SolveJob::take(solves, drivers, last, posed, poseable.options_with(budget))?;
+    let outcome = job.run(&|| false);
+    let constraints = job.constraints;
     // The whole budget used and still improving: the same targets go on next frame
     // (warm-started), so a pose whose targets stop moving settles over a few frames.
-    let again = matches!(&outcome, Ok((_, solution, _))
-        if solution.stats.iterations >= in_frame.iterations.max(1))
-        && state.pending.is_none();
+    let again = matches!(&outcome, Ok(landed) if landed.solution.stats.iterations >= budget)
+        && solves.pending.is_none();
     // Kept (with effectors) so that a target moved after `Update` can ask again.
-    let keep = !state.effector_sources.is_empty();
+    let keep = !drivers.effector_sources.is_empty();
     match (again, keep) {
         (true, true) => {
-            state.solved = Some(constraints.clone());
-            state.pending = Some(constraints);
+            solves.solved = Some(constraints.clone());
+            solves.pending = Some(constraints);
         }
-        (true, false) => state.pending = Some(constraints),
-        (false, true) => state.solved = Some(constraints),
+        (true, false) => solves.pending = Some(constraints),
+        (false, true) => solves.solved = Some(constraints),
         (false, false) => {}
     }
     Some(outcome)

@@ -33,12 +33,15 @@
 mod apply;
 mod blend;
 mod constraints;
+mod convert;
 mod in_frame;
 mod picking;
 mod plugin;
 mod poll;
 mod prepare;
 mod request;
+mod solve;
+mod state;
 mod symmetry;
 mod timeline;
 
@@ -85,6 +88,21 @@ impl Default for Poseable {
             tolerance: 1e-5,
             clusters: 100,
             hold_pose: true,
+        }
+    }
+}
+
+impl Poseable {
+    /// The options of a background solve of this character.
+    pub(crate) fn solve_options(&self) -> crate::pose::PoseSolveOptions {
+        self.options_with(self.max_iterations)
+    }
+
+    /// The options of a solve of at most `iterations` iterations (an in-frame budget).
+    pub(crate) fn options_with(&self, iterations: u32) -> crate::pose::PoseSolveOptions {
+        crate::pose::PoseSolveOptions {
+            max_iterations: iterations.max(1),
+            tolerance: self.tolerance.max(0.0) as f64,
         }
     }
 }
@@ -144,28 +162,35 @@ impl PoseJointHandle {
     }
 }
 
-/// What holds a character while a pointer grab bends it: put on the character by
-/// [`GrabPlugin`](crate::ecs::GrabPlugin) when a character with no [`PinnedJoints`] is
-/// grabbed, removed when the grab ends. Without it, a grab on the ear would carry the whole
-/// character along instead of bending it.
-///
-/// The grab pins every joint its region ([`Grabbable::region_radius`] along the surface from
-/// the grabbed point) does not reach — no vertex of the region is weighted to the joint or to
-/// any joint below it: grabbing the head pins the legs and the tail, so the feet stay and the
-/// spine, neck and head bend. A character of one chain (every joint reaches the region) is
-/// held by the farther half of its surface instead. Insert it yourself to anchor any solve the
-/// same way.
+/// Joints and vertices of a [`Poseable`] character held where they are for the current
+/// driver set, besides its [`PinnedJoints`]: an anchor for a solve that should bend the body
+/// rather than carry it. The pose plugin treats it like pins; it is the mechanism, not a
+/// policy. The grab plugin ([`GrabPlugin`](crate::ecs::GrabPlugin)) decides one when a
+/// character with no [`PinnedJoints`] is grabbed and removes it when the grab ends: it pins
+/// every joint the grab's region ([`Grabbable::region_radius`] along the surface from the
+/// grabbed point) does not reach — no vertex of the region is weighted to the joint or to any
+/// joint below it — so grabbing the head pins the legs and the tail, the feet stay and the
+/// spine, neck and head bend; a character of one chain (every joint reaches the region) is
+/// held by the farther half of its surface instead. Insert it yourself to anchor any solve.
+/// (Called `GrabAnchor` before 0.2; the grab's decision lives in `ecs/input/grab`.)
 ///
 /// [`Grabbable::region_radius`]: crate::ecs::Grabbable::region_radius
 #[derive(Component, Debug, Clone, Default, PartialEq, Reflect)]
 #[reflect(Component, Default)]
-pub struct GrabAnchor {
+pub struct PoseAnchor {
     /// Joint entities pinned (position and orientation) where they are.
     #[entities]
     pub joints: Vec<Entity>,
     /// Welded vertex indices of the model kept where they are.
     pub vertices: Vec<u32>,
 }
+
+/// The old name of [`PoseAnchor`].
+#[deprecated(
+    since = "0.2.0",
+    note = "renamed `PoseAnchor`: a pose mechanism the grab plugin uses"
+)]
+pub type GrabAnchor = PoseAnchor;
 
 /// On a [`DeformHandle`](crate::ecs::DeformHandle) aimed at a character: only the centroid
 /// of the handle's vertices follows the handle's translation, their orientation is left to
@@ -284,6 +309,26 @@ pub struct PoseStiffness(pub f32);
 #[reflect(Component, Default)]
 pub struct SymmetricEditing;
 
+/// A character's skin, found and read from the ECS as the pose plugin reads it
+/// ([`CharacterSkin::read`]): the skinned primitives' combined mesh (and where each starts),
+/// the skin's joints in skeleton order (parents first: the nearest joint ancestor; a root's
+/// parent frame is its parent entity's transform) with their current local transforms. The
+/// plugin builds a character's [`SkinnedModel`](crate::pose::SkinnedModel) from exactly this:
+/// `SkinnedModel::new(skeleton, &mesh, &reference, settings)`.
+#[derive(Debug, Clone)]
+pub struct CharacterSkin {
+    /// The primitives' meshes as one (joint indices in skeleton order).
+    pub mesh: crate::pose::SkinnedMesh,
+    /// Each skinned primitive entity and its first vertex in [`CharacterSkin::mesh`].
+    pub primitives: Vec<(Entity, u32)>,
+    /// The joints, parents first.
+    pub skeleton: crate::pose::Skeleton,
+    /// The joint entities, indexed like [`CharacterSkin::skeleton`].
+    pub joints: Vec<Entity>,
+    /// The joints' local transforms when read: the pose the model is built in.
+    pub reference: crate::pose::SkeletonPose,
+}
+
 /// Where a poseable character stands; readable by UIs.
 #[derive(Component, Debug, Clone, Default, Reflect)]
 #[reflect(Component, Default)]
@@ -306,6 +351,11 @@ pub struct PoseStatus {
     /// characters again).
     #[reflect(skip_serializing)]
     pub error: Option<PoseableError>,
+    /// Something missing that does not stop posing: a dependency of the character's glTF
+    /// (a texture's image file) that failed to load, with the loader's message naming it
+    /// (from [`MissingSceneAssets`](crate::ecs::MissingSceneAssets)).
+    #[reflect(skip_serializing)]
+    pub warning: Option<String>,
 }
 
 /// Why a character could not be made poseable or posed (in [`PoseFailed`] and

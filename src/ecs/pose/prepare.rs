@@ -13,10 +13,12 @@ use bevy::tasks::AsyncComputeTaskPool;
 use bevy::world_serialization::WorldAssetRoot;
 use glam::DAffine3;
 
-use super::plugin::{PoseState, fail};
+use super::blend::BlendMemory;
+use super::convert::{affine, joint_transform};
+use super::state::{CharacterSpace, LastSolve, ModelBuild, PoseDrivers, PoseSolves, fail};
 use super::{
-    ModelKey, PoseFailed, PoseModels, PoseStatus, Poseable, PoseableError, PosedSkeleton,
-    SharedModel,
+    CharacterSkin, ModelKey, PoseFailed, PoseModels, PoseStatus, Poseable, PoseableError,
+    PosedSkeleton, SharedModel,
 };
 use crate::ecs::DeformPhase;
 use crate::ecs::scene::{SceneSpawned, scene_load_failure};
@@ -24,22 +26,6 @@ use crate::pose::placement::similarity;
 use crate::pose::{
     Joint, JointTransform, ModelSettings, Skeleton, SkeletonPose, SkinnedMesh, SkinnedModel,
 };
-
-pub(super) fn affine(t: &GlobalTransform) -> DAffine3 {
-    let a = t.affine();
-    DAffine3::from_mat3_translation(
-        glam::Mat3::from(a.matrix3).as_dmat3(),
-        Vec3::from(a.translation).as_dvec3(),
-    )
-}
-
-pub(super) fn joint_transform(t: &Transform) -> JointTransform {
-    JointTransform {
-        translation: t.translation.as_dvec3(),
-        rotation: t.rotation.as_dquat().normalize(),
-        scale: t.scale.as_dvec3(),
-    }
-}
 
 /// Reads positions, indices and skin attributes of one primitive.
 pub(super) fn skinned_mesh_of(mesh: &Mesh) -> Result<SkinnedMesh, PoseableError> {
@@ -92,16 +78,6 @@ pub(super) struct SkinSources<'w, 's> {
     globals: Query<'w, 's, &'static GlobalTransform>,
 }
 
-/// A character's skin, found and read: the primitives' combined mesh (and where each starts),
-/// the joints in skeleton order and their current local transforms.
-struct FoundSkin {
-    mesh: SkinnedMesh,
-    primitives: Vec<(Entity, u32)>,
-    skeleton: Skeleton,
-    joints: Vec<Entity>,
-    reference: SkeletonPose,
-}
-
 impl SkinSources<'_, '_> {
     /// The skinned primitives at and below `entity`.
     fn primitives(&self, entity: Entity) -> Vec<Entity> {
@@ -117,7 +93,7 @@ impl SkinSources<'_, '_> {
         &self,
         primitives: &[Entity],
         to_character: &DAffine3,
-    ) -> Result<Option<FoundSkin>, PoseableError> {
+    ) -> Result<Option<CharacterSkin>, PoseableError> {
         let Some((skin, _)) = primitives.first().and_then(|p| self.skins.get(*p).ok()) else {
             return Err(PoseableError::NoSkinnedMesh);
         };
@@ -151,7 +127,7 @@ impl SkinSources<'_, '_> {
         for ji in &mut mesh.joint_indices {
             *ji = ji.map(|j| new_index.get(j as usize).copied().unwrap_or(u16::MAX));
         }
-        Ok(Some(FoundSkin {
+        Ok(Some(CharacterSkin {
             mesh,
             primitives,
             skeleton,
@@ -284,6 +260,34 @@ impl SkinSources<'_, '_> {
     }
 }
 
+impl CharacterSkin {
+    /// Reads the skin of the character at (or below) `character` from `world` as the pose
+    /// plugin does — in character space when the character is placed by a similarity (see
+    /// [`PosedSkeleton::placement`]), else in world space: what a benchmark or tool needs to
+    /// build the same [`SkinnedModel`] without the plugin. `Ok(None)` while a mesh or its
+    /// inverse bind poses are still loading; an error when there is no skinned mesh, a joint is
+    /// missing or the skeleton is malformed.
+    pub fn read(world: &mut World, character: Entity) -> Result<Option<Self>, PoseableError> {
+        let mut state = bevy::ecs::system::SystemState::<SkinSources>::new(world);
+        let Ok(sources) = state.get(world) else {
+            // The app has no mesh or skin assets at all.
+            return Err(PoseableError::NoSkinnedMesh);
+        };
+        let primitives = sources.primitives(character);
+        if primitives.is_empty() {
+            return Err(PoseableError::NoSkinnedMesh);
+        }
+        let to_character = sources
+            .globals
+            .get(character)
+            .ok()
+            .map(affine)
+            .and_then(|g| similarity(&g))
+            .map_or(DAffine3::IDENTITY, |p| p.inverse());
+        sources.read(&primitives, &to_character)
+    }
+}
+
 /// Finds the skinned primitives and joints of new [`Poseable`]s and starts building their
 /// models in the background — or takes the model another instance of the same asset built
 /// ([`PoseModels`]), waiting while that one is still being built.
@@ -298,7 +302,7 @@ pub(super) fn find_skins(
             Option<&WorldAssetRoot>,
             Has<SceneSpawned>,
         ),
-        Without<PoseState>,
+        (Without<ModelBuild>, Without<PosedSkeleton>),
     >,
     assets: Option<Res<AssetServer>>,
     sources: SkinSources,
@@ -349,78 +353,100 @@ pub(super) fn find_skins(
                 continue;
             }
         };
-        let FoundSkin {
+        let CharacterSkin {
             mesh,
             primitives,
             skeleton,
             joints: joint_entities,
             reference,
         } = found;
-        let mut state = PoseState::new(joint_entities, primitives);
-        state.placement = placement;
+        let mut build = ModelBuild {
+            task: None,
+            joints: joint_entities,
+            primitives,
+            placement,
+            shared_key: None,
+        };
         if let Some(model) = shared {
-            let posed = posed_skeleton(model, &state, &joints, &mut status);
-            commands.entity(entity).try_insert((state, posed));
+            insert_prepared(
+                &mut commands.entity(entity),
+                model,
+                &build,
+                &joints,
+                &mut status,
+            );
             continue;
         }
         if let Some(key) = key {
             models.entries.insert(key.clone(), SharedModel::Building);
-            state.shared_key = Some(key);
+            build.shared_key = Some(key);
         }
         let settings = ModelSettings {
             clusters: clusters as usize,
             ..Default::default()
         };
-        state.building =
+        build.task =
             Some(AsyncComputeTaskPool::get().spawn(async move {
                 Ok(SkinnedModel::new(skeleton, &mesh, &reference, settings)?)
             }));
         status.phase = DeformPhase::BuildingTopology;
-        commands.entity(entity).try_insert(state);
+        commands.entity(entity).try_insert(build);
     }
 }
 
-/// [`PosedSkeleton`] for a character whose model is ready (the joints' current pose), and its
-/// status: idle, with the model's joint and vertex counts.
-fn posed_skeleton(
+/// What a character whose model is ready gets: [`PosedSkeleton`] (the joints' current pose)
+/// and the solve state (see `state.rs`); its status becomes idle, with the model's joint and
+/// vertex counts.
+fn insert_prepared(
+    entity: &mut EntityCommands,
     model: Arc<SkinnedModel>,
-    state: &PoseState,
+    build: &ModelBuild,
     joints: &Query<&Transform>,
     status: &mut PoseStatus,
-) -> PosedSkeleton {
+) {
     status.phase = DeformPhase::Idle;
     status.joints = model.skeleton().len();
     status.vertices = model.topology().vertex_count();
     let pose = SkeletonPose {
-        local: state
+        local: build
             .joints
             .iter()
             .map(|&j| joints.get(j).map(joint_transform).unwrap_or_default())
             .collect(),
     };
-    PosedSkeleton {
+    let posed = PosedSkeleton {
         model,
-        joints: state.joints.clone(),
-        primitives: state.primitives.clone(),
+        joints: build.joints.clone(),
+        primitives: build.primitives.clone(),
         pose,
-        placement: state.placement.unwrap_or(DAffine3::IDENTITY),
+        placement: build.placement.unwrap_or(DAffine3::IDENTITY),
+    };
+    let state = (
+        PoseDrivers::default(),
+        PoseSolves::default(),
+        LastSolve::default(),
+        BlendMemory::default(),
+    );
+    entity.try_remove::<ModelBuild>().try_insert((posed, state));
+    if build.placement.is_some() {
+        entity.try_insert(CharacterSpace);
     }
 }
 
-/// Collects built models (sharing each with later instances of the asset); inserts
-/// [`PosedSkeleton`] with the joints' current pose.
+/// Collects built models (sharing each with later instances of the asset); gives each its
+/// [`PosedSkeleton`] with the joints' current pose and its solve state.
 pub(super) fn finish_models(
     mut commands: Commands,
-    mut building: Query<(Entity, &mut PoseState, &mut PoseStatus)>,
+    mut building: Query<(Entity, &mut ModelBuild, &mut PoseStatus)>,
     joints: Query<&Transform>,
     mut models: ResMut<PoseModels>,
     mut failed: MessageWriter<PoseFailed>,
 ) {
-    for (entity, mut state, mut status) in &mut building {
-        let Some(result) = poll_slot(&mut state.building) else {
+    for (entity, mut build, mut status) in &mut building {
+        let Some(result) = poll_slot(&mut build.task) else {
             continue;
         };
-        let key = state.shared_key.take();
+        let key = build.shared_key.take();
         match result {
             Ok(model) => {
                 let model = Arc::new(model);
@@ -430,8 +456,13 @@ pub(super) fn finish_models(
                         .entries
                         .insert(key, SharedModel::Ready(Arc::downgrade(&model)));
                 }
-                let posed = posed_skeleton(model, &state, &joints, &mut status);
-                commands.entity(entity).try_insert(posed);
+                insert_prepared(
+                    &mut commands.entity(entity),
+                    model,
+                    &build,
+                    &joints,
+                    &mut status,
+                );
             }
             Err(e) => {
                 if let Some(key) = key {

@@ -3,30 +3,27 @@
 //! the handles on the pose on screen, a moved one queues a solve (latest wins) in the
 //! background.
 
-use std::sync::Arc;
-
 use bevy::prelude::*;
 
+use super::blend::BlendMemory;
 use super::constraints::{
     SetKey, core_effector, joint_handle, rebase, resolve_limits, vertex_handles,
 };
-use super::plugin::{PoseState, fail};
-use super::prepare::{affine, joint_transform};
+use super::convert::{affine, joint_transform};
+use super::solve::SolveJob;
+use super::state::{CharacterSpace, LastSolve, PoseDrivers, PoseSolves, fail};
 use super::symmetry::Symmetry;
 use super::{
-    GrabAnchor, HandlePositionOnly, PinnedJoints, PoseBlend, PoseBlendMode, PoseEffector,
+    HandlePositionOnly, PinnedJoints, PoseAnchor, PoseBlend, PoseBlendMode, PoseEffector,
     PoseFailed, PoseInFrame, PoseJointHandle, PoseLimits, PoseStatus, PoseStiffness, Poseable,
     PosedSkeleton, SymmetricEditing,
 };
-use crate::ecs::{DeformHandle, DeformPhase};
+use crate::ecs::DeformHandle;
 use crate::pose::placement::similarity;
-use crate::pose::{
-    Effector, JointTransform, PoseConstraints, PoseSolveOptions, PoseSolver, PoseSolverSettings,
-    PoseStart, ReferenceStiffness, SkeletonPose,
-};
+use crate::pose::{Effector, JointTransform, PoseConstraints, ReferenceStiffness, SkeletonPose};
 
 /// A character grabbed with no anchor (compared in place every frame, never allocated).
-static NO_ANCHOR: GrabAnchor = GrabAnchor {
+static NO_ANCHOR: PoseAnchor = PoseAnchor {
     joints: Vec::new(),
     vertices: Vec::new(),
 };
@@ -39,6 +36,7 @@ pub(super) struct CharacterSettings {
     symmetric: Has<SymmetricEditing>,
     blend: Option<&'static PoseBlend>,
     global: Option<&'static GlobalTransform>,
+    character_space: Has<CharacterSpace>,
 }
 
 impl CharacterSettingsItem<'_, '_> {
@@ -84,9 +82,14 @@ type RequestingCharacter = (
     &'static Poseable,
     &'static mut PosedSkeleton,
     Option<Ref<'static, PinnedJoints>>,
-    Option<&'static GrabAnchor>,
+    Option<&'static PoseAnchor>,
     CharacterSettings,
-    &'static mut PoseState,
+    (
+        &'static mut PoseDrivers,
+        &'static mut PoseSolves,
+        &'static mut LastSolve,
+        &'static BlendMemory,
+    ),
     &'static mut PoseStatus,
 );
 
@@ -149,7 +152,7 @@ impl<'a> Drivers<'a> {
     }
 
     /// The key of this set of drivers, pins and anchor.
-    fn key(&self, pins: &[Entity], anchor: &GrabAnchor) -> SetKey {
+    fn key(&self, pins: &[Entity], anchor: &PoseAnchor) -> SetKey {
         SetKey {
             handles: self
                 .handles
@@ -169,7 +172,7 @@ impl<'a> Drivers<'a> {
     }
 
     /// Whether the set differs from `key` (or a handle has not been placed yet).
-    fn set_changed(&self, key: Option<&SetKey>, pins: &[Entity], anchor: &GrabAnchor) -> bool {
+    fn set_changed(&self, key: Option<&SetKey>, pins: &[Entity], anchor: &PoseAnchor) -> bool {
         let same = key.is_some_and(|k| {
             k.matches(&self.handles, &self.joint_handles, pins)
                 && k.anchor == *anchor
@@ -211,7 +214,7 @@ fn on_screen(posed: &PosedSkeleton, joints: &JointTransforms) -> SkeletonPose {
 /// Starts a new set of drivers: the reference pose is what is on screen (an override blend's
 /// layer is its own pose), the handles are rebased on it, and the solver is rebuilt.
 fn start_set(
-    state: &mut PoseState,
+    (state, last): (&mut PoseDrivers, &mut LastSolve),
     posed: &mut PosedSkeleton,
     drivers: &mut Drivers,
     key: SetKey,
@@ -260,17 +263,16 @@ fn start_set(
     }
     state.key = Some(key);
     state.reference = Some(reference);
-    state.solver = None;
-    state.last = None;
+    last.forget_solver();
 }
 
 /// The constraints of the current drivers, and where the solve starts when not from the held
 /// pose (an additive layer starts from what is on screen).
 fn constraints_of(
-    state: &mut PoseState,
+    (state, memory): (&mut PoseDrivers, &BlendMemory),
     posed: &PosedSkeleton,
     drivers: &Drivers,
-    (pins, anchor): (&[Entity], &GrabAnchor),
+    (pins, anchor): (&[Entity], &PoseAnchor),
     extras: &CharacterSettingsItem,
     joints: &JointTransforms,
 ) -> Result<(PoseConstraints, Option<SkeletonPose>), super::PoseableError> {
@@ -304,7 +306,7 @@ fn constraints_of(
     // back to nothing where nothing pulls), else the reference the drivers were set on.
     let animated = extras
         .additive()
-        .then(|| state.blend.animated_pose())
+        .then(|| memory.animated_pose())
         .filter(|p| p.local.len() == posed.joints.len());
     let stiffness = extras
         .stiffness
@@ -352,12 +354,8 @@ fn constraints_of(
 
 /// Keeps [`PosedSkeleton::placement`] on the character's `GlobalTransform` (a model in
 /// character space only); true when it moved, so that world-space drivers are solved again.
-fn follow_placement(
-    state: &mut Mut<PoseState>,
-    posed: &mut Mut<PosedSkeleton>,
-    global: Option<&GlobalTransform>,
-) -> bool {
-    let (Some(_), Some(global)) = (state.placement, global) else {
+fn follow_placement(posed: &mut Mut<PosedSkeleton>, extras: &CharacterSettingsItem) -> bool {
+    let (true, Some(global)) = (extras.character_space, extras.global) else {
         return false;
     };
     let Some(now) = similarity(&affine(global)) else {
@@ -367,7 +365,6 @@ fn follow_placement(
         return false;
     }
     posed.placement = now;
-    state.bypass_change_detection().placement = Some(now);
     true
 }
 
@@ -380,10 +377,11 @@ pub(super) fn request_pose_solves(
     (position_only, effectors): (Query<(), With<HandlePositionOnly>>, Effectors),
     mut failed: MessageWriter<PoseFailed>,
 ) {
-    for ((entity, in_frame), poseable, mut posed, pins, anchor, extras, mut state, mut status) in
+    for ((entity, in_frame), poseable, mut posed, pins, anchor, extras, parts, mut status) in
         &mut characters
     {
-        let placed = follow_placement(&mut state, &mut posed, extras.global);
+        let (mut drivers_state, mut solves, mut last, memory) = parts;
+        let placed = follow_placement(&mut posed, &extras);
         let mut drivers = Drivers::of(
             entity,
             &mut handles,
@@ -392,14 +390,17 @@ pub(super) fn request_pose_solves(
             &position_only,
         );
         if drivers.is_empty() {
-            state.bypass_change_detection().key = None;
+            drivers_state.bypass_change_detection().key = None;
             continue; // nothing drives the pose
         }
         let pinned = pins.as_ref().map_or(&[][..], |p| &p.0[..]);
         let anchor = anchor.unwrap_or(&NO_ANCHOR);
-        if drivers.set_changed(state.key.as_ref(), pinned, anchor) {
+        if drivers.set_changed(drivers_state.key.as_ref(), pinned, anchor) {
             let key = drivers.key(pinned, anchor);
-            let state = state.bypass_change_detection();
+            let state = (
+                drivers_state.bypass_change_detection(),
+                last.bypass_change_detection(),
+            );
             start_set(state, &mut posed, &mut drivers, key, &extras, &joints);
             continue; // the rebased Transforms trigger the solve next frame
         }
@@ -409,69 +410,37 @@ pub(super) fn request_pose_solves(
             || placed
             || pins.as_ref().is_some_and(|p| p.is_changed())
             || settings_changed
-            || extras.additive() && state.blend.moved;
-        if !changed && state.pending.is_none() {
+            || extras.additive() && memory.moved;
+        if !changed && solves.pending.is_none() {
             continue;
         }
-        let state = state.bypass_change_detection();
-        let (constraints, start) =
-            match constraints_of(state, &posed, &drivers, (pinned, anchor), &extras, &joints) {
-                Ok(c) => c,
-                Err(e) => {
-                    fail(entity, e, &mut status, &mut failed);
-                    continue;
-                }
-            };
-        state.pending = Some(constraints);
-        state.start = start;
+        let driver_state = drivers_state.bypass_change_detection();
+        let built = constraints_of(
+            (driver_state, memory),
+            &posed,
+            &drivers,
+            (pinned, anchor),
+            &extras,
+            &joints,
+        );
+        let (constraints, start) = match built {
+            Ok(c) => c,
+            Err(e) => {
+                fail(entity, e, &mut status, &mut failed);
+                continue;
+            }
+        };
+        let solves = solves.bypass_change_detection();
+        solves.pending = Some(constraints);
+        solves.start = start;
         if in_frame {
             continue; // solved in `PostUpdate`, after animation (`in_frame.rs`)
         }
-        state.solve.supersede();
-        if !state.solve.is_running() {
-            spawn_pose_solve(state, &posed, poseable, &mut status);
+        solves.task.supersede();
+        if !solves.task.is_running() {
+            let options = poseable.solve_options();
+            let last = last.bypass_change_detection();
+            SolveJob::launch(solves, driver_state, last, &posed, options, &mut status);
         }
     }
-}
-pub(super) fn spawn_pose_solve(
-    state: &mut PoseState,
-    posed: &PosedSkeleton,
-    poseable: &Poseable,
-    status: &mut PoseStatus,
-) {
-    let Some(constraints) = state.pending.take() else {
-        return;
-    };
-    let Some(reference) = state.reference.clone() else {
-        return;
-    };
-    state.running = Some(constraints.clone());
-    let model = posed.model.clone();
-    let reuse = state.solver.clone().filter(|s| s.accepts(&constraints));
-    // Only a solution of the reused solver seeds this one (a start given: an additive
-    // layer's pose on screen).
-    let last = state.last.clone().filter(|_| reuse.is_some());
-    let given = state.start.is_some();
-    let current = state.start.take().unwrap_or_else(|| posed.pose.clone());
-    let options = PoseSolveOptions {
-        max_iterations: poseable.max_iterations.max(1),
-        tolerance: poseable.tolerance.max(0.0) as f64,
-    };
-    status.phase = DeformPhase::Solving;
-    state.solve.spawn(move |cancellation| {
-        let t0 = std::time::Instant::now();
-        let solver = match reuse {
-            Some(s) => s,
-            None => Arc::new(PoseSolver::new(
-                model,
-                &constraints,
-                &reference,
-                PoseSolverSettings::default(),
-            )?),
-        };
-        let start = PoseStart::following(last.as_deref(), &current, given);
-        let cancel = || cancellation.superseded();
-        let solution = solver.solve(&constraints, &options, start, &cancel)?;
-        Ok((solver, solution, t0.elapsed().as_secs_f64() * 1e3))
-    });
 }

@@ -1,46 +1,47 @@
-//! [`Deformable`] on an ancestor: a glTF `WorldAssetRoot` (Bevy 0.19's scene root) or any node
-//! of a hierarchy. The mesh primitives below it each get their own [`Deformable`] (a copy of
-//! the ancestor's, kept in sync) and a [`DeformableFrom`] naming the ancestor.
+//! glTF scene roots (`WorldAssetRoot`, Bevy 0.19's scene root) as the deform and pose plugins
+//! need them: when a root's instance has spawned (glTF splits a mesh into one entity per
+//! primitive under node entities that carry the node transforms, and the scene is spawned some
+//! frames after its asset loads), why a scene failed to load (a missing or malformed file: the
+//! loader's message), and what it misses.
 //!
-//! glTF splits a mesh into one entity per primitive under node entities that carry the node
-//! transforms, and the scene is spawned some frames after its asset loads; this waits for
-//! that (`WorldInstanceReady`). A scene that fails to load (a missing or malformed file) gets
-//! a [`DeformFailed`] with `DeformError::SceneLoadFailed` and the loader's message. A target
-//! with no mesh below it gets [`DeformError::NoMeshBelow`] — once the scene has spawned, or,
-//! for an entity that is not a scene root, after [`MESH_WAIT_FRAMES`] frames of waiting for
-//! children that a spawner adds late.
+//! A scene whose own file loads but one of whose dependencies does not — typically a texture
+//! whose image file was not copied beside the model (`"uri": "default.bmp"`) — is *not* a
+//! failure: its geometry, skin and animations are all in the file. It spawns, deforms and
+//! poses as usual; its root gets [`MissingSceneAssets`] naming the file that is missing, a
+//! [`SceneAssetsMissing`] message is written and a warning logged, and the pose and deform
+//! statuses carry it as their `warning`. Drawing such a model needs a material without the
+//! missing texture (Bevy draws nothing for a material whose image failed): the examples'
+//! `examples/common/missing_textures.rs` shows the few lines that swap it out.
 //!
-//! This file holds the components; `plugin.rs` the systems, which [`DeformPlugin`](crate::ecs::DeformPlugin) adds.
+//! This file holds the components; `plugin.rs` the systems and [`SceneRootPlugin`], which
+//! [`DeformPlugin`](crate::ecs::DeformPlugin) and [`PosePlugin`](crate::ecs::PosePlugin) add.
 
 mod plugin;
 
 use bevy::prelude::*;
 
-#[cfg(doc)]
-use crate::ecs::{DeformError, DeformFailed, Deformable};
-
-pub use plugin::MESH_WAIT_FRAMES;
-pub(crate) use plugin::{
-    expand_deformable_ancestors, mark_scene_spawned, scene_load_failure, sync_deformable_ancestors,
-};
-
-/// On an ancestor whose [`Deformable`] was handed to the mesh primitives below it: those
-/// primitives, in hierarchy order.
-#[derive(Component, Debug, Clone, Default, PartialEq, Reflect)]
-#[reflect(Component, Default)]
-pub struct DeformableScene {
-    /// The primitive entities that are deformable because of this ancestor.
-    #[entities]
-    pub primitives: Vec<Entity>,
-}
-
-/// On a mesh primitive that is deformable because an ancestor is: that ancestor. Its
-/// [`Deformable`] follows the ancestor's.
-#[derive(Component, Debug, Clone, Copy, PartialEq, Eq, Reflect)]
-#[reflect(Component)]
-pub struct DeformableFrom(#[entities] pub Entity);
+pub use plugin::SceneRootPlugin;
+pub(crate) use plugin::{add_scene_roots, scene_load_failure};
 
 /// Marks a scene root whose instance has spawned (set by an observer of
 /// `WorldInstanceReady`).
 #[derive(Component, Debug, Clone, Copy, Default)]
 pub(crate) struct SceneSpawned;
+
+/// On a scene root whose file loaded but some of whose dependencies (images, most often) did
+/// not: the loader's message for the first one, which names the missing file. The scene
+/// still spawns and works; only what the missing file held is absent.
+#[derive(Component, Debug, Clone, PartialEq, Eq)]
+pub struct MissingSceneAssets {
+    /// The loader's message (first line), e.g. `Path not found: …/default.bmp`.
+    pub message: String,
+}
+
+/// Written once per scene root when [`MissingSceneAssets`] is inserted.
+#[derive(Message, Debug, Clone, PartialEq, Eq)]
+pub struct SceneAssetsMissing {
+    /// The scene root.
+    pub entity: Entity,
+    /// The loader's message for the missing dependency.
+    pub message: String,
+}

@@ -1,11 +1,69 @@
-//! Systems that hand an ancestor's [`Deformable`] to the mesh primitives below it and keep
-//! the copies in sync.
+//! [`SceneRootPlugin`]: scene roots marked spawned, missing dependencies reported.
 
 use bevy::prelude::*;
 use bevy::world_serialization::{WorldAssetRoot, WorldInstanceReady};
 
-use super::{DeformableFrom, DeformableScene, SceneSpawned};
-use crate::ecs::deform::{DeformError, DeformFailed, DeformPhase, DeformStatus, Deformable};
+use super::{MissingSceneAssets, SceneAssetsMissing, SceneSpawned};
+
+/// Watches glTF scene roots (`WorldAssetRoot`): marks them spawned, and says when a scene's
+/// dependency is missing ([`MissingSceneAssets`]). Added by the deform and pose plugins.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct SceneRootPlugin;
+
+impl Plugin for SceneRootPlugin {
+    fn build(&self, app: &mut App) {
+        app.add_message::<SceneAssetsMissing>()
+            .add_observer(mark_scene_spawned)
+            .add_systems(PreUpdate, report_missing_scene_assets);
+    }
+}
+
+/// Adds [`SceneRootPlugin`] unless the app has it.
+pub(crate) fn add_scene_roots(app: &mut App) {
+    if !app.is_plugin_added::<SceneRootPlugin>() {
+        app.add_plugins(SceneRootPlugin);
+    }
+}
+
+/// The first line of an asset error (a backtrace may follow).
+fn first_line(error: &impl std::fmt::Display) -> String {
+    error
+        .to_string()
+        .lines()
+        .next()
+        .unwrap_or_default()
+        .to_string()
+}
+
+/// Scene roots whose own file loaded but a dependency did not get [`MissingSceneAssets`].
+fn report_missing_scene_assets(
+    mut commands: Commands,
+    roots: Query<(Entity, &WorldAssetRoot), Without<MissingSceneAssets>>,
+    assets: Option<Res<AssetServer>>,
+    mut missing: MessageWriter<SceneAssetsMissing>,
+) {
+    use bevy::asset::{LoadState, RecursiveDependencyLoadState};
+    let Some(assets) = assets else {
+        return;
+    };
+    for (entity, root) in &roots {
+        let own = assets.get_load_state(&root.0);
+        let Some(RecursiveDependencyLoadState::Failed(error)) =
+            assets.get_recursive_dependency_load_state(&root.0)
+        else {
+            continue;
+        };
+        if !matches!(own, Some(LoadState::Loaded)) {
+            continue; // the file itself failed: `scene_load_failure` reports it
+        }
+        let message = first_line(&error);
+        warn!("scene {entity}: a dependency is missing, the rest is used: {message}");
+        commands.entity(entity).try_insert(MissingSceneAssets {
+            message: message.clone(),
+        });
+        missing.write(SceneAssetsMissing { entity, message });
+    }
+}
 
 /// Marks a scene root [`SceneSpawned`] when its instance is ready.
 pub(crate) fn mark_scene_spawned(ready: On<WorldInstanceReady>, mut commands: Commands) {
@@ -14,111 +72,23 @@ pub(crate) fn mark_scene_spawned(ready: On<WorldInstanceReady>, mut commands: Co
     }
 }
 
-/// Frames an ancestor that is not a scene root waits for mesh children to arrive (a spawner
-/// that adds them a frame or a few later) before it fails with `NoMeshBelow`.
-pub const MESH_WAIT_FRAMES: u32 = 30;
-
 /// Why a scene root has nothing below it yet: still loading (`None`), or its load failed.
+/// A scene whose own file loaded is not failed when only a dependency (a texture) is missing:
+/// it spawns without it ([`MissingSceneAssets`]).
 pub(crate) fn scene_load_failure(
     assets: &AssetServer,
     root: Option<&WorldAssetRoot>,
 ) -> Option<String> {
-    use bevy::asset::RecursiveDependencyLoadState;
-    match assets.get_recursive_dependency_load_state(&root?.0)? {
-        // The first line: the loader's message (a backtrace may follow).
-        RecursiveDependencyLoadState::Failed(error) => Some(
-            error
-                .to_string()
-                .lines()
-                .next()
-                .unwrap_or_default()
-                .to_string(),
-        ),
+    use bevy::asset::{LoadState, RecursiveDependencyLoadState};
+    let handle = &root?.0;
+    if let Some(LoadState::Failed(error)) = assets.get_load_state(handle) {
+        return Some(first_line(&error));
+    }
+    if matches!(assets.get_load_state(handle), Some(LoadState::Loaded)) {
+        return None; // it spawns; a missing dependency is only a warning
+    }
+    match assets.get_recursive_dependency_load_state(handle)? {
+        RecursiveDependencyLoadState::Failed(error) => Some(first_line(&error)),
         _ => None,
-    }
-}
-
-/// Hands an ancestor's [`Deformable`] to the mesh primitives below it (see the module docs).
-#[allow(clippy::type_complexity, clippy::too_many_arguments)] // one query per role
-pub(crate) fn expand_deformable_ancestors(
-    mut commands: Commands,
-    mut roots: Query<
-        (
-            Entity,
-            &Deformable,
-            &mut DeformStatus,
-            Option<&WorldAssetRoot>,
-            Has<SceneSpawned>,
-        ),
-        (Without<Mesh3d>, Without<DeformableScene>),
-    >,
-    children: Query<&Children>,
-    meshes: Query<(), With<Mesh3d>>,
-    assets: Option<Res<AssetServer>>,
-    mut waited: Local<bevy::platform::collections::HashMap<Entity, u32>>,
-    mut failed: MessageWriter<DeformFailed>,
-) {
-    for (root, deformable, mut status, scene, spawned) in &mut roots {
-        if status.phase == DeformPhase::Failed {
-            continue;
-        }
-        let primitives: Vec<Entity> = children
-            .iter_descendants(root)
-            .filter(|e| meshes.contains(*e))
-            .collect();
-        if primitives.is_empty() {
-            let error = match (scene.is_some(), spawned) {
-                (true, false) => {
-                    match assets.as_deref().and_then(|a| scene_load_failure(a, scene)) {
-                        Some(message) => DeformError::SceneLoadFailed(message),
-                        None => continue, // the scene has not spawned yet
-                    }
-                }
-                (false, _) => {
-                    let frames = waited.entry(root).or_insert(0);
-                    *frames += 1;
-                    if *frames <= MESH_WAIT_FRAMES {
-                        continue; // children may arrive a few frames later
-                    }
-                    DeformError::NoMeshBelow
-                }
-                (true, true) => DeformError::NoMeshBelow,
-            };
-            waited.remove(&root);
-            warn!("Deformable {root}: {error}");
-            status.phase = DeformPhase::Failed;
-            status.error = Some(error.clone());
-            failed.write(DeformFailed {
-                entity: root,
-                error,
-            });
-            continue;
-        }
-        waited.remove(&root);
-        for &primitive in &primitives {
-            commands
-                .entity(primitive)
-                .try_insert((deformable.clone(), DeformableFrom(root)));
-        }
-        status.phase = DeformPhase::Idle;
-        commands
-            .entity(root)
-            .try_insert(DeformableScene { primitives });
-    }
-}
-
-/// Keeps the primitives' [`Deformable`] equal to their ancestor's when it changes.
-pub(crate) fn sync_deformable_ancestors(
-    roots: Query<(&Deformable, &DeformableScene), Changed<Deformable>>,
-    mut primitives: Query<&mut Deformable, (With<DeformableFrom>, Without<DeformableScene>)>,
-) {
-    for (deformable, scene) in &roots {
-        for &p in &scene.primitives {
-            if let Ok(mut d) = primitives.get_mut(p)
-                && *d != *deformable
-            {
-                *d = deformable.clone();
-            }
-        }
     }
 }

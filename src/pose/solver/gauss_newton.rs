@@ -6,70 +6,14 @@ use std::rc::Rc;
 
 use glam::{DAffine3, DMat3, DMat4, DVec3};
 
-use super::super::effectors::skew;
-use super::super::limits::JointLimits;
+use super::PoseSolver;
 use super::block_cholesky::BlockCholesky;
 pub(super) use super::block_cholesky::BlockPattern;
-use super::{ParamKind, PoseSolver, Posed};
+use super::effector_terms::skew;
+use super::params::Param;
+use super::solve::Posed;
 
 impl PoseSolver {
-    /// Restricts each hinge joint's own rotation parameter to its hinge axis (world `a`):
-    /// `H ← TᵀHT + (I − T)·s`, `g ← Tᵀg` with `T = a aᵀ` on that parameter's block, so the
-    /// step turns a hinge about its axis only.
-    pub(super) fn restrict_hinges(
-        &self,
-        limits: &JointLimits,
-        globals: &[DAffine3],
-        h: &mut [f64],
-        g: &mut [f64],
-    ) {
-        let np = g.len();
-        for (p, &(j, kind)) in self.params.iter().enumerate() {
-            let (ParamKind::Rotation, Some(axis)) = (kind, limits.hinge_axis(j)) else {
-                continue;
-            };
-            let a = (super::super::skeleton::rotation_of(&globals[j].matrix3) * axis).normalize();
-            let t = [a.x, a.y, a.z];
-            let proj = |v: &[f64]| -> [f64; 3] {
-                let d = v[0] * t[0] + v[1] * t[1] + v[2] * t[2];
-                [d * t[0], d * t[1], d * t[2]]
-            };
-            let scale = (0..3).map(|k| h[(3 * p + k) * np + 3 * p + k]).sum::<f64>() / 3.0;
-            // Rows of the block row p, then columns of the block column p.
-            for col in 0..np {
-                let v = [
-                    h[(3 * p) * np + col],
-                    h[(3 * p + 1) * np + col],
-                    h[(3 * p + 2) * np + col],
-                ];
-                let w = proj(&v);
-                for k in 0..3 {
-                    h[(3 * p + k) * np + col] = w[k];
-                }
-            }
-            for row in 0..np {
-                let v = [
-                    h[row * np + 3 * p],
-                    h[row * np + 3 * p + 1],
-                    h[row * np + 3 * p + 2],
-                ];
-                let w = proj(&v);
-                for k in 0..3 {
-                    h[row * np + 3 * p + k] = w[k];
-                }
-            }
-            for r in 0..3 {
-                for c in 0..3 {
-                    let identity = if r == c { 1.0 } else { 0.0 };
-                    h[(3 * p + r) * np + 3 * p + c] +=
-                        (identity - t[r] * t[c]) * scale.abs().max(1e-12);
-                }
-            }
-            let w = proj(&g[3 * p..3 * p + 3]);
-            g[3 * p..3 * p + 3].copy_from_slice(&w);
-        }
-    }
-
     /// The Gauss–Newton model of the objective in the bone parameters (rotation increments,
     /// root translations; 3 numbers each): `f(θ) ≈ f + gᵀθ + ½ θᵀHθ`, as `(H, g)`.
     pub(super) fn gauss_newton_system(
@@ -214,24 +158,26 @@ impl PoseSolver {
         // A rotation parameter turns about its joint's origin; a translation has none.
         let origins: Vec<Option<DVec3>> = params
             .iter()
-            .map(|&(j, kind)| match kind {
-                ParamKind::Rotation => Some(globals[j].translation),
-                ParamKind::Translation => None,
+            .map(|&param| match param {
+                Param::Rotation(j) => Some(globals[j].translation),
+                Param::Translation(_) => None,
             })
             .collect();
-        for (pa, &(ja, kind_a)) in params.iter().enumerate() {
+        for (pa, &param_a) in params.iter().enumerate() {
+            let ja = param_a.joint();
             let (gw, gv) = (
                 DVec3::new(gsum[ja][0], gsum[ja][1], gsum[ja][2]),
                 DVec3::new(gsum[ja][3], gsum[ja][4], gsum[ja][5]),
             );
             // A_aᵀ g = g_ω + [o]×ᵀ g_v (rotation) or g_v (translation).
-            let ga = match (kind_a, origins[pa]) {
-                (ParamKind::Rotation, Some(o)) => gw + skew(o).transpose() * gv,
+            let ga = match (param_a, origins[pa]) {
+                (Param::Rotation(_), Some(o)) => gw + skew(o).transpose() * gv,
                 _ => gv,
             };
             g[pa * 3..pa * 3 + 3].copy_from_slice(&ga.to_array());
             // H is symmetric: fill the upper triangle of blocks and mirror it.
-            for (pb, &(jb, _)) in params.iter().enumerate().skip(pa) {
+            for (pb, &param_b) in params.iter().enumerate().skip(pa) {
+                let jb = param_b.joint();
                 if !nonzero[ja * joints + jb] {
                     continue;
                 }

@@ -1,27 +1,46 @@
-//! The skinning-space ARAP solver: rigid bones as the unknowns.
+//! The skinning-space ARAP solver: rigid bones as the unknowns. Read top-down:
+//!
+//! | file | what it holds |
+//! |---|---|
+//! | `mod.rs` | the API: constraints, settings, options, solutions, where a solve starts, [`PoseSolver::new`] (the precompute) |
+//! | `params.rs` | the unknowns: a rotation per joint, a translation per root ([`Param`]) |
+//! | `setup.rs` | the precompute's pieces: index checks, vertex-set sums, joint frames, the block pattern |
+//! | `solve.rs` | [`PoseSolver::solve`]: the local/global loop (cluster rotations, then one damped Gauss–Newton step) |
+//! | `step.rs` | the Levenberg–Marquardt step: damping, the line search, the retraction onto the skeleton |
+//! | `gauss_newton.rs` | the Gauss–Newton system in the bone parameters and its damped solve |
+//! | `block_cholesky.rs` | the block-sparse Cholesky factor over the joints |
+//! | energies: `arap.rs` | the shape energy: the cluster rotations' fit, `Q·X`, the objective |
+//! | `penalties.rs` | handles, fixed vertices, pinned joints and joint handles (quadratic penalties) |
+//! | `effector_terms.rs` | effectors (position, orientation, aim, centroid) and reference stiffness |
+//! | `hinges.rs` | joint limits inside the step (hinges restrict it; cones and twist are projected in `step.rs`) |
+//! | `shape_rest.rs` | the shape-rest tilt (a given pose at rest) |
 
 use std::sync::Arc;
-use std::time::Instant;
 
-use glam::{DAffine3, DMat3, DMat4, DQuat, DVec3, DVec4};
+use glam::{DAffine3, DMat4, DQuat, DVec3, DVec4};
 
+mod arap;
 mod block_cholesky;
-mod energy;
+mod effector_terms;
 mod gauss_newton;
+mod hinges;
+mod params;
+mod penalties;
 mod setup;
 mod shape_rest;
+mod solve;
+mod step;
+
+use params::{Param, parameters_for};
+use penalties::{SetSums, set_target};
 
 use super::PoseError;
-use super::effectors::{
-    CentroidEffector, Effector, ExtraInputs, ExtraTerms, Param, ReferenceStiffness,
-};
+use super::effectors::{CentroidEffector, Effector, ReferenceStiffness};
 use super::limits::JointLimits;
 use super::model::SkinnedModel;
-use super::skeleton::{JointTransform, SkeletonPose};
+use super::skeleton::SkeletonPose;
 use crate::deform::constraints::same_keys;
 use crate::deform::{Handle, RigidTransform};
-use energy::ClusterFit;
-use gauss_newton::{BlockPattern, HessianScratch, solve_damped};
 use setup::{check_indices, joint_frames, nonzero_blocks, set_sums};
 
 /// A joint driven to a rigid motion of where it was in the reference pose.
@@ -192,20 +211,6 @@ impl<'a> PoseStart<'a> {
     }
 }
 
-/// Levenberg–Marquardt damping of a cold start (relative to the Hessian's diagonal).
-const INITIAL_DAMPING: f64 = 1e-4;
-
-/// A vertex set's precomputed sums for a rigid target: `Σ M_iᵀ p_iᵀ`, `Σ M_iᵀ`, `Σ p_i`,
-/// `Σ ‖p_i‖²` with `p_i` the reference positions.
-#[derive(Debug, Clone)]
-struct SetSums {
-    mp: Vec<f64>,
-    m: Vec<f64>,
-    p: DVec3,
-    pp: f64,
-    count: f64,
-}
-
 /// A factorized pose problem for one skinned model and one constraint set.
 ///
 /// **How the result stays a skeleton.** The unknowns are not free affine joint transforms
@@ -225,7 +230,7 @@ pub struct PoseSolver {
     /// dense 4J × 4J matrix is only assembled in [`PoseSolver::new`]).
     q_blocks: Vec<(usize, usize, DMat4)>,
     /// The bone parameters solved for.
-    params: Vec<(usize, ParamKind)>,
+    params: Vec<Param>,
     handle_sums: Vec<SetSums>,
     fixed_b: Vec<f64>,
     fixed_c: f64,
@@ -331,357 +336,6 @@ impl PoseSolver {
     pub fn accepts(&self, constraints: &PoseConstraints) -> bool {
         self.constraints.same_sets(constraints)
     }
-
-    /// Solves for the pose from `start`. `cancel` is polled between iterations.
-    pub fn solve(
-        &self,
-        constraints: &PoseConstraints,
-        options: &PoseSolveOptions,
-        start: PoseStart<'_>,
-        cancel: &dyn Fn() -> bool,
-    ) -> Result<PoseSolution, PoseError> {
-        let started = Instant::now();
-        self.check_solve(constraints, &start)?;
-        let clusters = self.model.cluster_count();
-        let (start, warm) = match start {
-            PoseStart::Pose(p) => (p, None),
-            PoseStart::Warm(s) => (&s.pose, Some(s)),
-            PoseStart::Near { pose, last } => (pose, Some(last)),
-        };
-        let extras = self.extra_terms(constraints);
-        let limits = constraints.limits.as_deref();
-        let (mut rotations, mut damping, mut exact) = match warm {
-            Some(w) if w.cluster_rotations.len() == clusters => {
-                (w.cluster_rotations.clone(), w.damping, false)
-            }
-            _ => (vec![DQuat::IDENTITY; clusters], INITIAL_DAMPING, true),
-        };
-        let (mut b_pen, mut c_pen) = self.penalty_terms(constraints);
-        let mut shape_rest_rotations = Vec::new();
-        if let Some(rest) = &constraints.shape_rest {
-            let guess = warm
-                .map(|w| &w.shape_rest_rotations[..])
-                .filter(|r| r.len() == clusters);
-            let (tilt, constant, fitted) = self.shape_tilt(rest, guess);
-            shape_rest_rotations = fitted;
-            for (b, t) in b_pen.iter_mut().zip(tilt) {
-                *b += t;
-            }
-            c_pen += constant;
-        }
-        let c0 = self.model.c0.max(1e-300);
-        let mut pose = start.clone();
-        if let Some(limits) = limits {
-            limits.project(&mut pose);
-        }
-        let mut current = self.posed(pose);
-        let mut stats = PoseSolveStats::default();
-        let mut b = vec![0.0; b_pen.len()];
-        let mut scratch = HessianScratch::take();
-        let mut last = f64::NAN;
-        for it in 0..options.max_iterations {
-            if cancel() {
-                stats.cancelled = true;
-                break;
-            }
-            let t = Instant::now();
-            let fit = if exact {
-                ClusterFit::Exact
-            } else {
-                ClusterFit::Newton(4)
-            };
-            self.local_step(&current.x, &mut rotations, fit);
-            exact = false;
-            stats.local_s += t.elapsed().as_secs_f64();
-            let t = Instant::now();
-            b.copy_from_slice(&b_pen);
-            self.add_rotation_terms(&rotations, &mut b);
-            let objective = Objective {
-                b: &b,
-                constant: self.model.c0 + c_pen,
-                extras: &extras,
-            };
-            let f0 = self.energy(&current, &objective);
-            if it == 0 {
-                stats.initial_energy = f0 / c0;
-                last = f0;
-            }
-            // Levenberg–Marquardt: damp the Gauss–Newton step until it lowers the energy.
-            let (mut h, mut g) = self.gauss_newton_system(&current, &b, &mut scratch);
-            if !extras.is_empty() {
-                let params = self.param_list();
-                extras.add_system(&current.globals, &current.skin, &params, &mut h, &mut g);
-            }
-            if let Some(limits) = limits {
-                self.restrict_hinges(limits, &current.globals, &mut h, &mut g);
-            }
-            // The effector terms may couple joints the shape energy does not: read their
-            // blocks off the matrix; else the system's own pattern (hinges add none).
-            let pattern = if extras.is_empty() {
-                scratch.pattern()
-            } else {
-                std::rc::Rc::new(BlockPattern::of(&h, g.len()))
-            };
-            stats.system_s += t.elapsed().as_secs_f64();
-            let step = DampedSystem {
-                h: &h,
-                g: &g,
-                f0,
-                pattern: &pattern,
-            };
-            let accepted = self.damped_step(
-                &current,
-                &step,
-                &objective,
-                limits,
-                &mut damping,
-                &mut stats,
-            );
-            stats.global_s += t.elapsed().as_secs_f64();
-            scratch.return_matrix(h);
-            let f = match accepted {
-                Some((next, f)) => {
-                    current = next;
-                    f
-                }
-                None => f0,
-            };
-            stats.iterations += 1;
-            stats.energies.push(f / c0);
-            let decrease = (last - f) / last.abs().max(1e-300);
-            last = f;
-            if decrease < options.tolerance && it > 0 {
-                break;
-            }
-        }
-        scratch.keep();
-        let pose = current.pose;
-        if !pose.local.iter().all(|t| t.is_valid()) {
-            return Err(PoseError::NonFiniteResult);
-        }
-        stats.total_s = started.elapsed().as_secs_f64();
-        Ok(PoseSolution {
-            pose,
-            cluster_rotations: rotations,
-            damping,
-            shape_rest_rotations,
-            stats,
-        })
-    }
-
-    /// The effector and stiffness terms of `constraints`, with targets blended from the
-    /// reference pose this solver was built for.
-    /// A solve of `constraints` from `start` is possible: the same constraint sets, finite
-    /// targets, valid effectors and a start pose of this skeleton.
-    fn check_solve(
-        &self,
-        constraints: &PoseConstraints,
-        start: &PoseStart,
-    ) -> Result<(), PoseError> {
-        if !self.accepts(constraints) {
-            return Err(PoseError::ConstraintSetChanged);
-        }
-        if !targets_valid(constraints) {
-            return Err(PoseError::NonFiniteTarget);
-        }
-        let skeleton = self.model.skeleton();
-        super::effectors::validate(
-            skeleton,
-            self.model.topology().vertex_count(),
-            &constraints.effectors,
-            &constraints.centroid_effectors,
-            constraints.stiffness.as_ref(),
-        )?;
-        let pose = match start {
-            PoseStart::Pose(p) | PoseStart::Near { pose: p, .. } => p,
-            PoseStart::Warm(s) => &s.pose,
-        };
-        skeleton.check_pose(pose)?;
-        if let Some(rest) = &constraints.shape_rest {
-            skeleton.check_pose(rest)?;
-        }
-        Ok(())
-    }
-
-    /// A pose with its global and skinning transforms and the stacked skinning matrix.
-    fn posed(&self, pose: SkeletonPose) -> Posed {
-        let skeleton = self.model.skeleton();
-        let globals = skeleton.global_transforms(&pose);
-        let skin = skinning(&globals, skeleton);
-        let x = self.model.stack(&skin);
-        let qx = self.q_times(&x);
-        Posed {
-            pose,
-            globals,
-            skin,
-            x,
-            qx,
-        }
-    }
-
-    /// The energy of a posed skeleton.
-    fn energy(&self, posed: &Posed, objective: &Objective) -> f64 {
-        self.objective(&posed.x, &posed.qx, objective.b, objective.constant)
-            + objective.extras.energy(&posed.globals, &posed.skin)
-    }
-
-    /// One Levenberg–Marquardt step from `current`: a rejected step is first shortened along
-    /// its direction (cheap: no new factorization), then re-solved with more damping. The
-    /// accepted pose and its energy, or `None` after twelve rejections.
-    fn damped_step(
-        &self,
-        current: &Posed,
-        system: &DampedSystem,
-        objective: &Objective,
-        limits: Option<&JointLimits>,
-        damping: &mut f64,
-        stats: &mut PoseSolveStats,
-    ) -> Option<(Posed, f64)> {
-        for _ in 0..12 {
-            let step = solve_damped(system.h, system.g, *damping, system.pattern);
-            for (k, length) in [1.0, 0.5].into_iter().enumerate() {
-                let mut candidate = retract(&current.pose, &current.globals, &step, length, self);
-                if let Some(limits) = limits {
-                    limits.project(&mut candidate);
-                }
-                let candidate = self.posed(candidate);
-                let f = self.energy(&candidate, objective);
-                if f.is_finite() && f <= system.f0 {
-                    *damping = if k == 0 {
-                        (*damping / 2.0).max(1e-9)
-                    } else {
-                        *damping * 2.0
-                    };
-                    return Some((candidate, f));
-                }
-                stats.rejected_steps += 1;
-            }
-            *damping *= 4.0;
-        }
-        None
-    }
-
-    fn extra_terms<'a>(&'a self, constraints: &'a PoseConstraints) -> ExtraTerms<'a> {
-        let skeleton = self.model.skeleton();
-        let reference_skinning = skinning(&self.reference_globals, skeleton);
-        ExtraTerms::new(
-            skeleton,
-            &ExtraInputs {
-                effectors: &constraints.effectors,
-                centroids: &constraints.centroid_effectors,
-                stiffness: constraints.stiffness.as_ref(),
-                reference_globals: &self.reference_globals,
-                reference_skinning: &reference_skinning,
-                influences: self.model.influences(),
-                relative_inertia: self.model.relative_inertia(),
-                bind: self.model.bind_positions(),
-                joint_weight: self.joint_weight,
-                vertex_weight: self.vertex_weight,
-                length_scale: self.length_scale,
-            },
-        )
-    }
-
-    /// The bone parameters as the effector terms see them.
-    fn param_list(&self) -> Vec<Param> {
-        self.params
-            .iter()
-            .map(|&(j, kind)| match kind {
-                ParamKind::Rotation => Param::Rotation(j),
-                ParamKind::Translation => Param::Translation(j),
-            })
-            .collect()
-    }
-
-    /// The linear (`B`, 4J × 3) and constant terms of the constraint penalties for the
-    /// current targets.
-    fn penalty_terms(&self, constraints: &PoseConstraints) -> (Vec<f64>, f64) {
-        let mut b = self.fixed_b.clone();
-        let mut c = self.fixed_c;
-        for (h, s) in constraints.handles.iter().zip(&self.handle_sums) {
-            c += set_target(s, &h.transform, self.vertex_weight, &mut b);
-        }
-        let dim = 4 * self.model.skeleton().len();
-        let fixed = self
-            .constraints
-            .fixed_joints
-            .iter()
-            .map(|&j| (j, RigidTransform::IDENTITY));
-        let moved = constraints
-            .joint_handles
-            .iter()
-            .map(|h| (h.joint, h.transform));
-        for (j, t) in fixed.chain(moved) {
-            let g = self.reference_globals[j];
-            // Rigid motion p ↦ pivot + R(p − pivot) + T as an affine: R p + (pivot − R pivot + T).
-            let motion = DAffine3::from_mat3_translation(
-                DMat3::from_quat(t.rotation),
-                t.pivot - t.rotation * t.pivot + t.translation,
-            );
-            let target = motion * g;
-            let v = affine_rows(&target); // 3 × 4 rows of G*
-            // V = G* D; B_j += λ U Vᵀ; const += λ‖V‖².
-            let vd: [DVec4; 3] = std::array::from_fn(|r| {
-                DVec4::new(
-                    v[r][0] * self.length_scale,
-                    v[r][1] * self.length_scale,
-                    v[r][2] * self.length_scale,
-                    v[r][3],
-                )
-            });
-            let u = &self.joint_u[j];
-            for r in 0..4 {
-                for col in 0..3 {
-                    b[(4 * j + r) * 3 + col] += self.joint_weight * u[r].dot(vd[col]);
-                }
-            }
-            c += self.joint_weight * vd.iter().map(|r| r.length_squared()).sum::<f64>();
-        }
-        debug_assert_eq!(dim * 3, b.len());
-        (b, c)
-    }
-}
-
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum ParamKind {
-    Rotation,
-    Translation,
-}
-
-/// The bone parameters: a rotation per joint, a translation per root — only for joints whose
-/// subtree moves something (a weighted vertex or a constrained joint); the others would be
-/// zero rows of the system.
-fn parameters_for(skeleton: &super::Skeleton, block_nonzero: &[bool]) -> Vec<(usize, ParamKind)> {
-    let n = skeleton.len();
-    let mut active: Vec<bool> = (0..n).map(|j| block_nonzero[j * n + j]).collect();
-    for j in (0..n).rev() {
-        if let Some(p) = skeleton.joints()[j].parent {
-            active[p] |= active[j];
-        }
-    }
-    // Children before parents, root translations last: the order the block Cholesky
-    // eliminates in, so that a joint's elimination fills in only among its ancestors.
-    let mut out: Vec<(usize, ParamKind)> = (0..n)
-        .rev()
-        .filter(|&j| active[j])
-        .map(|j| (j, ParamKind::Rotation))
-        .collect();
-    out.extend(
-        (0..n)
-            .filter(|&j| active[j] && skeleton.joints()[j].parent.is_none())
-            .map(|j| (j, ParamKind::Translation)),
-    );
-    out
-}
-
-/// A pose with what the energy and its derivatives read of it.
-struct Posed {
-    pose: SkeletonPose,
-    globals: Vec<DAffine3>,
-    skin: Vec<DAffine3>,
-    /// The stacked skinning matrices `X` and `Q X`.
-    x: Vec<f64>,
-    qx: Vec<f64>,
 }
 
 /// The non-zero rows of each cluster's `K_c` in the model's dense `k` (clusters × 4J × 3),
@@ -701,101 +355,4 @@ fn sparse_cluster_rows(model: &SkinnedModel) -> (Vec<(u32, DVec3)>, Vec<usize>) 
         start.push(rows.len());
     }
     (rows, start)
-}
-
-/// What an iteration's energy is made of besides the pose: the linear term of the rotation
-/// fit and penalties, its constant, and the effector, limit and stiffness terms.
-struct Objective<'a> {
-    b: &'a [f64],
-    constant: f64,
-    extras: &'a ExtraTerms<'a>,
-}
-
-/// An iteration's Gauss–Newton system and the energy it starts from.
-struct DampedSystem<'a> {
-    h: &'a [f64],
-    g: &'a [f64],
-    f0: f64,
-    /// Where `h`'s Cholesky factor has non-zero blocks.
-    pattern: &'a BlockPattern,
-}
-
-/// Every handle's target is a finite rigid transform.
-fn targets_valid(constraints: &PoseConstraints) -> bool {
-    let valid = |t: &RigidTransform| t.is_valid();
-    constraints.handles.iter().all(|h| valid(&h.transform))
-        && constraints
-            .joint_handles
-            .iter()
-            .all(|h| valid(&h.transform))
-}
-
-/// Applies `t · step` to `pose`: rotation increments (world space, about each joint) become
-/// local rotation changes; root translations move the roots.
-fn retract(
-    pose: &SkeletonPose,
-    globals: &[DAffine3],
-    step: &[DVec3],
-    t: f64,
-    solver: &PoseSolver,
-) -> SkeletonPose {
-    let skeleton = solver.model.skeleton();
-    let mut out = pose.clone();
-    for (p, &(j, kind)) in solver.params.iter().enumerate() {
-        let d = step[p] * t;
-        let local: &mut JointTransform = &mut out.local[j];
-        match kind {
-            ParamKind::Rotation => {
-                let qp = skeleton.parent_rotation(globals, j);
-                let inc = qp.inverse() * DQuat::from_scaled_axis(d) * qp;
-                local.rotation = (inc * local.rotation).normalize();
-            }
-            ParamKind::Translation => {
-                let lin = skeleton.parent_linear(globals, j);
-                if lin.determinant().abs() > 1e-300 {
-                    local.translation += lin.inverse() * d;
-                }
-            }
-        }
-    }
-    out
-}
-
-fn skinning(globals: &[DAffine3], skeleton: &super::Skeleton) -> Vec<DAffine3> {
-    globals
-        .iter()
-        .zip(skeleton.joints())
-        .map(|(g, j)| *g * j.inverse_bind)
-        .collect()
-}
-
-/// Rows of an affine as a 4 × 4 matrix (last row 0 0 0 1).
-fn affine_rows(a: &DAffine3) -> [[f64; 4]; 4] {
-    let mut m = [[0.0; 4]; 4];
-    for (r, row) in m.iter_mut().enumerate().take(3) {
-        for (c, v) in row.iter_mut().enumerate().take(3) {
-            *v = a.matrix3.col(c)[r];
-        }
-        row[3] = a.translation[r];
-    }
-    m[3][3] = 1.0;
-    m
-}
-
-/// Adds `λ Σ M_iᵀ t_iᵀ` for targets `t_i = motion(p_i)` to `b`; returns `λ Σ ‖t_i‖²`.
-fn set_target(s: &SetSums, motion: &RigidTransform, weight: f64, b: &mut [f64]) -> f64 {
-    if s.count == 0.0 {
-        return 0.0;
-    }
-    let r = DMat3::from_quat(motion.rotation);
-    let c = motion.pivot - r * motion.pivot + motion.translation;
-    // Σ M_iᵀ (R p_i + c)ᵀ = (Σ M_iᵀ p_iᵀ) Rᵀ + (Σ M_iᵀ) cᵀ
-    for (row, m) in s.m.iter().enumerate() {
-        let mp = DVec3::new(s.mp[row * 3], s.mp[row * 3 + 1], s.mp[row * 3 + 2]);
-        let v = r * mp + c * *m;
-        b[row * 3] += weight * v.x;
-        b[row * 3 + 1] += weight * v.y;
-        b[row * 3 + 2] += weight * v.z;
-    }
-    weight * (s.pp + 2.0 * c.dot(r * s.p) + s.count * c.length_squared())
 }

@@ -3,7 +3,7 @@
 
 use glam::{DMat4, DVec3, DVec4};
 
-use super::{SetSums, affine_rows};
+use super::penalties::{SetSums, affine_rows};
 use crate::pose::model::add_outer4x3;
 use crate::pose::{PoseConstraints, PoseError, SkinnedModel};
 

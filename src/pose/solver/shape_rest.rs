@@ -18,7 +18,7 @@
 use glam::DQuat;
 
 use super::PoseSolver;
-use super::energy::ClusterFit;
+use super::arap::ClusterFit;
 use crate::pose::SkeletonPose;
 
 impl PoseSolver {

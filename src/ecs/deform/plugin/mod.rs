@@ -1,11 +1,13 @@
 //! The deformation plugin: its system sets, and the systems that prepare meshes, start
 //! solves, collect them and write them back.
 
+mod ancestors;
 mod poll;
 mod prepare;
 mod request;
 mod writeback;
 
+pub use ancestors::MESH_WAIT_FRAMES;
 use poll::*;
 use prepare::*;
 use request::*;
@@ -57,15 +59,15 @@ pub struct DeformPlugin {
 
 impl Plugin for DeformPlugin {
     fn build(&self, app: &mut App) {
+        crate::ecs::scene::add_scene_roots(app);
         app.insert_resource(self.config.clone())
             .register_type::<Deformable>()
             .register_type::<FixedRegion>()
             .register_type::<DeformHandle>()
             .register_type::<DeformStatus>()
             .register_type::<DeformConfig>()
-            .register_type::<crate::ecs::scene::DeformableScene>()
-            .register_type::<crate::ecs::scene::DeformableFrom>()
-            .add_observer(crate::ecs::scene::mark_scene_spawned)
+            .register_type::<super::DeformableScene>()
+            .register_type::<super::DeformableFrom>()
             .add_message::<DeformSolved>()
             .add_message::<DeformFailed>()
             .configure_sets(
@@ -82,8 +84,8 @@ impl Plugin for DeformPlugin {
                 Update,
                 (
                     (
-                        crate::ecs::scene::expand_deformable_ancestors,
-                        crate::ecs::scene::sync_deformable_ancestors,
+                        ancestors::expand_deformable_ancestors,
+                        ancestors::sync_deformable_ancestors,
                         prepare_deformables,
                     )
                         .chain()
@@ -91,10 +93,23 @@ impl Plugin for DeformPlugin {
                     request_solves.in_set(DeformSystems::Request),
                     poll_tasks.in_set(DeformSystems::Poll),
                     write_back.in_set(DeformSystems::Writeback),
+                    note_missing_scene_assets,
                 ),
             );
     }
 }
+/// Copies a scene's missing-dependency warning into the status of the deformable on its root.
+fn note_missing_scene_assets(
+    mut roots: Query<
+        (&crate::ecs::scene::MissingSceneAssets, &mut DeformStatus),
+        Changed<crate::ecs::scene::MissingSceneAssets>,
+    >,
+) {
+    for (missing, mut status) in &mut roots {
+        status.warning = Some(missing.message.clone());
+    }
+}
+
 /// Rest data of a prepared mesh.
 struct Rest {
     topology: Arc<Topology>,

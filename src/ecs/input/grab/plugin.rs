@@ -11,9 +11,8 @@ use bevy::prelude::*;
 use crate::deform::Topology;
 use crate::ecs::input::view::{arcball_rotation, turned_in_space, view_plane_motion};
 use crate::ecs::input::{InputSystems, configure_input_sets};
-use crate::ecs::pose::{GrabAnchor, HandlePositionOnly, PinnedJoints, PosedSkeleton};
-use crate::ecs::scene::DeformableFrom;
-use crate::ecs::{DeformHandle, DeformState, Deformable, FixedRegion};
+use crate::ecs::pose::{HandlePositionOnly, PinnedJoints, PoseAnchor, PosedSkeleton};
+use crate::ecs::{DeformHandle, DeformState, Deformable, DeformableFrom, FixedRegion};
 
 use super::{
     ActiveGrab, ActiveGrabs, GrabButton, GrabEnd, GrabHandle, GrabMove, GrabStart, GrabTurn,
@@ -46,7 +45,7 @@ use super::{
 /// pose of skinned meshes), the patch is found along the welded surface the same way, and the
 /// handle is an ordinary world-space [`DeformHandle`] aimed at the character, so dragging
 /// solves a skeleton pose; on release the handle goes and the character holds its pose. A
-/// character with no [`PinnedJoints`] is anchored while grabbed by a [`GrabAnchor`] (the
+/// character with no [`PinnedJoints`] is anchored while grabbed by a [`PoseAnchor`] (the
 /// joints the grab's region does not reach), so a grab bends it rather than carrying it
 /// along.
 ///
@@ -439,15 +438,15 @@ fn end_grabs(
             commands.entity(handle).try_despawn();
             commands
                 .entity(grab.mesh)
-                .try_remove::<(GrabHandle, GrabAnchor)>();
+                .try_remove::<(GrabHandle, PoseAnchor)>();
         }
     }
 }
 
-/// What holds a character while a grab of `region` (welded) bends it (see [`GrabAnchor`]):
+/// What holds a character while a grab of `region` (welded) bends it (see [`PoseAnchor`]):
 /// the joints the region does not reach, or, for a single chain, the farther half of the
 /// surface from `seed` (and every part not connected to it).
-fn anchor_for(posed: &PosedSkeleton, region: &[u32], seed: usize) -> GrabAnchor {
+fn anchor_for(posed: &PosedSkeleton, region: &[u32], seed: usize) -> PoseAnchor {
     let joints: Vec<Entity> = posed
         .model
         .joints_not_reaching(region, 0.1)
@@ -455,7 +454,7 @@ fn anchor_for(posed: &PosedSkeleton, region: &[u32], seed: usize) -> GrabAnchor 
         .filter_map(|j| posed.joints.get(j).copied())
         .collect();
     if !joints.is_empty() {
-        return GrabAnchor {
+        return PoseAnchor {
             joints,
             vertices: Vec::new(),
         };
@@ -466,7 +465,7 @@ fn anchor_for(posed: &PosedSkeleton, region: &[u32], seed: usize) -> GrabAnchor 
     for (v, _) in &all[..all.len() / 2] {
         held[*v as usize] = false;
     }
-    GrabAnchor {
+    PoseAnchor {
         joints,
         vertices: (0..topology.vertex_count() as u32)
             .filter(|v| held[*v as usize])

@@ -1,0 +1,110 @@
+//! What the playground needs besides the game itself: its command line, the Wii Remote
+//! pointer (`--pointer [emulated]`: point at a thing, hold A, move and turn the remote,
+//! release — the library's `WiimotePointerPlugin`, with a ring drawn where the remote points),
+//! and the unattended run (`--screenshot PATH --frames N`: a scripted grab bends the bar, frame
+//! N is saved, the app exits).
+
+use bevy::picking::pointer::PointerId;
+use bevy::prelude::*;
+use bevy_wii_deform::prelude::*;
+
+use crate::screenshot::{ScreenshotPlugin, UnattendedFrame};
+use crate::{Bar, cli, remote_cursor};
+
+const USAGE: &str = "\
+usage: playground [--pointer [emulated]] [--screenshot PATH [--frames N]]
+
+  --pointer [emulated]  a Wii Remote points with its IR camera (emulated: a scripted one)
+  --screenshot PATH     bend the bar by a scripted grab, save frame N to PATH, exit
+  --frames N            the frame to save (default 60)";
+
+/// The playground's command line.
+#[derive(Debug, Clone, Default)]
+pub struct Options {
+    /// `--pointer [emulated]`: `Some(emulated)`.
+    pointer: Option<bool>,
+    /// `--screenshot PATH`.
+    screenshot: Option<String>,
+    /// `--frames N`.
+    frames: u32,
+}
+
+impl Options {
+    /// Parses the process's arguments (exits on `--help` or a bad argument).
+    pub fn parse() -> Self {
+        let mut options = Options {
+            frames: 60,
+            ..default()
+        };
+        let mut parser = cli::Parser::from_env();
+        while let Some(arg) = cli::next(&mut parser, USAGE) {
+            match arg {
+                cli::Arg::Long("pointer") => {
+                    options.pointer = Some(cli::optional_word(&mut parser, "emulated"))
+                }
+                cli::Arg::Long("screenshot") => {
+                    options.screenshot = Some(cli::string(&mut parser, USAGE))
+                }
+                cli::Arg::Long("frames") => options.frames = cli::value(&mut parser, USAGE),
+                other => cli::unexpected(other, USAGE),
+            }
+        }
+        options
+    }
+}
+
+/// The pointer and the unattended run, as the options ask.
+pub struct HarnessPlugin(pub Options);
+
+impl Plugin for HarnessPlugin {
+    fn build(&self, app: &mut App) {
+        if let Some(emulated) = self.0.pointer {
+            // The Wii Remote as a second pointer: A grabs where it points.
+            app.add_plugins((
+                remote_cursor::pointing_remote(emulated),
+                remote_cursor::RemoteCursorPlugin { emulated },
+            ));
+        }
+        if let Some(path) = self.0.screenshot.clone() {
+            let frames = self.0.frames;
+            app.add_plugins(ScreenshotPlugin { path, frames })
+                .add_systems(Update, grab_the_bar);
+        }
+    }
+}
+
+/// Grabs the bar's tip at a third of the run and drags it for ten frames.
+fn grab_the_bar(
+    frame: Res<UnattendedFrame>,
+    shot: Res<ScreenshotPlugin>,
+    bar: Single<(Entity, &GlobalTransform), With<Bar>>,
+    camera: Single<(Entity, &Camera, &GlobalTransform)>,
+    mut grab: MessageWriter<GrabStart>,
+    mut moves: MessageWriter<GrabMove>,
+) {
+    let frame = frame.0;
+    let start = shot.frames / 3;
+    let (bar, bar_transform) = *bar;
+    let (camera, cam, cam_transform) = *camera;
+    let tip = bar_transform.transform_point(Vec3::new(0.0, 1.2, 0.0));
+    let pointer = PointerId::Mouse;
+    if frame == start {
+        grab.write(GrabStart {
+            pointer,
+            entity: bar,
+            point: tip,
+            camera,
+        });
+    }
+    if frame > start
+        && frame <= start + 10
+        && let Ok(from) = cam.world_to_viewport(cam_transform, tip)
+    {
+        moves.write(GrabMove {
+            pointer,
+            from,
+            to: from + Vec2::new(14.0, 6.0),
+            rotate: false,
+        });
+    }
+}

@@ -1,0 +1,158 @@
+//! The two steps every path of a solve shares, background (`request.rs` → `poll.rs`) or in the
+//! frame (`in_frame.rs`): [`SolveJob::take`] takes the pending constraints with everything a
+//! solve needs (the solver when it still fits, the last solution to warm-start from, the start
+//! pose) and [`SolveJob::run`] runs it; [`store_landed`] stores the result.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use super::blend::{BlendMemory, additive_layer};
+use super::state::{LastSolve, PoseDrivers, PoseSolves};
+use super::{PoseBlend, PoseBlendMode, PoseStatus, PoseableError, PosedSkeleton};
+use crate::ecs::DeformPhase;
+use crate::pose::{
+    PoseConstraints, PoseSolution, PoseSolveOptions, PoseSolver, PoseSolverSettings, PoseStart,
+    SkeletonPose, SkinnedModel,
+};
+
+/// A solve that landed: its solver (kept for the next solve of the same set), its solution and
+/// its wall time in milliseconds.
+pub(super) struct Landed {
+    pub(super) solver: Arc<PoseSolver>,
+    pub(super) solution: PoseSolution,
+    pub(super) ms: f64,
+}
+
+/// What a solve gives.
+pub(super) type SolveResult = Result<Landed, PoseableError>;
+
+/// One solve, ready to run anywhere: owns what it reads.
+pub(super) struct SolveJob {
+    model: Arc<SkinnedModel>,
+    /// The constraints solved for.
+    pub(super) constraints: PoseConstraints,
+    reference: SkeletonPose,
+    /// The last solver, when it was built for these constraint sets.
+    reuse: Option<Arc<PoseSolver>>,
+    /// The last solution of `reuse` (only that solver's solutions seed it).
+    last: Option<Arc<PoseSolution>>,
+    /// Where the solve starts.
+    current: SkeletonPose,
+    /// `current` was given (an additive layer's pose on screen), not the held pose.
+    given: bool,
+    options: PoseSolveOptions,
+}
+
+impl SolveJob {
+    /// Takes the pending constraints of `solves` (`None`: nothing pending, or no reference
+    /// pose yet) with what their solve needs.
+    pub(super) fn take(
+        solves: &mut PoseSolves,
+        drivers: &PoseDrivers,
+        last: &LastSolve,
+        posed: &PosedSkeleton,
+        options: PoseSolveOptions,
+    ) -> Option<Self> {
+        let reference = drivers.reference.clone()?;
+        let constraints = solves.pending.take()?;
+        let reuse = last.solver.clone().filter(|s| s.accepts(&constraints));
+        let solution = last.solution.clone().filter(|_| reuse.is_some());
+        let given = solves.start.is_some();
+        let current = solves.start.take().unwrap_or_else(|| posed.pose.clone());
+        Some(Self {
+            model: posed.model.clone(),
+            constraints,
+            reference,
+            reuse,
+            last: solution,
+            current,
+            given,
+            options,
+        })
+    }
+
+    /// Runs the solve (building the solver when the last one does not fit); `cancel` is
+    /// polled between iterations.
+    pub(super) fn run(&self, cancel: &dyn Fn() -> bool) -> SolveResult {
+        let t0 = Instant::now();
+        let solver = match &self.reuse {
+            Some(s) => s.clone(),
+            None => Arc::new(PoseSolver::new(
+                self.model.clone(),
+                &self.constraints,
+                &self.reference,
+                PoseSolverSettings::default(),
+            )?),
+        };
+        let start = PoseStart::following(self.last.as_deref(), &self.current, self.given);
+        let solution = solver.solve(&self.constraints, &self.options, start, cancel)?;
+        Ok(Landed {
+            solver,
+            solution,
+            ms: t0.elapsed().as_secs_f64() * 1e3,
+        })
+    }
+
+    /// Starts the pending solve of a character in the background (the latest request wins);
+    /// its constraints are kept as the running ones, to be queued again while it settles.
+    pub(super) fn launch(
+        solves: &mut PoseSolves,
+        drivers: &PoseDrivers,
+        last: &LastSolve,
+        posed: &PosedSkeleton,
+        options: PoseSolveOptions,
+        status: &mut PoseStatus,
+    ) {
+        let Some(job) = Self::take(solves, drivers, last, posed, options) else {
+            return;
+        };
+        solves.running = Some(job.constraints.clone());
+        status.phase = DeformPhase::Solving;
+        solves
+            .task
+            .spawn(move |cancellation| job.run(&|| cancellation.superseded()));
+    }
+}
+
+/// Stores a landed solve: the status, the pose (as the layer over the animation under an
+/// additive blend), and the solver and solution the next solve warm-starts from. `more`: a
+/// solve is still pending (the status stays `Solving`).
+pub(super) fn store_landed(
+    posed: &mut PosedSkeleton,
+    last: &mut LastSolve,
+    status: &mut PoseStatus,
+    (blend, memory): (Option<&PoseBlend>, &BlendMemory),
+    landed: Landed,
+    more: bool,
+) {
+    let Landed {
+        solver,
+        solution,
+        ms,
+    } = landed;
+    status.iterations = solution.stats.iterations;
+    status.energy = solution
+        .stats
+        .energies
+        .last()
+        .copied()
+        .unwrap_or(solution.stats.initial_energy);
+    status.solve_ms = ms;
+    status.solves += 1;
+    status.error = None;
+    status.phase = if more {
+        DeformPhase::Solving
+    } else {
+        DeformPhase::Idle
+    };
+    let pose = match blend {
+        Some(b) if b.mode == PoseBlendMode::Additive => {
+            additive_layer(posed, memory, b, &solution.pose)
+        }
+        _ => solution.pose.clone(),
+    };
+    posed.pose = pose.clone();
+    last.written = Some(pose);
+    last.solver = Some(solver);
+    last.solution = Some(Arc::new(solution));
+}

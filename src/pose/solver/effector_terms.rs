@@ -1,0 +1,514 @@
+//! The effector and stiffness energies of a pose solve, with their Jacobians in the bone
+//! parameters: position, orientation and aim effectors, centroid effectors (a vertex set's
+//! centroid to a point) and reference stiffness (each joint pulled towards a reference pose's
+//! rotation). Each is a weighted least-squares term; see [`crate::pose::effectors`] for what
+//! the weights mean.
+
+use glam::{DAffine3, DMat3, DVec3, DVec4};
+
+use super::params::Param;
+use crate::pose::effectors::{
+    CentroidEffector, Effector, EffectorGoal, ReferenceStiffness, StiffnessWeighting,
+};
+use crate::pose::skeleton::rotation_of;
+use crate::pose::{PoseError, Skeleton, VertexInfluences};
+
+/// An effector of weight 1 weighs this many joint pins.
+const EFFECTOR_STRENGTH: f64 = 100.0;
+
+/// Strength of a weighted term: fades in over w ∈ [0, ¼].
+fn strength(weight: f64) -> f64 {
+    (4.0 * weight).clamp(0.0, 1.0)
+}
+
+/// One residual block `r` (stacked 3-vectors) with its weight.
+enum Term {
+    Position {
+        joint: usize,
+        target: DVec3,
+        weight: f64,
+    },
+    Orientation {
+        joint: usize,
+        target: DMat3,
+        weight: f64,
+    },
+    Aim {
+        joint: usize,
+        axis: DVec3,
+        target: DVec3,
+        up: Option<(DVec3, DVec3)>,
+        weight: f64,
+    },
+    Centroid {
+        sums: Vec<(usize, DVec4)>,
+        target: DVec3,
+        weight: f64,
+    },
+    Stiffness {
+        joint: usize,
+        reference: DMat3,
+        root_translation: Option<DVec3>,
+        weight: f64,
+    },
+}
+
+/// The extra terms of one solve, with the skeleton they refer to.
+pub(crate) struct ExtraTerms<'a> {
+    skeleton: &'a Skeleton,
+    terms: Vec<Term>,
+    length_scale: f64,
+}
+
+/// The inputs a solve needs to build its extra terms.
+pub(crate) struct ExtraInputs<'a> {
+    pub effectors: &'a [Effector],
+    pub centroids: &'a [CentroidEffector],
+    pub stiffness: Option<&'a ReferenceStiffness>,
+    pub reference_globals: &'a [DAffine3],
+    pub reference_skinning: &'a [DAffine3],
+    pub influences: &'a [VertexInfluences],
+    pub relative_inertia: &'a [f64],
+    pub bind: &'a [DVec3],
+    pub joint_weight: f64,
+    pub vertex_weight: f64,
+    pub length_scale: f64,
+}
+
+/// Checks effectors against the skeleton and model (indices, weights, finite goals).
+pub(crate) fn validate(
+    skeleton: &Skeleton,
+    vertex_count: usize,
+    effectors: &[Effector],
+    centroids: &[CentroidEffector],
+    stiffness: Option<&ReferenceStiffness>,
+) -> Result<(), PoseError> {
+    let joints = skeleton.len();
+    let weight_ok = |w: f64| w.is_finite() && (0.0..=1.0).contains(&w);
+    for e in effectors {
+        if e.joint >= joints {
+            return Err(PoseError::JointOutOfRange {
+                joint: e.joint,
+                joint_count: joints,
+            });
+        }
+        let finite = match e.goal {
+            EffectorGoal::Position(p) => p.is_finite(),
+            EffectorGoal::Orientation(q) => q.is_finite() && q.length_squared() > 1e-12,
+            EffectorGoal::Aim { axis, target, up } => {
+                axis.is_finite()
+                    && axis.length_squared() > 1e-18
+                    && target.is_finite()
+                    && up.is_none_or(|(a, b)| a.is_finite() && b.is_finite())
+            }
+        };
+        if !finite {
+            return Err(PoseError::NonFiniteTarget);
+        }
+        if !weight_ok(e.weight) {
+            return Err(PoseError::InvalidConstraintWeight { weight: e.weight });
+        }
+    }
+    for c in centroids {
+        if let Some(&v) = c.vertices.iter().find(|&&v| v as usize >= vertex_count) {
+            return Err(PoseError::VertexOutOfRange {
+                vertex: v,
+                vertex_count,
+            });
+        }
+        if !c.target.is_finite() {
+            return Err(PoseError::NonFiniteTarget);
+        }
+        if !weight_ok(c.weight) {
+            return Err(PoseError::InvalidConstraintWeight { weight: c.weight });
+        }
+    }
+    if let Some(s) = stiffness {
+        skeleton.check_pose(&s.pose)?;
+        if s.per_joint.len() != joints {
+            return Err(PoseError::PoseLength {
+                expected: joints,
+                got: s.per_joint.len(),
+            });
+        }
+        if let Some(&w) = s.per_joint.iter().find(|w| !weight_ok(**w)) {
+            return Err(PoseError::InvalidConstraintWeight { weight: w });
+        }
+    }
+    Ok(())
+}
+
+impl<'a> ExtraTerms<'a> {
+    /// The weighted terms for these inputs (targets blended from the reference pose).
+    pub(crate) fn new(skeleton: &'a Skeleton, input: &ExtraInputs<'_>) -> Self {
+        let mut terms = Vec::new();
+        // A hundred pinned joints' worth: a reachable goal is met to well under 1e-3 of the
+        // model's size against the shape energy of the bends it takes.
+        let lw = EFFECTOR_STRENGTH * input.joint_weight;
+        let ref_rot = |j: usize| rotation_of(&input.reference_globals[j].matrix3);
+        for e in input.effectors.iter().filter(|e| e.weight > 0.0) {
+            let weight = lw * strength(e.weight);
+            let j = e.joint;
+            match e.goal {
+                EffectorGoal::Position(p) => terms.push(Term::Position {
+                    joint: j,
+                    target: input.reference_globals[j].translation.lerp(p, e.weight),
+                    weight,
+                }),
+                EffectorGoal::Orientation(q) => terms.push(Term::Orientation {
+                    joint: j,
+                    target: DMat3::from_quat(ref_rot(j).slerp(q.normalize(), e.weight)),
+                    weight,
+                }),
+                EffectorGoal::Aim { axis, target, up } => {
+                    // Blend the aim point from the one the joint aims at in the reference.
+                    let origin = input.reference_globals[j].translation;
+                    let reach = (target - origin).length().max(1e-9);
+                    let now = origin + ref_rot(j) * axis.normalize() * reach;
+                    let blended = origin + (now - origin).lerp(target - origin, e.weight);
+                    terms.push(Term::Aim {
+                        joint: j,
+                        axis: axis.normalize(),
+                        target: blended,
+                        up: up.map(|(a, b)| (a.normalize_or_zero(), b.normalize_or_zero())),
+                        weight,
+                    });
+                }
+            }
+        }
+        for c in input
+            .centroids
+            .iter()
+            .filter(|c| c.weight > 0.0 && !c.vertices.is_empty())
+        {
+            let mut per_joint: Vec<DVec4> = vec![DVec4::ZERO; skeleton.len()];
+            let n = c.vertices.len() as f64;
+            for &v in &c.vertices {
+                let b = input.bind[v as usize];
+                for &(j, w) in &input.influences[v as usize] {
+                    if w != 0.0 {
+                        per_joint[j as usize] += DVec4::new(b.x, b.y, b.z, 1.0) * (w / n);
+                    }
+                }
+            }
+            let sums: Vec<(usize, DVec4)> = per_joint
+                .into_iter()
+                .enumerate()
+                .filter(|(_, m)| *m != DVec4::ZERO)
+                .collect();
+            let at_reference = centroid_of(&sums, input.reference_skinning);
+            terms.push(Term::Centroid {
+                sums,
+                target: at_reference.lerp(c.target, c.weight),
+                weight: lw * strength(c.weight),
+            });
+        }
+        if let Some(s) = input.stiffness {
+            let scale = |j: usize| match s.weighting {
+                StiffnessWeighting::Uniform => 1.0,
+                StiffnessWeighting::Inertia => {
+                    input.relative_inertia.get(j).copied().unwrap_or(1.0)
+                }
+            };
+            for (j, &k) in s.per_joint.iter().enumerate().filter(|(_, k)| **k > 0.0) {
+                let joint = &skeleton.joints()[j];
+                let root_translation = joint.parent.is_none().then(|| {
+                    joint
+                        .parent_frame
+                        .transform_point3(s.pose.local[j].translation)
+                });
+                terms.push(Term::Stiffness {
+                    joint: j,
+                    reference: DMat3::from_quat(s.pose.local[j].rotation),
+                    root_translation,
+                    weight: input.vertex_weight * k * scale(j),
+                });
+            }
+        }
+        Self {
+            skeleton,
+            terms,
+            length_scale: input.length_scale,
+        }
+    }
+
+    /// Whether there is anything to add.
+    pub(crate) fn is_empty(&self) -> bool {
+        self.terms.is_empty()
+    }
+
+    /// World rotation of a joint (scale divided out).
+    fn rotation(globals: &[DAffine3], j: usize) -> DMat3 {
+        DMat3::from_quat(rotation_of(&globals[j].matrix3))
+    }
+
+    /// The rotation a joint's local rotation is relative to, in the world.
+    fn parent_rotation(&self, globals: &[DAffine3], j: usize) -> DMat3 {
+        let joint = &self.skeleton.joints()[j];
+        let m = joint
+            .parent
+            .map_or(joint.parent_frame.matrix3, |p| globals[p].matrix3);
+        DMat3::from_quat(rotation_of(&m))
+    }
+
+    /// True when `a` is `j` or one of its ancestors.
+    fn moves(&self, a: usize, j: usize) -> bool {
+        let mut k = Some(j);
+        while let Some(c) = k {
+            if c == a {
+                return true;
+            }
+            k = self.skeleton.joints()[c].parent;
+        }
+        false
+    }
+
+    /// Each term's weight and residual (stacked 3-vectors) at `globals` / `skinning`.
+    fn residuals(&self, globals: &[DAffine3], skinning: &[DAffine3]) -> Vec<(f64, Vec<DVec3>)> {
+        let l = self.length_scale;
+        // Each joint's world rotation once (a stiffness term reads its joint's and its
+        // parent's, which is the next term's joint).
+        let mut cache: Vec<Option<DMat3>> = vec![None; globals.len()];
+        let mut rotation = |j: usize| *cache[j].get_or_insert_with(|| Self::rotation(globals, j));
+        self.terms
+            .iter()
+            .map(|term| match term {
+                Term::Position {
+                    joint,
+                    target,
+                    weight,
+                } => (*weight, vec![globals[*joint].translation - *target]),
+                Term::Orientation {
+                    joint,
+                    target,
+                    weight,
+                } => {
+                    let r = rotation(*joint);
+                    (*weight, columns(&((r - *target) * l)))
+                }
+                Term::Aim {
+                    joint,
+                    axis,
+                    target,
+                    up,
+                    weight,
+                } => {
+                    let r = rotation(*joint);
+                    let d = r * *axis;
+                    let u = (*target - globals[*joint].translation).normalize_or(d);
+                    let mut out = vec![(d - u) * l];
+                    if let Some((local_up, world_up)) = up {
+                        let e = r * *local_up;
+                        let f = (*world_up - u * world_up.dot(u)).normalize_or(e);
+                        out.push((e - f) * l);
+                    }
+                    (*weight, out)
+                }
+                Term::Centroid {
+                    sums,
+                    target,
+                    weight,
+                } => (*weight, vec![centroid_of(sums, skinning) - *target]),
+                Term::Stiffness {
+                    joint,
+                    reference,
+                    root_translation,
+                    weight,
+                } => {
+                    let r = rotation(*joint);
+                    let parent = match self.skeleton.joints()[*joint].parent {
+                        Some(p) => rotation(p),
+                        None => self.parent_rotation(globals, *joint),
+                    };
+                    let goal = parent * *reference;
+                    let mut out = columns(&((r - goal) * l));
+                    if let Some(t) = root_translation {
+                        out.push(globals[*joint].translation - *t);
+                    }
+                    (*weight, out)
+                }
+            })
+            .collect()
+    }
+
+    /// `Σ w ‖r‖²`.
+    pub(crate) fn energy(&self, globals: &[DAffine3], skinning: &[DAffine3]) -> f64 {
+        self.residuals(globals, skinning)
+            .iter()
+            .map(|(w, r)| w * r.iter().map(|v| v.length_squared()).sum::<f64>())
+            .sum()
+    }
+
+    /// The Jacobian blocks (one 3 × 3 per residual 3-vector) of a term for one parameter.
+    fn jacobian(
+        &self,
+        term: &Term,
+        param: Param,
+        globals: &[DAffine3],
+        skinning: &[DAffine3],
+    ) -> Option<Vec<DMat3>> {
+        let l = self.length_scale;
+        let (a, rotation) = match param {
+            Param::Rotation(a) => (a, true),
+            Param::Translation(a) => (a, false),
+        };
+        let origin = globals[a].translation;
+        // d(point) for a point moved rigidly with joint `a`'s subtree.
+        let point = |p: DVec3| {
+            if rotation {
+                -skew(p - origin)
+            } else {
+                DMat3::IDENTITY
+            }
+        };
+        // d(direction) for a direction turned with the subtree.
+        let direction = |d: DVec3| if rotation { -skew(d) } else { DMat3::ZERO };
+        match term {
+            Term::Position { joint, .. } => self
+                .moves(a, *joint)
+                .then(|| vec![point(globals[*joint].translation)]),
+            Term::Orientation { joint, .. } => self.moves(a, *joint).then(|| {
+                let r = Self::rotation(globals, *joint);
+                [r.x_axis, r.y_axis, r.z_axis]
+                    .iter()
+                    .map(|c| direction(*c) * l)
+                    .collect()
+            }),
+            Term::Aim {
+                joint,
+                axis,
+                target,
+                up,
+                ..
+            } => self.moves(a, *joint).then(|| {
+                let r = Self::rotation(globals, *joint);
+                let d = r * *axis;
+                let to = *target - globals[*joint].translation;
+                let dist = to.length().max(1e-9);
+                let u = to / dist;
+                let project = DMat3::IDENTITY - outer(u, u);
+                // r = d − u; du = −P dp / dist.
+                let mut out =
+                    vec![(direction(d) + project * point(globals[*joint].translation) / dist) * l];
+                if up.is_some() {
+                    let e = r * up.map_or(DVec3::Y, |u| u.0);
+                    out.push(direction(e) * l);
+                }
+                out
+            }),
+            Term::Centroid { sums, .. } => {
+                let mut moved = DVec3::ZERO;
+                let mut mass = 0.0;
+                for &(j, m) in sums.iter().filter(|(j, _)| self.moves(a, *j)) {
+                    moved += apply(&skinning[j], m);
+                    mass += m.w;
+                }
+                (mass != 0.0).then(|| {
+                    vec![if rotation {
+                        -skew(moved - origin * mass)
+                    } else {
+                        DMat3::IDENTITY * mass
+                    }]
+                })
+            }
+            Term::Stiffness {
+                joint,
+                root_translation,
+                ..
+            } => {
+                // Only the joint's own parameters: an ancestor turns the joint and its goal
+                // together, so the residual turns rigidly and its length does not change — no
+                // gradient and no curvature (the Gauss–Newton blocks `JᵀJ` it would add are
+                // spurious stiffness on the ancestors). A translation is a root's own, and
+                // counts only where the term holds the root's position.
+                if a != *joint || (!rotation && root_translation.is_none()) {
+                    return None;
+                }
+                let mut out: Vec<DMat3> = if rotation {
+                    let r = Self::rotation(globals, *joint);
+                    [r.x_axis, r.y_axis, r.z_axis]
+                        .iter()
+                        .map(|c| direction(*c) * l)
+                        .collect()
+                } else {
+                    vec![DMat3::ZERO; 3]
+                };
+                if root_translation.is_some() {
+                    out.push(point(globals[*joint].translation));
+                }
+                Some(out)
+            }
+        }
+    }
+
+    /// Adds the Gauss–Newton terms `2 w JᵀJ` and `2 w Jᵀr` to the solver's system (`h` is
+    /// `3P × 3P` row-major, `g` `3P`).
+    pub(crate) fn add_system(
+        &self,
+        globals: &[DAffine3],
+        skinning: &[DAffine3],
+        params: &[Param],
+        h: &mut [f64],
+        g: &mut [f64],
+    ) {
+        let np = params.len() * 3;
+        let residuals = self.residuals(globals, skinning);
+        for (term, (w, r)) in self.terms.iter().zip(&residuals) {
+            let blocks: Vec<(usize, Vec<DMat3>)> = params
+                .iter()
+                .enumerate()
+                .filter_map(|(p, &param)| {
+                    self.jacobian(term, param, globals, skinning)
+                        .map(|j| (p, j))
+                })
+                .collect();
+            for (pa, ja) in &blocks {
+                let mut ga = DVec3::ZERO;
+                for (jb, rv) in ja.iter().zip(r) {
+                    ga += jb.transpose() * *rv;
+                }
+                for k in 0..3 {
+                    g[pa * 3 + k] += 2.0 * w * ga[k];
+                }
+                for (pb, jbk) in &blocks {
+                    let mut m = DMat3::ZERO;
+                    for (x, y) in ja.iter().zip(jbk) {
+                        m += x.transpose() * *y;
+                    }
+                    for r in 0..3 {
+                        for c in 0..3 {
+                            h[(pa * 3 + r) * np + pb * 3 + c] += 2.0 * w * m.col(c)[r];
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// `Σ_j S_j m_j` (homogeneous weighted sums).
+fn centroid_of(sums: &[(usize, DVec4)], skinning: &[DAffine3]) -> DVec3 {
+    sums.iter().map(|&(j, m)| apply(&skinning[j], m)).sum()
+}
+
+/// An affine applied to a homogeneous point `(x, y, z, w)`.
+fn apply(a: &DAffine3, m: DVec4) -> DVec3 {
+    a.matrix3 * m.truncate() + a.translation * m.w
+}
+
+fn columns(m: &DMat3) -> Vec<DVec3> {
+    vec![m.x_axis, m.y_axis, m.z_axis]
+}
+
+fn outer(a: DVec3, b: DVec3) -> DMat3 {
+    DMat3::from_cols(a * b.x, a * b.y, a * b.z)
+}
+
+/// The cross-product matrix `[o]×` (`[o]× v = o × v`).
+pub(crate) fn skew(o: DVec3) -> DMat3 {
+    DMat3::from_cols(
+        DVec3::new(0.0, o.z, -o.y),
+        DVec3::new(-o.z, 0.0, o.x),
+        DVec3::new(o.y, -o.x, 0.0),
+    )
+}

@@ -1,0 +1,271 @@
+//! [`PoseSolver::solve`]: the local/global loop. Each iteration fits one rotation per weight
+//! cluster (the local step, `arap.rs`), builds the Gauss–Newton system in the bone parameters
+//! with the effector, stiffness and hinge terms (`gauss_newton.rs`, `effector_terms.rs`,
+//! `hinges.rs`), and takes one damped step that lowers the energy (`step.rs`).
+
+use std::time::Instant;
+
+use glam::{DAffine3, DQuat};
+
+use super::arap::ClusterFit;
+use super::effector_terms::{ExtraInputs, ExtraTerms, validate};
+use super::gauss_newton::{BlockPattern, HessianScratch};
+use super::step::{DampedSystem, Objective};
+use super::{
+    PoseConstraints, PoseSolution, PoseSolveOptions, PoseSolveStats, PoseSolver, PoseStart,
+};
+use crate::deform::RigidTransform;
+use crate::pose::{PoseError, Skeleton, SkeletonPose};
+
+/// Levenberg–Marquardt damping of a cold start (relative to the Hessian's diagonal).
+const INITIAL_DAMPING: f64 = 1e-4;
+
+/// A pose with what the energy and its derivatives read of it.
+pub(super) struct Posed {
+    pub(super) pose: SkeletonPose,
+    pub(super) globals: Vec<DAffine3>,
+    pub(super) skin: Vec<DAffine3>,
+    /// The stacked skinning matrices `X` and `Q X`.
+    pub(super) x: Vec<f64>,
+    pub(super) qx: Vec<f64>,
+}
+
+impl PoseSolver {
+    /// Solves for the pose from `start`. `cancel` is polled between iterations.
+    pub fn solve(
+        &self,
+        constraints: &PoseConstraints,
+        options: &PoseSolveOptions,
+        start: PoseStart<'_>,
+        cancel: &dyn Fn() -> bool,
+    ) -> Result<PoseSolution, PoseError> {
+        let started = Instant::now();
+        self.check_solve(constraints, &start)?;
+        let clusters = self.model.cluster_count();
+        let (start, warm) = match start {
+            PoseStart::Pose(p) => (p, None),
+            PoseStart::Warm(s) => (&s.pose, Some(s)),
+            PoseStart::Near { pose, last } => (pose, Some(last)),
+        };
+        let extras = self.extra_terms(constraints);
+        let limits = constraints.limits.as_deref();
+        let (mut rotations, mut damping, mut exact) = match warm {
+            Some(w) if w.cluster_rotations.len() == clusters => {
+                (w.cluster_rotations.clone(), w.damping, false)
+            }
+            _ => (vec![DQuat::IDENTITY; clusters], INITIAL_DAMPING, true),
+        };
+        let (mut b_pen, mut c_pen) = self.penalty_terms(constraints);
+        let mut shape_rest_rotations = Vec::new();
+        if let Some(rest) = &constraints.shape_rest {
+            let guess = warm
+                .map(|w| &w.shape_rest_rotations[..])
+                .filter(|r| r.len() == clusters);
+            let (tilt, constant, fitted) = self.shape_tilt(rest, guess);
+            shape_rest_rotations = fitted;
+            for (b, t) in b_pen.iter_mut().zip(tilt) {
+                *b += t;
+            }
+            c_pen += constant;
+        }
+        let c0 = self.model.c0.max(1e-300);
+        let mut pose = start.clone();
+        if let Some(limits) = limits {
+            limits.project(&mut pose);
+        }
+        let mut current = self.posed(pose);
+        let mut stats = PoseSolveStats::default();
+        let mut b = vec![0.0; b_pen.len()];
+        let mut scratch = HessianScratch::take();
+        let mut last = f64::NAN;
+        for it in 0..options.max_iterations {
+            if cancel() {
+                stats.cancelled = true;
+                break;
+            }
+            let t = Instant::now();
+            let fit = if exact {
+                ClusterFit::Exact
+            } else {
+                ClusterFit::Newton(4)
+            };
+            self.local_step(&current.x, &mut rotations, fit);
+            exact = false;
+            stats.local_s += t.elapsed().as_secs_f64();
+            let t = Instant::now();
+            b.copy_from_slice(&b_pen);
+            self.add_rotation_terms(&rotations, &mut b);
+            let objective = Objective {
+                b: &b,
+                constant: self.model.c0 + c_pen,
+                extras: &extras,
+            };
+            let f0 = self.energy(&current, &objective);
+            if it == 0 {
+                stats.initial_energy = f0 / c0;
+                last = f0;
+            }
+            // Levenberg–Marquardt: damp the Gauss–Newton step until it lowers the energy.
+            let (mut h, mut g) = self.gauss_newton_system(&current, &b, &mut scratch);
+            if !extras.is_empty() {
+                extras.add_system(
+                    &current.globals,
+                    &current.skin,
+                    &self.params,
+                    &mut h,
+                    &mut g,
+                );
+            }
+            if let Some(limits) = limits {
+                self.restrict_hinges(limits, &current.globals, &mut h, &mut g);
+            }
+            // The effector terms may couple joints the shape energy does not: read their
+            // blocks off the matrix; else the system's own pattern (hinges add none).
+            let pattern = if extras.is_empty() {
+                scratch.pattern()
+            } else {
+                std::rc::Rc::new(BlockPattern::of(&h, g.len()))
+            };
+            stats.system_s += t.elapsed().as_secs_f64();
+            let step = DampedSystem {
+                h: &h,
+                g: &g,
+                f0,
+                pattern: &pattern,
+            };
+            let accepted = self.damped_step(
+                &current,
+                &step,
+                &objective,
+                limits,
+                &mut damping,
+                &mut stats,
+            );
+            stats.global_s += t.elapsed().as_secs_f64();
+            scratch.return_matrix(h);
+            let f = match accepted {
+                Some((next, f)) => {
+                    current = next;
+                    f
+                }
+                None => f0,
+            };
+            stats.iterations += 1;
+            stats.energies.push(f / c0);
+            let decrease = (last - f) / last.abs().max(1e-300);
+            last = f;
+            if decrease < options.tolerance && it > 0 {
+                break;
+            }
+        }
+        scratch.keep();
+        let pose = current.pose;
+        if !pose.local.iter().all(|t| t.is_valid()) {
+            return Err(PoseError::NonFiniteResult);
+        }
+        stats.total_s = started.elapsed().as_secs_f64();
+        Ok(PoseSolution {
+            pose,
+            cluster_rotations: rotations,
+            damping,
+            shape_rest_rotations,
+            stats,
+        })
+    }
+
+    /// A solve of `constraints` from `start` is possible: the same constraint sets, finite
+    /// targets, valid effectors and a start pose of this skeleton.
+    fn check_solve(
+        &self,
+        constraints: &PoseConstraints,
+        start: &PoseStart,
+    ) -> Result<(), PoseError> {
+        if !self.accepts(constraints) {
+            return Err(PoseError::ConstraintSetChanged);
+        }
+        if !targets_valid(constraints) {
+            return Err(PoseError::NonFiniteTarget);
+        }
+        let skeleton = self.model.skeleton();
+        validate(
+            skeleton,
+            self.model.topology().vertex_count(),
+            &constraints.effectors,
+            &constraints.centroid_effectors,
+            constraints.stiffness.as_ref(),
+        )?;
+        let pose = match start {
+            PoseStart::Pose(p) | PoseStart::Near { pose: p, .. } => p,
+            PoseStart::Warm(s) => &s.pose,
+        };
+        skeleton.check_pose(pose)?;
+        if let Some(rest) = &constraints.shape_rest {
+            skeleton.check_pose(rest)?;
+        }
+        Ok(())
+    }
+
+    /// A pose with its global and skinning transforms and the stacked skinning matrix.
+    pub(super) fn posed(&self, pose: SkeletonPose) -> Posed {
+        let skeleton = self.model.skeleton();
+        let globals = skeleton.global_transforms(&pose);
+        let skin = skinning(&globals, skeleton);
+        let x = self.model.stack(&skin);
+        let qx = self.q_times(&x);
+        Posed {
+            pose,
+            globals,
+            skin,
+            x,
+            qx,
+        }
+    }
+
+    /// The energy of a posed skeleton.
+    pub(super) fn energy(&self, posed: &Posed, objective: &Objective) -> f64 {
+        self.objective(&posed.x, &posed.qx, objective.b, objective.constant)
+            + objective.extras.energy(&posed.globals, &posed.skin)
+    }
+
+    /// The effector and stiffness terms of `constraints`, with targets blended from the
+    /// reference pose this solver was built for.
+    fn extra_terms<'a>(&'a self, constraints: &'a PoseConstraints) -> ExtraTerms<'a> {
+        let skeleton = self.model.skeleton();
+        let reference_skinning = skinning(&self.reference_globals, skeleton);
+        ExtraTerms::new(
+            skeleton,
+            &ExtraInputs {
+                effectors: &constraints.effectors,
+                centroids: &constraints.centroid_effectors,
+                stiffness: constraints.stiffness.as_ref(),
+                reference_globals: &self.reference_globals,
+                reference_skinning: &reference_skinning,
+                influences: self.model.influences(),
+                relative_inertia: self.model.relative_inertia(),
+                bind: self.model.bind_positions(),
+                joint_weight: self.joint_weight,
+                vertex_weight: self.vertex_weight,
+                length_scale: self.length_scale,
+            },
+        )
+    }
+}
+
+/// Every handle's target is a finite rigid transform.
+fn targets_valid(constraints: &PoseConstraints) -> bool {
+    let valid = |t: &RigidTransform| t.is_valid();
+    constraints.handles.iter().all(|h| valid(&h.transform))
+        && constraints
+            .joint_handles
+            .iter()
+            .all(|h| valid(&h.transform))
+}
+
+/// Each joint's skinning transform: its global transform times its inverse bind.
+fn skinning(globals: &[DAffine3], skeleton: &Skeleton) -> Vec<DAffine3> {
+    globals
+        .iter()
+        .zip(skeleton.joints())
+        .map(|(g, j)| *g * j.inverse_bind)
+        .collect()
+}

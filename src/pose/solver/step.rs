@@ -1,0 +1,99 @@
+//! The Levenberg–Marquardt step of an iteration: solve the damped system, shorten or damp a
+//! step that would raise the energy, project it into the joint limits, and retract it onto
+//! the skeleton (rigid bones).
+
+use glam::{DAffine3, DQuat, DVec3};
+
+use super::effector_terms::ExtraTerms;
+use super::gauss_newton::{BlockPattern, solve_damped};
+use super::params::Param;
+use super::solve::Posed;
+use super::{PoseSolveStats, PoseSolver};
+use crate::pose::{JointLimits, JointTransform, SkeletonPose};
+
+/// What an iteration's energy is made of besides the pose: the linear term of the rotation
+/// fit and penalties, its constant, and the effector, limit and stiffness terms.
+pub(super) struct Objective<'a> {
+    pub(super) b: &'a [f64],
+    pub(super) constant: f64,
+    pub(super) extras: &'a ExtraTerms<'a>,
+}
+
+/// An iteration's Gauss–Newton system and the energy it starts from.
+pub(super) struct DampedSystem<'a> {
+    pub(super) h: &'a [f64],
+    pub(super) g: &'a [f64],
+    pub(super) f0: f64,
+    /// Where `h`'s Cholesky factor has non-zero blocks.
+    pub(super) pattern: &'a BlockPattern,
+}
+
+impl PoseSolver {
+    /// One Levenberg–Marquardt step from `current`: a rejected step is first shortened along
+    /// its direction (cheap: no new factorization), then re-solved with more damping. The
+    /// accepted pose and its energy, or `None` after twelve rejections.
+    pub(super) fn damped_step(
+        &self,
+        current: &Posed,
+        system: &DampedSystem,
+        objective: &Objective,
+        limits: Option<&JointLimits>,
+        damping: &mut f64,
+        stats: &mut PoseSolveStats,
+    ) -> Option<(Posed, f64)> {
+        for _ in 0..12 {
+            let step = solve_damped(system.h, system.g, *damping, system.pattern);
+            for (k, length) in [1.0, 0.5].into_iter().enumerate() {
+                let mut candidate = retract(&current.pose, &current.globals, &step, length, self);
+                if let Some(limits) = limits {
+                    limits.project(&mut candidate);
+                }
+                let candidate = self.posed(candidate);
+                let f = self.energy(&candidate, objective);
+                if f.is_finite() && f <= system.f0 {
+                    *damping = if k == 0 {
+                        (*damping / 2.0).max(1e-9)
+                    } else {
+                        *damping * 2.0
+                    };
+                    return Some((candidate, f));
+                }
+                stats.rejected_steps += 1;
+            }
+            *damping *= 4.0;
+        }
+        None
+    }
+}
+
+/// Applies `t · step` to `pose`: rotation increments (world space, about each joint) become
+/// local rotation changes; root translations move the roots.
+fn retract(
+    pose: &SkeletonPose,
+    globals: &[DAffine3],
+    step: &[DVec3],
+    t: f64,
+    solver: &PoseSolver,
+) -> SkeletonPose {
+    let skeleton = solver.model.skeleton();
+    let mut out = pose.clone();
+    for (p, &param) in solver.params.iter().enumerate() {
+        let d = step[p] * t;
+        let j = param.joint();
+        let local: &mut JointTransform = &mut out.local[j];
+        match param {
+            Param::Rotation(_) => {
+                let qp = skeleton.parent_rotation(globals, j);
+                let inc = qp.inverse() * DQuat::from_scaled_axis(d) * qp;
+                local.rotation = (inc * local.rotation).normalize();
+            }
+            Param::Translation(_) => {
+                let lin = skeleton.parent_linear(globals, j);
+                if lin.determinant().abs() > 1e-300 {
+                    local.translation += lin.inverse() * d;
+                }
+            }
+        }
+    }
+    out
+}
