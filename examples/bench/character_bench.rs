@@ -241,7 +241,8 @@ fn read_with_the_plugin(path: &Path) -> Result<CharacterSkin, String> {
         if let Some(bevy::asset::LoadState::Failed(e)) =
             app.world().resource::<AssetServer>().get_load_state(&gltf)
         {
-            return Err(e.to_string());
+            // The loader's message names the file that failed (a backtrace may follow).
+            return Err(e.to_string().lines().next().unwrap_or_default().to_string());
         }
         if Instant::now() > deadline {
             return Err("did not load within 60 s".into());

@@ -32,8 +32,7 @@ impl Plugin for TimelinePlugin {
 pub struct ModelClips(pub Vec<String>);
 
 fn model_clips(path: &str) -> Vec<String> {
-    let file = std::path::Path::new("..").join(path);
-    gltf::Gltf::open(&file)
+    gltf::Gltf::open(crate::cli::asset_file(path))
         .map(|g| {
             g.document
                 .animations()
@@ -163,7 +162,7 @@ pub fn timeline_ui(ui: &mut egui::Ui, p: &mut TimelinePanel) {
         }
         for (i, name) in p.clips.0.iter().enumerate() {
             if ui.button(format!("Import {name}")).clicked() {
-                let path = std::path::Path::new("..").join(&p.args.model);
+                let path = crate::cli::asset_file(&p.args.model);
                 let name = p.clips.0.get(i).map(String::as_str);
                 p.message.0 = match timeline.import_gltf(&path, name, posed) {
                     Ok(()) => format!(

@@ -103,7 +103,8 @@ pub fn optional_word(parser: &mut Parser, word: &str) -> bool {
 /// relative to `assets/` (`models/Fox.glb`) or, as before the models moved into the
 /// repository, to the project's parent folder (`shared/models/Fox.glb`).
 pub fn asset_path(user: &str) -> String {
-    let manifest = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let manifest = project_dir();
+    let manifest = manifest.as_path();
     let candidates: [PathBuf; 2] = [PathBuf::from(user), manifest.join("..").join(user)];
     if manifest.join("assets").join(user).is_file() {
         return user.to_string();
@@ -122,8 +123,16 @@ pub fn asset_file(asset_path: &str) -> PathBuf {
     if path.is_absolute() {
         path.to_path_buf()
     } else {
-        Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("assets")
-            .join(path)
+        project_dir().join("assets").join(path)
     }
+}
+
+/// The folder whose `assets/` Bevy's asset server reads, as Bevy finds it: `BEVY_ASSET_ROOT`
+/// or `CARGO_MANIFEST_DIR` at run time (set by `cargo run`), else the project this example was
+/// built from.
+fn project_dir() -> PathBuf {
+    std::env::var_os("BEVY_ASSET_ROOT")
+        .or_else(|| std::env::var_os("CARGO_MANIFEST_DIR"))
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")))
 }

@@ -392,14 +392,17 @@ fn normalise(mut m: TriMesh) -> TriMesh {
     m
 }
 
+/// What the status line says before a missing image's path.
+const MISSING_MARK: &str = " | missing image ";
+
 /// A loaded model whose images are missing says which (it is drawn without them:
 /// `MissingTexturesPlugin`).
 fn mention_missing_images(missing: Option<Res<MissingImages>>, mut status: ResMut<StatusLine>) {
     if let Some(last) = missing.as_ref().and_then(|m| m.0.last())
         && status.0.starts_with("loaded ")
-        && !status.0.contains("missing")
+        && !status.0.contains(MISSING_MARK)
     {
-        let message = format!("{} | missing {last}: drawn without it", status.0);
+        let message = format!("{}{MISSING_MARK}{last}: drawn without it", status.0);
         status.set(message);
     }
 }

@@ -84,21 +84,21 @@ pub(super) fn solve_in_frame(
 /// are now (after animation: `GlobalTransform` is last frame's until propagation runs);
 /// `None` when an ancestor has no `Transform` or the chain is implausibly deep.
 fn current_global(entity: Entity, locals: &Locals) -> Option<GlobalTransform> {
-    let mut chain = Vec::new();
+    // Composed from the entity upwards (each parent's local transform applied on the left),
+    // without collecting the chain: this runs for every effector every frame.
+    let mut global = bevy::math::Affine3A::IDENTITY;
     let mut at = Some(entity);
+    let mut depth = 0;
     while let Some(e) = at {
         let (transform, parent) = locals.get(e).ok()?;
-        chain.push(*transform);
+        global = transform.compute_affine() * global;
         at = parent.map(ChildOf::parent);
-        if chain.len() > 512 {
+        depth += 1;
+        if depth > 512 {
             return None;
         }
     }
-    let mut global = GlobalTransform::IDENTITY;
-    for t in chain.iter().rev() {
-        global = global.mul_transform(*t);
-    }
-    Some(global)
+    Some(GlobalTransform::from(global))
 }
 
 /// Reads the effectors' goals again from their entities as they are now (after this frame's

@@ -9,7 +9,7 @@
 //! dense work (52-joint humanoid: about a fifth of the block updates). The matrix stays in
 //! the solver's dense row-major layout; the block structure is the blocks the system wrote
 //! ([`BlockPattern::from_blocks`]), or is read off the values when effector terms added
-//! blocks of their own ([`BlockPattern::of`]).
+//! blocks of their own ([`nonzero_lower_blocks`], kept while they repeat).
 
 /// A 3 × 3 block, as rows.
 type Block = [[f64; 3]; 3];
@@ -30,18 +30,13 @@ pub(super) struct BlockPattern {
 }
 
 impl BlockPattern {
-    /// The pattern of the `n × n` row-major symmetric `a` (its lower block triangle is read).
+    /// The pattern of the `n × n` row-major symmetric `a` (its lower block triangle is read;
+    /// the solver reads it through `HessianScratch::pattern_of`, which keeps it).
+    #[cfg(test)]
     pub(super) fn of(a: &[f64], n: usize) -> Self {
-        debug_assert_eq!(a.len(), n * n);
-        debug_assert_eq!(n % 3, 0);
-        let nb = n / 3;
-        let mut nonzero = vec![false; nb * nb];
-        for i in 0..nb {
-            for j in 0..=i {
-                nonzero[i * nb + j] = block_is_nonzero(a, n, i, j);
-            }
-        }
-        Self::from_blocks(nb, nonzero)
+        let mut nonzero = Vec::new();
+        nonzero_lower_blocks(a, n, &mut nonzero);
+        Self::from_blocks(n / 3, nonzero)
     }
 
     /// The pattern of a matrix of `nb × nb` blocks whose non-zero lower blocks `(i, j)`,
@@ -122,6 +117,18 @@ impl Compressed {
     }
 }
 
+thread_local! {
+    /// The storage of this thread's last factor, reused by the next.
+    static FACTOR_STORAGE: std::cell::Cell<Vec<Block>> = const { std::cell::Cell::new(Vec::new()) };
+}
+
+impl Drop for BlockCholesky<'_> {
+    fn drop(&mut self) {
+        let l = std::mem::take(&mut self.l);
+        FACTOR_STORAGE.with(|s| s.set(l));
+    }
+}
+
 /// The lower Cholesky factor of a symmetric positive definite matrix, on a [`BlockPattern`].
 pub(super) struct BlockCholesky<'p> {
     pattern: &'p BlockPattern,
@@ -130,16 +137,16 @@ pub(super) struct BlockCholesky<'p> {
 }
 
 impl<'p> BlockCholesky<'p> {
-    /// Factors `a + diag(shift)` (`a` as given to [`BlockPattern::of`]). `None` when it is
+    /// Factors `a + diag(shift)` (`a` as its pattern was read from). `None` when it is
     /// not positive definite.
     pub(super) fn factor(a: &[f64], shift: &[f64], pattern: &'p BlockPattern) -> Option<Self> {
         let n = pattern.n;
         let nb = n / 3;
-        let mut l: Vec<Block> = pattern
-            .blocks
-            .iter()
-            .map(|&(i, j)| load(a, n, i, j))
-            .collect();
+        // The last factor's storage on this thread (a factorisation per damped try of every
+        // iteration: no allocation each time).
+        let mut l: Vec<Block> = FACTOR_STORAGE.with(|s| s.take());
+        l.clear();
+        l.extend(pattern.blocks.iter().map(|&(i, j)| load(a, n, i, j)));
         for k in 0..nb {
             let d = &mut l[pattern.slot[k * nb + k]];
             for r in 0..3 {
@@ -147,7 +154,10 @@ impl<'p> BlockCholesky<'p> {
             }
         }
         for k in 0..nb {
-            let d = factor_diagonal(&mut l[pattern.slot[k * nb + k]])?;
+            let Some(d) = factor_diagonal(&mut l[pattern.slot[k * nb + k]]) else {
+                FACTOR_STORAGE.with(|s| s.set(l));
+                return None;
+            };
             let below = pattern.below.list(k);
             for &(_, s) in below {
                 solve_against_diagonal(&mut l[s], &d);
@@ -198,6 +208,21 @@ impl<'p> BlockCholesky<'p> {
                     }
                 }
             }
+        }
+    }
+}
+
+/// Flags the non-zero lower blocks `(i, j)`, `i ≥ j`, of the row-major `n × n` matrix `a` in
+/// `out[i * nb + j]` (`nb = n / 3`; `out` is resized, its allocation reused).
+pub(super) fn nonzero_lower_blocks(a: &[f64], n: usize, out: &mut Vec<bool>) {
+    debug_assert_eq!(a.len(), n * n);
+    debug_assert_eq!(n % 3, 0);
+    let nb = n / 3;
+    out.clear();
+    out.resize(nb * nb, false);
+    for i in 0..nb {
+        for j in 0..=i {
+            out[i * nb + j] = block_is_nonzero(a, n, i, j);
         }
     }
 }

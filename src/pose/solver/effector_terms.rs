@@ -263,21 +263,26 @@ impl<'a> ExtraTerms<'a> {
         false
     }
 
-    /// Each term's weight and residual (stacked 3-vectors) at `globals` / `skinning`.
-    fn residuals(&self, globals: &[DAffine3], skinning: &[DAffine3]) -> Vec<(f64, Vec<DVec3>)> {
+    /// Calls `each` with every term's weight and residual (stacked 3-vectors, at most four)
+    /// at `globals` / `skinning`, in term order; no allocation but the rotation cache.
+    fn for_each_residual(
+        &self,
+        globals: &[DAffine3],
+        skinning: &[DAffine3],
+        mut each: impl FnMut(&Term, f64, &Rows<DVec3>),
+    ) {
         let l = self.length_scale;
         // Each joint's world rotation once (a stiffness term reads its joint's and its
         // parent's, which is the next term's joint).
         let mut cache: Vec<Option<DMat3>> = vec![None; globals.len()];
         let mut rotation = |j: usize| *cache[j].get_or_insert_with(|| Self::rotation(globals, j));
-        self.terms
-            .iter()
-            .map(|term| match term {
+        for term in &self.terms {
+            let (weight, rows) = match term {
                 Term::Position {
                     joint,
                     target,
                     weight,
-                } => (*weight, vec![globals[*joint].translation - *target]),
+                } => (*weight, Rows::of(&[globals[*joint].translation - *target])),
                 Term::Orientation {
                     joint,
                     target,
@@ -296,7 +301,7 @@ impl<'a> ExtraTerms<'a> {
                     let r = rotation(*joint);
                     let d = r * *axis;
                     let u = (*target - globals[*joint].translation).normalize_or(d);
-                    let mut out = vec![(d - u) * l];
+                    let mut out = Rows::of(&[(d - u) * l]);
                     if let Some((local_up, world_up)) = up {
                         let e = r * *local_up;
                         let f = (*world_up - u * world_up.dot(u)).normalize_or(e);
@@ -308,7 +313,7 @@ impl<'a> ExtraTerms<'a> {
                     sums,
                     target,
                     weight,
-                } => (*weight, vec![centroid_of(sums, skinning) - *target]),
+                } => (*weight, Rows::of(&[centroid_of(sums, skinning) - *target])),
                 Term::Stiffness {
                     joint,
                     reference,
@@ -327,16 +332,18 @@ impl<'a> ExtraTerms<'a> {
                     }
                     (*weight, out)
                 }
-            })
-            .collect()
+            };
+            each(term, weight, &rows);
+        }
     }
 
     /// `Σ w ‖r‖²`.
     pub(crate) fn energy(&self, globals: &[DAffine3], skinning: &[DAffine3]) -> f64 {
-        self.residuals(globals, skinning)
-            .iter()
-            .map(|(w, r)| w * r.iter().map(|v| v.length_squared()).sum::<f64>())
-            .sum()
+        let mut sum = 0.0;
+        self.for_each_residual(globals, skinning, |_, w, r| {
+            sum += w * r.iter().map(|v| v.length_squared()).sum::<f64>();
+        });
+        sum
     }
 
     /// The Jacobian blocks (one 3 × 3 per residual 3-vector) of a term for one parameter.
@@ -346,7 +353,7 @@ impl<'a> ExtraTerms<'a> {
         param: Param,
         globals: &[DAffine3],
         skinning: &[DAffine3],
-    ) -> Option<Vec<DMat3>> {
+    ) -> Option<Rows<DMat3>> {
         let l = self.length_scale;
         let (a, rotation) = match param {
             Param::Rotation(a) => (a, true),
@@ -366,13 +373,10 @@ impl<'a> ExtraTerms<'a> {
         match term {
             Term::Position { joint, .. } => self
                 .moves(a, *joint)
-                .then(|| vec![point(globals[*joint].translation)]),
+                .then(|| Rows::of(&[point(globals[*joint].translation)])),
             Term::Orientation { joint, .. } => self.moves(a, *joint).then(|| {
                 let r = Self::rotation(globals, *joint);
-                [r.x_axis, r.y_axis, r.z_axis]
-                    .iter()
-                    .map(|c| direction(*c) * l)
-                    .collect()
+                Rows::of(&[r.x_axis, r.y_axis, r.z_axis].map(|c| direction(c) * l))
             }),
             Term::Aim {
                 joint,
@@ -388,8 +392,9 @@ impl<'a> ExtraTerms<'a> {
                 let u = to / dist;
                 let project = DMat3::IDENTITY - outer(u, u);
                 // r = d − u; du = −P dp / dist.
-                let mut out =
-                    vec![(direction(d) + project * point(globals[*joint].translation) / dist) * l];
+                let change =
+                    (direction(d) + project * point(globals[*joint].translation) / dist) * l;
+                let mut out = Rows::of(&[change]);
                 if up.is_some() {
                     let e = r * up.map_or(DVec3::Y, |u| u.0);
                     out.push(direction(e) * l);
@@ -404,11 +409,11 @@ impl<'a> ExtraTerms<'a> {
                     mass += m.w;
                 }
                 (mass != 0.0).then(|| {
-                    vec![if rotation {
+                    Rows::of(&[if rotation {
                         -skew(moved - origin * mass)
                     } else {
                         DMat3::IDENTITY * mass
-                    }]
+                    }])
                 })
             }
             Term::Stiffness {
@@ -424,14 +429,11 @@ impl<'a> ExtraTerms<'a> {
                 if a != *joint || (!rotation && root_translation.is_none()) {
                     return None;
                 }
-                let mut out: Vec<DMat3> = if rotation {
+                let mut out = if rotation {
                     let r = Self::rotation(globals, *joint);
-                    [r.x_axis, r.y_axis, r.z_axis]
-                        .iter()
-                        .map(|c| direction(*c) * l)
-                        .collect()
+                    Rows::of(&[r.x_axis, r.y_axis, r.z_axis].map(|c| direction(c) * l))
                 } else {
-                    vec![DMat3::ZERO; 3]
+                    Rows::of(&[DMat3::ZERO; 3])
                 };
                 if root_translation.is_some() {
                     out.push(point(globals[*joint].translation));
@@ -452,19 +454,17 @@ impl<'a> ExtraTerms<'a> {
         g: &mut [f64],
     ) {
         let np = params.len() * 3;
-        let residuals = self.residuals(globals, skinning);
-        for (term, (w, r)) in self.terms.iter().zip(&residuals) {
-            let blocks: Vec<(usize, Vec<DMat3>)> = params
-                .iter()
-                .enumerate()
-                .filter_map(|(p, &param)| {
-                    self.jacobian(term, param, globals, skinning)
-                        .map(|j| (p, j))
-                })
-                .collect();
+        // One list of a term's Jacobian blocks, reused term after term.
+        let mut blocks: Vec<(usize, Rows<DMat3>)> = Vec::with_capacity(params.len());
+        self.for_each_residual(globals, skinning, |term, w, r| {
+            blocks.clear();
+            blocks.extend(params.iter().enumerate().filter_map(|(p, &param)| {
+                self.jacobian(term, param, globals, skinning)
+                    .map(|j| (p, j))
+            }));
             for (pa, ja) in &blocks {
                 let mut ga = DVec3::ZERO;
-                for (jb, rv) in ja.iter().zip(r) {
+                for (jb, rv) in ja.iter().zip(r.iter()) {
                     ga += jb.transpose() * *rv;
                 }
                 for k in 0..3 {
@@ -472,7 +472,7 @@ impl<'a> ExtraTerms<'a> {
                 }
                 for (pb, jbk) in &blocks {
                     let mut m = DMat3::ZERO;
-                    for (x, y) in ja.iter().zip(jbk) {
+                    for (x, y) in ja.iter().zip(jbk.iter()) {
                         m += x.transpose() * *y;
                     }
                     for r in 0..3 {
@@ -482,7 +482,7 @@ impl<'a> ExtraTerms<'a> {
                     }
                 }
             }
-        }
+        });
     }
 }
 
@@ -496,8 +496,43 @@ fn apply(a: &DAffine3, m: DVec4) -> DVec3 {
     a.matrix3 * m.truncate() + a.translation * m.w
 }
 
-fn columns(m: &DMat3) -> Vec<DVec3> {
-    vec![m.x_axis, m.y_axis, m.z_axis]
+fn columns(m: &DMat3) -> Rows<DVec3> {
+    Rows::of(&[m.x_axis, m.y_axis, m.z_axis])
+}
+
+/// Up to four rows of a residual or its Jacobian, on the stack (a term has at most four:
+/// a stiffness term's three rotation columns and its root's position).
+#[derive(Clone, Copy)]
+struct Rows<T: Copy> {
+    items: [T; 4],
+    len: usize,
+}
+
+impl<T: Copy + Default> Rows<T> {
+    /// The rows `items` (at most four).
+    fn of(items: &[T]) -> Self {
+        let mut rows = Self {
+            items: [T::default(); 4],
+            len: 0,
+        };
+        for &item in items {
+            rows.push(item);
+        }
+        rows
+    }
+
+    /// Appends a row (a fifth is a bug: debug builds stop, release builds drop it).
+    fn push(&mut self, item: T) {
+        debug_assert!(self.len < 4, "a term has at most four rows");
+        if let Some(slot) = self.items.get_mut(self.len) {
+            *slot = item;
+            self.len += 1;
+        }
+    }
+
+    fn iter(&self) -> std::slice::Iter<'_, T> {
+        self.items[..self.len].iter()
+    }
 }
 
 fn outer(a: DVec3, b: DVec3) -> DMat3 {

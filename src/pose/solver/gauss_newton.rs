@@ -9,6 +9,7 @@ use glam::{DAffine3, DMat3, DMat4, DVec3};
 use super::PoseSolver;
 use super::block_cholesky::BlockCholesky;
 pub(super) use super::block_cholesky::BlockPattern;
+use super::block_cholesky::nonzero_lower_blocks;
 use super::effector_terms::skew;
 use super::params::Param;
 use super::solve::Posed;
@@ -209,6 +210,10 @@ pub(super) struct HessianScratch {
     pairs: Vec<bool>,
     /// The last pattern made from `pairs`, with the pairs it was made from.
     pattern: Option<(Vec<bool>, Rc<BlockPattern>)>,
+    /// The non-zero blocks read off the last system with effector terms, and the pattern
+    /// made from them.
+    read: Vec<bool>,
+    effector_pattern: Option<(Vec<bool>, Rc<BlockPattern>)>,
 }
 
 thread_local! {
@@ -238,6 +243,21 @@ impl HessianScratch {
                 let blocks = self.pairs.len().isqrt();
                 let pattern = Rc::new(BlockPattern::from_blocks(blocks, self.pairs.clone()));
                 self.pattern = Some((self.pairs.clone(), pattern.clone()));
+                pattern
+            }
+        }
+    }
+
+    /// The block pattern of a system whose effector terms may couple joints the shape energy
+    /// does not: read off the matrix `h` (`n × n`), and kept while its blocks repeat (every
+    /// iteration of a solve, and the next solve of the same set, usually).
+    pub(super) fn pattern_of(&mut self, h: &[f64], n: usize) -> Rc<BlockPattern> {
+        nonzero_lower_blocks(h, n, &mut self.read);
+        match &self.effector_pattern {
+            Some((blocks, pattern)) if *blocks == self.read => pattern.clone(),
+            _ => {
+                let pattern = Rc::new(BlockPattern::from_blocks(n / 3, self.read.clone()));
+                self.effector_pattern = Some((self.read.clone(), pattern.clone()));
                 pattern
             }
         }

@@ -9,7 +9,7 @@ use glam::{DAffine3, DQuat};
 
 use super::arap::ClusterFit;
 use super::effector_terms::{ExtraInputs, ExtraTerms, validate};
-use super::gauss_newton::{BlockPattern, HessianScratch};
+use super::gauss_newton::HessianScratch;
 use super::step::{DampedSystem, Objective};
 use super::{
     PoseConstraints, PoseSolution, PoseSolveOptions, PoseSolveStats, PoseSolver, PoseStart,
@@ -124,7 +124,7 @@ impl PoseSolver {
             let pattern = if extras.is_empty() {
                 scratch.pattern()
             } else {
-                std::rc::Rc::new(BlockPattern::of(&h, g.len()))
+                scratch.pattern_of(&h, g.len())
             };
             stats.system_s += t.elapsed().as_secs_f64();
             let step = DampedSystem {
