@@ -23,6 +23,11 @@ use bevy::prelude::*;
 pub use plugin::SceneRootPlugin;
 pub(crate) use plugin::{add_scene_roots, scene_load_failure};
 
+/// Marks a scene root whose dependencies have settled (all loaded, or one failed): the
+/// missing-dependency check is done for it.
+#[derive(Component, Debug, Clone, Copy, Default)]
+pub(crate) struct SceneDependenciesSettled;
+
 /// Marks a scene root whose instance has spawned (set by an observer of
 /// `WorldInstanceReady`).
 #[derive(Component, Debug, Clone, Copy, Default)]

@@ -3,7 +3,7 @@
 use bevy::prelude::*;
 use bevy::world_serialization::{WorldAssetRoot, WorldInstanceReady};
 
-use super::{MissingSceneAssets, SceneAssetsMissing, SceneSpawned};
+use super::{MissingSceneAssets, SceneAssetsMissing, SceneDependenciesSettled, SceneSpawned};
 
 /// Watches glTF scene roots (`WorldAssetRoot`): marks them spawned, and says when a scene's
 /// dependency is missing ([`MissingSceneAssets`]). Added by the deform and pose plugins.
@@ -14,7 +14,10 @@ impl Plugin for SceneRootPlugin {
     fn build(&self, app: &mut App) {
         app.add_message::<SceneAssetsMissing>()
             .add_observer(mark_scene_spawned)
-            .add_systems(PreUpdate, report_missing_scene_assets);
+            .add_systems(
+                PreUpdate,
+                (forget_replaced_scenes, report_missing_scene_assets).chain(),
+            );
     }
 }
 
@@ -35,10 +38,24 @@ fn first_line(error: &impl std::fmt::Display) -> String {
         .to_string()
 }
 
+/// A root given another scene is watched again.
+fn forget_replaced_scenes(
+    mut commands: Commands,
+    replaced: Query<Entity, (Changed<WorldAssetRoot>, With<SceneDependenciesSettled>)>,
+) {
+    for entity in &replaced {
+        commands
+            .entity(entity)
+            .try_remove::<(SceneDependenciesSettled, MissingSceneAssets)>();
+    }
+}
+
 /// Scene roots whose own file loaded but a dependency did not get [`MissingSceneAssets`].
+/// A root is looked at until its dependencies have settled (all loaded, or one failed), then
+/// not again (two asset-server look-ups a root a frame while it loads, none after).
 fn report_missing_scene_assets(
     mut commands: Commands,
-    roots: Query<(Entity, &WorldAssetRoot), Without<MissingSceneAssets>>,
+    roots: Query<(Entity, &WorldAssetRoot), Without<SceneDependenciesSettled>>,
     assets: Option<Res<AssetServer>>,
     mut missing: MessageWriter<SceneAssetsMissing>,
 ) {
@@ -48,11 +65,15 @@ fn report_missing_scene_assets(
     };
     for (entity, root) in &roots {
         let own = assets.get_load_state(&root.0);
-        let Some(RecursiveDependencyLoadState::Failed(error)) =
-            assets.get_recursive_dependency_load_state(&root.0)
-        else {
-            continue;
+        let error = match assets.get_recursive_dependency_load_state(&root.0) {
+            Some(RecursiveDependencyLoadState::Failed(error)) => error,
+            Some(RecursiveDependencyLoadState::Loaded) => {
+                commands.entity(entity).try_insert(SceneDependenciesSettled);
+                continue;
+            }
+            _ => continue,
         };
+        commands.entity(entity).try_insert(SceneDependenciesSettled);
         if !matches!(own, Some(LoadState::Loaded)) {
             continue; // the file itself failed: `scene_load_failure` reports it
         }
