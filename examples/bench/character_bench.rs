@@ -99,7 +99,9 @@ fn main() {
     let model =
         Arc::new(SkinnedModel::new(skeleton.clone(), &mesh, &bind, settings).expect("model"));
     let model_ms = t0.elapsed().as_secs_f64() * 1e3;
-    let rest = model.topology().positions().to_vec();
+    // Where the welded vertices are in the pose the drag starts from (for a file whose mesh
+    // node is turned or scaled, not where its vertex data lies).
+    let rest = model.skin_welded(&bind);
     let diagonal = model.topology().bounding_diagonal();
     let (fixed, handle) = drag_regions(&model, &rest, args.model.is_none());
     let pivot = centroid(&rest, &handle);
@@ -151,7 +153,12 @@ fn main() {
         / diagonal;
     let bone_error = max_bone_length_error(model.skeleton(), &bind, &converged.pose) / diagonal;
 
-    let energy_full = full_mesh_energy(&model, fixed, handle, target);
+    // The full-mesh solver works on the vertex data as the file stores it: the same drag
+    // (turn and move) about the handle's centroid there.
+    let raw = model.topology().positions();
+    let raw_target =
+        RigidTransform::new(target.rotation, target.translation, centroid(raw, &handle));
+    let energy_full = full_mesh_energy(&model, fixed, handle, raw_target);
     let constrained = constrained_drag(&model, &bind, &constraints, diagonal);
 
     if !args.json {

@@ -379,8 +379,10 @@ impl SkinnedModel {
     }
 
     /// The stacked transposed skinning matrices `X` (4J × 3, row-major) of `pose`.
-    pub(crate) fn stack(&self, matrices: &[DAffine3]) -> Vec<f64> {
-        let mut x = vec![0.0; matrices.len() * 12];
+    /// (`x` is resized; its allocation is reused.)
+    pub(crate) fn stack_into(&self, matrices: &[DAffine3], x: &mut Vec<f64>) {
+        x.clear();
+        x.resize(matrices.len() * 12, 0.0);
         for (k, m) in matrices.iter().enumerate() {
             for c in 0..3 {
                 for p in 0..3 {
@@ -389,7 +391,6 @@ impl SkinnedModel {
                 x[(4 * k + 3) * 3 + c] = m.translation[c];
             }
         }
-        x
     }
 
     /// Row `M_i` of vertex `i` as (joint, weight · homogeneous bind position) entries.

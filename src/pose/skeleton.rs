@@ -213,11 +213,17 @@ impl Skeleton {
     /// World (skeleton-space) transform of every joint: forward kinematics.
     pub fn global_transforms(&self, pose: &SkeletonPose) -> Vec<DAffine3> {
         let mut out: Vec<DAffine3> = Vec::with_capacity(self.joints.len());
+        self.global_transforms_into(pose, &mut out);
+        out
+    }
+
+    /// [`Skeleton::global_transforms`] into `out` (its allocation reused).
+    pub(crate) fn global_transforms_into(&self, pose: &SkeletonPose, out: &mut Vec<DAffine3>) {
+        out.clear();
         for (joint, local) in self.joints.iter().zip(&pose.local) {
             let parent = joint.parent.map_or(joint.parent_frame, |p| out[p]);
             out.push(parent * local.to_affine());
         }
-        out
     }
 
     /// Skinning matrix of every joint, `global · inverse_bind`: maps bind-pose positions to

@@ -72,8 +72,10 @@ impl PoseSolver {
     }
 
     /// `Q X` using the block structure.
-    pub(super) fn q_times(&self, x: &[f64]) -> Vec<f64> {
-        let mut out = vec![0.0; x.len()];
+    /// (`out` is resized; its allocation is reused.)
+    pub(super) fn q_times_into(&self, x: &[f64], out: &mut Vec<f64>) {
+        out.clear();
+        out.resize(x.len(), 0.0);
         for &(k, l, ref q_kl) in &self.q_blocks {
             let xl = &x[12 * l..][..12];
             let out_k = &mut out[12 * k..][..12];
@@ -88,7 +90,6 @@ impl PoseSolver {
                 }
             }
         }
-        out
     }
 
     /// `tr(XᵀQX) − 2 tr(XᵀB) + constant`, with `qx = Q X`.

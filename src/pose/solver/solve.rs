@@ -74,6 +74,8 @@ impl PoseSolver {
             limits.project(&mut pose);
         }
         let mut current = self.posed(pose);
+        // The buffers of the last replaced or rejected trial pose, for the next trial.
+        let mut spare: Option<Posed> = None;
         let mut stats = PoseSolveStats::default();
         let mut b = vec![0.0; b_pen.len()];
         let mut scratch = HessianScratch::take();
@@ -134,7 +136,7 @@ impl PoseSolver {
                 pattern: &pattern,
             };
             let accepted = self.damped_step(
-                &current,
+                (&current, &mut spare),
                 &step,
                 &objective,
                 limits,
@@ -145,7 +147,7 @@ impl PoseSolver {
             scratch.return_matrix(h);
             let f = match accepted {
                 Some((next, f)) => {
-                    current = next;
+                    spare = Some(std::mem::replace(&mut current, next));
                     f
                 }
                 None => f0,
@@ -207,18 +209,37 @@ impl PoseSolver {
 
     /// A pose with its global and skinning transforms and the stacked skinning matrix.
     pub(super) fn posed(&self, pose: SkeletonPose) -> Posed {
-        let skeleton = self.model.skeleton();
-        let globals = skeleton.global_transforms(&pose);
-        let skin = skinning(&globals, skeleton);
-        let x = self.model.stack(&skin);
-        let qx = self.q_times(&x);
+        let mut posed = self.posed_unrefreshed(pose);
+        self.refresh(&mut posed);
+        posed
+    }
+
+    /// A pose with empty buffers, to be [`PoseSolver::refresh`]ed.
+    pub(super) fn posed_unrefreshed(&self, pose: SkeletonPose) -> Posed {
         Posed {
             pose,
-            globals,
-            skin,
-            x,
-            qx,
+            globals: Vec::new(),
+            skin: Vec::new(),
+            x: Vec::new(),
+            qx: Vec::new(),
         }
+    }
+
+    /// Recomputes what `posed` derives from its pose, in its own buffers (a trial step reuses
+    /// a rejected or replaced one's: no allocation per trial).
+    pub(super) fn refresh(&self, posed: &mut Posed) {
+        let skeleton = self.model.skeleton();
+        skeleton.global_transforms_into(&posed.pose, &mut posed.globals);
+        posed.skin.clear();
+        posed.skin.extend(
+            posed
+                .globals
+                .iter()
+                .zip(skeleton.joints())
+                .map(|(g, j)| *g * j.inverse_bind),
+        );
+        self.model.stack_into(&posed.skin, &mut posed.x);
+        self.q_times_into(&posed.x, &mut posed.qx);
     }
 
     /// The energy of a posed skeleton.

@@ -34,7 +34,7 @@ impl PoseSolver {
     /// accepted pose and its energy, or `None` after twelve rejections.
     pub(super) fn damped_step(
         &self,
-        current: &Posed,
+        (current, spare): (&Posed, &mut Option<Posed>),
         system: &DampedSystem,
         objective: &Objective,
         limits: Option<&JointLimits>,
@@ -44,11 +44,27 @@ impl PoseSolver {
         for _ in 0..12 {
             let step = solve_damped(system.h, system.g, *damping, system.pattern);
             for (k, length) in [1.0, 0.5].into_iter().enumerate() {
-                let mut candidate = retract(&current.pose, &current.globals, &step, length, self);
+                let mut candidate = match spare.take() {
+                    Some(mut buffers) => {
+                        retract_into(
+                            &current.pose,
+                            &current.globals,
+                            &step,
+                            length,
+                            self,
+                            &mut buffers.pose,
+                        );
+                        buffers
+                    }
+                    None => {
+                        let pose = retract(&current.pose, &current.globals, &step, length, self);
+                        self.posed_unrefreshed(pose)
+                    }
+                };
                 if let Some(limits) = limits {
-                    limits.project(&mut candidate);
+                    limits.project(&mut candidate.pose);
                 }
-                let candidate = self.posed(candidate);
+                self.refresh(&mut candidate);
                 let f = self.energy(&candidate, objective);
                 if f.is_finite() && f <= system.f0 {
                     *damping = if k == 0 {
@@ -58,6 +74,7 @@ impl PoseSolver {
                     };
                     return Some((candidate, f));
                 }
+                *spare = Some(candidate);
                 stats.rejected_steps += 1;
             }
             *damping *= 4.0;
@@ -75,8 +92,23 @@ fn retract(
     t: f64,
     solver: &PoseSolver,
 ) -> SkeletonPose {
+    let mut out = SkeletonPose { local: Vec::new() };
+    retract_into(pose, globals, step, t, solver, &mut out);
+    out
+}
+
+/// [`retract`] into `out` (its allocation reused).
+fn retract_into(
+    pose: &SkeletonPose,
+    globals: &[DAffine3],
+    step: &[DVec3],
+    t: f64,
+    solver: &PoseSolver,
+    out: &mut SkeletonPose,
+) {
     let skeleton = solver.model.skeleton();
-    let mut out = pose.clone();
+    out.local.clear();
+    out.local.extend_from_slice(&pose.local);
     for (p, &param) in solver.params.iter().enumerate() {
         let d = step[p] * t;
         let j = param.joint();
@@ -95,5 +127,4 @@ fn retract(
             }
         }
     }
-    out
 }
