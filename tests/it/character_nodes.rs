@@ -580,6 +580,7 @@ fn converter_rig_poses_rigidly(name: &str, layout: ConverterLayout) {
     let (mut app, root) = common::character_app(&dir, &file, PosePlugin);
     let posed = app.world().get::<PosedSkeleton>(root).unwrap().clone();
     let size = posed.model.topology().bounding_diagonal();
+    same_model_as_the_benchmark(&mut app, root, &posed, name);
     let model_drawn = |app: &App| -> Vec<DVec3> {
         let p = app.world().get::<PosedSkeleton>(root).unwrap();
         p.skinned_positions().iter().map(|v| v.as_dvec3()).collect()
@@ -757,5 +758,38 @@ fn two_characters_from_one_asset_share_one_model_and_pose_independently() {
     assert!(
         walked < 1e-3,
         "the drawn character lags its placement by {walked}"
+    );
+}
+
+/// What `character_bench --model` builds from the plugin's public reading of a character
+/// (`CharacterSkin::read`, default `Poseable` settings) is the plugin's model: the same
+/// joints, and the same welded vertices where the character is drawn in its pose.
+fn same_model_as_the_benchmark(app: &mut App, root: Entity, posed: &PosedSkeleton, name: &str) {
+    use bevy_wii_deform::ecs::CharacterSkin;
+    use bevy_wii_deform::pose::{ModelSettings, SkinnedModel};
+    let skin = CharacterSkin::read(app.world_mut(), root)
+        .expect("a readable skin")
+        .expect("loaded");
+    assert_eq!(
+        skin.joints, posed.joints,
+        "{name}: the same joints in the same order"
+    );
+    let settings = ModelSettings {
+        clusters: Poseable::default().clusters as usize,
+        ..Default::default()
+    };
+    let built = SkinnedModel::new(skin.skeleton, &skin.mesh, &skin.reference, settings).unwrap();
+    let ours = built.skin_welded(&skin.reference);
+    let plugin = posed.model.skin_welded(&posed.pose);
+    assert_eq!(ours.len(), plugin.len());
+    let worst = ours
+        .iter()
+        .zip(&plugin)
+        .map(|(a, b)| a.distance(*b))
+        .fold(0.0, f64::max);
+    let size = posed.model.topology().bounding_diagonal();
+    assert!(
+        worst < 1e-9 * size,
+        "{name}: the benchmark's model is {worst} off"
     );
 }
