@@ -26,15 +26,23 @@ pub(super) struct Landed {
 /// What a solve gives.
 pub(super) type SolveResult = Result<Landed, PoseableError>;
 
+/// Where a job's solver comes from.
+enum SolverSource {
+    /// The last solver: built for these constraint sets.
+    Reuse(Arc<PoseSolver>),
+    /// A new one, built for this reference pose.
+    Build(SkeletonPose),
+}
+
 /// One solve, ready to run anywhere: owns what it reads.
 pub(super) struct SolveJob {
     model: Arc<SkinnedModel>,
     /// The constraints solved for.
     pub(super) constraints: PoseConstraints,
-    reference: SkeletonPose,
-    /// The last solver, when it was built for these constraint sets.
-    reuse: Option<Arc<PoseSolver>>,
-    /// The last solution of `reuse` (only that solver's solutions seed it).
+    /// The last solver when it was built for these constraint sets, else the pose a new one
+    /// is built for.
+    solver: SolverSource,
+    /// The last solution of a reused solver (only its own solutions seed it).
     last: Option<Arc<PoseSolution>>,
     /// Where the solve starts.
     current: SkeletonPose,
@@ -53,17 +61,22 @@ impl SolveJob {
         posed: &PosedSkeleton,
         options: PoseSolveOptions,
     ) -> Option<Self> {
-        let reference = drivers.reference.clone()?;
+        drivers.reference.as_ref()?;
         let constraints = solves.pending.take()?;
         let reuse = last.solver.clone().filter(|s| s.accepts(&constraints));
         let solution = last.solution.clone().filter(|_| reuse.is_some());
+        // Only a new solver needs the reference pose (no copy per solve otherwise).
+        let solver = match (reuse, &drivers.reference) {
+            (Some(s), _) => SolverSource::Reuse(s),
+            (None, Some(reference)) => SolverSource::Build(reference.clone()),
+            (None, None) => return None,
+        };
         let given = solves.start.is_some();
         let current = solves.start.take().unwrap_or_else(|| posed.pose.clone());
         Some(Self {
             model: posed.model.clone(),
             constraints,
-            reference,
-            reuse,
+            solver,
             last: solution,
             current,
             given,
@@ -75,12 +88,12 @@ impl SolveJob {
     /// polled between iterations.
     pub(super) fn run(&self, cancel: &dyn Fn() -> bool) -> SolveResult {
         let t0 = Instant::now();
-        let solver = match &self.reuse {
-            Some(s) => s.clone(),
-            None => Arc::new(PoseSolver::new(
+        let solver = match &self.solver {
+            SolverSource::Reuse(s) => s.clone(),
+            SolverSource::Build(reference) => Arc::new(PoseSolver::new(
                 self.model.clone(),
                 &self.constraints,
-                &self.reference,
+                reference,
                 PoseSolverSettings::default(),
             )?),
         };
