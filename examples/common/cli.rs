@@ -37,9 +37,7 @@ pub fn value<T: FromStr>(parser: &mut Parser, usage: &str) -> T
 where
     T::Err: std::fmt::Display,
 {
-    let text = string(parser, usage);
-    text.parse()
-        .unwrap_or_else(|e: T::Err| fail(format!("{text:?}: {e}"), usage))
+    parse_as(string(parser, usage), usage)
 }
 
 /// The value after the current flag, as text.
@@ -63,7 +61,14 @@ pub fn parse_positional<T: FromStr>(value: std::ffi::OsString, usage: &str) -> T
 where
     T::Err: std::fmt::Display,
 {
-    let text = positional(value, usage);
+    parse_as(positional(value, usage), usage)
+}
+
+/// `text` parsed as `T` (exits 2 with the usage when it does not parse).
+fn parse_as<T: FromStr>(text: String, usage: &str) -> T
+where
+    T::Err: std::fmt::Display,
+{
     text.parse()
         .unwrap_or_else(|e: T::Err| fail(format!("{text:?}: {e}"), usage))
 }

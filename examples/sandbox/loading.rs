@@ -575,16 +575,10 @@ mod tests {
         }
     }
 
-    /// `file` of `../shared/models` through Bevy's glTF loader (its materials as
-    /// `StandardMaterial`s, as the renderer makes them), merged as the sandbox merges a scene;
-    /// `None` when the shared assets are absent (a failure in CI).
-    fn merge_shared_scene(file: &str) -> Option<(App, Merged)> {
-        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/models");
-        if !dir.join(file).exists() {
-            assert!(std::env::var_os("CI").is_none(), "CI always has ../shared");
-            eprintln!("SKIPPED: ../shared/models/{file} is absent");
-            return None;
-        }
+    /// `file` of the repository's `assets/models` through Bevy's glTF loader (its materials as
+    /// `StandardMaterial`s, as the renderer makes them), merged as the sandbox merges a scene.
+    fn merge_model_scene(file: &str) -> (App, Merged) {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/models");
         let mut app = App::new();
         app.add_plugins(MinimalPlugins);
         crate::headless_gltf::add_gltf_plugins(&mut app, &dir);
@@ -612,7 +606,7 @@ mod tests {
                 out
             })
             .unwrap();
-        Some((app, merged))
+        (app, merged)
     }
 
     /// The Fox through Bevy's glTF loader, merged as the sandbox merges a scene: its texture
@@ -620,9 +614,7 @@ mod tests {
     /// texture — is the merged mesh's; one material, so it is drawn by the merged mesh itself.
     #[test]
     fn the_sandbox_keeps_gltf_materials() {
-        let Some((app, merged)) = merge_shared_scene("Fox.glb") else {
-            return;
-        };
+        let (app, merged) = merge_model_scene("Fox.glb");
         let (mesh, look) = merged.into_parts();
         let uvs = look.uvs.as_ref().expect("the Fox's texture coordinates");
         assert_eq!(uvs.len(), mesh.positions.len());
@@ -641,9 +633,7 @@ mod tests {
     /// file's five base colours, and the parts cover every vertex and triangle once.
     #[test]
     fn the_sandbox_keeps_each_primitives_material() {
-        let Some((app, merged)) = merge_shared_scene("alien.glb") else {
-            return;
-        };
+        let (app, merged) = merge_model_scene("alien.glb");
         let (mesh, look) = merged.into_parts();
         assert!(needs_parts(&look.parts));
         let materials = app.world().resource::<Assets<StandardMaterial>>();

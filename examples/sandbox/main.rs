@@ -233,7 +233,7 @@ fn add_bevy(app: &mut App, windowless: bool) {
         render_creation: WgpuSettings::default().into(),
         ..default()
     };
-    // Models may be loaded from anywhere (dropped files, `../shared/models`).
+    // Models may be loaded from anywhere (dropped files, paths outside `assets/`).
     let assets = AssetPlugin {
         unapproved_path_mode: bevy::asset::UnapprovedPathMode::Allow,
         ..default()

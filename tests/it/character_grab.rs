@@ -15,7 +15,7 @@ use bevy_wii_deform::prelude::*;
 
 use crate::common;
 use common::bar::under_cursor;
-use common::{app, pointer, spawn_camera, spawn_handle, spawn_rig, to_screen, update_until};
+use common::{pointer, spawn_camera, spawn_handle, spawn_rig, to_screen, update_until};
 
 /// The joints of a posed character whose names say "foot".
 fn foot_joints(posed: &PosedSkeleton) -> Vec<Entity> {
@@ -215,19 +215,10 @@ fn character_app<M>(
     Entity,
     Vec<Entity>,
 ) {
-    let mut app = app();
-    app.add_plugins((
-        bevy::window::WindowPlugin::default(),
-        bevy::input::InputPlugin,
-        bevy::camera::CameraPlugin,
-        PosePlugin,
-    ))
-    .add_plugins(plugins);
+    let mut app = common::input_app((PosePlugin, plugins));
     app.insert_resource(bevy::time::TimeUpdateStrategy::ManualDuration(
         Duration::from_millis(16),
     ));
-    app.finish();
-    app.cleanup();
     let camera = spawn_camera(
         &mut app,
         Transform::from_xyz(0.0, 0.6, 4.0).looking_at(Vec3::new(0.0, 0.5, 0.0), Vec3::Y),

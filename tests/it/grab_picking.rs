@@ -11,15 +11,11 @@ use bevy_wii_deform::ecs::ActiveGrabs;
 use bevy_wii_deform::prelude::*;
 
 use crate::common;
-use common::{app, picking_plugins, pointer, spawn_camera, to_screen};
+use common::{picking_plugins, pointer, spawn_camera, to_screen};
 
 /// A headless app with picking, deformation, posing and grabs, and a camera.
 fn picking_app() -> (App, Entity) {
-    let mut app = app();
-    app.add_plugins((
-        bevy::window::WindowPlugin::default(),
-        bevy::input::InputPlugin,
-        bevy::camera::CameraPlugin,
+    let mut app = common::input_app((
         picking_plugins(),
         MeshPickingPlugin,
         DeformPlugin::default(),
@@ -29,8 +25,6 @@ fn picking_app() -> (App, Entity) {
     app.insert_resource(bevy::time::TimeUpdateStrategy::ManualDuration(
         Duration::from_millis(16),
     ));
-    app.finish();
-    app.cleanup();
     let camera = spawn_camera(
         &mut app,
         Transform::from_xyz(0.0, 0.5, 4.0).looking_at(Vec3::new(0.0, 0.5, 0.0), Vec3::Y),

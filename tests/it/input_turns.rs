@@ -58,15 +58,7 @@ fn camera_transform() -> Transform {
 #[test]
 fn arcball_turns_scaled_and_rotated_meshes_by_the_drag() {
     for space_transform in scaled_spaces() {
-        let mut app = app();
-        app.add_plugins((
-            bevy::window::WindowPlugin::default(),
-            bevy::input::InputPlugin,
-            bevy::camera::CameraPlugin,
-            MouseControlPlugin,
-        ));
-        app.finish();
-        app.cleanup();
+        let mut app = common::input_app(MouseControlPlugin);
         let camera = spawn_camera(&mut app, camera_transform());
         let space = app.world_mut().spawn(space_transform).id();
         let start = Quat::from_rotation_x(0.4);

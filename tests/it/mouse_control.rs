@@ -6,21 +6,11 @@ use bevy_wii_deform::prelude::*;
 
 use crate::common;
 use crate::common::bar::*;
-use common::{app, shift_drag, spawn_camera, to_screen};
+use common::{shift_drag, spawn_camera, to_screen};
 
 /// A headless app with the mouse control and deformation.
 fn mouse_app() -> App {
-    let mut app = app();
-    app.add_plugins((
-        bevy::window::WindowPlugin::default(),
-        bevy::input::InputPlugin,
-        bevy::camera::CameraPlugin,
-        DeformPlugin::default(),
-        MouseControlPlugin,
-    ));
-    app.finish();
-    app.cleanup();
-    app
+    common::input_app((DeformPlugin::default(), MouseControlPlugin))
 }
 
 #[test]

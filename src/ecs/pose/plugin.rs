@@ -23,7 +23,7 @@ use super::{
     PoseJointHandle, PoseSolved, PoseStatus, PoseStiffness, Poseable, SymmetricEditing,
 };
 use crate::ecs::DeformSystems;
-use crate::ecs::scene::{MissingSceneAssets, add_scene_roots};
+use crate::ecs::scene::{SceneWarning, add_scene_roots, note_missing_scene_assets};
 
 /// Phases of the character systems. Prepare, Request, Poll and Timeline run in `Update` (Request after
 /// [`DeformSystems::Request`], so handle controls ordered before that set are seen the same
@@ -89,7 +89,7 @@ impl Plugin for PosePlugin {
                     request_pose_solves.in_set(PoseSystems::Request),
                     poll_pose_solves.in_set(PoseSystems::Poll),
                     show_timelines.in_set(PoseSystems::Timeline),
-                    note_missing_scene_assets,
+                    note_missing_scene_assets::<PoseStatus>,
                 ),
             )
             .add_systems(
@@ -111,11 +111,8 @@ impl Plugin for PosePlugin {
     }
 }
 
-/// Copies a scene's missing-dependency warning into its character's status.
-fn note_missing_scene_assets(
-    mut roots: Query<(&MissingSceneAssets, &mut PoseStatus), Changed<MissingSceneAssets>>,
-) {
-    for (missing, mut status) in &mut roots {
-        status.warning = Some(missing.message.clone());
+impl SceneWarning for PoseStatus {
+    fn warning_mut(&mut self) -> &mut Option<String> {
+        &mut self.warning
     }
 }

@@ -79,6 +79,16 @@ pub(super) struct SkinSources<'w, 's> {
 }
 
 impl SkinSources<'_, '_> {
+    /// World ← character space of `entity` when it is placed by a similarity (its model is
+    /// then built in character space and shared), `None` for a model in world space.
+    fn placement(&self, entity: Entity) -> Option<DAffine3> {
+        self.globals
+            .get(entity)
+            .ok()
+            .map(affine)
+            .and_then(|g| similarity(&g))
+    }
+
     /// The skinned primitives at and below `entity`.
     fn primitives(&self, entity: Entity) -> Vec<Entity> {
         std::iter::once(entity)
@@ -278,11 +288,7 @@ impl CharacterSkin {
             return Err(PoseableError::NoSkinnedMesh);
         }
         let to_character = sources
-            .globals
-            .get(character)
-            .ok()
-            .map(affine)
-            .and_then(|g| similarity(&g))
+            .placement(character)
             .map_or(DAffine3::IDENTITY, |p| p.inverse());
         sources.read(&primitives, &to_character)
     }
@@ -331,12 +337,7 @@ pub(super) fn find_skins(
         }
         // Character space when the character is placed by a similarity (then the model is
         // shared by every instance of the asset), else world space.
-        let placement = sources
-            .globals
-            .get(entity)
-            .ok()
-            .map(affine)
-            .and_then(|g| similarity(&g));
+        let placement = sources.placement(entity);
         let to_character = placement.map_or(DAffine3::IDENTITY, |p| p.inverse());
         let clusters = poseable.clusters.max(1);
         let key = placement.and_then(|_| sources.model_key(&primitives, &to_character, clusters));

@@ -21,7 +21,9 @@ mod plugin;
 use bevy::prelude::*;
 
 pub use plugin::SceneRootPlugin;
-pub(crate) use plugin::{add_scene_roots, scene_load_failure};
+pub(crate) use plugin::{
+    SceneWarning, add_scene_roots, note_missing_scene_assets, scene_load_failure,
+};
 
 /// Marks a scene root whose dependencies have settled (all loaded, or one failed): the
 /// missing-dependency check is done for it.

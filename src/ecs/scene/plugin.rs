@@ -86,6 +86,25 @@ fn report_missing_scene_assets(
     }
 }
 
+/// A status component that carries a scene's missing-dependency warning (the pose and deform
+/// statuses).
+pub(crate) trait SceneWarning:
+    Component<Mutability = bevy::ecs::component::Mutable>
+{
+    /// Where the warning goes.
+    fn warning_mut(&mut self) -> &mut Option<String>;
+}
+
+/// Copies a scene root's [`MissingSceneAssets`] message into its status `S` (each plugin adds
+/// it for its own status).
+pub(crate) fn note_missing_scene_assets<S: SceneWarning>(
+    mut roots: Query<(&MissingSceneAssets, &mut S), Changed<MissingSceneAssets>>,
+) {
+    for (missing, mut status) in &mut roots {
+        *status.warning_mut() = Some(missing.message.clone());
+    }
+}
+
 /// Marks a scene root [`SceneSpawned`] when its instance is ready.
 pub(crate) fn mark_scene_spawned(ready: On<WorldInstanceReady>, mut commands: Commands) {
     if let Ok(mut entity) = commands.get_entity(ready.entity) {

@@ -147,6 +147,21 @@ pub fn app() -> App {
     app
 }
 
+/// A headless [`app`] with a window, input and cameras (what pointers, the mouse and picking
+/// read) and `plugins`, finished. Time runs as the caller sets it.
+pub fn input_app<M>(plugins: impl bevy::app::Plugins<M>) -> App {
+    let mut app = app();
+    app.add_plugins((
+        bevy::window::WindowPlugin::default(),
+        bevy::input::InputPlugin,
+        bevy::camera::CameraPlugin,
+    ))
+    .add_plugins(plugins);
+    app.finish();
+    app.cleanup();
+    app
+}
+
 /// A 3D camera with the values the renderer would compute for a 1280×720 window (headless
 /// tests have no renderer).
 pub fn spawn_camera(app: &mut App, transform: Transform) -> Entity {

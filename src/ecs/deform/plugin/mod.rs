@@ -93,20 +93,15 @@ impl Plugin for DeformPlugin {
                     request_solves.in_set(DeformSystems::Request),
                     poll_tasks.in_set(DeformSystems::Poll),
                     write_back.in_set(DeformSystems::Writeback),
-                    note_missing_scene_assets,
+                    crate::ecs::scene::note_missing_scene_assets::<DeformStatus>,
                 ),
             );
     }
 }
-/// Copies a scene's missing-dependency warning into the status of the deformable on its root.
-fn note_missing_scene_assets(
-    mut roots: Query<
-        (&crate::ecs::scene::MissingSceneAssets, &mut DeformStatus),
-        Changed<crate::ecs::scene::MissingSceneAssets>,
-    >,
-) {
-    for (missing, mut status) in &mut roots {
-        status.warning = Some(missing.message.clone());
+
+impl crate::ecs::scene::SceneWarning for DeformStatus {
+    fn warning_mut(&mut self) -> &mut Option<String> {
+        &mut self.warning
     }
 }
 
