@@ -14,6 +14,14 @@
 //! the first solve) and exactly ITERS iterations (no early stop).
 //! OUT.bin: n×3 little-endian f64 positions of the last repeat, input vertex order. The last
 //! stdout line is `{"precompute_s": [..], "solve_s": [..]}`; energies go to stderr.
+//!
+//! ```text
+//! cargo run --release --example arap_peer -- problem SOURCE OUT.off OUT.txt
+//! ```
+//! writes the crate's benchmark problem (`synth::bend_problem`: the lowest 10 % along Y fixed,
+//! the highest 10 % turned 0.6 rad about Z and moved 15 % of the bounding diagonal along X) for
+//! a peer to solve: SOURCE is a mesh file (`.off`/`.obj`), `bar:N` (a generated bar of about N
+//! vertices) or `sphere:S` (an icosphere subdivided S times, stretched along Y).
 
 #[path = "../common/cli.rs"]
 mod cli;
@@ -79,7 +87,8 @@ struct PeerOptions {
 const USAGE: &str = "\
 usage: arap_peer MESH.off CONSTRAINTS.txt ITERS REPEATS OUT.bin [--init laplacian|rest]
                  [--factorization auto|simplicial|supernodal] [--anderson DEPTH]
-                 [--weld none|seams|all]";
+                 [--weld none|seams|all]
+       arap_peer problem SOURCE OUT.off OUT.txt   (SOURCE: a mesh file, bar:N or sphere:S)";
 
 impl PeerOptions {
     /// Parses the command line: the five positional arguments and the flags.
@@ -148,7 +157,63 @@ fn write_positions(path: &str, topology: &Topology, positions: &[DVec3]) -> Resu
     std::fs::write(path, bytes).map_err(|e| format!("{path}: {e}"))
 }
 
+/// The mesh a `problem` SOURCE names.
+fn problem_mesh(source: &str) -> Result<TriMesh, String> {
+    if let Some(n) = source.strip_prefix("bar:") {
+        let n: u32 = n
+            .parse()
+            .map_err(|_| format!("bad vertex count in {source:?}"))?;
+        return Ok(synth::bar_with_vertices(n));
+    }
+    if let Some(s) = source.strip_prefix("sphere:") {
+        let s: u32 = s
+            .parse()
+            .map_err(|_| format!("bad subdivision in {source:?}"))?;
+        let mut mesh = synth::icosphere(s.min(8), 0.5);
+        for p in &mut mesh.positions {
+            p.y *= 2.0;
+        }
+        return Ok(mesh);
+    }
+    TriMesh::read(source).map_err(|e| e.to_string())
+}
+
+/// `problem SOURCE OUT.off OUT.txt`: writes the benchmark problem on SOURCE for the peers.
+fn write_problem(args: &[String]) -> Result<(), String> {
+    let [source, off, txt] = args else {
+        return Err("usage: arap_peer problem SOURCE OUT.off OUT.txt".into());
+    };
+    let mesh = problem_mesh(source)?;
+    let (lo, hi) = bounding_box(&mesh.positions);
+    let shift = 0.15 * (hi - lo).length();
+    let constraints = synth::bend_problem(&mesh.positions, 0.6, DVec3::new(shift, 0.0, 0.0));
+    let handle = &constraints.handles[0];
+    let mut text = format!("{} {}\n", constraints.fixed.len(), handle.vertices.len());
+    for &i in &constraints.fixed {
+        let p = mesh.positions[i as usize];
+        text += &format!("{i} {:.17e} {:.17e} {:.17e}\n", p.x, p.y, p.z);
+    }
+    for &i in &handle.vertices {
+        let p = handle.transform.apply(mesh.positions[i as usize]);
+        text += &format!("{i} {:.17e} {:.17e} {:.17e}\n", p.x, p.y, p.z);
+    }
+    std::fs::write(off, mesh.to_off()).map_err(|e| format!("{off}: {e}"))?;
+    std::fs::write(txt, text).map_err(|e| format!("{txt}: {e}"))?;
+    eprintln!(
+        "{}: {} vertices, {} fixed, {} handle",
+        source,
+        mesh.positions.len(),
+        constraints.fixed.len(),
+        handle.vertices.len()
+    );
+    Ok(())
+}
+
 fn run() -> Result<(), String> {
+    let raw: Vec<String> = std::env::args().skip(1).collect();
+    if raw.first().map(String::as_str) == Some("problem") {
+        return write_problem(&raw[1..]);
+    }
     let (args, options) = PeerOptions::parse()?;
     let mesh = TriMesh::read(&args[0]).map_err(|e| e.to_string())?;
     let text = std::fs::read_to_string(&args[1]).map_err(|e| format!("{}: {e}", args[1]))?;

@@ -8,6 +8,8 @@ use std::collections::VecDeque;
 use glam::DVec3;
 use rayon::prelude::*;
 
+use super::parallel::{for_chunks, sum_chunks_pair};
+
 /// History of the last `depth` iterate differences.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Anderson {
@@ -23,16 +25,20 @@ pub(crate) struct Anderson {
     history: VecDeque<(Vec<DVec3>, Vec<DVec3>)>,
     /// `gram[a][b] = ΔF_a · ΔF_b`, aligned with `history`.
     gram: VecDeque<VecDeque<f64>>,
+    /// Whether the loops run on rayon's pool.
+    parallel: bool,
 }
 
 /// Rows per parallel task.
 const CHUNK: usize = 4096;
 
 impl Anderson {
-    /// Keeps up to `depth` differences (`depth ≥ 1`).
-    pub fn new(depth: usize) -> Self {
+    /// Keeps up to `depth` differences (`depth ≥ 1`); its loops run on rayon's pool when
+    /// `parallel`.
+    pub fn new(depth: usize, parallel: bool) -> Self {
         Self {
             depth: depth.max(1),
+            parallel,
             ..Default::default()
         }
     }
@@ -50,14 +56,12 @@ impl Anderson {
     pub fn extrapolate(&mut self, y: &[DVec3], g: &[DVec3], out: &mut Vec<DVec3>) -> bool {
         let n = g.len();
         self.f.resize(n, DVec3::ZERO);
-        self.f
-            .par_chunks_mut(CHUNK)
-            .zip(g.par_chunks(CHUNK).zip(y.par_chunks(CHUNK)))
-            .for_each(|(f, (g, y))| {
-                for ((f, g), y) in f.iter_mut().zip(g).zip(y) {
-                    *f = *g - *y;
-                }
-            });
+        for_chunks(self.parallel, &mut self.f, CHUNK, |c, f| {
+            let at = c * CHUNK;
+            for (k, f) in f.iter_mut().enumerate() {
+                *f = g[at + k] - y[at + k];
+            }
+        });
         if self.has_previous && self.previous_g.len() == n {
             let (mut dg, mut df) = if self.history.len() == self.depth {
                 self.gram.pop_front();
@@ -71,16 +75,14 @@ impl Anderson {
             dg.resize(n, DVec3::ZERO);
             df.resize(n, DVec3::ZERO);
             let (pg, pf, f) = (&self.previous_g, &self.previous_f, &self.f);
-            dg.par_chunks_mut(CHUNK)
-                .zip(df.par_chunks_mut(CHUNK))
-                .enumerate()
-                .for_each(|(c, (dg, df))| {
-                    let at = c * CHUNK;
-                    for k in 0..dg.len() {
-                        dg[k] = g[at + k] - pg[at + k];
-                        df[k] = f[at + k] - pf[at + k];
-                    }
-                });
+            sum_chunks_pair(self.parallel, &mut dg, &mut df, CHUNK, |c, dg, df| {
+                let at = c * CHUNK;
+                for k in 0..dg.len() {
+                    dg[k] = g[at + k] - pg[at + k];
+                    df[k] = f[at + k] - pf[at + k];
+                }
+                0.0
+            });
             self.history.push_back((dg, df));
             // One pass over the history: the new Gram row and the least-squares right-hand
             // side `ΔF_i · f`.
@@ -115,7 +117,7 @@ impl Anderson {
             return false;
         };
         let history = &self.history;
-        out.par_chunks_mut(CHUNK).enumerate().for_each(|(c, out)| {
+        for_chunks(self.parallel, out, CHUNK, |c, out| {
             let at = c * CHUNK;
             for ((dg, _), &coef) in history.iter().zip(&gamma) {
                 for (o, d) in out.iter_mut().zip(&dg[at..]) {
@@ -133,28 +135,32 @@ impl Anderson {
         let f = &self.f;
         let history = &self.history;
         let zero = || vec![0.0; 2 * m];
-        let sums = (0..f.len().div_ceil(CHUNK))
-            .into_par_iter()
-            .map(|c| {
-                let range = c * CHUNK..((c + 1) * CHUNK).min(f.len());
-                let mut acc = zero();
-                for (i, (_, df)) in history.iter().enumerate() {
-                    let (mut a, mut b) = (0.0, 0.0);
-                    for k in range.clone() {
-                        a += df[k].dot(newest[k]);
-                        b += df[k].dot(f[k]);
-                    }
-                    acc[2 * i] += a;
-                    acc[2 * i + 1] += b;
+        let piece = |c: usize| {
+            let range = c * CHUNK..((c + 1) * CHUNK).min(f.len());
+            let mut acc = zero();
+            for (i, (_, df)) in history.iter().enumerate() {
+                let (mut a, mut b) = (0.0, 0.0);
+                for k in range.clone() {
+                    a += df[k].dot(newest[k]);
+                    b += df[k].dot(f[k]);
                 }
-                acc
-            })
-            .reduce(zero, |mut x, y| {
-                for (a, b) in x.iter_mut().zip(y) {
-                    *a += b;
-                }
-                x
-            });
+                acc[2 * i] += a;
+                acc[2 * i + 1] += b;
+            }
+            acc
+        };
+        let add = |mut x: Vec<f64>, y: Vec<f64>| {
+            for (a, b) in x.iter_mut().zip(y) {
+                *a += b;
+            }
+            x
+        };
+        let pieces = 0..f.len().div_ceil(CHUNK);
+        let sums = if self.parallel {
+            pieces.into_par_iter().map(piece).reduce(zero, add)
+        } else {
+            pieces.map(piece).fold(zero(), add)
+        };
         (
             sums.iter().step_by(2).copied().collect(),
             sums.iter().skip(1).step_by(2).copied().collect(),
@@ -212,7 +218,7 @@ mod tests {
         };
         let mut plain = vec![DVec3::ZERO; 6];
         let mut fast = plain.clone();
-        let mut aa = Anderson::new(5);
+        let mut aa = Anderson::new(5, false);
         let mut next = Vec::new();
         for _ in 0..12 {
             plain = g_of(&plain);
@@ -230,7 +236,7 @@ mod tests {
 
     #[test]
     fn no_history_returns_the_plain_step_and_reset_forgets() {
-        let mut aa = Anderson::new(3);
+        let mut aa = Anderson::new(3, true);
         let y = vec![DVec3::ZERO; 4];
         let g = vec![DVec3::ONE; 4];
         let mut out = Vec::new();
@@ -245,7 +251,7 @@ mod tests {
     fn degenerate_history_falls_back_to_the_plain_step() {
         // Identical iterates: ΔF = 0, the least-squares system is singular-but-regularised;
         // the output must stay finite.
-        let mut aa = Anderson::new(2);
+        let mut aa = Anderson::new(2, false);
         let y = vec![DVec3::ONE; 3];
         let mut out = Vec::new();
         for _ in 0..3 {

@@ -153,11 +153,11 @@ impl LowerFactor {
     }
 
     /// Solves `L Lᵀ x = b` in place for three right-hand sides at once (`b` in elimination
-    /// order).
-    pub fn solve_in_place(&self, x: &mut [DVec3]) {
+    /// order); the two independent halves of a split factor on two threads when `parallel`.
+    pub fn solve_in_place(&self, x: &mut [DVec3], parallel: bool) {
         let n = self.dimension();
         assert_eq!(x.len(), n, "right-hand side length");
-        match self.split {
+        match self.split.filter(|_| parallel) {
             None => {
                 self.forward(0..n, x, 0, n, &mut []);
                 self.backward(0..n, x, 0, n, &[]);

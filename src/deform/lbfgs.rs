@@ -8,8 +8,8 @@
 use std::collections::VecDeque;
 use std::sync::Arc;
 
+use super::parallel::{sum_zip, zip_chunks};
 use glam::DVec3;
-use rayon::prelude::*;
 
 /// Rows per parallel task.
 const CHUNK: usize = 4096;
@@ -27,21 +27,22 @@ struct Pair {
 pub(crate) struct Lbfgs {
     depth: usize,
     pairs: VecDeque<Arc<Pair>>,
+    /// The buffers of the last pair dropped (when no clone shared it), for the next pair.
+    spare: Option<(Vec<DVec3>, Vec<DVec3>)>,
 }
 
-/// `a · b` over all rows.
-pub(crate) fn dot(a: &[DVec3], b: &[DVec3]) -> f64 {
-    a.par_chunks(CHUNK)
-        .zip(b.par_chunks(CHUNK))
-        .map(|(a, b)| a.iter().zip(b).map(|(a, b)| a.dot(*b)).sum::<f64>())
-        .sum()
+/// `a · b` over all rows (on rayon's pool when `parallel`).
+pub(crate) fn dot(a: &[DVec3], b: &[DVec3], parallel: bool) -> f64 {
+    sum_zip(parallel, a, b, CHUNK, |a, b| {
+        a.iter().zip(b).map(|(a, b)| a.dot(*b)).sum::<f64>()
+    })
 }
 
 /// `out += k · v`.
-fn add_scaled(out: &mut [DVec3], k: f64, v: &[DVec3]) {
-    out.par_chunks_mut(CHUNK)
-        .zip(v.par_chunks(CHUNK))
-        .for_each(|(o, v)| o.iter_mut().zip(v).for_each(|(o, v)| *o += k * *v));
+fn add_scaled(out: &mut [DVec3], k: f64, v: &[DVec3], parallel: bool) {
+    zip_chunks(parallel, out, v, CHUNK, |o, v| {
+        o.iter_mut().zip(v).for_each(|(o, v)| *o += k * *v)
+    });
 }
 
 impl Lbfgs {
@@ -50,6 +51,7 @@ impl Lbfgs {
         Self {
             depth: depth.max(1),
             pairs: VecDeque::new(),
+            spare: None,
         }
     }
 
@@ -70,29 +72,44 @@ impl Lbfgs {
 
     /// Overwrites `q` (the gradient on entry) with `H q`, the approximate inverse Hessian applied
     /// to it (two-loop recursion); `initial` applies the initial inverse Hessian in place.
-    pub fn apply(&self, q: &mut [DVec3], initial: impl FnOnce(&mut [DVec3])) {
+    /// The loops run on rayon's pool when `parallel`.
+    pub fn apply(&self, q: &mut [DVec3], parallel: bool, initial: impl FnOnce(&mut [DVec3])) {
         let mut alphas = vec![0.0; self.pairs.len()];
         for (k, p) in self.pairs.iter().enumerate().rev() {
-            alphas[k] = p.rho * dot(&p.s, q);
-            add_scaled(q, -alphas[k], &p.y);
+            alphas[k] = p.rho * dot(&p.s, q, parallel);
+            add_scaled(q, -alphas[k], &p.y, parallel);
         }
         initial(q);
         for (k, p) in self.pairs.iter().enumerate() {
-            let beta = p.rho * dot(&p.y, q);
-            add_scaled(q, alphas[k] - beta, &p.s);
+            let beta = p.rho * dot(&p.y, q, parallel);
+            add_scaled(q, alphas[k] - beta, &p.s, parallel);
         }
     }
 
+    /// Two empty buffers for the next pair: those of the last pair dropped when no clone of
+    /// the history shares it (so a long solve allocates no new pair once the history is full).
+    pub fn spare_buffers(&mut self) -> (Vec<DVec3>, Vec<DVec3>) {
+        let (mut s, mut y) = self.spare.take().unwrap_or_default();
+        s.clear();
+        y.clear();
+        (s, y)
+    }
+
     /// Stores the pair (`s`, `y`) when its curvature is positive (a step along which the energy
-    /// is locally convex); returns whether it was stored. The oldest pair goes when full.
-    pub fn push(&mut self, s: Vec<DVec3>, y: Vec<DVec3>) -> bool {
-        let sy = dot(&s, &y);
-        let scale = dot(&s, &s).sqrt() * dot(&y, &y).sqrt();
+    /// is locally convex); returns whether it was stored (if not, its buffers are kept for the
+    /// next). The oldest pair goes when full.
+    pub fn push(&mut self, s: Vec<DVec3>, y: Vec<DVec3>, parallel: bool) -> bool {
+        let sy = dot(&s, &y, parallel);
+        let scale = dot(&s, &s, parallel).sqrt() * dot(&y, &y, parallel).sqrt();
         if !(sy > 1e-12 * scale && sy.is_finite()) {
+            self.spare = Some((s, y));
             return false;
         }
-        if self.pairs.len() == self.depth {
-            self.pairs.pop_front();
+        if self.pairs.len() == self.depth
+            && let Some(oldest) = self.pairs.pop_front()
+            && let Ok(pair) = Arc::try_unwrap(oldest)
+        {
+            self.spare = Some((pair.s, pair.y));
         }
         self.pairs.push_back(Arc::new(Pair {
             s,
@@ -118,12 +135,12 @@ mod tests {
                 let mut s = vec![DVec3::ZERO; 2];
                 s[row][axis] = 1.0;
                 let y: Vec<DVec3> = s.iter().zip(&a).map(|(s, a)| *s * *a).collect();
-                assert!(h.push(s, y));
+                assert!(h.push(s, y, false));
             }
         }
         let g = vec![DVec3::new(1.0, -2.0, 3.0), DVec3::new(0.5, 0.25, -1.0)];
         let mut q = g.clone();
-        h.apply(&mut q, |_| {});
+        h.apply(&mut q, false, |_| {});
         for ((q, g), a) in q.iter().zip(&g).zip(&a) {
             assert!((*q - *g / *a).length() < 1e-12, "{q} vs {}", *g / *a);
         }
@@ -135,12 +152,12 @@ mod tests {
     fn empty_history_is_the_initial_step_and_bad_pairs_are_refused() {
         let mut h = Lbfgs::new(1);
         let mut q = vec![DVec3::new(2.0, 4.0, 6.0)];
-        h.apply(&mut q, |q| q.iter_mut().for_each(|v| *v *= 0.5));
+        h.apply(&mut q, true, |q| q.iter_mut().for_each(|v| *v *= 0.5));
         assert_eq!(q[0], DVec3::new(1.0, 2.0, 3.0));
-        assert!(!h.push(vec![DVec3::X], vec![-DVec3::X]));
+        assert!(!h.push(vec![DVec3::X], vec![-DVec3::X], false));
         assert_eq!(h.len(), 0);
-        assert!(h.push(vec![DVec3::X], vec![DVec3::X]));
-        assert!(h.push(vec![DVec3::Y], vec![DVec3::Y * 2.0]));
+        assert!(h.push(vec![DVec3::X], vec![DVec3::X], true));
+        assert!(h.push(vec![DVec3::Y], vec![DVec3::Y * 2.0], false));
         assert_eq!(h.len(), 1);
     }
 }

@@ -28,6 +28,7 @@ mod factor;
 mod io;
 mod lbfgs;
 mod ordering;
+mod parallel;
 mod preview;
 mod rotation;
 mod solver;
@@ -37,6 +38,7 @@ mod topology;
 pub use constraints::{ConstraintError, Constraints, Handle, RigidTransform};
 pub use energy::arap_energy;
 pub use io::{MeshIoError, TriMesh, bounding_box, centroid, glb_container};
+pub use parallel::{SERIAL_BELOW, Threading};
 pub use preview::{Preview, PreviewRegion};
 pub use rotation::{best_rotation_exact, fit_rotation_warm};
 pub use solver::{

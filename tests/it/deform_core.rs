@@ -1043,3 +1043,103 @@ fn the_laplacian_initial_guess_matches_an_independent_dense_solve() {
         assert!(max_distance(&guess, &rest) > 0.05);
     }
 }
+
+/// Two bars side by side as one mesh (two components, each with fixed and handle vertices).
+fn two_bars() -> TriMesh {
+    let a = synth::bar(16, 40, 0.1, 1.0);
+    let mut mesh = a.clone();
+    let base = mesh.positions.len() as u32;
+    mesh.positions
+        .extend(a.positions.iter().map(|p| *p + DVec3::new(0.5, 0.0, 0.0)));
+    mesh.triangles
+        .extend(a.triangles.iter().map(|t| t.map(|v| v + base)));
+    mesh
+}
+
+/// Issue 41: a small mesh solves on the calling thread ([`Threading::Auto`] below
+/// [`SERIAL_BELOW`] free vertices) and gives the positions the pool's path gives, for every
+/// acceleration, from the Laplacian start and warm.
+#[test]
+fn small_meshes_solve_alike_on_the_calling_thread_and_on_the_pool() {
+    let mut meshes = vec![
+        ("bar 2k", synth::bar_with_vertices(2000)),
+        ("two bars", two_bars()),
+    ];
+    if let Some((positions, triangles)) = gltf_triangles("models/sphere.gltf") {
+        meshes.push((
+            "sphere.gltf (split at its seam)",
+            TriMesh {
+                positions,
+                triangles,
+            },
+        ));
+    }
+    if let Some(path) = shared::shared_asset("meshes/dino.off") {
+        meshes.push(("dino", TriMesh::read(&path).unwrap()));
+    }
+    let accelerations = [
+        Acceleration::None,
+        Acceleration::Anderson { depth: 3 },
+        Acceleration::Lbfgs { depth: 4 },
+        Acceleration::Newton { max_cg: 6 },
+    ];
+    for (name, mesh) in &meshes {
+        let t = topo(mesh);
+        let diagonal = t.bounding_diagonal();
+        let shift = DVec3::new(0.15 * diagonal, 0.0, 0.0);
+        let mut c = synth::bend_problem(t.positions(), 0.6, shift);
+        let solver = |threading| {
+            let settings = SolverSettings {
+                threading,
+                ..Default::default()
+            };
+            ArapSolver::precompute(t.clone(), &c, settings).unwrap()
+        };
+        let (serial, pooled) = (solver(Threading::Serial), solver(Threading::Parallel));
+        let auto = solver(Threading::Auto);
+        assert!(!serial.precompute_stats().parallel_iterations, "{name}");
+        assert!(pooled.precompute_stats().parallel_iterations, "{name}");
+        assert_eq!(
+            auto.precompute_stats().parallel_iterations,
+            auto.precompute_stats().free_vertices >= SERIAL_BELOW,
+            "{name}"
+        );
+        assert!(
+            auto.precompute_stats().free_vertices < SERIAL_BELOW,
+            "{name}: a small mesh"
+        );
+        for acceleration in accelerations {
+            let opts = SolveOptions {
+                max_iterations: 6,
+                tolerance: 0.0,
+                acceleration,
+            };
+            let a = serial
+                .solve(&c, &opts, InitialGuess::Laplacian, NEVER)
+                .unwrap();
+            let b = pooled
+                .solve(&c, &opts, InitialGuess::Laplacian, NEVER)
+                .unwrap();
+            let d = max_distance(&a.positions, &b.positions);
+            assert!(d <= 1e-12 * diagonal, "{name} {acceleration:?}: {d}");
+            assert!(
+                max_distance(&a.positions, t.positions()) > 0.05 * diagonal,
+                "{name}: the bend moved the mesh"
+            );
+            c.handles[0].transform.translation += DVec3::new(0.0, 0.02 * diagonal, 0.0);
+            let a2 = serial
+                .solve(&c, &opts, InitialGuess::Warm(&a), NEVER)
+                .unwrap();
+            let b2 = pooled
+                .solve(&c, &opts, InitialGuess::Warm(&b), NEVER)
+                .unwrap();
+            let d = max_distance(&a2.positions, &b2.positions);
+            assert!(d <= 1e-12 * diagonal, "{name} {acceleration:?}, warm: {d}");
+            let (ea, eb) = (a2.stats.final_energy(), b2.stats.final_energy());
+            assert!(
+                (ea - eb).abs() <= 1e-9 * ea.max(1e-300),
+                "{name}: {ea} vs {eb}"
+            );
+        }
+    }
+}

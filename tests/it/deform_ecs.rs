@@ -788,3 +788,96 @@ fn a_set_change_on_a_large_mesh_is_previewed_then_solved_whole() {
         "settled {worst} from the whole mesh's converged pose"
     );
 }
+
+/// Steps no frame until the deformable's background solve has landed (bounded: the solve of a
+/// 360-vertex bar takes milliseconds) or none runs (a solve may land before the poll of the
+/// frame that started it, which then shows it at once).
+fn wait_for_landing(app: &App, e: Entity) {
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
+    loop {
+        let state = app.world().get::<bevy_wii_deform::ecs::DeformState>(e).unwrap();
+        if state.has_landed() || !state.is_solving() {
+            return;
+        }
+        assert!(
+            std::time::Instant::now() < deadline,
+            "the solve never landed: {:?}",
+            app.world().get::<DeformStatus>(e)
+        );
+        std::thread::yield_now();
+    }
+}
+
+/// The largest distance of the handle's vertices from where its transform puts them.
+fn handle_error(app: &App, e: Entity, handle: Entity, rest: &[DVec3]) -> f32 {
+    let h = app.world().get::<DeformHandle>(handle).unwrap();
+    let t = app.world().get::<Transform>(handle).unwrap();
+    let target = h.rigid_transform(t);
+    let got = positions(app, e);
+    h.vertices
+        .iter()
+        .map(|&v| (got[v as usize].as_dvec3() - target.apply(rest[v as usize])).length() as f32)
+        .fold(0.0, f32::max)
+}
+
+/// Issue 41: when a solve lands in a frame whose handle has moved again, the next solve starts
+/// in that frame, and its pose is on screen in the next one: at most one frame between a
+/// handle's move and its written pose, once the worker is done.
+#[test]
+fn a_solve_started_in_the_frame_the_last_landed_is_on_screen_the_next_frame() {
+    let mut app = app();
+    app.insert_resource(bevy::time::TimeUpdateStrategy::ManualDuration(
+        std::time::Duration::from_secs_f64(1.0 / 120.0),
+    ));
+    app.add_plugins(DeformPlugin {
+        config: DeformConfig {
+            settle_iterations: 0,
+            ..default()
+        },
+    });
+    let (e, handle, tri) = spawn_bar(&mut app);
+    run_until_messages(&mut app, 1);
+    common::bar::settle(&mut app, e);
+    let move_handle = |app: &mut App, dx: f32| {
+        app.world_mut()
+            .get_mut::<Transform>(handle)
+            .unwrap()
+            .translation
+            .x += dx;
+    };
+    let landed_unpolled = |app: &App| {
+        app.world()
+            .get::<bevy_wii_deform::ecs::DeformState>(e)
+            .unwrap()
+            .has_landed()
+    };
+    for step in 0..5 {
+        // Frame 1: the handle moves, its solve starts (and lands after that frame's poll:
+        // when the worker beat the poll, the frame showed it at once; move again).
+        for attempt in 0.. {
+            assert!(attempt < 50, "step {step}: every solve landed within its own frame");
+            move_handle(&mut app, 0.02);
+            app.update();
+            wait_for_landing(&app, e);
+            if landed_unpolled(&app) {
+                break;
+            }
+        }
+        // Frame 2: that pose lands and the handle moves again: the next solve starts now.
+        move_handle(&mut app, 0.03);
+        app.update();
+        let shown_before = handle_error(&app, e, handle, &tri.positions);
+        assert!(
+            shown_before > 0.02,
+            "step {step}: frame 2 still shows frame 1's pose (off by {shown_before})"
+        );
+        wait_for_landing(&app, e);
+        // Frame 3: frame 2's pose is on screen.
+        app.update();
+        let err = handle_error(&app, e, handle, &tri.positions);
+        assert!(
+            err < 1e-4,
+            "step {step}: frame 2's move is not on screen in frame 3: {err}"
+        );
+    }
+}

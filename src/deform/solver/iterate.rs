@@ -29,6 +29,8 @@ pub(super) struct Iterate {
     pub rhs: Vec<DVec3>,
     /// Scratch: right-hand side per vertex.
     pub rhs_by_vertex: Vec<DVec3>,
+    /// Scratch: a line search's trial positions (free vertices).
+    pub trial: Vec<DVec3>,
     /// Un-normalised energy of the cells with no free vertex.
     pub constant_energy: f64,
     /// Normalised energy of `x` with its fitted rotations, when known.
@@ -52,7 +54,7 @@ impl ArapSolver {
         let tr = Instant::now();
         self.arap_rhs(&it.x, &it.mats, &mut it.rhs_by_vertex, &mut it.rhs);
         let tg = Instant::now();
-        self.cot_factor.solve_in_place(&mut it.rhs);
+        self.cot_factor.solve_in_place(&mut it.rhs, self.parallel);
         it.stats.back_substitutions += 1;
         it.stats.rhs_s += (tg - tr).as_secs_f64();
         it.stats.global_s += tg.elapsed().as_secs_f64();
@@ -93,7 +95,7 @@ impl ArapSolver {
         options: &SolveOptions,
         should_cancel: &dyn Fn() -> bool,
     ) -> Result<(), SolveError> {
-        let mut anderson = (depth > 0).then(|| Anderson::new(depth));
+        let mut anderson = (depth > 0).then(|| Anderson::new(depth, self.parallel));
         let (mut proposal, mut current) = (Vec::new(), Vec::new());
         for _ in 0..options.max_iterations {
             if Self::cancelled(it, should_cancel)? {
@@ -162,8 +164,11 @@ impl ArapSolver {
             // `direction` = H g; the step is −direction.
             let ta = Instant::now();
             direction.clone_from(&g);
-            history.apply(&mut direction, |q| self.precondition(&mut it.stats, q));
-            if dot(&g, &direction).partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater)
+            history.apply(&mut direction, self.parallel, |q| {
+                self.precondition(&mut it.stats, q)
+            });
+            if dot(&g, &direction, self.parallel).partial_cmp(&0.0)
+                != Some(std::cmp::Ordering::Greater)
                 && history.len() > 0
             {
                 // Not a descent direction (or NaN): restart from the plain step.
@@ -184,9 +189,10 @@ impl ArapSolver {
             // A step that changed the energy only at rounding level (at rest, or converged)
             // measures noise, not curvature.
             if e - e_new > ROUNDING * e {
-                let s: Vec<DVec3> = trial.iter().zip(&xf).map(|(a, b)| *a - *b).collect();
-                let y: Vec<DVec3> = g_new.iter().zip(&g).map(|(a, b)| *a - *b).collect();
-                history.push(s, y);
+                let (mut s, mut y) = history.spare_buffers();
+                s.extend(trial.iter().zip(&xf).map(|(a, b)| *a - *b));
+                y.extend(g_new.iter().zip(&g).map(|(a, b)| *a - *b));
+                history.push(s, y, self.parallel);
             }
             it.stats.acceleration_s += ta.elapsed().as_secs_f64();
             std::mem::swap(&mut xf, &mut trial);
@@ -213,9 +219,9 @@ impl ArapSolver {
         e: f64,
     ) -> (f64, bool) {
         // ∇E = 4 g in un-normalised energy.
-        let slope = 4.0 * dot(g, d) / self.layout.rest_norm.max(f64::MIN_POSITIVE);
+        let slope = 4.0 * dot(g, d, self.parallel) / self.layout.rest_norm.max(f64::MIN_POSITIVE);
         let mut alpha = 1.0;
-        let mut trial = Vec::with_capacity(xf.len());
+        let mut trial = std::mem::take(&mut it.trial);
         if slope < 0.0 {
             for _ in 0..LINE_SEARCH_TRIALS {
                 trial.clear();
@@ -223,12 +229,14 @@ impl ArapSolver {
                 self.write_free(&trial, &mut it.x);
                 let et = self.refit(it);
                 if et <= e + ARMIJO * alpha * slope {
+                    it.trial = trial;
                     return (et, false);
                 }
                 it.stats.rejected_extrapolations += 1;
                 alpha *= 0.5;
             }
         }
+        it.trial = trial;
         self.write_free(xf, &mut it.x);
         self.refit(it);
         (self.plain_step(it), true)
@@ -245,7 +253,7 @@ impl ArapSolver {
     /// Applies the inverse of the factored Laplacian to `v` in place (counted).
     pub(super) fn precondition(&self, stats: &mut SolveStats, v: &mut [DVec3]) {
         let tg = Instant::now();
-        self.cot_factor.solve_in_place(v);
+        self.cot_factor.solve_in_place(v, self.parallel);
         stats.global_s += tg.elapsed().as_secs_f64();
         stats.back_substitutions += 1;
     }

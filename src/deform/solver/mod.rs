@@ -4,13 +4,11 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use glam::{DMat3, DQuat, DVec3};
-use rayon::prelude::*;
-
 use super::constraints::{ConstraintError, Constraints, Role};
 use super::factor::LowerFactor;
 use super::rotation::{add_outer, fit_rotation_warm};
 use super::topology::{MeshError, Topology, WeightMode};
+use glam::{DMat3, DQuat, DVec3};
 
 mod iterate;
 mod layout;
@@ -18,6 +16,7 @@ mod newton;
 mod precompute;
 mod system;
 use super::lbfgs::Lbfgs;
+use super::parallel::{Threading, for_chunks, sum_chunks_pair, zip_chunks};
 use iterate::Iterate;
 use layout::CellKind;
 pub(crate) use layout::Layout;
@@ -65,6 +64,8 @@ pub struct SolverSettings {
     pub factorization: Factorization,
     /// Fill-reducing ordering.
     pub ordering: FillOrdering,
+    /// Where the loops of the iterations run (the positions are the same either way).
+    pub threading: Threading,
 }
 
 /// Per-solve options.
@@ -199,6 +200,8 @@ pub struct PrecomputeStats {
     /// Whether the triangular solves run on two threads (independent halves in the
     /// elimination order).
     pub parallel_solves: bool,
+    /// Whether the iterations' loops run on rayon's pool ([`SolverSettings::threading`]).
+    pub parallel_iterations: bool,
 }
 
 /// Statistics of one solve.
@@ -312,6 +315,8 @@ pub struct ArapSolver {
     /// The uniform Laplacian, factored by the first solve that starts from it (a warm-started
     /// interaction never does, and a new grab should not wait for it).
     uniform: LazyFactor,
+    /// Whether the iterations' loops run on rayon's pool ([`SolverSettings::threading`]).
+    parallel: bool,
     stats: PrecomputeStats,
 }
 
@@ -373,7 +378,7 @@ impl ArapSolver {
         let n = layout.rest.len();
         let mut stats = SolveStats::default();
         let (mut x, mut quats) = self.starting_state(constraints, initial)?;
-        let mut mats: Vec<DMat3> = quats.par_iter().map(|q| DMat3::from_quat(*q)).collect();
+        let mut mats: Vec<DMat3> = quats.iter().map(|q| DMat3::from_quat(*q)).collect();
         let mut rhs = vec![DVec3::ZERO; self.free.len()];
         let rhs_by_vertex = vec![DVec3::ZERO; n];
 
@@ -407,6 +412,7 @@ impl ArapSolver {
             mats,
             rhs,
             rhs_by_vertex,
+            trial: Vec::new(),
             constant_energy,
             energy: prev_energy,
             stats,
@@ -519,47 +525,41 @@ impl ArapSolver {
     ) -> f64 {
         let layout = &self.layout;
         let (rest, offsets, nbrs) = (&layout.rest, &layout.offsets, &layout.nbrs);
-        quats
-            .par_chunks_mut(CHUNK)
-            .zip(mats.par_chunks_mut(CHUNK))
-            .enumerate()
-            .map(|(c, (qs, ms))| {
-                let mut energy = 0.0;
-                for k in 0..qs.len() {
-                    let i = c * CHUNK + k;
-                    let kind = self.cells[i];
-                    if (kind == CellKind::Active) != active {
-                        continue;
-                    }
-                    if kind == CellKind::Rest {
-                        qs[k] = DQuat::IDENTITY;
-                        ms[k] = DMat3::IDENTITY;
-                        continue;
-                    }
-                    let mut a = DMat3::ZERO;
-                    let mut sq = 0.0;
-                    for e in offsets[i] as usize..offsets[i + 1] as usize {
-                        let w = layout.weights[e];
-                        if w == 0.0 {
-                            continue;
-                        }
-                        let j = nbrs[e] as usize;
-                        let d = x[i] - x[j];
-                        add_outer(&mut a, w, d, rest[i] - rest[j]);
-                        sq += w * d.length_squared();
-                    }
-                    let q = fit_rotation_warm(&a, qs[k], 40, 1e-10);
-                    let r = DMat3::from_quat(q);
-                    let tr =
-                        r.x_axis.dot(a.x_axis) + r.y_axis.dot(a.y_axis) + r.z_axis.dot(a.z_axis);
-                    energy += sq + self.layout.cell_rest_sq[i] - 2.0 * tr;
-                    qs[k] = q;
-                    ms[k] = r;
+        sum_chunks_pair(self.parallel, quats, mats, CHUNK, |c, qs, ms| {
+            let mut energy = 0.0;
+            for k in 0..qs.len() {
+                let i = c * CHUNK + k;
+                let kind = self.cells[i];
+                if (kind == CellKind::Active) != active {
+                    continue;
                 }
-                energy
-            })
-            .sum::<f64>()
-            .max(0.0)
+                if kind == CellKind::Rest {
+                    qs[k] = DQuat::IDENTITY;
+                    ms[k] = DMat3::IDENTITY;
+                    continue;
+                }
+                let mut a = DMat3::ZERO;
+                let mut sq = 0.0;
+                for e in offsets[i] as usize..offsets[i + 1] as usize {
+                    let w = layout.weights[e];
+                    if w == 0.0 {
+                        continue;
+                    }
+                    let j = nbrs[e] as usize;
+                    let d = x[i] - x[j];
+                    add_outer(&mut a, w, d, rest[i] - rest[j]);
+                    sq += w * d.length_squared();
+                }
+                let q = fit_rotation_warm(&a, qs[k], 40, 1e-10);
+                let r = DMat3::from_quat(q);
+                let tr = r.x_axis.dot(a.x_axis) + r.y_axis.dot(a.y_axis) + r.z_axis.dot(a.z_axis);
+                energy += sq + self.layout.cell_rest_sq[i] - 2.0 * tr;
+                qs[k] = q;
+                ms[k] = r;
+            }
+            energy
+        })
+        .max(0.0)
     }
 
     /// `b_i = Σ_j (w_ij/2)(R_i + R_j)(p_i − p_j) + Σ_{j known} w_ij x_j`, in elimination
@@ -570,27 +570,24 @@ impl ArapSolver {
     fn arap_rhs(&self, x: &[DVec3], mats: &[DMat3], by_vertex: &mut [DVec3], rhs: &mut [DVec3]) {
         let layout = &self.layout;
         let (rest, offsets, nbrs) = (&layout.rest, &layout.offsets, &layout.nbrs);
-        by_vertex
-            .par_chunks_mut(CHUNK)
-            .enumerate()
-            .for_each(|(c, out)| {
-                for (k, b_out) in out.iter_mut().enumerate() {
-                    let i = c * CHUNK + k;
-                    if self.free_index[i] == NOT_FREE {
-                        continue;
-                    }
-                    let mut b = 0.5 * (mats[i] * self.layout.weighted_rest_sum[i]);
-                    for e in offsets[i] as usize..offsets[i + 1] as usize {
-                        let w = layout.weights[e];
-                        let j = nbrs[e] as usize;
-                        b += (0.5 * w) * (mats[j] * (rest[i] - rest[j]));
-                        if self.free_index[j] == NOT_FREE {
-                            b += w * x[j];
-                        }
-                    }
-                    *b_out = b;
+        for_chunks(self.parallel, by_vertex, CHUNK, |c, out| {
+            for (k, b_out) in out.iter_mut().enumerate() {
+                let i = c * CHUNK + k;
+                if self.free_index[i] == NOT_FREE {
+                    continue;
                 }
-            });
+                let mut b = 0.5 * (mats[i] * self.layout.weighted_rest_sum[i]);
+                for e in offsets[i] as usize..offsets[i + 1] as usize {
+                    let w = layout.weights[e];
+                    let j = nbrs[e] as usize;
+                    b += (0.5 * w) * (mats[j] * (rest[i] - rest[j]));
+                    if self.free_index[j] == NOT_FREE {
+                        b += w * x[j];
+                    }
+                }
+                *b_out = b;
+            }
+        });
         self.gather_free(by_vertex, rhs);
     }
 
@@ -608,34 +605,32 @@ impl ArapSolver {
     ) {
         let layout = &self.layout;
         let (rest, offsets, nbrs) = (&layout.rest, &layout.offsets, &layout.nbrs);
-        by_vertex
-            .par_chunks_mut(CHUNK)
-            .enumerate()
-            .for_each(|(c, chunk)| {
-                for (k, o) in chunk.iter_mut().enumerate() {
-                    let i = c * CHUNK + k;
-                    if self.free_index[i] == NOT_FREE {
-                        continue;
-                    }
-                    let mut g = -0.5 * (mats[i] * self.layout.weighted_rest_sum[i]);
-                    for e in offsets[i] as usize..offsets[i + 1] as usize {
-                        let w = layout.weights[e];
-                        let j = nbrs[e] as usize;
-                        g += w * (u[i] - u[j]) - (0.5 * w) * (mats[j] * (rest[i] - rest[j]));
-                    }
-                    *o = g;
+        for_chunks(self.parallel, by_vertex, CHUNK, |c, chunk| {
+            for (k, o) in chunk.iter_mut().enumerate() {
+                let i = c * CHUNK + k;
+                if self.free_index[i] == NOT_FREE {
+                    continue;
                 }
-            });
+                let mut g = -0.5 * (mats[i] * self.layout.weighted_rest_sum[i]);
+                for e in offsets[i] as usize..offsets[i + 1] as usize {
+                    let w = layout.weights[e];
+                    let j = nbrs[e] as usize;
+                    g += w * (u[i] - u[j]) - (0.5 * w) * (mats[j] * (rest[i] - rest[j]));
+                }
+                *o = g;
+            }
+        });
         self.gather_free(by_vertex, out);
     }
 
     /// `out[k] = by_vertex[free[k]]`: per-vertex values of the free vertices in elimination
     /// order.
     fn gather_free(&self, by_vertex: &[DVec3], out: &mut [DVec3]) {
-        out.par_iter_mut()
-            .zip(self.free.par_iter())
-            .with_min_len(CHUNK)
-            .for_each(|(o, &i)| *o = by_vertex[i as usize]);
+        zip_chunks(self.parallel, out, &self.free, CHUNK, |out, free| {
+            for (o, &i) in out.iter_mut().zip(free) {
+                *o = by_vertex[i as usize];
+            }
+        });
     }
 
     /// The covariance `Σ_j w_ij (u_i − u_j)(p_i − p_j)ᵀ` of cell `i` under the field `u`.
@@ -658,10 +653,8 @@ impl ArapSolver {
     fn uniform_rhs(&self, x: &[DVec3], rhs: &mut [DVec3]) {
         let layout = &self.layout;
         let (rest, offsets, nbrs) = (&layout.rest, &layout.offsets, &layout.nbrs);
-        rhs.par_iter_mut()
-            .zip(self.free.par_iter())
-            .with_min_len(CHUNK)
-            .for_each(|(out, &i)| {
+        zip_chunks(self.parallel, rhs, &self.free, CHUNK, |rhs, free| {
+            for (out, &i) in rhs.iter_mut().zip(free) {
                 let i = i as usize;
                 let range = offsets[i] as usize..offsets[i + 1] as usize;
                 let mut b = range.len() as f64 * rest[i];
@@ -673,11 +666,12 @@ impl ArapSolver {
                     }
                 }
                 *out = b;
-            });
+            }
+        });
     }
 
     fn back_substitute(&self, factor: &LowerFactor, rhs: &mut [DVec3], x: &mut [DVec3]) {
-        factor.solve_in_place(rhs);
+        factor.solve_in_place(rhs, self.parallel);
         self.write_free(rhs, x);
     }
 

@@ -8,11 +8,11 @@
 use std::time::Instant;
 
 use glam::{DMat3, DVec3};
-use rayon::prelude::*;
 
 use super::iterate::Iterate;
 use super::{ArapSolver, CHUNK, CellKind, SolveError, SolveOptions};
 use crate::deform::lbfgs::dot;
+use crate::deform::parallel::for_chunks;
 
 /// CG stops when the preconditioned residual has shrunk by this factor.
 const CG_REDUCTION: f64 = 0.1;
@@ -77,7 +77,7 @@ fn solve_spd3(k: &DMat3, b: DVec3) -> Option<DVec3> {
 impl ArapSolver {
     /// `Y = sym(Rᵀ A)` of every active cell at `x` (rotations in `mats` fitted to `x`).
     fn polar_factors(&self, x: &[DVec3], mats: &[DMat3], out: &mut [DMat3]) {
-        out.par_chunks_mut(CHUNK).enumerate().for_each(|(c, ys)| {
+        for_chunks(self.parallel, out, CHUNK, |c, ys| {
             for (k, y_out) in ys.iter_mut().enumerate() {
                 let i = c * CHUNK + k;
                 if self.cells[i] == CellKind::Active {
@@ -95,7 +95,7 @@ impl ArapSolver {
             s.v[i as usize] = *p;
         }
         let (vv, ys) = (&s.v, &s.y);
-        s.dr.par_chunks_mut(CHUNK).enumerate().for_each(|(c, drs)| {
+        for_chunks(self.parallel, &mut s.dr, CHUNK, |c, drs| {
             for (k, dr) in drs.iter_mut().enumerate() {
                 let i = c * CHUNK + k;
                 *dr = DMat3::ZERO;
@@ -151,7 +151,7 @@ impl ArapSolver {
             z.clone_from(&r);
             self.precondition(&mut it.stats, &mut z);
             p.clone_from(&z);
-            let mut rz = dot(&r, &z);
+            let mut rz = dot(&r, &z, self.parallel);
             let rz0 = rz;
             for k in 0..max_cg.max(1) {
                 // A newer request: finish this iteration with the direction found so far
@@ -160,7 +160,7 @@ impl ArapSolver {
                     break;
                 }
                 self.hessian_times(&p, &it.mats, &mut s, &mut hp);
-                let php = dot(&p, &hp);
+                let php = dot(&p, &hp, self.parallel);
                 if php.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
                     if k == 0 {
                         d.clone_from(&p); // the plain local/global step
@@ -172,7 +172,7 @@ impl ArapSolver {
                 r.iter_mut().zip(&hp).for_each(|(r, h)| *r -= alpha * *h);
                 z.clone_from(&r);
                 self.precondition(&mut it.stats, &mut z);
-                let rz_new = dot(&r, &z);
+                let rz_new = dot(&r, &z, self.parallel);
                 if rz_new <= CG_REDUCTION * CG_REDUCTION * rz0 {
                     break;
                 }
@@ -244,6 +244,7 @@ mod tests {
             mats: vec![DMat3::IDENTITY; n],
             rhs: vec![DVec3::ZERO; nf],
             rhs_by_vertex: vec![DVec3::ZERO; n],
+            trial: Vec::new(),
             constant_energy: 0.0,
             energy: None,
             stats: SolveStats::default(),

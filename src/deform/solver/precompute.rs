@@ -55,8 +55,10 @@ impl ArapSolver {
         }
         let cells = cell_kinds(&layout, &roles, &free_index);
         let nf = free.len();
+        let parallel = settings.threading.parallel_for(nf);
         let mut stats = PrecomputeStats {
             free_vertices: nf,
+            parallel_iterations: parallel,
             unconstrained_component_vertices: pinned,
             assembly_s: t0.elapsed().as_secs_f64(),
             ..Default::default()
@@ -93,6 +95,7 @@ impl ArapSolver {
             cells,
             cot_factor,
             uniform,
+            parallel,
             stats,
         })
     }

@@ -18,7 +18,7 @@ use bevy::asset::RenderAssetUsages;
 use bevy::mesh::VertexAttributeValues;
 use bevy::prelude::*;
 
-use crate::ecs::tasks::LatestTask;
+use crate::ecs::tasks::ChainedTask;
 use bevy::tasks::futures::check_ready;
 use bevy::tasks::{AsyncComputeTaskPool, Task};
 
@@ -121,6 +121,14 @@ struct Solved {
     preview: Option<Arc<Preview>>,
 }
 
+/// A request handed to the running solve: it goes on with it when its factorization fits
+/// (same constraint sets and settings), else gives it back.
+struct FollowOn {
+    constraints: Constraints,
+    settings: SolverSettings,
+    options: SolveOptions,
+}
+
 struct SolveOutput {
     result: Result<Solved, SolveError>,
     ms: f64,
@@ -147,8 +155,8 @@ pub struct DeformState {
     building: Option<Task<Result<Rest, DeformError>>>,
     solver: Option<Arc<ArapSolver>>,
     last: Option<Arc<Solution>>,
-    /// The running solve (the latest request wins).
-    solve: LatestTask<SolveOutput>,
+    /// The running solve; it takes the requests that arrive while it runs (the latest wins).
+    solve: ChainedTask<FollowOn, SolveOutput>,
     pending: Option<Constraints>,
     ready: Option<RenderPose>,
     attempted: bool,
@@ -173,6 +181,12 @@ impl DeformState {
     /// Whether a solve is running in the background.
     pub fn is_solving(&self) -> bool {
         self.solve.is_running()
+    }
+
+    /// Whether a background solve has landed since the last [`DeformSystems::Poll`]: its pose
+    /// is written in the next frame's [`DeformSystems::Writeback`].
+    pub fn has_landed(&self) -> bool {
+        self.solve.has_landed()
     }
 
     /// Makes the mesh's current pose its rest pose: the deformable `entity` (the one this

@@ -106,7 +106,7 @@ impl DeformState {
             building: Some(building),
             solver: None,
             last: None,
-            solve: LatestTask::default(),
+            solve: ChainedTask::default(),
             pending: None,
             ready: None,
             attempted: false,

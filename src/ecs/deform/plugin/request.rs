@@ -3,7 +3,7 @@
 
 use super::*;
 use crate::deform::PreviewRegion;
-use crate::ecs::tasks::Cancellation;
+use crate::ecs::tasks::{Cancellation, ChainLink};
 
 /// Builds core constraints (welded indices) for one deformable.
 pub(super) fn build_constraints(
@@ -93,11 +93,23 @@ pub(super) fn request_solves(
         let constraints = build_constraints(&rest.topology, fixed.as_deref(), &pairs);
         let state = state.bypass_change_detection();
         state.attempted = true;
-        state.pending = Some(constraints);
         state.settle_left = config.settle_iterations;
+        // A running solve stops at its next iteration and goes on with these constraints
+        // itself when its factorization fits them.
         state.solve.supersede();
+        state.pending = None;
+        let offered = FollowOn {
+            settings: solver_settings(deformable, &rest.topology),
+            options: solve_options(false, deformable, &config),
+            constraints: constraints.clone(),
+        };
+        let Some(untaken) = state.solve.offer(offered) else {
+            state.latest = Some(constraints);
+            continue;
+        };
+        state.pending = Some(untaken.constraints);
         if state.solve.is_running() {
-            continue; // the running task is cancelled at its next iteration; respawn on landing
+            continue; // it has ended: the poll starts the next solve with these
         }
         spawn_solve(state, &rest, deformable, &config, &mut status, false);
     }
@@ -164,9 +176,8 @@ pub(super) fn spawn_solve(
         laplacian_start,
         options: solve_options(settling, deformable, config),
     };
-    state
-        .solve
-        .spawn(move |cancellation| job.run(&cancellation));
+    let mut job = job;
+    state.solve.spawn(move |link| job.step(link));
 }
 
 /// How a solve iterates: the settings' acceleration and tolerance, or the settling ones.
@@ -217,9 +228,41 @@ struct SolveJob {
 }
 
 impl SolveJob {
+    /// Solves and posts the output; when a request arrived meanwhile that the factorization
+    /// fits, makes it the next step's (warm from the pose just made) and returns true, else
+    /// gives it back and returns false.
+    fn step(&mut self, link: &mut ChainLink<FollowOn, SolveOutput>) -> bool {
+        let out = self.run(link.cancellation());
+        // A preview's solve is followed by the whole mesh's factorization (the plugin's).
+        let reusable = match &out.result {
+            Ok(s) if s.preview.is_none() => Some((s.solver.clone(), s.solution.clone())),
+            _ => None,
+        };
+        let Some(next) = link.land(out) else {
+            return false;
+        };
+        match reusable {
+            Some((solver, solution))
+                if solver.accepts(&next.constraints) && *solver.settings() == next.settings =>
+            {
+                self.solver = JobSolver::Reuse(solver);
+                self.warm = Some(solution);
+                self.laplacian_start = false;
+                self.constraints = next.constraints;
+                self.settings = next.settings;
+                self.options = next.options;
+                true
+            }
+            _ => {
+                link.give_back(next);
+                false
+            }
+        }
+    }
+
     /// Factors (if needed) and solves; stops early when `cancellation` says a newer request
     /// arrived.
-    fn run(self, cancellation: &Cancellation) -> SolveOutput {
+    fn run(&self, cancellation: &Cancellation) -> SolveOutput {
         let t0 = std::time::Instant::now();
         let result = self.solve(cancellation);
         let unsettled = result
@@ -228,7 +271,7 @@ impl SolveJob {
         SolveOutput {
             result,
             ms: t0.elapsed().as_secs_f64() * 1e3,
-            constraints: self.constraints,
+            constraints: self.constraints.clone(),
             unsettled,
         }
     }
