@@ -3,6 +3,7 @@
 //! ```text
 //! cargo run --release --example arap_peer -- MESH.off CONSTRAINTS.txt ITERS REPEATS OUT.bin [--init laplacian|rest]
 //!     [--factorization auto|simplicial|supernodal] [--anderson DEPTH] [--weld none|seams|all]
+//!     [--threading auto|serial|parallel]
 //! ```
 //! Constraint indices are input vertex indices; they are mapped through the weld map, and the
 //! output is in input order. `--weld none` (the default) solves the mesh's own index topology,
@@ -82,12 +83,14 @@ struct PeerOptions {
     anderson_depth: usize,
     /// `--weld none|seams|all` (the peers solve the mesh's own index topology: none).
     weld: WeldPolicy,
+    /// `--threading auto|serial|parallel`.
+    threading: Threading,
 }
 
 const USAGE: &str = "\
 usage: arap_peer MESH.off CONSTRAINTS.txt ITERS REPEATS OUT.bin [--init laplacian|rest]
                  [--factorization auto|simplicial|supernodal] [--anderson DEPTH]
-                 [--weld none|seams|all]
+                 [--weld none|seams|all] [--threading auto|serial|parallel]
        arap_peer problem SOURCE OUT.off OUT.txt   (SOURCE: a mesh file, bar:N or sphere:S)";
 
 impl PeerOptions {
@@ -100,6 +103,7 @@ impl PeerOptions {
             anderson_depth: 0,
             // The peers solve the mesh's own index topology: weld nothing unless asked.
             weld: WeldPolicy::None,
+            threading: Threading::Auto,
         };
         let mut parser = cli::Parser::from_env();
         while let Some(arg) = cli::next(&mut parser, USAGE) {
@@ -133,6 +137,18 @@ impl PeerOptions {
                         "seams" => WeldPolicy::Seams,
                         "all" => WeldPolicy::AllCoincident,
                         v => return Err(format!("--weld must be none, seams or all, got {v:?}")),
+                    }
+                }
+                cli::Arg::Long("threading") => {
+                    options.threading = match cli::string(&mut parser, USAGE).as_str() {
+                        "auto" => Threading::Auto,
+                        "serial" => Threading::Serial,
+                        "parallel" => Threading::Parallel,
+                        v => {
+                            return Err(format!(
+                                "--threading must be auto, serial or parallel, got {v:?}"
+                            ));
+                        }
                     }
                 }
                 other => cli::unexpected(other, USAGE),
@@ -225,9 +241,11 @@ fn run() -> Result<(), String> {
         factorization,
         anderson_depth,
         weld,
+        threading,
     } = options;
     let settings = SolverSettings {
         factorization,
+        threading,
         ..Default::default()
     };
     // In input (render) vertex order, as in the constraints file.

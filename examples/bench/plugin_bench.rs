@@ -7,7 +7,12 @@
 //! Default mesh: ../shared/meshes/armadillo.off (26k vertices), else a 26k-vertex bar.
 //! `--plain`: the plugin with plain local/global iterations and no settling (default: L-BFGS
 //! while dragging, Newton settling after).
-//! Last stdout line: `{"vertices": N, "frames": F, "main_ms_median": x, "main_ms_p99": y, "solves_per_s": z}`.
+//! Last stdout line: `{"vertices": N, "frames": F, "main_ms_median": x, "main_ms_p99": y,
+//! "solves_per_s": z, "ms_per_solve": m, "solver_bound": b}` (`ms_per_solve`: the worker's
+//! median time per solve; `solver_bound`: `solves_per_s` ≥ 0.9 × 1000 / `ms_per_solve`, the
+//! drag limited by the solver, not by how solves are handed to it).
+//! `--many N`: N meshes (~2k-vertex bars unless `--mesh`/`--bar` says otherwise) each dragged
+//! at once; adds `meshes`, `solves_per_s_per_mesh_min` (`solves_per_s` is across all).
 //! `--grab`: no fixed region; a new pointer grab (`GrabStart`, patch radius 3 % and region 30 %
 //! of the bounding-box diagonal) every second at a pseudo-random vertex, its handle dragged in
 //! between; adds `grab_to_first_pose_ms_median` / `_p95` (press → first written pose, which
@@ -125,7 +130,8 @@ fn drag(time: Res<Time>, timing: Res<Timing>, mut q: Query<&mut Transform, With<
 
 const USAGE: &str = "\
 usage: plugin_bench [--mesh PATH | --bar VERTICES] [--seconds S] [--iterations N] [--fps F]
-                    [--grab | --set-changes [--no-preview]] [--plain] [--json]
+                    [--grab | --set-changes [--no-preview] | --many N] [--plain]
+                    [--async-threads N] [--json]
 
   --mesh PATH     an OBJ/OFF mesh (default ../shared/meshes/armadillo.off, else a 26k bar)
   --bar VERTICES  a generated bar of about that many vertices
@@ -135,6 +141,8 @@ usage: plugin_bench [--mesh PATH | --bar VERTICES] [--seconds S] [--iterations N
   --grab          a new pointer grab every second (grab latency)
   --set-changes   a new handle set every second (first-pose latency)
   --no-preview    no preview pose for a new constraint set
+  --many N        N meshes dragged at once (~2k-vertex bars unless --mesh or --bar)
+  --async-threads N  threads of Bevy's async compute pool (default: Bevy's, 1 on 2 cores)
   --plain         plain local/global iterations, no settling
   --json          accepted for older command lines: the JSON is always the last line";
 
@@ -151,6 +159,10 @@ struct Args {
     set_changes: bool,
     no_preview: bool,
     plain: bool,
+    /// `--many N`: N meshes dragged at once.
+    many: usize,
+    /// `--async-threads N`: threads of Bevy's async compute pool (the solves').
+    async_threads: Option<usize>,
 }
 
 impl Args {
@@ -165,6 +177,8 @@ impl Args {
             set_changes: false,
             no_preview: false,
             plain: false,
+            many: 1,
+            async_threads: None,
         };
         let mut parser = cli::Parser::from_env();
         while let Some(arg) = cli::next(&mut parser, USAGE) {
@@ -178,6 +192,10 @@ impl Args {
                 cli::Arg::Long("set-changes") => args.set_changes = true,
                 cli::Arg::Long("no-preview") => args.no_preview = true,
                 cli::Arg::Long("plain") => args.plain = true,
+                cli::Arg::Long("many") => args.many = cli::value(&mut parser, USAGE),
+                cli::Arg::Long("async-threads") => {
+                    args.async_threads = Some(cli::value(&mut parser, USAGE))
+                }
                 cli::Arg::Long("json") => {}
                 other => cli::unexpected(other, USAGE),
             }
@@ -189,11 +207,15 @@ impl Args {
 fn main() {
     let args = Args::parse();
     let (seconds, iterations, fps) = (args.seconds, args.iterations, args.fps);
-    let tri = bench_mesh(args.mesh.clone(), args.bar);
+    let tri = match args.many {
+        // Many small bendables: ~2k-vertex bars unless a mesh is named.
+        n if n > 1 && args.mesh.is_none() => synth::bar_with_vertices(args.bar.unwrap_or(2000)),
+        _ => bench_mesh(args.mesh.clone(), args.bar),
+    };
     let deform_plugin = deform_plugin(&args);
     let mut app = App::new();
     app.add_plugins((
-        MinimalPlugins,
+        MinimalPlugins.set(task_pools(args.async_threads)),
         bevy::asset::AssetPlugin::default(),
         bevy::mesh::MeshPlugin,
         bevy::transform::TransformPlugin,
@@ -234,12 +256,12 @@ fn main() {
             ..default()
         };
         app.world_mut()
-            .spawn((Mesh3d(h), deformable, grabbable))
+            .spawn((Mesh3d(h), deformable.clone(), grabbable))
             .id()
     } else {
         let e = app
             .world_mut()
-            .spawn((Mesh3d(h), deformable, FixedRegion(fixed)))
+            .spawn((Mesh3d(h), deformable.clone(), FixedRegion(fixed)))
             .id();
         let (handle, transform) = DeformHandle::bundle(&bundle_src, e, handle);
         app.world_mut().spawn((handle, transform, Dragged));
@@ -251,7 +273,82 @@ fn main() {
     if args.set_changes {
         return run_set_changes(&mut app, e, &tri, &fixed_set, diagonal, seconds, fps);
     }
+    if args.many > 1 {
+        let mut meshes = vec![e];
+        meshes.extend((1..args.many).map(|_| spawn_dragged_bar(&mut app, &tri, &deformable)));
+        return run_many(&mut app, &meshes, seconds, fps);
+    }
     run_drag(&mut app, e, seconds, fps);
+}
+
+/// Bevy's task pools, with `async_threads` threads for the background solves when given (Bevy's
+/// default is a quarter of the cores, at least one: one on a 2-core machine).
+fn task_pools(async_threads: Option<usize>) -> bevy::app::TaskPoolPlugin {
+    let mut options = bevy::app::TaskPoolOptions::default();
+    if let Some(n) = async_threads {
+        options.async_compute.min_threads = n;
+        options.async_compute.max_threads = n;
+    }
+    bevy::app::TaskPoolPlugin {
+        task_pool_options: options,
+    }
+}
+
+/// Another copy of the benchmark mesh, held at its bottom slab and dragged by its top one.
+fn spawn_dragged_bar(app: &mut App, tri: &TriMesh, deformable: &Deformable) -> Entity {
+    let mesh = mesh_from_triangles(&tri.positions, &tri.triangles);
+    let (fixed, handle) = synth::slab_regions(&tri.positions, 1, 0.1, 0.1);
+    let bundle_src = mesh.clone();
+    let h = app.world_mut().resource_mut::<Assets<Mesh>>().add(mesh);
+    let e = app
+        .world_mut()
+        .spawn((Mesh3d(h), deformable.clone(), FixedRegion(fixed)))
+        .id();
+    let (handle, transform) = DeformHandle::bundle(&bundle_src, e, handle);
+    app.world_mut().spawn((handle, transform, Dragged));
+    e
+}
+
+/// `--many N`: N meshes dragged at once; prints the JSON line with the solves per second
+/// across all and per mesh (the slowest), and the main thread's frame times.
+fn run_many(app: &mut App, meshes: &[Entity], seconds: f64, fps: f64) {
+    let solves = |app: &App| -> Vec<u64> {
+        meshes
+            .iter()
+            .map(|&e| app.world().get::<DeformStatus>(e).map_or(0, |s| s.solves))
+            .collect()
+    };
+    let setup = Instant::now();
+    while solves(app).contains(&0) {
+        app.update();
+        std::thread::sleep(Duration::from_millis(1));
+        assert!(
+            setup.elapsed() < Duration::from_secs(120),
+            "setup did not finish"
+        );
+    }
+    let before = solves(app);
+    let (elapsed, mut solve_ms) = measure_frames(app, seconds, fps);
+    let per_mesh: Vec<f64> = solves(app)
+        .iter()
+        .zip(&before)
+        .map(|(a, b)| (a - b) as f64 / elapsed)
+        .collect();
+    let total: f64 = per_mesh.iter().sum();
+    solve_ms.sort_by(f64::total_cmp);
+    let mut ms = app.world().resource::<Timing>().frames_ms.clone();
+    ms.sort_by(f64::total_cmp);
+    let mut report = object(serde_json::json!({
+        "meshes": meshes.len(),
+        "vertices": app.world().get::<DeformStatus>(meshes[0]).unwrap().vertices,
+        "frames": ms.len(),
+        "main_ms_median": percentile(&ms, 0.5),
+        "main_ms_p99": percentile(&ms, 0.99),
+        "solves_per_s": total,
+        "solves_per_s_per_mesh_min": per_mesh.iter().copied().fold(f64::INFINITY, f64::min),
+    }));
+    report.extend(solver_bound_report(total, &solve_ms));
+    println!("{}", serde_json::Value::Object(report));
 }
 
 /// The default run: the handle moved every frame for `seconds`; prints the JSON line with the
@@ -277,25 +374,58 @@ fn run_drag(app: &mut App, e: Entity, seconds: f64, fps: f64) {
         setup.elapsed().as_secs_f64() * 1e3
     );
     let solves0 = app.world().get::<DeformStatus>(e).unwrap().solves;
-    app.world_mut().resource_mut::<Timing>().measuring = true;
-    let start = Instant::now();
-    let frame = Duration::from_secs_f64(1.0 / fps.max(1.0));
-    while start.elapsed().as_secs_f64() < seconds {
-        let f0 = Instant::now();
-        app.update();
-        pace(frame, f0);
-    }
-    let elapsed = start.elapsed().as_secs_f64();
+    let (elapsed, mut solve_ms) = measure_frames(app, seconds, fps);
     let status = app.world().get::<DeformStatus>(e).unwrap().clone();
     eprintln!(
         "last solve: {} iterations, energy {:.5}, {:.2} ms",
         status.iterations, status.energy, status.solve_ms
     );
+    solve_ms.sort_by(f64::total_cmp);
+    let solves_per_s = (status.solves - solves0) as f64 / elapsed;
     let mut report = main_thread_report(app, e);
     report.extend(object(serde_json::json!({
-        "solves_per_s": (status.solves - solves0) as f64 / elapsed,
+        "solves_per_s": solves_per_s,
     })));
+    report.extend(solver_bound_report(solves_per_s, &solve_ms));
     println!("{}", serde_json::Value::Object(report));
+}
+
+/// Runs the app paced at `fps` for `seconds` while measuring; returns the seconds elapsed and
+/// the worker's time of every solve that landed meanwhile (`DeformSolved::solve_ms`).
+fn measure_frames(app: &mut App, seconds: f64, fps: f64) -> (f64, Vec<f64>) {
+    app.world_mut()
+        .resource_mut::<Messages<DeformSolved>>()
+        .clear();
+    app.world_mut().resource_mut::<Timing>().measuring = true;
+    let start = Instant::now();
+    let frame = Duration::from_secs_f64(1.0 / fps.max(1.0));
+    let mut solve_ms = Vec::new();
+    while start.elapsed().as_secs_f64() < seconds {
+        let f0 = Instant::now();
+        app.update();
+        solve_ms.extend(
+            app.world_mut()
+                .resource_mut::<Messages<DeformSolved>>()
+                .drain()
+                .map(|m| m.solve_ms),
+        );
+        pace(frame, f0);
+    }
+    (start.elapsed().as_secs_f64(), solve_ms)
+}
+
+/// `ms_per_solve` (the worker's median time per solve, this run) and `solver_bound` (the
+/// solves per second reach 90 % of what back-to-back solves of that length would give: the
+/// drag is limited by the solver, not by how the plugin hands solves to it).
+fn solver_bound_report(
+    solves_per_s: f64,
+    sorted_solve_ms: &[f64],
+) -> serde_json::Map<String, serde_json::Value> {
+    let ms_per_solve = percentile(sorted_solve_ms, 0.5);
+    object(serde_json::json!({
+        "ms_per_solve": ms_per_solve,
+        "solver_bound": solves_per_s >= 0.9 * 1000.0 / ms_per_solve,
+    }))
 }
 
 /// The mesh to deform: `--mesh PATH`, `--bar N` (a generated bar of about N vertices), or the

@@ -150,9 +150,10 @@ impl Constraints {
             check(v)?;
         }
         let mut targets: Vec<(u32, DVec3)> = Vec::with_capacity(self.targets.len());
+        let mut taken = vec![false; topology.vertex_count()];
         for &(v, p) in &self.targets {
             let w = map[v as usize];
-            if !targets.iter().any(|(t, _)| *t == w) {
+            if !std::mem::replace(&mut taken[w as usize], true) {
                 targets.push((w, p));
             }
         }

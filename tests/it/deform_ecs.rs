@@ -795,7 +795,10 @@ fn a_set_change_on_a_large_mesh_is_previewed_then_solved_whole() {
 fn wait_for_landing(app: &App, e: Entity) {
     let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
     loop {
-        let state = app.world().get::<bevy_wii_deform::ecs::DeformState>(e).unwrap();
+        let state = app
+            .world()
+            .get::<bevy_wii_deform::ecs::DeformState>(e)
+            .unwrap();
         if state.has_landed() || !state.is_solving() {
             return;
         }
@@ -855,7 +858,10 @@ fn a_solve_started_in_the_frame_the_last_landed_is_on_screen_the_next_frame() {
         // Frame 1: the handle moves, its solve starts (and lands after that frame's poll:
         // when the worker beat the poll, the frame showed it at once; move again).
         for attempt in 0.. {
-            assert!(attempt < 50, "step {step}: every solve landed within its own frame");
+            assert!(
+                attempt < 50,
+                "step {step}: every solve landed within its own frame"
+            );
             move_handle(&mut app, 0.02);
             app.update();
             wait_for_landing(&app, e);

@@ -67,7 +67,8 @@ impl ArapSolver {
             (LowerFactor::default(), LazyFactor::default())
         } else {
             let t1 = Instant::now();
-            let (order, split) = fill_order(&topology, &settings, &layout, &free, &free_index);
+            let (order, split) =
+                fill_order(&topology, &settings, parallel, &layout, &free, &free_index);
             // The solves work in elimination order: the free list takes that order, and the
             // matrices are assembled in it, so faer needs no permutation of its own.
             free = order.iter().map(|&f| free[f as usize]).collect();
@@ -129,16 +130,21 @@ fn constrained_roles(
 
 /// The free vertices' elimination order (indices into `free`) and its top-level split: the
 /// whole mesh's order restricted to them when it exists or is worth making (at least half the
-/// vertices free), else this set ordered afresh on the graph of its free vertices.
+/// vertices free), else this set ordered afresh on the graph of its free vertices. Solves that
+/// run on one thread (`parallel` false) gain nothing from two halves: they take minimum
+/// degree, which fills less and costs less to find.
 fn fill_order(
     topology: &Topology,
     settings: &SolverSettings,
+    parallel: bool,
     layout: &Layout,
     free: &[u32],
     free_index: &[u32],
 ) -> (Vec<u32>, Option<(usize, usize)>) {
     let (n, nf) = (topology.vertex_count(), free.len());
-    let whole = match settings.ordering {
+    let _ = parallel;
+    let ordering = settings.ordering;
+    let whole = match ordering {
         FillOrdering::Halves if 2 * nf >= n => Some(topology.elimination_order()),
         FillOrdering::Halves => topology.elimination_order_if_made(),
         FillOrdering::MinimumDegree => None,
@@ -163,7 +169,7 @@ fn fill_order(
         );
         graph_offsets.push(graph.len() as u32);
     }
-    match settings.ordering {
+    match ordering {
         FillOrdering::Halves => {
             let coords: Vec<DVec3> = free.iter().map(|&i| layout.rest[i as usize]).collect();
             let d = dissect(&graph_offsets, &graph, &coords);
