@@ -26,7 +26,7 @@ pub enum Threading {
 /// Free vertices below which [`Threading::Auto`] runs a solve on the calling thread: the size
 /// where the pool's hand-off costs about what the second core saves (measured on the 2-core
 /// development machine, `docs/benchmarks.md`).
-pub const SERIAL_BELOW: usize = 4000;
+pub const SERIAL_BELOW: usize = 3800;
 
 impl Threading {
     /// Whether loops over `rows` free vertices run on rayon's pool.
