@@ -37,6 +37,7 @@
 //! assert!(max_bone_length_error(model.skeleton(), &rig.rest, &solved.pose) < 1e-9);
 //! ```
 
+pub mod balance;
 pub mod blend;
 pub mod clip;
 pub mod effectors;
@@ -53,6 +54,7 @@ mod skeleton;
 mod solver;
 pub mod synth_rig;
 
+pub use balance::{Balance, SupportPolygon, centre_of_mass, vertex_masses};
 pub use blend::{BlendMode, additive_layer_for, blend_joint, blend_pose};
 pub use clip::{ClipError, KEY_TIME_EPSILON, KeyInterpolation, PoseClip, PoseKey};
 pub use effectors::{
@@ -171,6 +173,11 @@ pub enum PoseError {
     /// The solve was given constraints whose sets differ from the precomputed ones.
     #[error("constraint sets changed since the solver was built; build it again")]
     ConstraintSetChanged,
+    /// A [`Balance`] that cannot be used: no support point, a non-finite one, a zero or
+    /// non-finite gravity, a negative or non-finite margin, or masses of the wrong count or
+    /// not finite and non-negative.
+    #[error("the balance constraint is invalid: {0}")]
+    InvalidBalance(&'static str),
     /// The solve produced a non-finite pose (nothing is returned).
     #[error("the solve produced a non-finite pose")]
     NonFiniteResult,

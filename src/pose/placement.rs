@@ -85,7 +85,7 @@ impl PoseConstraints {
     /// These constraints, given in one frame, expressed in another: `to` maps the first
     /// into the second (character ← world, the inverse of the character's placement) and must
     /// be a [`similarity`]. Vertex and joint indices, stiffness and limits (all local) are
-    /// unchanged.
+    /// unchanged; a balance's support, gravity and margin follow the frame.
     pub fn transformed(&self, to: &DAffine3) -> PoseConstraints {
         let s = Similarity::new(to);
         let mut out = self.clone();
@@ -100,6 +100,13 @@ impl PoseConstraints {
         }
         for c in &mut out.centroid_effectors {
             c.target = s.point(c.target);
+        }
+        if let Some(b) = &mut out.balance {
+            for p in &mut b.support {
+                *p = s.point(*p);
+            }
+            b.gravity = s.rotation * b.gravity;
+            b.margin *= to.matrix3.x_axis.length();
         }
         out
     }

@@ -15,6 +15,7 @@ mod input_turns;
 mod malformed_gltf;
 mod missing_texture;
 mod mouse_control;
+mod pose_balance;
 mod pose_blend;
 mod pose_clip;
 mod pose_constraints;

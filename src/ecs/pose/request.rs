@@ -331,6 +331,7 @@ fn constraints_of(
         effectors,
         stiffness,
         limits,
+        balance: None,
         // The animation is the shape an additive layer keeps: with nothing pulling, the layer
         // is nothing (not the body relaxing towards its bind shape, frame after frame).
         shape_rest: animated,

@@ -7,6 +7,7 @@
 use glam::{DAffine3, DMat3, DVec3, DVec4};
 
 use super::params::Param;
+use crate::pose::balance::{Balance, SupportPolygon};
 use crate::pose::effectors::{
     CentroidEffector, Effector, EffectorGoal, ReferenceStiffness, StiffnessWeighting,
 };
@@ -15,6 +16,9 @@ use crate::pose::{PoseError, Skeleton, VertexInfluences};
 
 /// An effector of weight 1 weighs this many joint pins.
 const EFFECTOR_STRENGTH: f64 = 100.0;
+/// Balance at weight 1 against a position effector at weight 1: the body leans out only where
+/// an effector is a hundred times stronger.
+const BALANCE_STRENGTH: f64 = 100.0;
 
 /// Strength of a weighted term: fades in over w ∈ [0, ¼].
 fn strength(weight: f64) -> f64 {
@@ -51,6 +55,14 @@ enum Term {
         root_translation: Option<DVec3>,
         weight: f64,
     },
+    /// The centre of mass (`sums`: mass-weighted, normalised) at least `margin` inside the
+    /// support polygon; one-sided.
+    Balance {
+        sums: Vec<(usize, DVec4)>,
+        polygon: SupportPolygon,
+        margin: f64,
+        weight: f64,
+    },
 }
 
 /// The extra terms of one solve, with the skeleton they refer to.
@@ -62,6 +74,8 @@ pub(crate) struct ExtraTerms<'a> {
 
 /// The inputs a solve needs to build its extra terms.
 pub(crate) struct ExtraInputs<'a> {
+    /// Balance with its mass per welded vertex.
+    pub balance: Option<(&'a Balance, &'a [f64])>,
     pub effectors: &'a [Effector],
     pub centroids: &'a [CentroidEffector],
     pub stiffness: Option<&'a ReferenceStiffness>,
@@ -181,27 +195,33 @@ impl<'a> ExtraTerms<'a> {
             .iter()
             .filter(|c| c.weight > 0.0 && !c.vertices.is_empty())
         {
-            let mut per_joint: Vec<DVec4> = vec![DVec4::ZERO; skeleton.len()];
             let n = c.vertices.len() as f64;
-            for &v in &c.vertices {
-                let b = input.bind[v as usize];
-                for &(j, w) in &input.influences[v as usize] {
-                    if w != 0.0 {
-                        per_joint[j as usize] += DVec4::new(b.x, b.y, b.z, 1.0) * (w / n);
-                    }
-                }
-            }
-            let sums: Vec<(usize, DVec4)> = per_joint
-                .into_iter()
-                .enumerate()
-                .filter(|(_, m)| *m != DVec4::ZERO)
-                .collect();
+            let sums = joint_sums(
+                skeleton.len(),
+                input,
+                c.vertices.iter().map(|&v| (v, 1.0 / n)),
+            );
             let at_reference = centroid_of(&sums, input.reference_skinning);
             terms.push(Term::Centroid {
                 sums,
                 target: at_reference.lerp(c.target, c.weight),
                 weight: lw * strength(c.weight),
             });
+        }
+        if let Some((b, masses)) = input.balance {
+            let total: f64 = masses.iter().sum();
+            if total > 0.0 {
+                let per_vertex = masses
+                    .iter()
+                    .enumerate()
+                    .map(|(v, m)| (v as u32, m / total));
+                terms.push(Term::Balance {
+                    sums: joint_sums(skeleton.len(), input, per_vertex),
+                    polygon: SupportPolygon::new(&b.support, b.gravity),
+                    margin: b.margin,
+                    weight: BALANCE_STRENGTH * lw * strength(b.weight),
+                });
+            }
         }
         if let Some(s) = input.stiffness {
             let scale = |j: usize| match s.weighting {
@@ -314,6 +334,15 @@ impl<'a> ExtraTerms<'a> {
                     target,
                     weight,
                 } => (*weight, Rows::of(&[centroid_of(sums, skinning) - *target])),
+                Term::Balance {
+                    sums,
+                    polygon,
+                    margin,
+                    weight,
+                } => {
+                    let outside = polygon.violation(centroid_of(sums, skinning), *margin);
+                    (*weight, Rows::of(&[outside.unwrap_or(DVec3::ZERO)]))
+                }
                 Term::Stiffness {
                     joint,
                     reference,
@@ -401,20 +430,28 @@ impl<'a> ExtraTerms<'a> {
                 }
                 out
             }),
-            Term::Centroid { sums, .. } => {
-                let mut moved = DVec3::ZERO;
-                let mut mass = 0.0;
-                for &(j, m) in sums.iter().filter(|(j, _)| self.moves(a, *j)) {
-                    moved += apply(&skinning[j], m);
-                    mass += m.w;
-                }
-                (mass != 0.0).then(|| {
-                    Rows::of(&[if rotation {
-                        -skew(moved - origin * mass)
-                    } else {
-                        DMat3::IDENTITY * mass
-                    }])
-                })
+            Term::Centroid { sums, .. } => self
+                .centroid_jacobian(sums, a, rotation, origin, skinning)
+                .map(|b| Rows::of(&[b])),
+            Term::Balance {
+                sums,
+                polygon,
+                margin,
+                ..
+            } => {
+                // Where the term is active, its residual changes with the centre of mass
+                // across the boundary (the allowed region's nearest point slides along it);
+                // over a single point, with all of its horizontal motion.
+                let outside = polygon.violation(centroid_of(sums, skinning), *margin)?;
+                let across = if polygon.corners().len() == 1 {
+                    let down = polygon.down();
+                    DMat3::IDENTITY - outer(down, down)
+                } else {
+                    let n = outside.try_normalize()?;
+                    outer(n, n)
+                };
+                self.centroid_jacobian(sums, a, rotation, origin, skinning)
+                    .map(|b| Rows::of(&[across * b]))
             }
             Term::Stiffness {
                 joint,
@@ -441,6 +478,31 @@ impl<'a> ExtraTerms<'a> {
                 Some(out)
             }
         }
+    }
+
+    /// The change of the weighted centroid `Σ_j S_j m_j` under parameter `a` (a rotation about
+    /// `origin`, or a root's translation); `None` when no joint it moves has a share.
+    fn centroid_jacobian(
+        &self,
+        sums: &[(usize, DVec4)],
+        a: usize,
+        rotation: bool,
+        origin: DVec3,
+        skinning: &[DAffine3],
+    ) -> Option<DMat3> {
+        let mut moved = DVec3::ZERO;
+        let mut mass = 0.0;
+        for &(j, m) in sums.iter().filter(|(j, _)| self.moves(a, *j)) {
+            moved += apply(&skinning[j], m);
+            mass += m.w;
+        }
+        (mass != 0.0).then(|| {
+            if rotation {
+                -skew(moved - origin * mass)
+            } else {
+                DMat3::IDENTITY * mass
+            }
+        })
     }
 
     /// Adds the Gauss–Newton terms `2 w JᵀJ` and `2 w Jᵀr` to the solver's system (`h` is
@@ -484,6 +546,29 @@ impl<'a> ExtraTerms<'a> {
             }
         });
     }
+}
+
+/// Per joint, `Σ_v m_v w_vj (b_v, 1)` over `(vertex, m_v)`: a weighted centroid of skinned
+/// vertices as `Σ_j S_j m_j` ([`centroid_of`]); joints with no share left out.
+fn joint_sums(
+    joints: usize,
+    input: &ExtraInputs<'_>,
+    vertices: impl Iterator<Item = (u32, f64)>,
+) -> Vec<(usize, DVec4)> {
+    let mut per_joint: Vec<DVec4> = vec![DVec4::ZERO; joints];
+    for (v, m) in vertices {
+        let b = input.bind[v as usize];
+        for &(j, w) in &input.influences[v as usize] {
+            if w != 0.0 {
+                per_joint[j as usize] += DVec4::new(b.x, b.y, b.z, 1.0) * (w * m);
+            }
+        }
+    }
+    per_joint
+        .into_iter()
+        .enumerate()
+        .filter(|(_, m)| *m != DVec4::ZERO)
+        .collect()
 }
 
 /// `Σ_j S_j m_j` (homogeneous weighted sums).

@@ -11,7 +11,7 @@
 //! | `block_cholesky.rs` | the block-sparse Cholesky factor over the joints |
 //! | energies: `arap.rs` | the shape energy: the cluster rotations' fit, `Q·X`, the objective |
 //! | `penalties.rs` | handles, fixed vertices, pinned joints and joint handles (quadratic penalties) |
-//! | `effector_terms.rs` | effectors (position, orientation, aim, centroid) and reference stiffness |
+//! | `effector_terms.rs` | effectors (position, orientation, aim, centroid), balance and reference stiffness |
 //! | `hinges.rs` | joint limits inside the step (hinges restrict it; cones and twist are projected in `step.rs`) |
 //! | `shape_rest.rs` | the shape-rest tilt (a given pose at rest) |
 
@@ -35,6 +35,7 @@ use params::{Param, parameters_for};
 use penalties::{SetSums, set_target};
 
 use super::PoseError;
+use super::balance::Balance;
 use super::effectors::{CentroidEffector, Effector, ReferenceStiffness};
 use super::limits::JointLimits;
 use super::model::SkinnedModel;
@@ -77,6 +78,9 @@ pub struct PoseConstraints {
     pub stiffness: Option<ReferenceStiffness>,
     /// Joint limits every step respects ([`super::limits`]); `None` = every joint free.
     pub limits: Option<Arc<JointLimits>>,
+    /// The centre of mass kept over the support polygon ([`super::balance`]); it may change
+    /// freely between solves.
+    pub balance: Option<Balance>,
     /// The pose whose shape the ARAP energy keeps (`None`: the bind pose). With it, the
     /// energy is tilted so this pose is at rest: a solve with nothing pulling leaves it as it
     /// is, and effectors bend the body away from it (an additive layer sets it to the

@@ -196,6 +196,16 @@ impl PoseSolver {
             &constraints.centroid_effectors,
             constraints.stiffness.as_ref(),
         )?;
+        if let Some(b) = &constraints.balance {
+            if !b.is_valid(self.model.topology().vertex_count()) {
+                return Err(PoseError::InvalidBalance(
+                    "support points, gravity, margin or masses are not usable",
+                ));
+            }
+            if !(b.weight.is_finite() && (0.0..=1.0).contains(&b.weight)) {
+                return Err(PoseError::InvalidConstraintWeight { weight: b.weight });
+            }
+        }
         let pose = match start {
             PoseStart::Pose(p) | PoseStart::Near { pose: p, .. } => p,
             PoseStart::Warm(s) => &s.pose,
@@ -253,9 +263,16 @@ impl PoseSolver {
     fn extra_terms<'a>(&'a self, constraints: &'a PoseConstraints) -> ExtraTerms<'a> {
         let skeleton = self.model.skeleton();
         let reference_skinning = skinning(&self.reference_globals, skeleton);
+        let balance = constraints.balance.as_ref().filter(|b| b.weight > 0.0);
+        let masses = balance.map(|b| {
+            b.masses
+                .clone()
+                .unwrap_or_else(|| super::super::balance::vertex_masses(&self.model))
+        });
         ExtraTerms::new(
             skeleton,
             &ExtraInputs {
+                balance: balance.zip(masses.as_deref()),
                 effectors: &constraints.effectors,
                 centroids: &constraints.centroid_effectors,
                 stiffness: constraints.stiffness.as_ref(),
