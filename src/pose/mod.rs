@@ -40,6 +40,7 @@
 pub mod balance;
 pub mod blend;
 pub mod clip;
+pub mod contacts;
 pub mod effectors;
 mod file;
 pub mod gltf_clip;
@@ -57,6 +58,7 @@ pub mod synth_rig;
 pub use balance::{Balance, SupportPolygon, centre_of_mass, vertex_masses};
 pub use blend::{BlendMode, additive_layer_for, blend_joint, blend_pose};
 pub use clip::{ClipError, KEY_TIME_EPSILON, KeyInterpolation, PoseClip, PoseKey};
+pub use contacts::{Contact, Floor, GroundPlane};
 pub use effectors::{
     CentroidEffector, Effector, EffectorGoal, ReferenceStiffness, StiffnessWeighting,
 };
@@ -178,6 +180,11 @@ pub enum PoseError {
     /// not finite and non-negative.
     #[error("the balance constraint is invalid: {0}")]
     InvalidBalance(&'static str),
+    /// A [`Contact`] or [`Floor`] that cannot be used: a non-finite or non-unit ground
+    /// normal, a non-finite point, planted positions not one per patch vertex, a zero `up`
+    /// axis, or a negative band.
+    #[error("a ground contact is invalid: {0}")]
+    InvalidContact(&'static str),
     /// The solve produced a non-finite pose (nothing is returned).
     #[error("the solve produced a non-finite pose")]
     NonFiniteResult,

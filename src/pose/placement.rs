@@ -85,7 +85,8 @@ impl PoseConstraints {
     /// These constraints, given in one frame, expressed in another: `to` maps the first
     /// into the second (character ← world, the inverse of the character's placement) and must
     /// be a [`similarity`]. Vertex and joint indices, stiffness and limits (all local) are
-    /// unchanged; a balance's support, gravity and margin follow the frame.
+    /// unchanged; a balance's support, gravity and margin, contacts' ground and planted points and
+    /// a floor follow the frame.
     pub fn transformed(&self, to: &DAffine3) -> PoseConstraints {
         let s = Similarity::new(to);
         let mut out = self.clone();
@@ -107,6 +108,20 @@ impl PoseConstraints {
             }
             b.gravity = s.rotation * b.gravity;
             b.margin *= to.matrix3.x_axis.length();
+        }
+        let ground = |g: &mut crate::pose::GroundPlane| {
+            g.point = s.point(g.point);
+            g.normal = (s.rotation * g.normal).normalize();
+        };
+        for c in &mut out.contacts {
+            ground(&mut c.ground);
+            for p in c.planted.iter_mut().flatten() {
+                *p = s.point(*p);
+            }
+        }
+        if let Some(f) = &mut out.floor {
+            ground(&mut f.plane);
+            f.band *= to.matrix3.x_axis.length();
         }
         out
     }

@@ -19,6 +19,7 @@ mod pose_balance;
 mod pose_blend;
 mod pose_clip;
 mod pose_constraints;
+mod pose_contacts;
 mod pose_core;
 mod pose_ecs;
 mod pose_effectors_ecs;

@@ -332,6 +332,8 @@ fn constraints_of(
         stiffness,
         limits,
         balance: None,
+        contacts: Vec::new(),
+        floor: None,
         // The animation is the shape an additive layer keeps: with nothing pulling, the layer
         // is nothing (not the body relaxing towards its bind shape, frame after frame).
         shape_rest: animated,

@@ -8,6 +8,7 @@ use glam::{DAffine3, DMat3, DVec3, DVec4};
 
 use super::params::Param;
 use crate::pose::balance::{Balance, SupportPolygon};
+use crate::pose::contacts::{Contact, GroundPlane};
 use crate::pose::effectors::{
     CentroidEffector, Effector, EffectorGoal, ReferenceStiffness, StiffnessWeighting,
 };
@@ -19,6 +20,8 @@ const EFFECTOR_STRENGTH: f64 = 100.0;
 /// Balance at weight 1 against a position effector at weight 1: the body leans out only where
 /// an effector is a hundred times stronger.
 const BALANCE_STRENGTH: f64 = 100.0;
+/// A contact's hold and non-penetration against a position effector at weight 1.
+const CONTACT_STRENGTH: f64 = 100.0;
 
 /// Strength of a weighted term: fades in over w ∈ [0, ¼].
 fn strength(weight: f64) -> f64 {
@@ -55,6 +58,12 @@ enum Term {
         root_translation: Option<DVec3>,
         weight: f64,
     },
+    /// A skinned vertex (`sums`) not below `plane`; one-sided.
+    Above {
+        sums: Vec<(usize, DVec4)>,
+        plane: GroundPlane,
+        weight: f64,
+    },
     /// The centre of mass (`sums`: mass-weighted, normalised) at least `margin` inside the
     /// support polygon; one-sided.
     Balance {
@@ -76,6 +85,10 @@ pub(crate) struct ExtraTerms<'a> {
 pub(crate) struct ExtraInputs<'a> {
     /// Balance with its mass per welded vertex.
     pub balance: Option<(&'a Balance, &'a [f64])>,
+    /// Ground contacts.
+    pub contacts: &'a [Contact],
+    /// The floor and the vertices kept above it in this solve.
+    pub floor: Option<(GroundPlane, &'a [u32])>,
     pub effectors: &'a [Effector],
     pub centroids: &'a [CentroidEffector],
     pub stiffness: Option<&'a ReferenceStiffness>,
@@ -208,6 +221,45 @@ impl<'a> ExtraTerms<'a> {
                 weight: lw * strength(c.weight),
             });
         }
+        // Contacts: every patch vertex above its ground; a planted one held where it touched,
+        // its joint's up turned to the ground's normal.
+        let hold = CONTACT_STRENGTH * lw;
+        let one = |v: u32| joint_sums(skeleton.len(), input, std::iter::once((v, 1.0)));
+        for c in input.contacts {
+            for (k, &v) in c.patch.iter().enumerate() {
+                terms.push(Term::Above {
+                    sums: one(v),
+                    plane: c.ground,
+                    weight: hold,
+                });
+                if let Some(at) = c.planted.as_ref().and_then(|p| p.get(k)) {
+                    terms.push(Term::Centroid {
+                        sums: one(v),
+                        target: *at,
+                        weight: hold,
+                    });
+                }
+            }
+            if let (Some(_), Some(up)) = (&c.planted, c.up) {
+                let origin = input.reference_globals[c.joint].translation;
+                terms.push(Term::Aim {
+                    joint: c.joint,
+                    axis: up.normalize(),
+                    target: origin + c.ground.normal * (1e3 * input.length_scale),
+                    up: None,
+                    weight: lw,
+                });
+            }
+        }
+        if let Some((plane, vertices)) = input.floor {
+            for &v in vertices {
+                terms.push(Term::Above {
+                    sums: one(v),
+                    plane,
+                    weight: hold,
+                });
+            }
+        }
         if let Some((b, masses)) = input.balance {
             let total: f64 = masses.iter().sum();
             if total > 0.0 {
@@ -334,6 +386,14 @@ impl<'a> ExtraTerms<'a> {
                     target,
                     weight,
                 } => (*weight, Rows::of(&[centroid_of(sums, skinning) - *target])),
+                Term::Above {
+                    sums,
+                    plane,
+                    weight,
+                } => {
+                    let depth = plane.height(centroid_of(sums, skinning)).min(0.0);
+                    (*weight, Rows::of(&[plane.normal * depth]))
+                }
                 Term::Balance {
                     sums,
                     polygon,
@@ -433,6 +493,14 @@ impl<'a> ExtraTerms<'a> {
             Term::Centroid { sums, .. } => self
                 .centroid_jacobian(sums, a, rotation, origin, skinning)
                 .map(|b| Rows::of(&[b])),
+            Term::Above { sums, plane, .. } => {
+                if plane.height(centroid_of(sums, skinning)) >= 0.0 {
+                    return None;
+                }
+                let across = outer(plane.normal, plane.normal);
+                self.centroid_jacobian(sums, a, rotation, origin, skinning)
+                    .map(|b| Rows::of(&[across * b]))
+            }
             Term::Balance {
                 sums,
                 polygon,

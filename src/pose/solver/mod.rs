@@ -11,7 +11,7 @@
 //! | `block_cholesky.rs` | the block-sparse Cholesky factor over the joints |
 //! | energies: `arap.rs` | the shape energy: the cluster rotations' fit, `Q·X`, the objective |
 //! | `penalties.rs` | handles, fixed vertices, pinned joints and joint handles (quadratic penalties) |
-//! | `effector_terms.rs` | effectors (position, orientation, aim, centroid), balance and reference stiffness |
+//! | `effector_terms.rs` | effectors (position, orientation, aim, centroid), balance, ground contacts and reference stiffness |
 //! | `hinges.rs` | joint limits inside the step (hinges restrict it; cones and twist are projected in `step.rs`) |
 //! | `shape_rest.rs` | the shape-rest tilt (a given pose at rest) |
 
@@ -36,6 +36,7 @@ use penalties::{SetSums, set_target};
 
 use super::PoseError;
 use super::balance::Balance;
+use super::contacts::{Contact, Floor};
 use super::effectors::{CentroidEffector, Effector, ReferenceStiffness};
 use super::limits::JointLimits;
 use super::model::SkinnedModel;
@@ -81,6 +82,11 @@ pub struct PoseConstraints {
     /// The centre of mass kept over the support polygon ([`super::balance`]); it may change
     /// freely between solves.
     pub balance: Option<Balance>,
+    /// Skin patches on the ground, free or planted ([`super::contacts`]); they may change
+    /// freely between solves.
+    pub contacts: Vec<Contact>,
+    /// Every skin vertex kept above this plane ([`super::contacts::Floor`]).
+    pub floor: Option<Floor>,
     /// The pose whose shape the ARAP energy keeps (`None`: the bind pose). With it, the
     /// energy is tilted so this pose is at rest: a solve with nothing pulling leaves it as it
     /// is, and effectors bend the body away from it (an additive layer sets it to the

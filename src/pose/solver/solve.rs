@@ -47,7 +47,7 @@ impl PoseSolver {
             PoseStart::Warm(s) => (&s.pose, Some(s)),
             PoseStart::Near { pose, last } => (pose, Some(last)),
         };
-        let extras = self.extra_terms(constraints);
+        let extras = self.extra_terms(constraints, start);
         let limits = constraints.limits.as_deref();
         let (mut rotations, mut damping, mut exact) = match warm {
             Some(w) if w.cluster_rotations.len() == clusters => {
@@ -206,6 +206,37 @@ impl PoseSolver {
                 return Err(PoseError::InvalidConstraintWeight { weight: b.weight });
             }
         }
+        let vertex_count = self.model.topology().vertex_count();
+        for c in &constraints.contacts {
+            if c.joint >= skeleton.len() {
+                return Err(PoseError::JointOutOfRange {
+                    joint: c.joint,
+                    joint_count: skeleton.len(),
+                });
+            }
+            if let Some(&v) = c.patch.iter().find(|&&v| v as usize >= vertex_count) {
+                return Err(PoseError::VertexOutOfRange {
+                    vertex: v,
+                    vertex_count,
+                });
+            }
+            if !c.is_valid() {
+                return Err(PoseError::InvalidContact(
+                    "ground, planted points or up axis are not usable",
+                ));
+            }
+        }
+        if let Some(f) = &constraints.floor
+            && !(f.plane.point.is_finite()
+                && f.plane.normal.is_finite()
+                && (f.plane.normal.length() - 1.0).abs() < 1e-6
+                && f.band.is_finite()
+                && f.band >= 0.0)
+        {
+            return Err(PoseError::InvalidContact(
+                "the floor's plane or band is not usable",
+            ));
+        }
         let pose = match start {
             PoseStart::Pose(p) | PoseStart::Near { pose: p, .. } => p,
             PoseStart::Warm(s) => &s.pose,
@@ -260,7 +291,11 @@ impl PoseSolver {
 
     /// The effector and stiffness terms of `constraints`, with targets blended from the
     /// reference pose this solver was built for.
-    fn extra_terms<'a>(&'a self, constraints: &'a PoseConstraints) -> ExtraTerms<'a> {
+    fn extra_terms<'a>(
+        &'a self,
+        constraints: &'a PoseConstraints,
+        start: &SkeletonPose,
+    ) -> ExtraTerms<'a> {
         let skeleton = self.model.skeleton();
         let reference_skinning = skinning(&self.reference_globals, skeleton);
         let balance = constraints.balance.as_ref().filter(|b| b.weight > 0.0);
@@ -269,10 +304,25 @@ impl PoseSolver {
                 .clone()
                 .unwrap_or_else(|| super::super::balance::vertex_masses(&self.model))
         });
+        // The floor's active set: the vertices near or below it where this solve starts.
+        let floor_vertices: Vec<u32> = constraints.floor.as_ref().map_or(Vec::new(), |f| {
+            self.model
+                .skin_welded(start)
+                .iter()
+                .enumerate()
+                .filter(|(_, p)| f.plane.height(**p) < f.band)
+                .map(|(v, _)| v as u32)
+                .collect()
+        });
         ExtraTerms::new(
             skeleton,
             &ExtraInputs {
                 balance: balance.zip(masses.as_deref()),
+                contacts: &constraints.contacts,
+                floor: constraints
+                    .floor
+                    .as_ref()
+                    .map(|f| (f.plane, &floor_vertices[..])),
                 effectors: &constraints.effectors,
                 centroids: &constraints.centroid_effectors,
                 stiffness: constraints.stiffness.as_ref(),

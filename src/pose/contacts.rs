@@ -1,0 +1,238 @@
+//! Contacts with the ground, solved with everything else in the pose solve.
+//!
+//! A [`Contact`] is a patch of skin (welded vertices: a sole, a palm, a knee) carried by a
+//! joint, and the ground under it: a [`GroundPlane`] (a ray-cast hit, or a plane fitted to
+//! several, [`GroundPlane::fit`]).
+//!
+//! * **Free** (`planted: None`): the patch may not go below the ground. Each of its vertices is
+//!   an inequality `n · (x − p) ≥ 0`, a one-sided term (zero above the ground, the squared
+//!   depth times a stiff weight below it) in the same damped Gauss–Newton steps as the
+//!   effectors and the projected joint limits — not a clamp after the solve, which would break
+//!   them.
+//! * **Planted** ([`Contact::plant`]): the patch is locked where it touched — each vertex held
+//!   at its point on the ground, so it neither sinks nor slides — and the joint's bind-pose
+//!   `up` axis turns to the ground's normal as far as the joint's limits allow (the limits are
+//!   hard: on a slope steeper than the ankle turns, the sole meets the ground with its edge).
+//!   The game releases a contact ([`Contact::release`]) when the pose lifts it past a release
+//!   height ([`Contact::lifted`]) or when it wants.
+//! * A [`Floor`] keeps *every* skin vertex above a plane: the vertices within its band of the
+//!   plane in the pose a solve starts from become free contacts of that solve (an active set
+//!   renewed every solve: a character dragged down into the floor does not sink).
+
+use glam::DVec3;
+
+/// A plane of the ground: a point on it and its normal (unit, pointing out of the ground).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GroundPlane {
+    /// A point on the ground.
+    pub point: DVec3,
+    /// The ground's normal, unit, pointing up out of it.
+    pub normal: DVec3,
+}
+
+impl GroundPlane {
+    /// A plane through `point` with `normal` (normalised); `None` when either is not finite or
+    /// the normal is zero.
+    pub fn new(point: DVec3, normal: DVec3) -> Option<Self> {
+        let normal = normal.try_normalize()?;
+        point.is_finite().then_some(Self { point, normal })
+    }
+
+    /// The least-squares plane through several ground hits, its normal turned to the side of
+    /// `up`; `None` for fewer than three hits, non-finite ones, or hits on one line (then use
+    /// one hit's own normal).
+    pub fn fit(hits: &[DVec3], up: DVec3) -> Option<Self> {
+        if hits.len() < 3 || !hits.iter().all(|p| p.is_finite()) {
+            return None;
+        }
+        let centre = hits.iter().sum::<DVec3>() / hits.len() as f64;
+        // The normal is the covariance's least eigenvector: the cross product of the two
+        // spread directions, found as the largest of the rows' cross products.
+        let mut cov = [[0.0f64; 3]; 3];
+        for p in hits {
+            let d = (*p - centre).to_array();
+            for r in 0..3 {
+                for c in 0..3 {
+                    cov[r][c] += d[r] * d[c];
+                }
+            }
+        }
+        let rows = cov.map(DVec3::from_array);
+        let candidates = [
+            rows[0].cross(rows[1]),
+            rows[0].cross(rows[2]),
+            rows[1].cross(rows[2]),
+        ];
+        let normal = candidates
+            .into_iter()
+            .max_by(|a, b| a.length_squared().total_cmp(&b.length_squared()))?;
+        let scale = rows.iter().map(|r| r.length_squared()).sum::<f64>();
+        if normal.length_squared() <= 1e-18 * scale * scale {
+            return None;
+        }
+        let normal = normal.normalize();
+        let normal = if normal.dot(up) < 0.0 {
+            -normal
+        } else {
+            normal
+        };
+        Self::new(centre, normal)
+    }
+
+    /// Height of `p` above the plane (negative below).
+    pub fn height(&self, p: DVec3) -> f64 {
+        self.normal.dot(p - self.point)
+    }
+
+    /// `p` moved along the normal onto the plane.
+    pub fn project(&self, p: DVec3) -> DVec3 {
+        p - self.normal * self.height(p)
+    }
+}
+
+/// A patch of skin and the ground under it (see the module docs).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Contact {
+    /// The joint that carries the patch (a foot's ankle): its `up` turns to a planted
+    /// contact's ground.
+    pub joint: usize,
+    /// Welded vertices of the patch (e.g. the lowest vertices the foot's joint carries).
+    pub patch: Vec<u32>,
+    /// The ground under the patch.
+    pub ground: GroundPlane,
+    /// While planted: where each patch vertex is held (world space, on the ground).
+    pub planted: Option<Vec<DVec3>>,
+    /// The joint's axis, in its bind-pose frame, that a planted contact turns to the
+    /// ground's normal (a foot's up; `None`: no turn).
+    pub up: Option<DVec3>,
+}
+
+impl Contact {
+    /// A free contact of `patch` (carried by `joint`) over `ground`, turning the joint's
+    /// bind-pose `+Y` to the ground when planted.
+    pub fn new(joint: usize, patch: Vec<u32>, ground: GroundPlane) -> Self {
+        Self {
+            joint,
+            patch,
+            ground,
+            planted: None,
+            up: Some(DVec3::Y),
+        }
+    }
+
+    /// Plants the contact where the patch is now (`positions`: the patch's vertices, world
+    /// space, in patch order). The patch is laid on the ground as a rigid piece: turned about
+    /// its lowest vertex so that `current_up` (the joint's `up` axis as the pose carries it now;
+    /// `None`: no turn) meets the ground's normal, then moved along the normal until its
+    /// lowest vertex touches. Each vertex is held there: the sole lies on the ground where it
+    /// touched, curved or flat, and does not slide.
+    pub fn plant(&mut self, positions: &[DVec3], current_up: Option<DVec3>) {
+        let turn = current_up
+            .and_then(|u| u.try_normalize())
+            .map_or(glam::DQuat::IDENTITY, |u| {
+                glam::DQuat::from_rotation_arc(u, self.ground.normal)
+            });
+        let Some(&pivot) = positions
+            .iter()
+            .min_by(|a, b| self.ground.height(**a).total_cmp(&self.ground.height(**b)))
+        else {
+            self.planted = Some(Vec::new());
+            return;
+        };
+        let laid: Vec<DVec3> = positions
+            .iter()
+            .map(|p| pivot + turn * (*p - pivot))
+            .collect();
+        let lowest = laid
+            .iter()
+            .map(|p| self.ground.height(*p))
+            .fold(f64::INFINITY, f64::min);
+        let lift = self.ground.normal * -lowest;
+        self.planted = Some(laid.into_iter().map(|p| p + lift).collect());
+    }
+
+    /// Releases a planted contact (it may then only not go below the ground).
+    pub fn release(&mut self) {
+        self.planted = None;
+    }
+
+    /// Whether the patch (`positions`, as for [`Contact::plant`]) is entirely more than
+    /// `height` above the ground: the pose lifted it, release it.
+    pub fn lifted(&self, positions: &[DVec3], height: f64) -> bool {
+        !positions.is_empty() && positions.iter().all(|p| self.ground.height(*p) > height)
+    }
+
+    /// Whether the numbers can be used (indices are checked by the solver).
+    pub(crate) fn is_valid(&self) -> bool {
+        self.ground.point.is_finite()
+            && self.ground.normal.is_finite()
+            && (self.ground.normal.length() - 1.0).abs() < 1e-6
+            && self
+                .planted
+                .as_ref()
+                .is_none_or(|p| p.len() == self.patch.len() && p.iter().all(|x| x.is_finite()))
+            && self
+                .up
+                .is_none_or(|u| u.is_finite() && u.length_squared() > 1e-18)
+    }
+}
+
+/// Every skin vertex kept above a plane (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Floor {
+    /// The floor.
+    pub plane: GroundPlane,
+    /// Vertices within this height of the floor (or below it) in the pose a solve starts from
+    /// are kept above it in that solve, world units: more than a frame's motion.
+    pub band: f64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_plane_fitted_to_hits_on_a_slope_has_the_slope_normal_facing_up() {
+        let normal = DVec3::new(0.5, 1.0, 0.0).normalize();
+        let plane = GroundPlane::new(DVec3::ZERO, normal).unwrap();
+        let hits: Vec<DVec3> = (0..9)
+            .map(|k| {
+                let p = DVec3::new((k % 3) as f64, 3.0, (k / 3) as f64 * 0.7);
+                plane.project(p)
+            })
+            .collect();
+        let fitted = GroundPlane::fit(&hits, DVec3::Y).unwrap();
+        assert!(fitted.normal.distance(normal) < 1e-9, "{}", fitted.normal);
+        assert!(fitted.height(DVec3::ZERO).abs() < 1e-9);
+        // On a line: no plane.
+        let line: Vec<DVec3> = (0..4).map(|k| DVec3::X * k as f64).collect();
+        assert_eq!(GroundPlane::fit(&line, DVec3::Y), None);
+        assert_eq!(GroundPlane::new(DVec3::ZERO, DVec3::ZERO), None);
+        assert_eq!(GroundPlane::new(DVec3::NAN, DVec3::Y), None);
+    }
+
+    #[test]
+    fn planting_puts_the_patch_on_the_ground_and_lifting_is_measured_from_it() {
+        let ground = GroundPlane::new(DVec3::new(0.0, 1.0, 0.0), DVec3::Y).unwrap();
+        let mut c = Contact::new(0, vec![0, 1], ground);
+        // Laid as it is: its lowest vertex moved onto the ground, the rest with it.
+        c.plant(
+            &[DVec3::new(0.0, 1.2, 0.0), DVec3::new(1.0, 0.9, 0.0)],
+            None,
+        );
+        let planted = c.planted.clone().unwrap();
+        assert!(planted[0].distance(DVec3::new(0.0, 1.3, 0.0)) < 1e-12);
+        assert!(planted[1].distance(DVec3::new(1.0, 1.0, 0.0)) < 1e-12);
+        // Turned flat: a patch tilted by 30° about z comes down level, touching at its lowest.
+        let tilt = glam::DQuat::from_rotation_z(0.5);
+        let patch = [DVec3::new(-0.1, 1.5, 0.0), DVec3::new(0.1, 1.5, 0.0)].map(|p| tilt * p);
+        c.plant(&patch, Some(tilt * DVec3::Y));
+        let planted = c.planted.clone().unwrap();
+        for p in &planted {
+            assert!((p.y - 1.0).abs() < 1e-12, "{p}");
+        }
+        assert!((planted[0].distance(planted[1]) - 0.2).abs() < 1e-12);
+        assert!(!c.lifted(&[DVec3::new(0.0, 1.05, 0.0)], 0.1));
+        assert!(c.lifted(&[DVec3::new(0.0, 1.2, 0.0)], 0.1));
+    }
+}

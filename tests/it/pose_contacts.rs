@@ -1,0 +1,359 @@
+//! Ground contacts in the pose core (issue 42): a planted sole on a slope, no sliding while
+//! planted and lifting once released, a floor nothing sinks through, bad input.
+
+use std::sync::Arc;
+
+use bevy_wii_deform::pose::effectors::joint_positions;
+use bevy_wii_deform::pose::synth_rig::{SyntheticRig, mannequin_rig};
+use bevy_wii_deform::pose::*;
+use glam::{DQuat, DVec3};
+
+use crate::common::model_of;
+
+const HIPS: usize = 0;
+const LEFT_ANKLE: usize = 9;
+const RIGHT_ANKLE: usize = 15;
+
+struct Scene {
+    rig: SyntheticRig,
+    model: Arc<SkinnedModel>,
+    /// The model's height.
+    size: f64,
+    /// The left sole's welded vertices.
+    sole: Vec<u32>,
+    /// The lowest point of the model at rest.
+    lowest: f64,
+}
+
+fn scene() -> Scene {
+    let rig = mannequin_rig(30);
+    let model = model_of(&rig);
+    let bind = model.bind_positions();
+    let lowest = bind.iter().map(|p| p.y).fold(f64::INFINITY, f64::min);
+    let highest = bind.iter().map(|p| p.y).fold(f64::NEG_INFINITY, f64::max);
+    let sole = rig.vertices_where(&model, |p| p.y < lowest + 0.02 && p.x > 0.0);
+    assert!(sole.len() >= 4, "the left foot has a sole: {}", sole.len());
+    Scene {
+        rig,
+        model,
+        size: highest - lowest,
+        sole,
+        lowest,
+    }
+}
+
+impl Scene {
+    fn solve(
+        &self,
+        constraints: &PoseConstraints,
+        start: PoseStart<'_>,
+        iterations: u32,
+    ) -> Result<PoseSolution, PoseError> {
+        let solver = PoseSolver::new(
+            self.model.clone(),
+            constraints,
+            &self.rig.rest,
+            PoseSolverSettings::default(),
+        )?;
+        let options = PoseSolveOptions {
+            max_iterations: iterations,
+            tolerance: 0.0,
+        };
+        solver.solve(constraints, &options, start, &|| false)
+    }
+
+    fn skinned(&self, pose: &SkeletonPose) -> Vec<DVec3> {
+        self.model.skin_welded(pose)
+    }
+
+    fn sole_at(&self, pose: &SkeletonPose) -> Vec<DVec3> {
+        let skinned = self.skinned(pose);
+        self.sole.iter().map(|&v| skinned[v as usize]).collect()
+    }
+
+    fn flat_ground(&self) -> GroundPlane {
+        GroundPlane::new(DVec3::Y * self.lowest, DVec3::Y).unwrap()
+    }
+}
+
+/// The angle (degrees) between the ankle's bind-pose up, carried by the ankle, and `normal`.
+fn sole_tilt_deg(s: &Scene, pose: &SkeletonPose, normal: DVec3) -> f64 {
+    let g = s.rig.skeleton.global_transforms(pose)[LEFT_ANKLE];
+    let up = (g.matrix3 * DVec3::Y).normalize();
+    up.angle_between(normal).to_degrees()
+}
+
+/// Issue 42: a foot planted on a 30° slope turns its sole to the slope's normal (within 3°),
+/// and no vertex of the sole is below the slope by more than 1e-3 of the model's size.
+#[test]
+fn a_foot_planted_on_a_slope_lies_on_it() {
+    let s = scene();
+    let rest_sole = s.sole_at(&s.rig.rest);
+    let centre = rest_sole.iter().sum::<DVec3>() / rest_sole.len() as f64;
+    let normal = DQuat::from_rotation_z(30f64.to_radians()) * DVec3::Y;
+    let slope = GroundPlane::new(centre, normal).unwrap();
+    let mut contact = Contact::new(LEFT_ANKLE, s.sole.clone(), slope);
+    contact.plant(&rest_sole, Some(DVec3::Y));
+    let constraints = PoseConstraints {
+        fixed_joints: vec![RIGHT_ANKLE],
+        contacts: vec![contact],
+        ..Default::default()
+    };
+    let pose = s
+        .solve(&constraints, PoseStart::Pose(&s.rig.rest), 40)
+        .unwrap()
+        .pose;
+    let tilt = sole_tilt_deg(&s, &pose, normal);
+    assert!(tilt < 3.0, "the sole is {tilt:.2}° off the slope's normal");
+    assert!(
+        sole_tilt_deg(&s, &s.rig.rest, normal) > 25.0,
+        "it had to turn"
+    );
+    let deepest = s
+        .sole_at(&pose)
+        .iter()
+        .map(|p| slope.height(*p))
+        .fold(f64::INFINITY, f64::min);
+    assert!(
+        deepest > -1e-3 * s.size,
+        "a sole vertex is {deepest} below the slope"
+    );
+}
+
+/// Issue 42: a planted foot under a pull on the hips slides at most 1e-3 of the model's size
+/// per frame; an effector lifting the foot does not move it while planted, and lifts it once
+/// the contact is released.
+#[test]
+fn a_planted_foot_holds_under_a_pull_and_lifts_when_released() {
+    let s = scene();
+    let ground = s.flat_ground();
+    let rest_sole = s.sole_at(&s.rig.rest);
+    let mut contact = Contact::new(LEFT_ANKLE, s.sole.clone(), ground);
+    contact.plant(&rest_sole, Some(DVec3::Y));
+    let hips = joint_positions(&s.rig.skeleton, &s.rig.rest)[HIPS];
+    let mut last: Option<PoseSolution> = None;
+    let mut previous = rest_sole.clone();
+    let mut slide_max: f64 = 0.0;
+    for frame in 1..=10 {
+        let constraints = PoseConstraints {
+            fixed_joints: vec![RIGHT_ANKLE],
+            effectors: vec![Effector {
+                joint: HIPS,
+                goal: EffectorGoal::Position(hips + DVec3::new(0.012, -0.01, 0.01) * frame as f64),
+                weight: 1.0,
+            }],
+            contacts: vec![contact.clone()],
+            ..Default::default()
+        };
+        let start = match &last {
+            Some(l) => PoseStart::Warm(l),
+            None => PoseStart::Pose(&s.rig.rest),
+        };
+        let solved = s.solve(&constraints, start, 8).unwrap();
+        let sole = s.sole_at(&solved.pose);
+        let slide = sole
+            .iter()
+            .zip(&previous)
+            .map(|(a, b)| a.distance(*b))
+            .fold(0.0, f64::max);
+        slide_max = slide_max.max(slide);
+        previous = sole;
+        last = Some(solved);
+    }
+    let moved = joint_positions(&s.rig.skeleton, &last.as_ref().unwrap().pose)[HIPS];
+    assert!(moved.distance(hips) > 0.05, "the hips followed the pull");
+    assert!(
+        slide_max <= 1e-3 * s.size,
+        "the planted sole slid {slide_max} in a frame"
+    );
+
+    let ankle = joint_positions(&s.rig.skeleton, &s.rig.rest)[LEFT_ANKLE];
+    let lift = |planted: bool| {
+        let mut c = contact.clone();
+        if !planted {
+            c.release();
+        }
+        let constraints = PoseConstraints {
+            fixed_joints: vec![RIGHT_ANKLE],
+            effectors: vec![Effector {
+                joint: LEFT_ANKLE,
+                goal: EffectorGoal::Position(ankle + DVec3::Y * 0.1),
+                weight: 1.0,
+            }],
+            contacts: vec![c],
+            ..Default::default()
+        };
+        let pose = s
+            .solve(&constraints, PoseStart::Pose(&s.rig.rest), 30)
+            .unwrap()
+            .pose;
+        s.sole_at(&pose)
+            .iter()
+            .map(|p| ground.height(*p))
+            .fold(f64::INFINITY, f64::min)
+    };
+    let held = lift(true);
+    assert!(
+        held.abs() < 2e-3 * s.size,
+        "planted, the sole stays down: {held}"
+    );
+    let lifted = lift(false);
+    assert!(lifted > 0.05, "released, the foot lifts: {lifted}");
+}
+
+/// Issue 42: the body dragged down into the floor (its hips pulled below it, frame after
+/// frame): with a floor no skin vertex goes below it by more than 1e-3 of the size; without,
+/// the same drag sinks it.
+#[test]
+fn a_body_dragged_into_the_floor_stops_at_it() {
+    let s = scene();
+    let floor = Floor {
+        plane: s.flat_ground(),
+        band: 0.1 * s.size,
+    };
+    let hips = joint_positions(&s.rig.skeleton, &s.rig.rest)[HIPS];
+    let deepest = |floor: Option<Floor>| {
+        let mut last: Option<PoseSolution> = None;
+        for frame in 1..=12 {
+            let constraints = PoseConstraints {
+                effectors: vec![Effector {
+                    joint: HIPS,
+                    goal: EffectorGoal::Position(hips - DVec3::Y * 0.1 * frame as f64),
+                    weight: 1.0,
+                }],
+                floor,
+                ..Default::default()
+            };
+            let start = match &last {
+                Some(l) => PoseStart::Warm(l),
+                None => PoseStart::Pose(&s.rig.rest),
+            };
+            last = Some(s.solve(&constraints, start, 10).unwrap());
+        }
+        let pose = last.unwrap().pose;
+        s.skinned(&pose)
+            .iter()
+            .map(|p| p.y - s.lowest)
+            .fold(f64::INFINITY, f64::min)
+    };
+    let sunk = deepest(None);
+    assert!(
+        sunk < -0.1 * s.size,
+        "without a floor the drag sinks the body: {sunk}"
+    );
+    let held = deepest(Some(floor));
+    assert!(held > -1e-3 * s.size, "a vertex is {held} below the floor");
+}
+
+/// Bad contacts are typed errors; a contact whose ground is far above does not produce NaN.
+#[test]
+fn bad_contacts_are_typed_errors() {
+    let s = scene();
+    let ground = s.flat_ground();
+    let solve = |contacts: Vec<Contact>, floor: Option<Floor>| {
+        let constraints = PoseConstraints {
+            contacts,
+            floor,
+            fixed_joints: vec![RIGHT_ANKLE],
+            ..Default::default()
+        };
+        s.solve(&constraints, PoseStart::Pose(&s.rig.rest), 10)
+    };
+    let mut nan = Contact::new(LEFT_ANKLE, s.sole.clone(), ground);
+    nan.ground.point.x = f64::NAN;
+    let mut short = Contact::new(LEFT_ANKLE, s.sole.clone(), ground);
+    short.planted = Some(vec![DVec3::ZERO]);
+    let mut zero_up = Contact::new(LEFT_ANKLE, s.sole.clone(), ground);
+    zero_up.up = Some(DVec3::ZERO);
+    zero_up.plant(&s.sole_at(&s.rig.rest), None);
+    for bad in [nan, short, zero_up] {
+        assert!(matches!(
+            solve(vec![bad], None),
+            Err(PoseError::InvalidContact(_))
+        ));
+    }
+    let out_of_range = Contact::new(99, s.sole.clone(), ground);
+    assert!(matches!(
+        solve(vec![out_of_range], None),
+        Err(PoseError::JointOutOfRange { .. })
+    ));
+    let bad_floor = Floor {
+        plane: ground,
+        band: -1.0,
+    };
+    assert!(matches!(
+        solve(vec![], Some(bad_floor)),
+        Err(PoseError::InvalidContact(_))
+    ));
+    // A ground above the hips: the body is pushed up out of it as far as the pinned foot
+    // lets it, and the pose stays finite.
+    let above = GroundPlane::new(DVec3::Y * 1.2, DVec3::Y).unwrap();
+    let pose = solve(vec![Contact::new(LEFT_ANKLE, s.sole.clone(), above)], None)
+        .unwrap()
+        .pose;
+    assert!(
+        pose.local
+            .iter()
+            .all(|t| t.rotation.is_finite() && t.translation.is_finite())
+    );
+}
+
+/// Issue 42: on a slope steeper than the leg's limits let the foot turn, the limits hold, the
+/// sole does not go into the slope and touches it with its edge.
+#[test]
+fn on_a_slope_too_steep_for_the_ankle_the_limit_holds_and_the_edge_touches() {
+    let s = scene();
+    let rest_sole = s.sole_at(&s.rig.rest);
+    let centre = rest_sole.iter().sum::<DVec3>() / rest_sole.len() as f64;
+    let normal = DQuat::from_rotation_z(30f64.to_radians()) * DVec3::Y;
+    let slope = GroundPlane::new(centre, normal).unwrap();
+    let mut contact = Contact::new(LEFT_ANKLE, s.sole.clone(), slope);
+    contact.plant(&rest_sole, Some(DVec3::Y));
+    let mut limits = JointLimits::new(&s.rig.skeleton, &s.rig.rest);
+    limits
+        .set(LEFT_ANKLE, JointLimit::cone_deg((8.0, 8.0), (-5.0, 5.0)))
+        .unwrap()
+        .set(LEFT_ANKLE - 1, JointLimit::hinge_deg(DVec3::X, 0.0, 150.0))
+        .unwrap()
+        .set(
+            LEFT_ANKLE - 2,
+            JointLimit::cone_deg((6.0, 6.0), (-5.0, 5.0)),
+        )
+        .unwrap();
+    let limits = Arc::new(limits);
+    let constraints = PoseConstraints {
+        fixed_joints: vec![RIGHT_ANKLE],
+        contacts: vec![contact],
+        limits: Some(limits.clone()),
+        ..Default::default()
+    };
+    let pose = s
+        .solve(&constraints, PoseStart::Pose(&s.rig.rest), 40)
+        .unwrap()
+        .pose;
+    assert!(
+        limits.max_violation_deg(&pose) < 0.5,
+        "{}",
+        limits.max_violation_deg(&pose)
+    );
+    let tilt = sole_tilt_deg(&s, &pose, normal);
+    assert!(
+        tilt > 10.0,
+        "the limits kept the sole off the slope's normal: {tilt:.1}°"
+    );
+    let heights: Vec<f64> = s.sole_at(&pose).iter().map(|p| slope.height(*p)).collect();
+    let deepest = heights.iter().copied().fold(f64::INFINITY, f64::min);
+    assert!(
+        deepest > -1e-3 * s.size,
+        "a sole vertex is {deepest} into the slope"
+    );
+    assert!(
+        deepest < 2e-3 * s.size,
+        "the sole's edge touches: {deepest}"
+    );
+    let highest = heights.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    assert!(
+        highest > 0.01,
+        "the rest of the sole is off the slope: {highest}"
+    );
+}
