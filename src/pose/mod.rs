@@ -44,6 +44,7 @@ pub mod contacts;
 pub mod effectors;
 mod file;
 pub mod gltf_clip;
+pub mod ground;
 pub mod humanoid;
 mod inertia;
 pub mod library;
@@ -64,6 +65,7 @@ pub use effectors::{
 };
 pub use file::{PoseFile, PoseFileError};
 pub use gltf_clip::{read_gltf_clip, write_gltf_clip, write_gltf_pose_clip};
+pub use ground::{ContactEvent, ContactTracker, Ground, TriangleGround, lowest_joints, sole_patch};
 pub use humanoid::{HumanoidRole, Side, humanoid_role};
 pub use library::PoseLibrary;
 pub use limits::{JointLimit, JointLimits, LimitError};

@@ -357,3 +357,114 @@ fn on_a_slope_too_steep_for_the_ankle_the_limit_holds_and_the_edge_touches() {
         "the rest of the sole is off the slope: {highest}"
     );
 }
+
+/// Issue 42: automatic contacts from ground casts — the feet found as the lowest joints, the
+/// foot that touches its step planted and the one above its lower step left free; solved with
+/// balance over the planted sole, the planted sole holds, the free foot stays above its step
+/// and the centre of mass goes over the standing foot. A cast that hits nothing frees the
+/// contacts; a non-finite hit is ignored.
+#[test]
+fn tracked_contacts_stand_the_body_on_steps() {
+    let s = scene();
+    let down = DVec3::NEG_Y;
+    let feet = lowest_joints(&s.model, &s.rig.rest, down, 0.03 * s.size);
+    let mut sorted = feet.clone();
+    sorted.sort_unstable();
+    assert_eq!(sorted, vec![LEFT_ANKLE, RIGHT_ANKLE], "the feet: {feet:?}");
+    // Left foot on a step at its sole's height, the right one's step 10 cm lower.
+    let (top, bottom) = (s.lowest, s.lowest - 0.1);
+    let p = DVec3::new;
+    let positions = vec![
+        p(-1.0, bottom, -1.0),
+        p(0.0, bottom, -1.0),
+        p(0.0, bottom, 1.0),
+        p(-1.0, bottom, 1.0),
+        p(0.0, top, -1.0),
+        p(1.0, top, -1.0),
+        p(1.0, top, 1.0),
+        p(0.0, top, 1.0),
+    ];
+    let triangles = vec![[0, 2, 1], [0, 3, 2], [4, 6, 5], [4, 7, 6]];
+    let ground = TriangleGround::new(positions, triangles, down);
+    let mut tracker = ContactTracker::new(&s.model, &s.rig.rest, &feet, down);
+    let events = tracker.update(&s.model, &s.rig.rest, &ground);
+    let event_of = |joint: usize, events: &[ContactEvent], tracker: &ContactTracker| {
+        events[tracker.contacts.iter().position(|c| c.joint == joint).unwrap()]
+    };
+    assert_eq!(event_of(LEFT_ANKLE, &events, &tracker), ContactEvent::Planted);
+    assert_eq!(event_of(RIGHT_ANKLE, &events, &tracker), ContactEvent::Unchanged);
+    assert_eq!(tracker.active().len(), 2, "both feet have ground under them");
+
+    let support = tracker.support();
+    let polygon = SupportPolygon::new(&support, down);
+    let hips = joint_positions(&s.rig.skeleton, &s.rig.rest)[HIPS];
+    let constraints = PoseConstraints {
+        contacts: tracker.active(),
+        balance: Some(Balance {
+            margin: 0.005 * s.size,
+            ..Balance::over(support.clone())
+        }),
+        effectors: vec![Effector {
+            joint: HIPS,
+            goal: EffectorGoal::Position(hips - DVec3::Y * 0.08),
+            weight: 0.5,
+        }],
+        ..Default::default()
+    };
+    let pose = s
+        .solve(&constraints, PoseStart::Pose(&s.rig.rest), 40)
+        .unwrap()
+        .pose;
+    let skinned = s.skinned(&pose);
+    let left = tracker
+        .contacts
+        .iter()
+        .find(|c| c.joint == LEFT_ANKLE)
+        .unwrap();
+    let held = left
+        .patch
+        .iter()
+        .zip(left.planted.as_ref().unwrap())
+        .map(|(&v, at)| skinned[v as usize].distance(*at))
+        .fold(0.0, f64::max);
+    assert!(held < 2e-3 * s.size, "the planted sole moved {held}");
+    let right = tracker
+        .contacts
+        .iter()
+        .find(|c| c.joint == RIGHT_ANKLE)
+        .unwrap();
+    let right_low = right
+        .patch
+        .iter()
+        .map(|&v| skinned[v as usize].y - bottom)
+        .fold(f64::INFINITY, f64::min);
+    assert!(right_low > -1e-3 * s.size, "the free foot went {right_low} into its step");
+    let com = centre_of_mass(&s.model, &pose, None).unwrap();
+    assert!(
+        polygon.signed_distance(com) > 0.0,
+        "over the standing foot: {}",
+        polygon.signed_distance(com)
+    );
+    assert!(
+        polygon.signed_distance(centre_of_mass(&s.model, &s.rig.rest, None).unwrap()) < 0.0,
+        "it was not at rest"
+    );
+
+    // Nothing under the feet: the contacts are free and left out.
+    let nothing = |_: DVec3, _: DVec3, _: f64| -> Option<GroundPlane> { None };
+    let events = tracker.update(&s.model, &pose, &nothing);
+    assert!(events.iter().all(|e| *e == ContactEvent::NoGround));
+    assert!(tracker.active().is_empty() && tracker.support().is_empty());
+    // A non-finite hit is ignored: the contact keeps the ground it had.
+    tracker.update(&s.model, &s.rig.rest, &ground);
+    let before = tracker.contacts.clone();
+    let broken = |_: DVec3, _: DVec3, _: f64| {
+        Some(GroundPlane {
+            point: DVec3::NAN,
+            normal: DVec3::Y,
+        })
+    };
+    let events = tracker.update(&s.model, &s.rig.rest, &broken);
+    assert!(events.iter().all(|e| *e == ContactEvent::NonFiniteHit));
+    assert_eq!(tracker.contacts, before);
+}

@@ -1,0 +1,471 @@
+//! The game's ground as the pose solver sees it: something a ray cast down hits, and the
+//! automatic contacts that stand a character on it.
+//!
+//! * [`Ground`]: a ray cast along gravity that returns the surface hit with its normal. An
+//!   infinite [`GroundPlane`], a [`TriangleGround`] (any triangle mesh — terrain, stairs — with
+//!   a grid across gravity so a cast tests only the triangles under it), a closure, or the ECS
+//!   layer's scene ray casts implement it.
+//! * [`lowest_joints`] and [`sole_patch`]: the joints a character stands on (feet, paws, a
+//!   single base) and the skin patch under each.
+//! * [`ContactTracker`]: every frame, casts down from each patch, plants a contact whose patch
+//!   comes within the plant height of the ground, releases one the pose lifts past the release
+//!   height, and reports casts that hit nothing (the contact is free) or returned a non-finite
+//!   hit (ignored, the contact keeps its last ground).
+
+use glam::{DVec2, DVec3};
+
+use super::contacts::{Contact, GroundPlane};
+use super::model::SkinnedModel;
+use super::skeleton::SkeletonPose;
+
+/// A surface a ray cast along gravity can hit.
+pub trait Ground {
+    /// The first surface below `from` along `down` (unit), within `max` (world units), as the
+    /// hit point and the surface's normal there (facing against `down`).
+    fn cast_down(&self, from: DVec3, down: DVec3, max: f64) -> Option<GroundPlane>;
+}
+
+impl Ground for GroundPlane {
+    fn cast_down(&self, from: DVec3, down: DVec3, max: f64) -> Option<GroundPlane> {
+        let along = self.normal.dot(down);
+        if along >= -1e-12 {
+            return None; // parallel, or seen from below
+        }
+        let t = self.height(from) / -along;
+        (0.0..=max).contains(&t).then_some(GroundPlane {
+            point: from + down * t,
+            normal: self.normal,
+        })
+    }
+}
+
+impl<F: Fn(DVec3, DVec3, f64) -> Option<GroundPlane>> Ground for F {
+    fn cast_down(&self, from: DVec3, down: DVec3, max: f64) -> Option<GroundPlane> {
+        self(from, down, max)
+    }
+}
+
+/// A triangle mesh as ground, with a uniform grid across gravity: a cast tests the triangles
+/// whose shadow overlaps its cell (terrain, stairs, a bent plank baked into a mesh).
+#[derive(Debug, Clone)]
+pub struct TriangleGround {
+    positions: Vec<DVec3>,
+    triangles: Vec<[u32; 3]>,
+    down: DVec3,
+    axes: (DVec3, DVec3),
+    origin: DVec2,
+    cell: f64,
+    size: (usize, usize),
+    /// Triangle indices per cell, cell after cell (`starts` has one more entry than cells).
+    cells: Vec<u32>,
+    starts: Vec<u32>,
+}
+
+impl TriangleGround {
+    /// The ground made of `triangles` over `positions`, cast along `gravity`. Triangles with
+    /// an index out of range or a non-finite corner are left out.
+    pub fn new(positions: Vec<DVec3>, triangles: Vec<[u32; 3]>, gravity: DVec3) -> Self {
+        let down = gravity.try_normalize().unwrap_or(DVec3::NEG_Y);
+        let x = down.any_orthonormal_vector();
+        let axes = (x, down.cross(x));
+        let flat = |p: DVec3| DVec2::new(p.dot(axes.0), p.dot(axes.1));
+        let triangles: Vec<[u32; 3]> = triangles
+            .into_iter()
+            .filter(|t| {
+                t.iter()
+                    .all(|&v| positions.get(v as usize).is_some_and(|p| p.is_finite()))
+            })
+            .collect();
+        let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+        for t in &triangles {
+            for &v in t {
+                let p = flat(positions[v as usize]);
+                lo = lo.min(p);
+                hi = hi.max(p);
+            }
+        }
+        if triangles.is_empty() {
+            lo = DVec2::ZERO;
+            hi = DVec2::ONE;
+        }
+        // About two triangles per cell.
+        let area = ((hi.x - lo.x) * (hi.y - lo.y)).max(1e-12);
+        let cell = (area / (triangles.len().max(1) as f64 / 2.0))
+            .sqrt()
+            .max(1e-9);
+        let size = (
+            (((hi.x - lo.x) / cell).ceil() as usize).clamp(1, 4096),
+            (((hi.y - lo.y) / cell).ceil() as usize).clamp(1, 4096),
+        );
+        let cell = ((hi.x - lo.x) / size.0 as f64)
+            .max((hi.y - lo.y) / size.1 as f64)
+            .max(1e-9);
+        let index = |p: DVec2| {
+            let c = ((p - lo) / cell).floor();
+            (
+                (c.x.max(0.0) as usize).min(size.0 - 1),
+                (c.y.max(0.0) as usize).min(size.1 - 1),
+            )
+        };
+        let mut per_cell: Vec<Vec<u32>> = vec![Vec::new(); size.0 * size.1];
+        for (k, t) in triangles.iter().enumerate() {
+            let pts = t.map(|v| flat(positions[v as usize]));
+            let (a, b) = (
+                index(pts[0].min(pts[1]).min(pts[2])),
+                index(pts[0].max(pts[1]).max(pts[2])),
+            );
+            for i in a.0..=b.0 {
+                for j in a.1..=b.1 {
+                    per_cell[j * size.0 + i].push(k as u32);
+                }
+            }
+        }
+        let mut starts = Vec::with_capacity(per_cell.len() + 1);
+        let mut cells = Vec::new();
+        starts.push(0);
+        for c in per_cell {
+            cells.extend(c);
+            starts.push(cells.len() as u32);
+        }
+        Self {
+            positions,
+            triangles,
+            down,
+            axes,
+            origin: lo,
+            cell,
+            size,
+            cells,
+            starts,
+        }
+    }
+
+    /// The grid cell under `p`, if it is over the ground's extent.
+    fn cell_of(&self, p: DVec3) -> Option<usize> {
+        let f = DVec2::new(p.dot(self.axes.0), p.dot(self.axes.1));
+        let c = ((f - self.origin) / self.cell).floor();
+        let (i, j) = (c.x, c.y);
+        (i >= 0.0 && j >= 0.0 && (i as usize) < self.size.0 && (j as usize) < self.size.1)
+            .then(|| j as usize * self.size.0 + i as usize)
+    }
+}
+
+impl Ground for TriangleGround {
+    fn cast_down(&self, from: DVec3, down: DVec3, max: f64) -> Option<GroundPlane> {
+        if !from.is_finite() {
+            return None;
+        }
+        // The grid is across this ground's gravity; another direction tests every triangle.
+        let candidates: Box<dyn Iterator<Item = u32>> = if down.dot(self.down) > 1.0 - 1e-9 {
+            let c = self.cell_of(from)?;
+            Box::new(
+                self.cells[self.starts[c] as usize..self.starts[c + 1] as usize]
+                    .iter()
+                    .copied(),
+            )
+        } else {
+            Box::new(0..self.triangles.len() as u32)
+        };
+        let mut best: Option<(f64, GroundPlane)> = None;
+        for k in candidates {
+            let [a, b, c] = self.triangles[k as usize].map(|v| self.positions[v as usize]);
+            if let Some(t) = ray_triangle(from, down, a, b, c)
+                && t <= max
+                && best.as_ref().is_none_or(|(bt, _)| t < *bt)
+            {
+                let n = (b - a).cross(c - a).normalize_or_zero();
+                let n = if n.dot(down) > 0.0 { -n } else { n };
+                best = Some((
+                    t,
+                    GroundPlane {
+                        point: from + down * t,
+                        normal: n,
+                    },
+                ));
+            }
+        }
+        best.map(|(_, hit)| hit)
+    }
+}
+
+/// Möller–Trumbore: the distance along `dir` from `o` to triangle `abc`, if hit (either side).
+fn ray_triangle(o: DVec3, dir: DVec3, a: DVec3, b: DVec3, c: DVec3) -> Option<f64> {
+    let (e1, e2) = (b - a, c - a);
+    let p = dir.cross(e2);
+    let det = e1.dot(p);
+    if det.abs() < 1e-14 {
+        return None;
+    }
+    let inv = 1.0 / det;
+    let s = o - a;
+    let u = s.dot(p) * inv;
+    if !(-1e-12..=1.0 + 1e-12).contains(&u) {
+        return None;
+    }
+    let q = s.cross(e1);
+    let v = dir.dot(q) * inv;
+    if v < -1e-12 || u + v > 1.0 + 1e-12 {
+        return None;
+    }
+    let t = e2.dot(q) * inv;
+    (t >= 0.0).then_some(t)
+}
+
+/// The joints a character stands on in `pose`: those whose most-weighted vertices reach within
+/// `tolerance` (world units) of the lowest skinned vertex along `down` (feet, paws, the base
+/// of a one-joint prop), lowest first.
+pub fn lowest_joints(
+    model: &SkinnedModel,
+    pose: &SkeletonPose,
+    down: DVec3,
+    tolerance: f64,
+) -> Vec<usize> {
+    let skinned = model.skin_welded(pose);
+    let mut deepest = vec![f64::NEG_INFINITY; model.skeleton().len()];
+    for (v, inf) in model.influences().iter().enumerate() {
+        let main = inf.iter().max_by(|a, b| a.1.total_cmp(&b.1)).map(|i| i.0);
+        if let Some(j) = main {
+            deepest[j as usize] = deepest[j as usize].max(skinned[v].dot(down));
+        }
+    }
+    let lowest = deepest.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let mut joints: Vec<usize> = (0..deepest.len())
+        .filter(|&j| deepest[j] > f64::NEG_INFINITY && deepest[j] >= lowest - tolerance)
+        .collect();
+    joints.sort_by(|a, b| deepest[*b].total_cmp(&deepest[*a]));
+    joints
+}
+
+/// The skin patch under `joint` in `pose`: its most-weighted vertices within `thickness` (world
+/// units) of its lowest one along `down` (a sole).
+pub fn sole_patch(
+    model: &SkinnedModel,
+    pose: &SkeletonPose,
+    joint: usize,
+    down: DVec3,
+    thickness: f64,
+) -> Vec<u32> {
+    let skinned = model.skin_welded(pose);
+    let carried: Vec<u32> = model
+        .influences()
+        .iter()
+        .enumerate()
+        .filter(|(_, inf)| {
+            inf.iter()
+                .max_by(|a, b| a.1.total_cmp(&b.1))
+                .is_some_and(|i| i.0 as usize == joint && i.1 > 0.0)
+        })
+        .map(|(v, _)| v as u32)
+        .collect();
+    let lowest = carried
+        .iter()
+        .map(|&v| skinned[v as usize].dot(down))
+        .fold(f64::NEG_INFINITY, f64::max);
+    carried
+        .into_iter()
+        .filter(|&v| skinned[v as usize].dot(down) >= lowest - thickness)
+        .collect()
+}
+
+/// What happened to one tracked contact in [`ContactTracker::update`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ContactEvent {
+    /// Nothing changed.
+    Unchanged,
+    /// The patch came within the plant height: planted.
+    Planted,
+    /// The pose lifted the patch past the release height: released.
+    Released,
+    /// The cast hit nothing: the contact is free (no ground under it).
+    NoGround,
+    /// The cast returned a non-finite hit: ignored, the contact keeps its last ground.
+    NonFiniteHit,
+}
+
+/// Automatic contacts of one character, planted and released frame after frame (see the
+/// module docs).
+#[derive(Debug, Clone)]
+pub struct ContactTracker {
+    /// The contacts (one per tracked joint), with their grounds and planted points.
+    pub contacts: Vec<Contact>,
+    /// Whether each contact has ground under it (its last cast hit something).
+    pub grounded: Vec<bool>,
+    /// Gravity (unit).
+    pub down: DVec3,
+    /// A patch whose lowest vertex comes this close to the ground is planted (world units).
+    pub plant_height: f64,
+    /// A planted patch lifted entirely above this height is released (world units).
+    pub release_height: f64,
+    /// How far above the patch a cast starts, and how far below it it reaches.
+    pub reach: f64,
+}
+
+impl ContactTracker {
+    /// Tracks `joints` of `model` (their sole patches in `pose`), with heights as fractions of
+    /// the model's size (plant 1 %, release 3 %, casts reach 50 %).
+    pub fn new(model: &SkinnedModel, pose: &SkeletonPose, joints: &[usize], down: DVec3) -> Self {
+        let down = down.try_normalize().unwrap_or(DVec3::NEG_Y);
+        let size = model.topology().bounding_diagonal();
+        let contacts = joints
+            .iter()
+            .map(|&j| {
+                let patch = sole_patch(model, pose, j, down, 0.02 * size);
+                Contact::new(
+                    j,
+                    patch,
+                    GroundPlane {
+                        point: DVec3::ZERO,
+                        normal: -down,
+                    },
+                )
+            })
+            .collect::<Vec<_>>();
+        Self {
+            grounded: vec![false; contacts.len()],
+            contacts,
+            down,
+            plant_height: 0.01 * size,
+            release_height: 0.03 * size,
+            reach: 0.5 * size,
+        }
+    }
+
+    /// Casts down from each patch of `model` in `pose` onto `ground`, updates grounds, plants
+    /// and releases; returns what happened to each contact. `up_of(joint)` is the joint's
+    /// `up` axis as `pose` carries it (for laying a planted sole flat).
+    pub fn update(
+        &mut self,
+        model: &SkinnedModel,
+        pose: &SkeletonPose,
+        ground: &dyn Ground,
+    ) -> Vec<ContactEvent> {
+        let skinned = model.skin_welded(pose);
+        let globals = model.skeleton().global_transforms(pose);
+        let mut events = Vec::with_capacity(self.contacts.len());
+        for (c, grounded) in self.contacts.iter_mut().zip(&mut self.grounded) {
+            let patch: Vec<DVec3> = c.patch.iter().map(|&v| skinned[v as usize]).collect();
+            if patch.is_empty() {
+                events.push(ContactEvent::NoGround);
+                continue;
+            }
+            let centre = patch.iter().sum::<DVec3>() / patch.len() as f64;
+            let from = centre - self.down * self.reach;
+            let event = match ground.cast_down(from, self.down, 2.0 * self.reach) {
+                None => {
+                    *grounded = false;
+                    c.release();
+                    ContactEvent::NoGround
+                }
+                Some(hit) if !(hit.point.is_finite() && hit.normal.is_finite()) => {
+                    ContactEvent::NonFiniteHit
+                }
+                Some(hit) => match GroundPlane::new(hit.point, hit.normal) {
+                    None => ContactEvent::NonFiniteHit,
+                    Some(plane) => {
+                        // A planted contact keeps the ground it was planted on.
+                        if c.planted.is_none() {
+                            c.ground = plane;
+                        }
+                        *grounded = true;
+                        let lowest = patch
+                            .iter()
+                            .map(|p| c.ground.height(*p))
+                            .fold(f64::INFINITY, f64::min);
+                        match &c.planted {
+                            Some(_) if c.lifted(&patch, self.release_height) => {
+                                c.release();
+                                ContactEvent::Released
+                            }
+                            None if lowest <= self.plant_height => {
+                                let up = c.up.map(|u| {
+                                    (globals[c.joint].matrix3 * u).normalize_or(-self.down)
+                                });
+                                c.plant(&patch, up);
+                                ContactEvent::Planted
+                            }
+                            _ => ContactEvent::Unchanged,
+                        }
+                    }
+                },
+            };
+            events.push(event);
+        }
+        events
+    }
+
+    /// The contacts that have ground under them (to hand to the solve).
+    pub fn active(&self) -> Vec<Contact> {
+        self.contacts
+            .iter()
+            .zip(&self.grounded)
+            .filter(|(_, g)| **g)
+            .map(|(c, _)| c.clone())
+            .collect()
+    }
+
+    /// The planted patches' points (the support polygon's corners for [`super::Balance`]).
+    pub fn support(&self) -> Vec<DVec3> {
+        self.contacts
+            .iter()
+            .filter_map(|c| c.planted.as_ref())
+            .flatten()
+            .copied()
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two steps: y = 0 for x < 1, y = 0.3 beyond, as two quads.
+    fn steps() -> TriangleGround {
+        let p = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
+        let positions = vec![
+            p(-2.0, 0.0, -2.0),
+            p(1.0, 0.0, -2.0),
+            p(1.0, 0.0, 2.0),
+            p(-2.0, 0.0, 2.0),
+            p(1.0, 0.3, -2.0),
+            p(4.0, 0.3, -2.0),
+            p(4.0, 0.3, 2.0),
+            p(1.0, 0.3, 2.0),
+        ];
+        let triangles = vec![[0, 2, 1], [0, 3, 2], [4, 6, 5], [4, 7, 6]];
+        TriangleGround::new(positions, triangles, DVec3::NEG_Y)
+    }
+
+    #[test]
+    fn casts_down_find_the_step_under_them_and_miss_beyond_the_ground() {
+        let g = steps();
+        let hit = g
+            .cast_down(DVec3::new(0.0, 2.0, 0.5), DVec3::NEG_Y, 5.0)
+            .unwrap();
+        assert!(hit.point.distance(DVec3::new(0.0, 0.0, 0.5)) < 1e-12);
+        assert!(hit.normal.distance(DVec3::Y) < 1e-12);
+        let hit = g
+            .cast_down(DVec3::new(2.5, 2.0, -1.0), DVec3::NEG_Y, 5.0)
+            .unwrap();
+        assert!((hit.point.y - 0.3).abs() < 1e-12);
+        assert_eq!(
+            g.cast_down(DVec3::new(9.0, 2.0, 0.0), DVec3::NEG_Y, 5.0),
+            None
+        );
+        assert_eq!(
+            g.cast_down(DVec3::new(0.0, 2.0, 0.0), DVec3::NEG_Y, 1.0),
+            None
+        );
+        assert_eq!(g.cast_down(DVec3::NAN, DVec3::NEG_Y, 1.0), None);
+    }
+
+    #[test]
+    fn a_plane_and_a_closure_are_grounds() {
+        let plane = GroundPlane::new(DVec3::ZERO, DVec3::new(0.0, 1.0, 0.5)).unwrap();
+        let hit = plane
+            .cast_down(DVec3::new(0.0, 2.0, 0.0), DVec3::NEG_Y, 5.0)
+            .unwrap();
+        assert!(plane.height(hit.point).abs() < 1e-12);
+        let nothing = |_: DVec3, _: DVec3, _: f64| None;
+        assert_eq!(nothing.cast_down(DVec3::ZERO, DVec3::NEG_Y, 1.0), None);
+    }
+}
