@@ -17,6 +17,7 @@
 //! bar, [`WiimotePlugin::pointer`]).
 
 mod deform;
+mod ground;
 mod input;
 mod pose;
 mod scene;
@@ -32,6 +33,7 @@ pub use deform::{
     DeformState, DeformStatus, DeformSystems, Deformable, DeformableFrom, DeformableScene,
     FixedRegion, MESH_WAIT_FRAMES, mesh_from_triangles,
 };
+pub use ground::{Ground, GroundPlugin, SceneGround};
 pub use input::{
     ActiveGrabs, GrabButton, GrabEnd, GrabHandle, GrabMove, GrabPlugin, GrabStart, GrabTurn,
     GrabTwist, Grabbable, InputSystems, MouseControlPlugin, MouseHandleControl,
@@ -41,10 +43,10 @@ pub use input::{
 #[allow(deprecated)]
 pub use pose::GrabAnchor;
 pub use pose::{
-    CharacterSkin, HandlePositionOnly, JointMask, PinnedJoints, PoseAnchor, PoseBlend,
-    PoseBlendMode, PoseEffector, PoseEffectorKind, PoseFailed, PoseInFrame, PoseJointHandle,
-    PoseLimits, PoseModels, PosePlugin, PoseSolved, PoseStatus, PoseStiffness, PoseSystems,
-    PoseTimeline, Poseable, PoseableError, PosedSkeleton, SymmetricEditing,
+    CharacterSkin, HandlePositionOnly, JointMask, PinnedJoints, PoseAnchor, PoseBalance, PoseBlend,
+    PoseBlendMode, PoseEffector, PoseEffectorKind, PoseFailed, PoseGround, PoseInFrame,
+    PoseJointHandle, PoseLimits, PoseModels, PosePlugin, PoseSolved, PoseStatus, PoseStiffness,
+    PoseSystems, PoseTimeline, Poseable, PoseableError, PosedSkeleton, SymmetricEditing,
 };
 pub use scene::{MissingSceneAssets, SceneAssetsMissing, SceneRootPlugin};
 pub use wiimote::{

@@ -23,6 +23,7 @@ mod pose_contacts;
 mod pose_core;
 mod pose_ecs;
 mod pose_effectors_ecs;
+mod pose_ground_ecs;
 mod scene_roundtrip;
 mod wiimote_device;
 mod wiimote_ecs;

@@ -389,11 +389,25 @@ fn tracked_contacts_stand_the_body_on_steps() {
     let mut tracker = ContactTracker::new(&s.model, &s.rig.rest, &feet, down);
     let events = tracker.update(&s.model, &s.rig.rest, &ground);
     let event_of = |joint: usize, events: &[ContactEvent], tracker: &ContactTracker| {
-        events[tracker.contacts.iter().position(|c| c.joint == joint).unwrap()]
+        events[tracker
+            .contacts
+            .iter()
+            .position(|c| c.joint == joint)
+            .unwrap()]
     };
-    assert_eq!(event_of(LEFT_ANKLE, &events, &tracker), ContactEvent::Planted);
-    assert_eq!(event_of(RIGHT_ANKLE, &events, &tracker), ContactEvent::Unchanged);
-    assert_eq!(tracker.active().len(), 2, "both feet have ground under them");
+    assert_eq!(
+        event_of(LEFT_ANKLE, &events, &tracker),
+        ContactEvent::Planted
+    );
+    assert_eq!(
+        event_of(RIGHT_ANKLE, &events, &tracker),
+        ContactEvent::Unchanged
+    );
+    assert_eq!(
+        tracker.active().len(),
+        2,
+        "both feet have ground under them"
+    );
 
     let support = tracker.support();
     let polygon = SupportPolygon::new(&support, down);
@@ -438,7 +452,10 @@ fn tracked_contacts_stand_the_body_on_steps() {
         .iter()
         .map(|&v| skinned[v as usize].y - bottom)
         .fold(f64::INFINITY, f64::min);
-    assert!(right_low > -1e-3 * s.size, "the free foot went {right_low} into its step");
+    assert!(
+        right_low > -1e-3 * s.size,
+        "the free foot went {right_low} into its step"
+    );
     let com = centre_of_mass(&s.model, &pose, None).unwrap();
     assert!(
         polygon.signed_distance(com) > 0.0,

@@ -34,6 +34,7 @@ mod apply;
 mod blend;
 mod constraints;
 mod convert;
+mod ground_contacts;
 mod in_frame;
 mod picking;
 mod plugin;
@@ -298,6 +299,55 @@ pub enum PoseLimits {
 #[derive(Component, Debug, Clone, Copy, PartialEq, Reflect)]
 #[reflect(Component)]
 pub struct PoseStiffness(pub f32);
+
+/// Stands a character on the scene's ground ([`crate::ecs::SceneGround`], from [`crate::ecs::Ground`]
+/// meshes or the game's own): its lowest joints (feet, paws, a prop's base) become contacts —
+/// cast down every solve, planted when they touch, released when the pose lifts them — and
+/// every skin vertex near the ground under it is kept above it, so a grab pushing the
+/// character down stops at the ground ([`crate::pose::contacts`]).
+#[derive(Component, Debug, Clone, Copy, PartialEq, Reflect)]
+#[reflect(Component, Default)]
+pub struct PoseGround {
+    /// Joints whose skin reaches within this share of the character's size of its lowest
+    /// vertex are its feet (found once, in the pose it stands in).
+    pub feet_tolerance: f32,
+    /// Skin vertices within this share of the size above the ground under the character's
+    /// root are kept above it in each solve.
+    pub floor_band: f32,
+}
+
+impl Default for PoseGround {
+    fn default() -> Self {
+        Self {
+            feet_tolerance: 0.03,
+            floor_band: 0.15,
+        }
+    }
+}
+
+/// Keeps a character's centre of mass over its planted feet ([`crate::pose::balance`]); needs
+/// [`PoseGround`] (the planted contacts make the support polygon).
+#[derive(Component, Debug, Clone, Copy, PartialEq, Reflect)]
+#[reflect(Component, Default)]
+pub struct PoseBalance {
+    /// Balance on or off.
+    pub enabled: bool,
+    /// How far inside the support polygon the centre of mass stays, as a share of the
+    /// character's size.
+    pub margin: f32,
+    /// Weight in [0, 1] (1: a hundred times a position effector's pull).
+    pub weight: f32,
+}
+
+impl Default for PoseBalance {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            margin: 0.01,
+            weight: 1.0,
+        }
+    }
+}
 
 /// Symmetric editing: every [`PoseEffector`] on a joint with a left/right partner (paired by
 /// name, [`crate::pose::mirror`]) drives the partner too, with its goal mirrored across the

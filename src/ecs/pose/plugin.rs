@@ -50,6 +50,9 @@ pub struct PosePlugin;
 impl Plugin for PosePlugin {
     fn build(&self, app: &mut App) {
         add_scene_roots(app);
+        if !app.is_plugin_added::<crate::ecs::GroundPlugin>() {
+            app.add_plugins(crate::ecs::GroundPlugin);
+        }
         app.register_type::<Poseable>()
             .register_type::<PinnedJoints>()
             .register_type::<PoseJointHandle>()
@@ -60,6 +63,8 @@ impl Plugin for PosePlugin {
             .register_type::<PoseStiffness>()
             .register_type::<SymmetricEditing>()
             .register_type::<PoseBlend>()
+            .register_type::<super::PoseGround>()
+            .register_type::<super::PoseBalance>()
             .add_message::<PoseSolved>()
             .add_message::<PoseFailed>()
             .init_resource::<super::PoseModels>()

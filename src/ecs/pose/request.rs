@@ -14,11 +14,11 @@ use super::solve::SolveJob;
 use super::state::{CharacterSpace, LastSolve, PoseDrivers, PoseSolves, fail};
 use super::symmetry::Symmetry;
 use super::{
-    HandlePositionOnly, PinnedJoints, PoseAnchor, PoseBlend, PoseBlendMode, PoseEffector,
-    PoseFailed, PoseInFrame, PoseJointHandle, PoseLimits, PoseStatus, PoseStiffness, Poseable,
-    PosedSkeleton, SymmetricEditing,
+    HandlePositionOnly, PinnedJoints, PoseAnchor, PoseBalance, PoseBlend, PoseBlendMode,
+    PoseEffector, PoseFailed, PoseGround, PoseInFrame, PoseJointHandle, PoseLimits, PoseStatus,
+    PoseStiffness, Poseable, PosedSkeleton, SymmetricEditing,
 };
-use crate::ecs::DeformHandle;
+use crate::ecs::{DeformHandle, SceneGround};
 use crate::pose::placement::similarity;
 use crate::pose::{Effector, JointTransform, PoseConstraints, ReferenceStiffness, SkeletonPose};
 
@@ -37,6 +37,8 @@ pub(super) struct CharacterSettings {
     blend: Option<&'static PoseBlend>,
     global: Option<&'static GlobalTransform>,
     character_space: Has<CharacterSpace>,
+    ground: Option<&'static PoseGround>,
+    balance: Option<&'static PoseBalance>,
 }
 
 impl CharacterSettingsItem<'_, '_> {
@@ -269,7 +271,7 @@ fn start_set(
 /// The constraints of the current drivers, and where the solve starts when not from the held
 /// pose (an additive layer starts from what is on screen).
 fn constraints_of(
-    (state, memory): (&mut PoseDrivers, &BlendMemory),
+    (state, memory, ground): (&mut PoseDrivers, &BlendMemory, Option<&SceneGround>),
     posed: &PosedSkeleton,
     drivers: &Drivers,
     (pins, anchor): (&[Entity], &PoseAnchor),
@@ -352,6 +354,12 @@ fn constraints_of(
                 &c.fixed_vertices,
             );
     }
+    if let (Some(settings), Some(ground)) = (extras.ground, ground) {
+        let pose = start.as_ref().unwrap_or(&posed.pose);
+        let balance = extras.balance.filter(|b| b.enabled);
+        let place = (&mut state.contacts, posed, pose);
+        super::ground_contacts::stand_on(&mut constraints, place, settings, balance, ground);
+    }
     Ok((constraints, start))
 }
 
@@ -379,6 +387,7 @@ pub(super) fn request_pose_solves(
     joints: JointTransforms,
     (position_only, effectors): (Query<(), With<HandlePositionOnly>>, Effectors),
     mut failed: MessageWriter<PoseFailed>,
+    ground: Option<Res<SceneGround>>,
 ) {
     for ((entity, in_frame), poseable, mut posed, pins, anchor, extras, parts, mut status) in
         &mut characters
@@ -419,7 +428,7 @@ pub(super) fn request_pose_solves(
         }
         let driver_state = drivers_state.bypass_change_detection();
         let built = constraints_of(
-            (driver_state, memory),
+            (driver_state, memory, ground.as_deref()),
             &posed,
             &drivers,
             (pinned, anchor),

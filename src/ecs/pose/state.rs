@@ -67,6 +67,9 @@ pub(super) struct PoseDrivers {
     /// `PoseConstraints::effectors`, its entity and component): an in-frame solve reads their
     /// goals again after animation.
     pub(super) effector_sources: Vec<(usize, Entity, PoseEffector)>,
+    /// The character's automatic ground contacts ([`PoseGround`](super::PoseGround)), kept
+    /// from solve to solve (planted or not).
+    pub(super) contacts: Option<crate::pose::ContactTracker>,
 }
 
 /// The solves of a character: what waits, what runs, where the next one starts.

@@ -1,0 +1,70 @@
+//! The game's ground for posing: mesh entities marked [`Ground`] make one [`SceneGround`]
+//! (their triangles in world space, with a grid across gravity), which the pose plugin casts
+//! down on for characters with [`crate::ecs::PoseGround`]. Anything else — a physics engine's
+//! colliders, a height function — goes in as a [`SceneGround`] built from a closure
+//! ([`SceneGround::custom`]).
+
+mod plugin;
+
+use std::sync::Arc;
+
+use bevy::prelude::*;
+use glam::DVec3;
+
+use crate::pose::{Ground as CoreGround, GroundPlane, TriangleGround};
+
+pub use plugin::GroundPlugin;
+
+/// Marks a mesh entity (`Mesh3d`) as ground characters stand on: its triangles, placed by its
+/// `GlobalTransform`, join the [`SceneGround`].
+#[derive(Component, Debug, Clone, Copy, Default, PartialEq, Eq, Reflect)]
+#[reflect(Component, Default)]
+pub struct Ground;
+
+/// The ground the pose plugin casts on, world space. Kept current by [`GroundPlugin`] from the
+/// [`Ground`] meshes (rebuilt when one is added, removed, moved or its mesh changes), or set by
+/// the game ([`SceneGround::custom`]).
+#[derive(Resource, Clone)]
+pub struct SceneGround {
+    source: Arc<dyn CoreGround + Send + Sync>,
+    /// Triangles in the ground (0 for a custom one).
+    pub triangles: usize,
+    /// Whether [`GroundPlugin`] keeps it current from [`Ground`] meshes (false: the game's).
+    pub from_meshes: bool,
+}
+
+impl SceneGround {
+    /// A ground from anything that answers a ray cast down (world space): a closure
+    /// `(from, down, max_distance) → Option<GroundPlane>`, an infinite plane, a physics
+    /// engine's spatial query. [`GroundPlugin`] leaves it alone.
+    pub fn custom(ground: impl CoreGround + Send + Sync + 'static) -> Self {
+        Self {
+            source: Arc::new(ground),
+            triangles: 0,
+            from_meshes: false,
+        }
+    }
+
+    /// The ground of triangles (world space).
+    pub(crate) fn of_triangles(ground: TriangleGround, triangles: usize) -> Self {
+        Self {
+            source: Arc::new(ground),
+            triangles,
+            from_meshes: true,
+        }
+    }
+
+    /// The first surface below `from` along `down` within `max`, world space.
+    pub fn cast_down(&self, from: DVec3, down: DVec3, max: f64) -> Option<GroundPlane> {
+        self.source.cast_down(from, down, max)
+    }
+}
+
+impl std::fmt::Debug for SceneGround {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SceneGround")
+            .field("triangles", &self.triangles)
+            .field("from_meshes", &self.from_meshes)
+            .finish_non_exhaustive()
+    }
+}

@@ -1,0 +1,77 @@
+//! A character standing on the scene's ground: its automatic contacts, the floor under it and
+//! its balance, added to the constraints of a solve (in character space).
+
+use glam::{DAffine3, DVec3};
+
+use super::{PoseBalance, PoseGround, PosedSkeleton};
+use crate::ecs::SceneGround;
+use crate::pose::{
+    Balance, ContactTracker, Floor, GroundPlane, PoseConstraints, SkeletonPose, lowest_joints,
+};
+
+/// Adds to `constraints` (character space) the character's ground contacts — found on the
+/// first call, cast on `ground` (world space) from the patches as `pose` carries them, planted
+/// and released — the floor under its root and, with `balance`, the centre of mass over the
+/// planted patches.
+pub(super) fn stand_on(
+    constraints: &mut PoseConstraints,
+    (tracker, posed, pose): (&mut Option<ContactTracker>, &PosedSkeleton, &SkeletonPose),
+    settings: &PoseGround,
+    balance: Option<&PoseBalance>,
+    ground: &SceneGround,
+) {
+    let to_world = posed.placement;
+    let to_character = to_world.inverse();
+    let down = (to_character.matrix3 * DVec3::NEG_Y).normalize_or(DVec3::NEG_Y);
+    let cast = |from: DVec3, along: DVec3, max: f64| -> Option<GroundPlane> {
+        world_cast(ground, (&to_world, &to_character), from, along, max)
+    };
+    let model = &posed.model;
+    let size = model.topology().bounding_diagonal();
+    let tracker = tracker.get_or_insert_with(|| {
+        let tolerance = f64::from(settings.feet_tolerance) * size;
+        let feet = lowest_joints(model, pose, down, tolerance);
+        ContactTracker::new(model, pose, &feet, down)
+    });
+    tracker.update(model, pose, &cast);
+    constraints.contacts = tracker.active();
+    let globals = model.skeleton().global_transforms(pose);
+    if let Some(root) = globals.first()
+        && let Some(plane) = cast(root.translation - down * size, down, 10.0 * size)
+    {
+        constraints.floor = Some(Floor {
+            plane,
+            band: f64::from(settings.floor_band) * size,
+        });
+    }
+    let support = tracker.support();
+    if let Some(b) = balance
+        && !support.is_empty()
+    {
+        constraints.balance = Some(Balance {
+            support,
+            gravity: down,
+            margin: f64::from(b.margin.max(0.0)) * size,
+            weight: f64::from(b.weight.clamp(0.0, 1.0)),
+            masses: None,
+        });
+    }
+}
+
+/// A cast in character space on the world's ground: the ray taken into the world, the hit
+/// brought back (`None` for a miss or a hit that is not finite).
+fn world_cast(
+    ground: &SceneGround,
+    (to_world, to_character): (&DAffine3, &DAffine3),
+    from: DVec3,
+    along: DVec3,
+    max: f64,
+) -> Option<GroundPlane> {
+    let scale = to_world.matrix3.x_axis.length();
+    let direction = (to_world.matrix3 * along).try_normalize()?;
+    let hit = ground.cast_down(to_world.transform_point3(from), direction, max * scale)?;
+    GroundPlane::new(
+        to_character.transform_point3(hit.point),
+        to_character.matrix3 * hit.normal,
+    )
+}

@@ -1,0 +1,103 @@
+//! `PoseGround` and `PoseBalance` through the pose plugin (issue 42): a character grabbed by
+//! the head and pushed down into a `Ground` mesh stops at it, its feet planted.
+
+use std::time::Duration;
+
+use bevy::prelude::*;
+use bevy::time::TimeUpdateStrategy;
+use bevy_wii_deform::pose::synth_rig::mannequin_rig;
+use bevy_wii_deform::pose::{JointTransform, SkeletonPose};
+use bevy_wii_deform::prelude::*;
+
+use crate::common;
+use common::{drive_solves, spawn_handle, spawn_rig, update_until};
+
+/// The deepest skinned vertex below `ground_y` (negative: below), world space, after a grab of
+/// the head pushed 0.6 m down, with or without `PoseGround` + `PoseBalance`; and the size.
+fn pushed_down(stand: bool) -> (f32, f32, usize) {
+    let mut app = common::app();
+    app.add_plugins(PosePlugin);
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_millis(
+        16,
+    )));
+    let rig = mannequin_rig(20);
+    let offset = Vec3::new(1.0, 0.25, -0.5);
+    let (root, joints, _) = spawn_rig(&mut app, &rig, offset);
+    let lowest = rig
+        .mesh
+        .positions
+        .iter()
+        .map(|p| p.y)
+        .fold(f32::INFINITY, f32::min);
+    let ground_y = lowest + offset.y;
+    let plane = app
+        .world_mut()
+        .resource_mut::<Assets<Mesh>>()
+        .add(Plane3d::default().mesh().size(20.0, 20.0));
+    app.world_mut().spawn((
+        Mesh3d(plane),
+        Transform::from_xyz(0.0, ground_y, 0.0),
+        Ground,
+    ));
+    app.world_mut().entity_mut(root).insert(Poseable {
+        max_iterations: 8,
+        ..default()
+    });
+    if stand {
+        app.world_mut()
+            .entity_mut(root)
+            .insert((PoseGround::default(), PoseBalance::default()));
+    }
+    update_until(&mut app, "the model", |a| {
+        a.world().get::<PosedSkeleton>(root).is_some()
+    });
+    let head: Vec<u32> = (0..rig.mesh.positions.len() as u32)
+        .filter(|&i| rig.mesh.positions[i as usize].y > 1.6)
+        .collect();
+    let (handle, pivot) = spawn_handle(&mut app, root, head, ());
+    for step in 1..=12 {
+        app.world_mut()
+            .get_mut::<Transform>(handle)
+            .unwrap()
+            .translation = pivot - Vec3::Y * 0.05 * step as f32;
+        drive_solves(&mut app, root, handle, 2);
+    }
+    app.update();
+    let triangles = app
+        .world()
+        .get_resource::<SceneGround>()
+        .map_or(0, |g| g.triangles);
+    let posed = app.world().get::<PosedSkeleton>(root).unwrap().clone();
+    let pose = SkeletonPose {
+        local: joints
+            .iter()
+            .map(|&j| {
+                let t = app.world().get::<Transform>(j).unwrap();
+                JointTransform {
+                    translation: t.translation.as_dvec3(),
+                    rotation: t.rotation.as_dquat(),
+                    scale: t.scale.as_dvec3(),
+                }
+            })
+            .collect(),
+    };
+    let skinned = posed.to_world(posed.model.skin_render(&pose));
+    let deepest = skinned
+        .iter()
+        .map(|p| p.y as f32 - ground_y)
+        .fold(f32::INFINITY, f32::min);
+    let size = posed.model.topology().bounding_diagonal() as f32;
+    (deepest, size, triangles)
+}
+
+#[test]
+fn a_character_pushed_into_the_ground_stops_at_it() {
+    let (sunk, _, triangles) = pushed_down(false);
+    assert_eq!(triangles, 2, "the Ground plane is the scene's ground");
+    assert!(sunk < -0.1, "without PoseGround the push sinks it: {sunk}");
+    let (deepest, size, _) = pushed_down(true);
+    assert!(
+        deepest > -1e-3 * size,
+        "with PoseGround no skin vertex goes below the ground: {deepest} (size {size})"
+    );
+}
