@@ -302,7 +302,9 @@ pub struct ContactTracker {
 
 impl ContactTracker {
     /// Tracks `joints` of `model` (their sole patches in `pose`), with heights as fractions of
-    /// the model's size (plant 1 %, release 3 %, casts reach 50 %).
+    /// the model's size: a patch within 8 % of the ground is planted (laid on it: a foot over a
+    /// lower step or downhill comes down to it, as foot placement does), one lifted more than
+    /// 12 % is released; casts reach 50 %.
     pub fn new(model: &SkinnedModel, pose: &SkeletonPose, joints: &[usize], down: DVec3) -> Self {
         let down = down.try_normalize().unwrap_or(DVec3::NEG_Y);
         let size = model.topology().bounding_diagonal();
@@ -324,8 +326,8 @@ impl ContactTracker {
             grounded: vec![false; contacts.len()],
             contacts,
             down,
-            plant_height: 0.01 * size,
-            release_height: 0.03 * size,
+            plant_height: 0.08 * size,
+            release_height: 0.12 * size,
             reach: 0.5 * size,
         }
     }

@@ -1,0 +1,275 @@
+//! `character_bench --ground slope|steps [--balance]`: the model stood on a 25° slope or on
+//! steps by automatic contacts (`ContactTracker`: its lowest joints, cast down, planted when
+//! they touch), its handle dragged sideways far enough to topple it, with and without balance.
+//! Gravity is −Y (glTF's up is +Y; the reader folds a converter's turn into the pose).
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use bevy_wii_deform::deform::{Handle, RigidTransform, centroid};
+use bevy_wii_deform::pose::*;
+use glam::{DQuat, DVec3};
+
+/// Which ground.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GroundKind {
+    /// A plane 25° steep, rising along +X.
+    Slope,
+    /// Two levels, the step between the feet, 10 % of the leg's length high.
+    Steps,
+}
+
+/// What one drag measured.
+struct Run {
+    ms: Vec<f64>,
+    penetration_max: f64,
+    sole_errors_deg: Vec<f64>,
+    slide_max: f64,
+    supported: usize,
+    with_support: usize,
+    com_margin_min: f64,
+    replants: usize,
+}
+
+/// The ground under a character standing in `rest` (welded positions) with its lowest point
+/// at `lowest`: a slope through it, or steps whose edge runs between the feet.
+fn ground_for(kind: GroundKind, rest: &[DVec3], feet_centre: DVec3, size: f64) -> Box<dyn Ground> {
+    let lowest = rest.iter().map(|p| p.y).fold(f64::INFINITY, f64::min);
+    let at = DVec3::new(feet_centre.x, lowest, feet_centre.z);
+    match kind {
+        GroundKind::Slope => {
+            let normal = DQuat::from_rotation_z(25f64.to_radians()) * DVec3::Y;
+            Box::new(GroundPlane::new(at, normal).expect("a plane"))
+        }
+        GroundKind::Steps => {
+            let (w, h) = (10.0 * size, 0.05 * size);
+            let p = |x: f64, y: f64, z: f64| at + DVec3::new(x, y, z);
+            let positions = vec![
+                p(-w, -h, -w),
+                p(0.0, -h, -w),
+                p(0.0, -h, w),
+                p(-w, -h, w),
+                p(0.0, 0.0, -w),
+                p(w, 0.0, -w),
+                p(w, 0.0, w),
+                p(0.0, 0.0, w),
+            ];
+            let triangles = vec![[0, 2, 1], [0, 3, 2], [4, 6, 5], [4, 7, 6]];
+            Box::new(TriangleGround::new(positions, triangles, DVec3::NEG_Y))
+        }
+    }
+}
+
+/// The ground's height under `p` (by a cast), and its normal there.
+fn under(ground: &dyn Ground, p: DVec3, size: f64) -> Option<GroundPlane> {
+    ground.cast_down(p + DVec3::Y * 10.0 * size, DVec3::NEG_Y, 20.0 * size)
+}
+
+/// The drag, with or without balance; `handle` dragged 30 % of the size along +X and a little
+/// down over 30 frames of 3 warm iterations, contacts tracked every frame, after a frame that
+/// stands the character on the ground; every skin vertex kept above `floor`.
+fn drag(
+    model: &Arc<SkinnedModel>,
+    pose: &SkeletonPose,
+    handle: &[u32],
+    (ground, floor): (&dyn Ground, Option<GroundPlane>),
+    balance: bool,
+) -> Run {
+    let size = model.topology().bounding_diagonal();
+    let down = DVec3::NEG_Y;
+    let feet = lowest_joints(model, pose, down, 0.04 * size);
+    let mut tracker = ContactTracker::new(model, pose, &feet, down);
+    let rest = model.skin_welded(pose);
+    let pivot = centroid(&rest, handle);
+    let mut run = Run {
+        ms: Vec::new(),
+        penetration_max: 0.0,
+        sole_errors_deg: Vec::new(),
+        slide_max: 0.0,
+        supported: 0,
+        with_support: 0,
+        com_margin_min: f64::INFINITY,
+        replants: 0,
+    };
+    let masses = vertex_masses(model);
+    let mut last: Option<PoseSolution> = None;
+    let mut previous: Option<Vec<Option<Vec<DVec3>>>> = None;
+    let drag_to = |reach: f64| Handle {
+        vertices: handle.to_vec(),
+        transform: RigidTransform::new(
+            DQuat::IDENTITY,
+            DVec3::new(reach, -0.2 * reach, 0.0),
+            pivot,
+        ),
+    };
+    // Contacts and balance change every frame; the handle's set does not: one solver.
+    let solver = PoseSolver::new(
+        model.clone(),
+        &PoseConstraints {
+            handles: vec![drag_to(0.0)],
+            ..Default::default()
+        },
+        pose,
+        PoseSolverSettings::default(),
+    )
+    .expect("solver");
+    for frame in 0..=30 {
+        let now = last.as_ref().map_or(pose, |l| &l.pose);
+        let events = tracker.update(model, now, ground);
+        if frame > 0 {
+            run.replants += events
+                .iter()
+                .filter(|e| **e == ContactEvent::Planted)
+                .count();
+        }
+        let support = tracker.support();
+        let reach = 0.3 * size * frame as f64 / 30.0;
+        let constraints = PoseConstraints {
+            handles: vec![drag_to(reach)],
+            contacts: tracker.active(),
+            floor: floor.map(|plane| Floor {
+                plane,
+                band: 0.1 * size,
+            }),
+            balance: (balance && !support.is_empty()).then(|| Balance {
+                margin: 0.01 * size,
+                masses: Some(masses.clone()),
+                ..Balance::over(support.clone())
+            }),
+            ..Default::default()
+        };
+        // Frame 0 stands the character on the ground (its contacts just planted) to
+        // convergence, as a game settles a character it places; the drag frames get 3.
+        let options = PoseSolveOptions {
+            max_iterations: if frame == 0 { 40 } else { 3 },
+            tolerance: 0.0,
+        };
+        let start = match &last {
+            Some(l) => PoseStart::Warm(l),
+            None => PoseStart::Pose(pose),
+        };
+        let t = Instant::now();
+        let solved = solver
+            .solve(&constraints, &options, start, &|| false)
+            .expect("a solve");
+        if frame > 0 {
+            run.ms.push(t.elapsed().as_secs_f64() * 1e3);
+            measure(&mut run, model, &solved.pose, &tracker, ground, &masses);
+        }
+        // Planted patches: how far each moved since the last frame, while planted in both.
+        let skinned = model.skin_welded(&solved.pose);
+        let now_planted: Vec<Option<Vec<DVec3>>> = tracker
+            .contacts
+            .iter()
+            .map(|c| {
+                c.planted
+                    .as_ref()
+                    .map(|_| c.patch.iter().map(|&v| skinned[v as usize]).collect())
+            })
+            .collect();
+        if let Some(before) = &previous {
+            for (a, b) in before.iter().zip(&now_planted) {
+                if let (Some(a), Some(b)) = (a, b) {
+                    let slide = a
+                        .iter()
+                        .zip(b)
+                        .map(|(p, q)| p.distance(*q))
+                        .fold(0.0, f64::max);
+                    run.slide_max = run.slide_max.max(slide / size);
+                }
+            }
+        }
+        previous = Some(now_planted);
+        last = Some(solved);
+    }
+    run
+}
+
+/// Penetration of every skin vertex, the planted soles' turn to their ground, and where the
+/// centre of mass is against the support polygon.
+fn measure(
+    run: &mut Run,
+    model: &SkinnedModel,
+    pose: &SkeletonPose,
+    tracker: &ContactTracker,
+    ground: &dyn Ground,
+    masses: &[f64],
+) {
+    let size = model.topology().bounding_diagonal();
+    let skinned = model.skin_welded(pose);
+    for p in &skinned {
+        if let Some(g) = under(ground, *p, size) {
+            run.penetration_max = run.penetration_max.max(-g.height(*p) / size);
+        }
+    }
+    let globals = model.skeleton().global_transforms(pose);
+    for c in tracker.contacts.iter().filter(|c| c.planted.is_some()) {
+        let up = (globals[c.joint].matrix3 * c.up.unwrap_or(DVec3::Y)).normalize_or(DVec3::Y);
+        run.sole_errors_deg
+            .push(up.angle_between(c.ground.normal).to_degrees());
+    }
+    let support = tracker.support();
+    if !support.is_empty()
+        && let Some(com) = centre_of_mass(model, pose, Some(masses))
+    {
+        let polygon = SupportPolygon::new(&support, DVec3::NEG_Y);
+        let d = polygon.signed_distance(com) / size;
+        if std::env::var("GROUND_DEBUG").is_ok() {
+            eprintln!(
+                "com {com:.3} d {d:.4} corners {:.3?}",
+                polygon.corners_at(com)
+            );
+        }
+        run.with_support += 1;
+        run.supported += usize::from(d >= 0.0);
+        run.com_margin_min = run.com_margin_min.min(d);
+    }
+}
+
+/// Runs the ground drag and returns its JSON fields.
+pub fn run(
+    model: &Arc<SkinnedModel>,
+    pose: &SkeletonPose,
+    handle: &[u32],
+    kind: GroundKind,
+    balance: bool,
+) -> serde_json::Value {
+    let size = model.topology().bounding_diagonal();
+    let rest = model.skin_welded(pose);
+    let feet = lowest_joints(model, pose, DVec3::NEG_Y, 0.04 * size);
+    let globals = model.skeleton().global_transforms(pose);
+    let feet_centre =
+        feet.iter().map(|&j| globals[j].translation).sum::<DVec3>() / feet.len().max(1) as f64;
+    let ground = ground_for(kind, &rest, feet_centre, size);
+    // Every skin vertex kept above the ground under the body's centre (the slope, or the
+    // step under it).
+    let centre = rest.iter().sum::<DVec3>() / rest.len().max(1) as f64;
+    let floor = under(ground.as_ref(), centre, size);
+    let with = drag(model, pose, handle, (ground.as_ref(), floor), balance);
+    let without = drag(model, pose, handle, (ground.as_ref(), floor), false);
+    let mut ms = with.ms.clone();
+    ms.sort_by(f64::total_cmp);
+    let mut errors = with.sole_errors_deg.clone();
+    errors.sort_by(f64::total_cmp);
+    let pick = |v: &[f64], p: f64| {
+        v.get(((v.len().max(1) - 1) as f64 * p).round() as usize)
+            .copied()
+            .unwrap_or(f64::NAN)
+    };
+    let share = |r: &Run| r.supported as f64 / r.with_support.max(1) as f64;
+    serde_json::json!({
+        "ground": format!("{kind:?}").to_lowercase(),
+        "balance": balance,
+        "feet": feet.len(),
+        "constrained_ms_per_solve": pick(&ms, 0.5),
+        "penetration_max": with.penetration_max,
+        "sole_normal_error_deg_p95": pick(&errors, 0.95),
+        "soles_at_limit_share": errors.iter().filter(|e| **e > 3.0).count() as f64
+            / errors.len().max(1) as f64,
+        "planted_slide_max": with.slide_max,
+        "com_supported_share": share(&with),
+        "com_margin_min": with.com_margin_min,
+        "com_supported_share_without_balance": share(&without),
+        "replants": with.replants,
+    })
+}
