@@ -129,7 +129,7 @@ fn drag(
             contacts: tracker.active(),
             floor: floor.map(|plane| Floor {
                 plane,
-                band: 0.1 * size,
+                band: 0.3 * size,
             }),
             balance: (balance && !support.is_empty()).then(|| Balance {
                 margin: 0.01 * size,
@@ -242,7 +242,8 @@ pub fn run(
         feet.iter().map(|&j| globals[j].translation).sum::<DVec3>() / feet.len().max(1) as f64;
     let ground = ground_for(kind, &rest, feet_centre, size);
     // Every skin vertex kept above the ground under the body's centre (the slope, or the
-    // step under it).
+    // step under it); those within 30 % of the size of it at the start of a solve are its
+    // active set (10 % let a paw that started further up pass through within one solve).
     let centre = rest.iter().sum::<DVec3>() / rest.len().max(1) as f64;
     let floor = under(ground.as_ref(), centre, size);
     let with = drag(model, pose, handle, (ground.as_ref(), floor), balance);

@@ -320,7 +320,7 @@ impl Default for PoseGround {
     fn default() -> Self {
         Self {
             feet_tolerance: 0.03,
-            floor_band: 0.15,
+            floor_band: 0.3,
         }
     }
 }

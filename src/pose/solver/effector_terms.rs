@@ -587,6 +587,13 @@ impl<'a> ExtraTerms<'a> {
         // One list of a term's Jacobian blocks, reused term after term.
         let mut blocks: Vec<(usize, Rows<DMat3>)> = Vec::with_capacity(params.len());
         self.for_each_residual(globals, skinning, |term, w, r| {
+            // A one-sided term that holds (a vertex above its ground, the centre of mass inside
+            // its polygon) adds neither gradient nor curvature: skip its Jacobian.
+            if matches!(term, Term::Above { .. } | Term::Balance { .. })
+                && r.iter().all(|v| *v == DVec3::ZERO)
+            {
+                return;
+            }
             blocks.clear();
             blocks.extend(params.iter().enumerate().filter_map(|(p, &param)| {
                 self.jacobian(term, param, globals, skinning)
