@@ -371,8 +371,9 @@ fn tracked_contacts_stand_the_body_on_steps() {
     let mut sorted = feet.clone();
     sorted.sort_unstable();
     assert_eq!(sorted, vec![LEFT_ANKLE, RIGHT_ANKLE], "the feet: {feet:?}");
-    // Left foot on a step at its sole's height, the right one's step 10 cm lower.
-    let (top, bottom) = (s.lowest, s.lowest - 0.1);
+    // Left foot on a step at its sole's height, the right one's step lower than a foot is
+    // placed down to (the plant height, 8 % of the size).
+    let (top, bottom) = (s.lowest, s.lowest - 0.12 * s.size);
     let p = DVec3::new;
     let positions = vec![
         p(-1.0, bottom, -1.0),
