@@ -101,3 +101,78 @@ fn a_character_pushed_into_the_ground_stops_at_it() {
         "with PoseGround no skin vertex goes below the ground: {deepest} (size {size})"
     );
 }
+
+/// Issue 42: a character with `PoseGround` and nothing else driving it, placed a little above a
+/// 10° slope, stands on it: a solve places its feet, each sole's lowest point on the slope and
+/// no skin vertex below it.
+#[test]
+fn a_character_placed_above_a_slope_stands_on_it() {
+    let mut app = common::app();
+    app.add_plugins(PosePlugin);
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_millis(16)));
+    let rig = mannequin_rig(20);
+    let lowest = rig
+        .mesh
+        .positions
+        .iter()
+        .map(|p| p.y)
+        .fold(f32::INFINITY, f32::min);
+    let offset = Vec3::new(-2.0, 0.4, 1.0);
+    let (root, joints, _) = spawn_rig(&mut app, &rig, offset);
+    // The slope passes 3 cm under the feet's centre.
+    let tilt = Quat::from_rotation_z(10f32.to_radians());
+    let at = Vec3::new(offset.x, offset.y + lowest - 0.03, offset.z);
+    let plane = app
+        .world_mut()
+        .resource_mut::<Assets<Mesh>>()
+        .add(Plane3d::default().mesh().size(20.0, 20.0));
+    app.world_mut().spawn((
+        Mesh3d(plane),
+        Transform::from_translation(at).with_rotation(tilt),
+        Ground,
+    ));
+    app.world_mut().entity_mut(root).insert((
+        Poseable {
+            max_iterations: 30,
+            ..default()
+        },
+        PoseGround::default(),
+    ));
+    update_until(&mut app, "the stance", |a| {
+        a.world().get::<PoseStatus>(root).is_some_and(|s| s.solves > 0)
+    });
+    app.update();
+    let posed = app.world().get::<PosedSkeleton>(root).unwrap().clone();
+    let pose = SkeletonPose {
+        local: joints
+            .iter()
+            .map(|&j| {
+                let t = app.world().get::<Transform>(j).unwrap();
+                JointTransform {
+                    translation: t.translation.as_dvec3(),
+                    rotation: t.rotation.as_dquat(),
+                    scale: t.scale.as_dvec3(),
+                }
+            })
+            .collect(),
+    };
+    let skinned = posed.to_world(posed.model.skin_render(&pose));
+    let normal = (tilt * Vec3::Y).as_dvec3();
+    let height = |p: &glam::DVec3| (*p - at.as_dvec3()).dot(normal);
+    let size = posed.model.topology().bounding_diagonal();
+    let deepest = skinned.iter().map(height).fold(f64::INFINITY, f64::min);
+    assert!(deepest > -1e-3 * size, "a vertex is {deepest} below the slope");
+    for side in [1.0f32, -1.0] {
+        let foot = (0..rig.mesh.positions.len())
+            .filter(|&i| {
+                let p = rig.mesh.positions[i];
+                p.y < lowest + 0.02 && p.x * side > 0.0
+            })
+            .map(|i| height(&skinned[i]))
+            .fold(f64::INFINITY, f64::min);
+        assert!(
+            foot.abs() < 3e-3 * size,
+            "the foot on the {side} side is {foot} from the slope"
+        );
+    }
+}

@@ -15,7 +15,11 @@ use crate::pose::{
 /// planted patches.
 pub(super) fn stand_on(
     constraints: &mut PoseConstraints,
-    (tracker, posed, pose): (&mut Option<ContactTracker>, &PosedSkeleton, &SkeletonPose),
+    (tracker, posed, pose): (
+        &mut Option<(ContactTracker, DAffine3)>,
+        &PosedSkeleton,
+        &SkeletonPose,
+    ),
     settings: &PoseGround,
     balance: Option<&PoseBalance>,
     ground: &SceneGround,
@@ -28,11 +32,16 @@ pub(super) fn stand_on(
     };
     let model = &posed.model;
     let size = model.topology().bounding_diagonal();
-    let tracker = tracker.get_or_insert_with(|| {
+    let (tracker, placed_at) = tracker.get_or_insert_with(|| {
         let tolerance = f64::from(settings.feet_tolerance) * size;
         let feet = lowest_joints(model, pose, down, tolerance);
-        ContactTracker::new(model, pose, &feet, down)
+        (ContactTracker::new(model, pose, &feet, down), to_world)
     });
+    if *placed_at != to_world {
+        // The character moved: planted patches stay where they touched in the world.
+        follow_the_world(tracker, &(to_character * *placed_at));
+        *placed_at = to_world;
+    }
     tracker.update(model, pose, &cast);
     constraints.contacts = tracker.active();
     let globals = model.skeleton().global_transforms(pose);
@@ -55,6 +64,22 @@ pub(super) fn stand_on(
             weight: f64::from(b.weight.clamp(0.0, 1.0)),
             masses: None,
         });
+    }
+}
+
+/// Re-expresses the contacts' grounds and planted points after the character moved: `moved`
+/// maps the old character space into the new one.
+fn follow_the_world(tracker: &mut ContactTracker, moved: &DAffine3) {
+    for c in &mut tracker.contacts {
+        if let Some(g) = GroundPlane::new(
+            moved.transform_point3(c.ground.point),
+            moved.matrix3 * c.ground.normal,
+        ) {
+            c.ground = g;
+        }
+        for p in c.planted.iter_mut().flatten() {
+            *p = moved.transform_point3(*p);
+        }
     }
 }
 

@@ -401,7 +401,10 @@ pub(super) fn request_pose_solves(
             &effectors,
             &position_only,
         );
-        if drivers.is_empty() {
+        // A character standing on the ground is driven by it (a first stance, a move of the
+        // character or of the ground), with or without handles.
+        let grounded = extras.ground.is_some() && ground.is_some();
+        if drivers.is_empty() && !grounded {
             drivers_state.bypass_change_detection().key = None;
             continue; // nothing drives the pose
         }
@@ -418,8 +421,12 @@ pub(super) fn request_pose_solves(
         }
         let settings_changed = extras.limits.as_ref().is_some_and(|l| l.is_changed())
             || extras.stiffness.as_ref().is_some_and(|s| s.is_changed());
+        let stance = grounded
+            && (drivers_state.contacts.is_none()
+                || ground.as_ref().is_some_and(|g| g.is_changed()));
         let changed = drivers.moved()
             || placed
+            || stance
             || pins.as_ref().is_some_and(|p| p.is_changed())
             || settings_changed
             || extras.additive() && memory.moved;

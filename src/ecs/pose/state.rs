@@ -68,8 +68,9 @@ pub(super) struct PoseDrivers {
     /// goals again after animation.
     pub(super) effector_sources: Vec<(usize, Entity, PoseEffector)>,
     /// The character's automatic ground contacts ([`PoseGround`](super::PoseGround)), kept
-    /// from solve to solve (planted or not).
-    pub(super) contacts: Option<crate::pose::ContactTracker>,
+    /// from solve to solve (planted or not), and the placement they are in character space
+    /// of.
+    pub(super) contacts: Option<(crate::pose::ContactTracker, glam::DAffine3)>,
 }
 
 /// The solves of a character: what waits, what runs, where the next one starts.
