@@ -1,10 +1,11 @@
-//! A field of Foxes standing on bumpy ground, every one playing its own animation and posed
-//! inside the frame over it: a position effector plants each foot and paw on the ground under
-//! it (`PoseEffector`, ankles free), a look-at effector turns each head toward a firefly that
-//! wanders over the field (the effectors are the firefly's children: targets that follow
-//! another entity), and `PoseInFrame` solves all of them every frame in parallel. The pose
-//! overrides the clip on the legs, neck and head only (`PoseBlend` with a `JointMask`); the
-//! spine and tail play on. The ground rolls slowly, so the legs keep adjusting.
+//! A field of Foxes standing on a hilly, terraced terrain mesh, every one playing its own
+//! animation and posed inside the frame over it: the terrain is `Ground`, each Fox is dropped
+//! onto it by a ray cast and stands on it with `PoseGround` (its paws found, cast down, planted
+//! on the slope or the step under each; nothing below the surface) and `PoseBalance`; a look-at
+//! effector turns each head toward a firefly that wanders over the field (the effectors are the
+//! firefly's children: targets that follow another entity), and `PoseInFrame` solves all of
+//! them every frame in parallel. The pose overrides the clip on the legs, neck and head only
+//! (`PoseBlend` with a `JointMask`); the spine and tail play on.
 //!
 //! ```text
 //! cargo run --release --example crowd [-- N] [--screenshot PATH --frames N]
@@ -20,6 +21,8 @@ use bevy_wii_deform::prelude::*;
 mod cli;
 #[path = "common/screenshot.rs"]
 mod screenshot;
+#[path = "common/terrain.rs"]
+mod terrain;
 
 /// The Fox, relative to the asset folder.
 const FOX: &str = "models/Fox.glb";
@@ -59,7 +62,7 @@ fn main() {
         .add_plugins((PosePlugin, IdlePlugin, FireflyPlugin))
         .insert_resource(Crowd(count))
         .add_systems(Startup, setup)
-        .add_systems(Update, (plant_feet, roll_ground));
+        .add_systems(Update, drop_on_ground.before(PoseSystems::Request));
     if let Some(path) = screenshot {
         app.add_plugins(screenshot::ScreenshotPlugin { path, frames });
     }
@@ -241,18 +244,9 @@ fn look_at_firefly(
 #[derive(Resource)]
 struct Crowd(usize);
 
-/// A foot target: where on the ground (x, z) and how high above the ground the joint rests.
+/// A Fox not yet put on the ground (its height comes from a cast down on the terrain).
 #[derive(Component)]
-struct OnGround {
-    x: f32,
-    z: f32,
-    lift: f32,
-}
-
-/// The height of the bumpy ground at (x, z) at time `t`, in the Fox's units.
-fn ground_height(x: f32, z: f32, t: f32) -> f32 {
-    5.0 * ((x * 0.011 + t * 0.4).sin() + (z * 0.013 - t * 0.3).cos())
-}
+struct DropOnGround;
 
 fn setup(
     mut commands: Commands,
@@ -275,16 +269,28 @@ fn setup(
         },
         Transform::from_xyz(1.0, 3.0, 2.0).looking_at(Vec3::ZERO, Vec3::Y),
     ));
-    // Markers of the ground's height under each Fox (the ground itself rolls: its height is
-    // read from `ground_height`).
+    // The terrain: hills up to 30°, terraces a third of a leg high (the Fox is ~100 long, its
+    // legs ~30), marked as the ground the characters stand on.
+    let (positions, triangles) = terrain::terrain(&terrain::TerrainSpec {
+        origin: glam::DVec2::splat(-SPACING as f64),
+        size: glam::DVec2::splat((extent + SPACING) as f64),
+        cells: 160,
+        max_slope_deg: 30.0,
+        step: 10.0,
+        terrace: 2.0 * SPACING as f64,
+    });
+    commands.spawn((
+        Mesh3d(meshes.add(mesh_from_triangles(&positions, &triangles))),
+        MeshMaterial3d(materials.add(Color::srgb(0.3, 0.45, 0.3))),
+        Ground,
+    ));
     let scene = assets.load(GltfAssetLabel::Scene(0).from_asset(FOX));
-    let disc = meshes.add(Cylinder::new(70.0, 2.0));
-    let grass = materials.add(Color::srgb(0.3, 0.45, 0.3));
     for k in 0..crowd.0 {
         let (x, z) = ((k % side) as f32 * SPACING, (k / side) as f32 * SPACING);
         commands.spawn((
             WorldAssetRoot(scene.clone()),
-            Transform::from_xyz(x, ground_height(x, z, 0.0), z),
+            Transform::from_xyz(x, 0.0, z),
+            DropOnGround,
             Poseable::default(),
             PoseInFrame { iterations: 3 },
             // The pose holds the legs (feet on the ground) and the neck and head (the look);
@@ -295,48 +301,26 @@ fn setup(
             },
             // Joints nothing pulls on stay with the animation.
             PoseStiffness(0.3),
-        ));
-        commands.spawn((
-            Mesh3d(disc.clone()),
-            MeshMaterial3d(grass.clone()),
-            Transform::from_xyz(x, ground_height(x, z, 0.0) - 1.0, z),
-            OnGround { x, z, lift: -1.0 },
+            PoseGround::default(),
+            PoseBalance::default(),
         ));
     }
 }
 
-/// Once a Fox is poseable: a position effector on each of its lowest joints (feet and paws),
-/// at the ground under it.
-fn plant_feet(
+/// Puts each new Fox on the terrain under it, once the ground exists.
+fn drop_on_ground(
     mut commands: Commands,
-    foxes: Query<(Entity, &PosedSkeleton), Added<PosedSkeleton>>,
-    joints: Query<&GlobalTransform>,
+    ground: Option<Res<SceneGround>>,
+    mut foxes: Query<(Entity, &mut Transform), With<DropOnGround>>,
 ) {
-    for (fox, posed) in &foxes {
-        let feet: Vec<(Entity, Vec3)> = posed
-            .lowest_joints(0.04)
-            .into_iter()
-            .filter_map(|j| Some((j, joints.get(j).ok()?.translation())))
-            .collect();
-        let lowest = feet.iter().map(|(_, p)| p.y).fold(f32::MAX, f32::min);
-        for (joint, p) in feet {
-            commands.spawn((
-                PoseEffector::position(fox, joint),
-                Transform::from_translation(p),
-                OnGround {
-                    x: p.x,
-                    z: p.z,
-                    lift: p.y - lowest,
-                },
-            ));
+    let Some(ground) = ground else {
+        return;
+    };
+    for (fox, mut transform) in &mut foxes {
+        let from = transform.translation.as_dvec3() + glam::DVec3::Y * 1e4;
+        if let Some(hit) = ground.cast_down(from, glam::DVec3::NEG_Y, 2e4) {
+            transform.translation.y = hit.point.y as f32;
+            commands.entity(fox).remove::<DropOnGround>();
         }
-    }
-}
-
-/// The ground rolls: every foot target (and ground marker) follows its height.
-fn roll_ground(time: Res<Time>, mut targets: Query<(&OnGround, &mut Transform)>) {
-    let t = time.elapsed_secs();
-    for (on, mut transform) in &mut targets {
-        transform.translation.y = ground_height(on.x, on.z, t) + on.lift;
     }
 }

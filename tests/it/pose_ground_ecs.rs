@@ -109,7 +109,9 @@ fn a_character_pushed_into_the_ground_stops_at_it() {
 fn a_character_placed_above_a_slope_stands_on_it() {
     let mut app = common::app();
     app.add_plugins(PosePlugin);
-    app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_millis(16)));
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_millis(
+        16,
+    )));
     let rig = mannequin_rig(20);
     let lowest = rig
         .mesh
@@ -139,7 +141,9 @@ fn a_character_placed_above_a_slope_stands_on_it() {
         PoseGround::default(),
     ));
     update_until(&mut app, "the stance", |a| {
-        a.world().get::<PoseStatus>(root).is_some_and(|s| s.solves > 0)
+        a.world()
+            .get::<PoseStatus>(root)
+            .is_some_and(|s| s.solves > 0)
     });
     app.update();
     let posed = app.world().get::<PosedSkeleton>(root).unwrap().clone();
@@ -161,7 +165,10 @@ fn a_character_placed_above_a_slope_stands_on_it() {
     let height = |p: &glam::DVec3| (*p - at.as_dvec3()).dot(normal);
     let size = posed.model.topology().bounding_diagonal();
     let deepest = skinned.iter().map(height).fold(f64::INFINITY, f64::min);
-    assert!(deepest > -1e-3 * size, "a vertex is {deepest} below the slope");
+    assert!(
+        deepest > -1e-3 * size,
+        "a vertex is {deepest} below the slope"
+    );
     for side in [1.0f32, -1.0] {
         let foot = (0..rig.mesh.positions.len())
             .filter(|&i| {
