@@ -276,6 +276,9 @@ pub enum ContactEvent {
     Planted,
     /// The pose lifted the patch past the release height: released.
     Released,
+    /// The character moved on while the patch stayed planted: it trailed more than the stride
+    /// from where the character carries it, and was released to be planted again under it.
+    Stepped,
     /// The cast hit nothing: the contact is free (no ground under it).
     NoGround,
     /// The cast returned a non-finite hit: ignored, the contact keeps its last ground.
@@ -298,13 +301,20 @@ pub struct ContactTracker {
     pub release_height: f64,
     /// How far above the patch a cast starts, and how far below it it reaches.
     pub reach: f64,
+    /// A planted patch whose centroid is this far (across gravity) from where the character
+    /// carries it ([`ContactTracker::home`]) is released: the character walked on (world units).
+    pub stride: f64,
+    /// Each patch's centroid where the character carries it, in the pose the tracker was made
+    /// for (character space).
+    pub home: Vec<DVec3>,
 }
 
 impl ContactTracker {
     /// Tracks `joints` of `model` (their sole patches in `pose`), with heights as fractions of
     /// the model's size: a patch within 8 % of the ground is planted (laid on it: a foot over a
     /// lower step or downhill comes down to it, as foot placement does), one lifted more than
-    /// 12 % is released; casts reach 50 %.
+    /// 12 % is released, one the character has walked 15 % away from is released to be planted
+    /// again under it; casts reach 50 %.
     pub fn new(model: &SkinnedModel, pose: &SkeletonPose, joints: &[usize], down: DVec3) -> Self {
         let down = down.try_normalize().unwrap_or(DVec3::NEG_Y);
         let size = model.topology().bounding_diagonal();
@@ -322,7 +332,17 @@ impl ContactTracker {
                 )
             })
             .collect::<Vec<_>>();
+        let skinned = model.skin_welded(pose);
+        let home = contacts
+            .iter()
+            .map(|c| {
+                c.patch.iter().map(|&v| skinned[v as usize]).sum::<DVec3>()
+                    / c.patch.len().max(1) as f64
+            })
+            .collect();
         Self {
+            home,
+            stride: 0.15 * size,
             grounded: vec![false; contacts.len()],
             contacts,
             down,
@@ -333,8 +353,7 @@ impl ContactTracker {
     }
 
     /// Casts down from each patch of `model` in `pose` onto `ground`, updates grounds, plants
-    /// and releases; returns what happened to each contact. `up_of(joint)` is the joint's
-    /// `up` axis as `pose` carries it (for laying a planted sole flat).
+    /// and releases; returns what happened to each contact.
     pub fn update(
         &mut self,
         model: &SkinnedModel,
@@ -344,7 +363,22 @@ impl ContactTracker {
         let skinned = model.skin_welded(pose);
         let globals = model.skeleton().global_transforms(pose);
         let mut events = Vec::with_capacity(self.contacts.len());
-        for (c, grounded) in self.contacts.iter_mut().zip(&mut self.grounded) {
+        for ((c, grounded), home) in self
+            .contacts
+            .iter_mut()
+            .zip(&mut self.grounded)
+            .zip(&self.home)
+        {
+            // Walked on: a planted patch left behind is released (and re-planted below).
+            if let Some(planted) = &c.planted {
+                let centre = planted.iter().sum::<DVec3>() / planted.len().max(1) as f64;
+                let off = centre - *home;
+                if (off - self.down * off.dot(self.down)).length() > self.stride {
+                    c.release();
+                    events.push(ContactEvent::Stepped);
+                    continue;
+                }
+            }
             let patch: Vec<DVec3> = c.patch.iter().map(|&v| skinned[v as usize]).collect();
             if patch.is_empty() {
                 events.push(ContactEvent::NoGround);

@@ -486,3 +486,39 @@ fn tracked_contacts_stand_the_body_on_steps() {
     assert!(events.iter().all(|e| *e == ContactEvent::NonFiniteHit));
     assert_eq!(tracker.contacts, before);
 }
+
+/// Issue 42: a character that walked on leaves its planted patches behind in its own space;
+/// past the stride they are released and planted again under it.
+#[test]
+fn a_patch_left_behind_by_a_walk_is_stepped_and_planted_again() {
+    let s = scene();
+    let down = DVec3::NEG_Y;
+    let feet = lowest_joints(&s.model, &s.rig.rest, down, 0.03 * s.size);
+    let mut tracker = ContactTracker::new(&s.model, &s.rig.rest, &feet, down);
+    let ground = s.flat_ground();
+    let events = tracker.update(&s.model, &s.rig.rest, &ground);
+    assert!(events.iter().all(|e| *e == ContactEvent::Planted), "{events:?}");
+    // Half a stride: the planted patches hold.
+    let walk = |tracker: &mut ContactTracker, dx: f64| {
+        for c in &mut tracker.contacts {
+            for p in c.planted.iter_mut().flatten() {
+                p.x -= dx;
+            }
+        }
+    };
+    let stride = tracker.stride;
+    walk(&mut tracker, 0.5 * stride);
+    let events = tracker.update(&s.model, &s.rig.rest, &ground);
+    assert!(events.iter().all(|e| *e == ContactEvent::Unchanged), "{events:?}");
+    // Past the stride: stepped, then planted again where the body carries them.
+    walk(&mut tracker, 0.6 * stride);
+    let events = tracker.update(&s.model, &s.rig.rest, &ground);
+    assert!(events.iter().all(|e| *e == ContactEvent::Stepped), "{events:?}");
+    let events = tracker.update(&s.model, &s.rig.rest, &ground);
+    assert!(events.iter().all(|e| *e == ContactEvent::Planted), "{events:?}");
+    for (c, home) in tracker.contacts.iter().zip(&tracker.home) {
+        let planted = c.planted.as_ref().unwrap();
+        let centre = planted.iter().sum::<DVec3>() / planted.len() as f64;
+        assert!((centre.x - home.x).abs() < 1e-9, "planted under the body again");
+    }
+}
