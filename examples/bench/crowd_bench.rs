@@ -17,11 +17,22 @@
 //! characters share one model per asset: 1), `playing`, `peak_rss_mb` (the process's peak
 //! resident memory) and `rss_growth_kb_per_frame` (resident memory from frame 500 — or half
 //! the run, when shorter — to the end, per frame: flat under in-frame posing).
+//!
+//! `--terrain` (`walking_field.rs`): the characters stand on the crowd example's hilly,
+//! terraced terrain mesh (`Ground`; hills up to 30°, steps 10 units, about a third of the Fox's
+//! leg) with `PoseGround` and `PoseBalance` instead of foot effectors, and walk across it (40
+//! units/s, the root kept on the ground under it by a cast), so their paws are left behind and
+//! planted again. Adds `penetration_max` (deepest skinned vertex below the terrain / size,
+//! sampled every 20 frames), `planted_per_character` (mean planted contacts at the end) and
+//! `replants` (plants after the first stance, all characters).
 
 #[path = "../common/cli.rs"]
 mod cli;
 #[path = "../common/headless_gltf.rs"]
 mod headless_gltf;
+#[path = "../common/terrain.rs"]
+mod terrain;
+mod walking_field;
 
 use std::time::{Duration, Instant};
 
@@ -39,16 +50,21 @@ struct Args {
     iterations: u32,
     model: String,
     playing: bool,
+    /// `--terrain`: on the crowd example's terrain mesh, walking, standing by `PoseGround`.
+    terrain: bool,
 }
 
 const USAGE: &str = "\
-usage: crowd_bench [--characters N] [--frames N] [--iterations N] [--model PATH] [--playing] [--json]
+usage: crowd_bench [--characters N] [--frames N] [--iterations N] [--model PATH] [--playing]
+                   [--terrain] [--json]
 
   --characters N  Foxes (default 100)
   --frames N      measured frames (default 120)
   --iterations N  solver iterations per frame (default 3)
   --model PATH    the rigged glTF (default assets/models/Fox.glb)
   --playing       each plays its clip; the pose is an additive layer over it
+  --terrain       on a hilly, terraced terrain mesh (Ground), walking, stood by PoseGround and
+                  PoseBalance (no foot effectors)
   --json          accepted for older command lines: the JSON is always the last line";
 
 fn args() -> Args {
@@ -58,6 +74,7 @@ fn args() -> Args {
         iterations: 3,
         model: "assets/models/Fox.glb".into(),
         playing: false,
+        terrain: false,
     };
     let mut parser = cli::Parser::from_env();
     while let Some(arg) = cli::next(&mut parser, USAGE) {
@@ -67,6 +84,7 @@ fn args() -> Args {
             cli::Arg::Long("iterations") => args.iterations = cli::value(&mut parser, USAGE),
             cli::Arg::Long("model") => args.model = cli::string(&mut parser, USAGE),
             cli::Arg::Long("playing") => args.playing = true,
+            cli::Arg::Long("terrain") => args.terrain = true,
             cli::Arg::Long("json") => {}
             other => cli::unexpected(other, USAGE),
         }
@@ -111,22 +129,34 @@ fn main() {
     }
     let clip = clip.filter(|_| args.playing);
     let side = (args.characters as f32).sqrt().ceil() as usize;
+    let mut field = args
+        .terrain
+        .then(|| walking_field::spawn(&mut app, side, args.frames));
     let roots: Vec<Entity> = (0..args.characters)
         .map(|k| {
-            let at = Vec3::new((k % side) as f32, 0.0, (k / side) as f32) * 150.0;
-            app.world_mut()
-                .spawn((
-                    WorldAssetRoot(scene.clone()),
-                    Transform::from_translation(at),
-                    Poseable {
-                        max_iterations: args.iterations,
-                        ..default()
-                    },
-                    PoseInFrame {
-                        iterations: args.iterations,
-                    },
-                ))
-                .id()
+            let mut at = Vec3::new((k % side) as f32, 0.0, (k / side) as f32) * 150.0;
+            if let Some(field) = &field {
+                at.y = field.height(at);
+            }
+            let mut fox = app.world_mut().spawn((
+                WorldAssetRoot(scene.clone()),
+                Transform::from_translation(at),
+                Poseable {
+                    max_iterations: args.iterations,
+                    ..default()
+                },
+                PoseInFrame {
+                    iterations: args.iterations,
+                },
+            ));
+            if field.is_some() {
+                fox.insert((
+                    PoseGround::default(),
+                    PoseBalance::default(),
+                    walking_field::Walker,
+                ));
+            }
+            fox.id()
         })
         .collect();
     let setup = Instant::now();
@@ -161,7 +191,11 @@ fn main() {
                 .insert((PoseBlend::additive(1.0), PoseStiffness(0.3)));
         }
     }
-    let effectors = plant_feet(&mut app, &roots);
+    let effectors = if field.is_some() {
+        0
+    } else {
+        plant_feet(&mut app, &roots)
+    };
     for _ in 0..20 {
         app.update();
     }
@@ -187,6 +221,11 @@ fn main() {
         {
             solve_ms.add(status.solve_ms);
         }
+        if let Some(field) = field.as_mut()
+            && frame % 20 == 0
+        {
+            field.sample(&app, &roots);
+        }
     }
     let rss_growth_kb_per_frame = match (rss_from, resident_kb()) {
         (Some(a), Some(b)) if args.frames > from => {
@@ -194,12 +233,11 @@ fn main() {
         }
         _ => None,
     };
+    let ground_report = field.as_ref().map(|f| f.report(&app, &roots));
     let mut frames = std::mem::take(&mut app.world_mut().resource_mut::<SolverClock>().frames_ms);
     frames.sort_by(f64::total_cmp);
     let pick = |v: &[f64], p: f64| v[((v.len() - 1) as f64 * p).round() as usize];
-    println!(
-        "{}",
-        serde_json::json!({
+    let mut report = serde_json::json!({
             "characters": roots.len(),
             "effectors_per_character": effectors as f64 / roots.len() as f64,
             "solver_ms_per_frame_median": pick(&frames, 0.5),
@@ -210,8 +248,11 @@ fn main() {
             "playing": args.playing,
             "peak_rss_mb": peak_resident_kb().map(|kb| kb as f64 / 1024.0),
             "rss_growth_kb_per_frame": rss_growth_kb_per_frame,
-        })
-    );
+    });
+    if let (Some(extra), Some(fields)) = (ground_report, report.as_object_mut()) {
+        fields.extend(extra);
+    }
+    println!("{report}");
 }
 
 /// A histogram of positive durations on a log scale (0.1 µs to 10 s, 0.23 % wide bins):

@@ -497,7 +497,10 @@ fn a_patch_left_behind_by_a_walk_is_stepped_and_planted_again() {
     let mut tracker = ContactTracker::new(&s.model, &s.rig.rest, &feet, down);
     let ground = s.flat_ground();
     let events = tracker.update(&s.model, &s.rig.rest, &ground);
-    assert!(events.iter().all(|e| *e == ContactEvent::Planted), "{events:?}");
+    assert!(
+        events.iter().all(|e| *e == ContactEvent::Planted),
+        "{events:?}"
+    );
     // Half a stride: the planted patches hold.
     let walk = |tracker: &mut ContactTracker, dx: f64| {
         for c in &mut tracker.contacts {
@@ -509,16 +512,28 @@ fn a_patch_left_behind_by_a_walk_is_stepped_and_planted_again() {
     let stride = tracker.stride;
     walk(&mut tracker, 0.5 * stride);
     let events = tracker.update(&s.model, &s.rig.rest, &ground);
-    assert!(events.iter().all(|e| *e == ContactEvent::Unchanged), "{events:?}");
+    assert!(
+        events.iter().all(|e| *e == ContactEvent::Unchanged),
+        "{events:?}"
+    );
     // Past the stride: stepped, then planted again where the body carries them.
     walk(&mut tracker, 0.6 * stride);
     let events = tracker.update(&s.model, &s.rig.rest, &ground);
-    assert!(events.iter().all(|e| *e == ContactEvent::Stepped), "{events:?}");
+    assert!(
+        events.iter().all(|e| *e == ContactEvent::Stepped),
+        "{events:?}"
+    );
     let events = tracker.update(&s.model, &s.rig.rest, &ground);
-    assert!(events.iter().all(|e| *e == ContactEvent::Planted), "{events:?}");
+    assert!(
+        events.iter().all(|e| *e == ContactEvent::Planted),
+        "{events:?}"
+    );
     for (c, home) in tracker.contacts.iter().zip(&tracker.home) {
         let planted = c.planted.as_ref().unwrap();
         let centre = planted.iter().sum::<DVec3>() / planted.len() as f64;
-        assert!((centre.x - home.x).abs() < 1e-9, "planted under the body again");
+        assert!(
+            (centre.x - home.x).abs() < 1e-9,
+            "planted under the body again"
+        );
     }
 }

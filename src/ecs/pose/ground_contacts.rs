@@ -12,7 +12,7 @@ use crate::pose::{
 /// Adds to `constraints` (character space) the character's ground contacts — found on the
 /// first call, cast on `ground` (world space) from the patches as `pose` carries them, planted
 /// and released — the floor under its root and, with `balance`, the centre of mass over the
-/// planted patches.
+/// planted patches. Returns the contacts planted now and those planted by this call.
 pub(super) fn stand_on(
     constraints: &mut PoseConstraints,
     (tracker, posed, pose): (
@@ -23,7 +23,7 @@ pub(super) fn stand_on(
     settings: &PoseGround,
     balance: Option<&PoseBalance>,
     ground: &SceneGround,
-) {
+) -> (u32, u32) {
     let to_world = posed.placement;
     let to_character = to_world.inverse();
     let down = (to_character.matrix3 * DVec3::NEG_Y).normalize_or(DVec3::NEG_Y);
@@ -42,7 +42,11 @@ pub(super) fn stand_on(
         follow_the_world(tracker, &(to_character * *placed_at));
         *placed_at = to_world;
     }
-    tracker.update(model, pose, &cast);
+    let events = tracker.update(model, pose, &cast);
+    let planted_now = events
+        .iter()
+        .filter(|e| **e == crate::pose::ContactEvent::Planted)
+        .count() as u32;
     constraints.contacts = tracker.active();
     let globals = model.skeleton().global_transforms(pose);
     if let Some(root) = globals.first()
@@ -65,6 +69,12 @@ pub(super) fn stand_on(
             masses: None,
         });
     }
+    let planted = tracker
+        .contacts
+        .iter()
+        .filter(|c| c.planted.is_some())
+        .count() as u32;
+    (planted, planted_now)
 }
 
 /// Re-expresses the contacts' grounds and planted points after the character moved: `moved`

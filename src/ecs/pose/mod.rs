@@ -406,6 +406,11 @@ pub struct PoseStatus {
     /// (from [`MissingSceneAssets`](crate::ecs::MissingSceneAssets)).
     #[reflect(skip_serializing)]
     pub warning: Option<String>,
+    /// With [`PoseGround`]: the contacts planted after the last request.
+    pub contacts_planted: u32,
+    /// With [`PoseGround`]: contacts planted so far, the first stance's included (a walk
+    /// re-plants each patch left behind).
+    pub plants: u64,
 }
 
 /// Why a character could not be made poseable or posed (in [`PoseFailed`] and

@@ -276,7 +276,7 @@ fn constraints_of(
     drivers: &Drivers,
     (pins, anchor): (&[Entity], &PoseAnchor),
     extras: &CharacterSettingsItem,
-    joints: &JointTransforms,
+    (joints, status): (&JointTransforms, &mut PoseStatus),
 ) -> Result<(PoseConstraints, Option<SkeletonPose>), super::PoseableError> {
     let limits = resolve_limits(posed, extras.limits.as_ref(), &mut state.limits)?;
     let mut fixed_joints: Vec<usize> = pins
@@ -358,7 +358,10 @@ fn constraints_of(
         let pose = start.as_ref().unwrap_or(&posed.pose);
         let balance = extras.balance.filter(|b| b.enabled);
         let place = (&mut state.contacts, posed, pose);
-        super::ground_contacts::stand_on(&mut constraints, place, settings, balance, ground);
+        let (planted, plants) =
+            super::ground_contacts::stand_on(&mut constraints, place, settings, balance, ground);
+        status.contacts_planted = planted;
+        status.plants += u64::from(plants);
     }
     Ok((constraints, start))
 }
@@ -440,7 +443,7 @@ pub(super) fn request_pose_solves(
             &drivers,
             (pinned, anchor),
             &extras,
-            &joints,
+            (&joints, status.bypass_change_detection()),
         );
         let (constraints, start) = match built {
             Ok(c) => c,
