@@ -153,6 +153,8 @@ fn main() {
                 fox.insert((
                     PoseGround::default(),
                     PoseBalance::default(),
+                    // A paw a step releases swings back under the body.
+                    PoseStiffness(0.3),
                     walking_field::Walker,
                 ));
             }

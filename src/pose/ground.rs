@@ -188,6 +188,11 @@ impl Ground for TriangleGround {
     }
 }
 
+/// The length of `v` across gravity (`down`, unit).
+fn horizontal(v: DVec3, down: DVec3) -> f64 {
+    (v - down * v.dot(down)).length()
+}
+
 /// Möller–Trumbore: the distance along `dir` from `o` to triangle `abc`, if hit (either side).
 fn ray_triangle(o: DVec3, dir: DVec3, a: DVec3, b: DVec3, c: DVec3) -> Option<f64> {
     let (e1, e2) = (b - a, c - a);
@@ -372,8 +377,7 @@ impl ContactTracker {
             // Walked on: a planted patch left behind is released (and re-planted below).
             if let Some(planted) = &c.planted {
                 let centre = planted.iter().sum::<DVec3>() / planted.len().max(1) as f64;
-                let off = centre - *home;
-                if (off - self.down * off.dot(self.down)).length() > self.stride {
+                if horizontal(centre - *home, self.down) > self.stride {
                     c.release();
                     events.push(ContactEvent::Stepped);
                     continue;
@@ -412,7 +416,11 @@ impl ContactTracker {
                                 c.release();
                                 ContactEvent::Released
                             }
-                            None if lowest <= self.plant_height => {
+                            // A patch a step released plants again once the body has
+                            // carried it back within half a stride (no plant where it trails).
+                            None if lowest <= self.plant_height
+                                && horizontal(centre - *home, self.down) <= 0.5 * self.stride =>
+                            {
                                 let up = c.up.map(|u| {
                                     (globals[c.joint].matrix3 * u).normalize_or(-self.down)
                                 });
