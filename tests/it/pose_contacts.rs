@@ -207,9 +207,10 @@ fn a_planted_foot_holds_under_a_pull_and_lifts_when_released() {
 #[test]
 fn a_body_dragged_into_the_floor_stops_at_it() {
     let s = scene();
+    // The band `PoseGround` uses (30 % of the size).
     let floor = Floor {
         plane: s.flat_ground(),
-        band: 0.1 * s.size,
+        band: 0.3 * s.size,
     };
     let hips = joint_positions(&s.rig.skeleton, &s.rig.rest)[HIPS];
     let deepest = |floor: Option<Floor>| {
@@ -228,7 +229,7 @@ fn a_body_dragged_into_the_floor_stops_at_it() {
                 Some(l) => PoseStart::Warm(l),
                 None => PoseStart::Pose(&s.rig.rest),
             };
-            last = Some(s.solve(&constraints, start, 10).unwrap());
+            last = Some(s.solve(&constraints, start, 20).unwrap());
         }
         let pose = last.unwrap().pose;
         s.skinned(&pose)

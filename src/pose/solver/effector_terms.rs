@@ -22,6 +22,8 @@ const EFFECTOR_STRENGTH: f64 = 100.0;
 const BALANCE_STRENGTH: f64 = 100.0;
 /// A contact's hold and non-penetration against a position effector at weight 1.
 const CONTACT_STRENGTH: f64 = 100.0;
+/// The contact skin, as a share of the model's size ([`ExtraTerms::skin`]).
+const CONTACT_SKIN: f64 = 1e-3;
 
 /// Strength of a weighted term: fades in over w ∈ [0, ¼].
 fn strength(weight: f64) -> f64 {
@@ -309,6 +311,13 @@ impl<'a> ExtraTerms<'a> {
         self.terms.is_empty()
     }
 
+    /// How far above its ground a vertex is held by a one-sided contact term: the penalty
+    /// balances a push at a depth proportional to it, so the term acts from a thin skin above
+    /// the surface and a pushed vertex comes to rest on the surface, not under it.
+    fn skin(&self) -> f64 {
+        CONTACT_SKIN * self.length_scale
+    }
+
     /// World rotation of a joint (scale divided out).
     fn rotation(globals: &[DAffine3], j: usize) -> DMat3 {
         DMat3::from_quat(rotation_of(&globals[j].matrix3))
@@ -391,7 +400,7 @@ impl<'a> ExtraTerms<'a> {
                     plane,
                     weight,
                 } => {
-                    let depth = plane.height(centroid_of(sums, skinning)).min(0.0);
+                    let depth = (plane.height(centroid_of(sums, skinning)) - self.skin()).min(0.0);
                     (*weight, Rows::of(&[plane.normal * depth]))
                 }
                 Term::Balance {
@@ -494,7 +503,7 @@ impl<'a> ExtraTerms<'a> {
                 .centroid_jacobian(sums, a, rotation, origin, skinning)
                 .map(|b| Rows::of(&[b])),
             Term::Above { sums, plane, .. } => {
-                if plane.height(centroid_of(sums, skinning)) >= 0.0 {
+                if plane.height(centroid_of(sums, skinning)) >= self.skin() {
                     return None;
                 }
                 let across = outer(plane.normal, plane.normal);

@@ -28,6 +28,10 @@ pub(super) fn poll_tasks(
             ));
         }
         if !polled.ended {
+            // The chain goes on with the newer constraints it took.
+            if status.error.is_none() {
+                status.phase = DeformPhase::Solving;
+            }
             continue;
         }
         if let Some(untaken) = polled.untaken

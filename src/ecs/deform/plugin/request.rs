@@ -105,6 +105,9 @@ pub(super) fn request_solves(
         };
         let Some(untaken) = state.solve.offer(offered) else {
             state.latest = Some(constraints);
+            if status.phase == DeformPhase::Idle {
+                status.phase = DeformPhase::Solving;
+            }
             continue;
         };
         state.pending = Some(untaken.constraints);
