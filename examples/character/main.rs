@@ -52,6 +52,7 @@ mod missing_textures;
 #[path = "../common/remote_cursor.rs"]
 mod remote_cursor;
 mod scene;
+mod standing;
 mod timeline;
 mod ui;
 mod unattended;
@@ -78,11 +79,14 @@ pub struct Args {
     pub pointer: Option<bool>,
     /// `--author-demo OUT.glb`: author a three-key clip by script, export, play back, exit.
     pub author_demo: Option<String>,
+    /// `--ground`: stand on the stage with contacts and balance from the start (G and B
+    /// toggle them).
+    pub ground: bool,
 }
 
 const USAGE: &str = "\
 usage: character [MODEL.glb] [--model MODEL.glb] [--remote [emulated]] [--pointer [emulated]]
-                 [--screenshot PATH [--frames N]] [--author-demo OUT.glb]
+                 [--screenshot PATH [--frames N]] [--author-demo OUT.glb] [--ground]
 
   MODEL.glb             a rigged glTF (default: the Fox, assets/models/Fox.glb); a path
                         relative to the working directory, to assets/, or absolute
@@ -90,7 +94,8 @@ usage: character [MODEL.glb] [--model MODEL.glb] [--remote [emulated]] [--pointe
   --pointer [emulated]  the Wii Remote's IR camera points; A grabs
   --screenshot PATH     script a grab, save frame N to PATH, exit
   --frames N            the frame to save (default 120)
-  --author-demo OUT.glb author a three-key clip by script, export it, play it back, exit";
+  --author-demo OUT.glb author a three-key clip by script, export it, play it back, exit
+  --ground              stand on the stage with contacts and balance (G, B toggle them)";
 
 impl Args {
     fn parse() -> Self {
@@ -101,6 +106,7 @@ impl Args {
             remote: None,
             pointer: None,
             author_demo: None,
+            ground: false,
         };
         let mut parser = cli::Parser::from_env();
         while let Some(arg) = cli::next(&mut parser, USAGE) {
@@ -115,6 +121,7 @@ impl Args {
                     args.screenshot = Some(cli::string(&mut parser, USAGE))
                 }
                 cli::Arg::Long("frames") => args.frames = cli::value(&mut parser, USAGE),
+                cli::Arg::Long("ground") => args.ground = true,
                 cli::Arg::Long("author-demo") => {
                     args.author_demo = Some(cli::string(&mut parser, USAGE))
                 }
@@ -165,6 +172,7 @@ fn main() {
         unattended::UnattendedPlugin,
         authoring::AuthorDemoPlugin,
         missing_textures::MissingTexturesPlugin,
+        standing::StandingPlugin,
     ))
     .run();
 }

@@ -21,9 +21,9 @@ impl Plugin for ScenePlugin {
 #[derive(Component)]
 pub struct Character;
 
-/// The ground plane.
+/// The stage's floor (the crate's `Ground`: what `PoseGround` stands the character on).
 #[derive(Component)]
-struct Ground;
+struct Stage;
 
 fn setup(
     mut commands: Commands,
@@ -47,6 +47,7 @@ fn setup(
     commands.spawn((
         Mesh3d(meshes.add(Plane3d::default().mesh().size(1000.0, 1000.0))),
         MeshMaterial3d(materials.add(Color::srgb(0.3, 0.35, 0.3))),
+        Stage,
         Ground,
     ));
     let scene = assets.load(GltfAssetLabel::Scene(0).from_asset(args.model.clone()));
@@ -57,7 +58,7 @@ fn setup(
 /// exporters often have their origin at the hips, not at the feet as the Fox has.
 fn ground_under_character(
     character: Query<&PosedSkeleton, (With<Character>, Added<PosedSkeleton>)>,
-    mut ground: Single<&mut Transform, With<Ground>>,
+    mut ground: Single<&mut Transform, With<Stage>>,
 ) {
     for posed in &character {
         let lowest = posed

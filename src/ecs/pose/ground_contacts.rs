@@ -6,13 +6,15 @@ use glam::{DAffine3, DVec3};
 use super::{PoseBalance, PoseGround, PosedSkeleton};
 use crate::ecs::SceneGround;
 use crate::pose::{
-    Balance, ContactTracker, Floor, GroundPlane, PoseConstraints, SkeletonPose, lowest_joints,
+    Balance, ContactTracker, Floor, GroundPlane, PoseConstraints, SkeletonPose, SupportPolygon,
+    lowest_joints,
 };
 
 /// Adds to `constraints` (character space) the character's ground contacts — found on the
 /// first call, cast on `ground` (world space) from the patches as `pose` carries them, planted
 /// and released — the floor under its root and, with `balance`, the centre of mass over the
-/// planted patches. Returns the contacts planted now and those planted by this call.
+/// planted patches. Returns the contacts planted now, those planted by this call and the
+/// support polygon's corners (character space).
 pub(super) fn stand_on(
     constraints: &mut PoseConstraints,
     (tracker, posed, pose): (
@@ -23,7 +25,7 @@ pub(super) fn stand_on(
     settings: &PoseGround,
     balance: Option<&PoseBalance>,
     ground: &SceneGround,
-) -> (u32, u32) {
+) -> (u32, u32, Vec<DVec3>) {
     let to_world = posed.placement;
     let to_character = to_world.inverse();
     let down = (to_character.matrix3 * DVec3::NEG_Y).normalize_or(DVec3::NEG_Y);
@@ -58,6 +60,12 @@ pub(super) fn stand_on(
         });
     }
     let support = tracker.support();
+    let corners = support
+        .iter()
+        .max_by(|a, b| a.dot(down).total_cmp(&b.dot(down)))
+        .map_or(Vec::new(), |lowest| {
+            SupportPolygon::new(&support, down).corners_at(*lowest)
+        });
     if let Some(b) = balance
         && !support.is_empty()
     {
@@ -74,7 +82,7 @@ pub(super) fn stand_on(
         .iter()
         .filter(|c| c.planted.is_some())
         .count() as u32;
-    (planted, planted_now)
+    (planted, planted_now, corners)
 }
 
 /// Re-expresses the contacts' grounds and planted points after the character moved: `moved`

@@ -411,6 +411,9 @@ pub struct PoseStatus {
     /// With [`PoseGround`]: contacts planted so far, the first stance's included (a walk
     /// re-plants each patch left behind).
     pub plants: u64,
+    /// With [`PoseGround`]: the support polygon of the planted contacts (world space, at the
+    /// height of their lowest point; empty when nothing is planted), to draw.
+    pub support_polygon: Vec<Vec3>,
 }
 
 /// Why a character could not be made poseable or posed (in [`PoseFailed`] and

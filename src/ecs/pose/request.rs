@@ -358,10 +358,14 @@ fn constraints_of(
         let pose = start.as_ref().unwrap_or(&posed.pose);
         let balance = extras.balance.filter(|b| b.enabled);
         let place = (&mut state.contacts, posed, pose);
-        let (planted, plants) =
+        let (planted, plants, corners) =
             super::ground_contacts::stand_on(&mut constraints, place, settings, balance, ground);
         status.contacts_planted = planted;
         status.plants += u64::from(plants);
+        status.support_polygon = corners
+            .iter()
+            .map(|c| posed.placement.transform_point3(*c).as_vec3())
+            .collect();
     }
     Ok((constraints, start))
 }
