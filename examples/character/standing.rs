@@ -18,6 +18,17 @@ impl Plugin for StandingPlugin {
     }
 }
 
+/// The character with its standing settings.
+type Standing<'w, 's> =
+    Query<'w, 's, (Entity, Has<PoseGround>, Option<&'static PoseBalance>), With<Character>>;
+/// A standing character's model, pose and status.
+type Grounded<'w, 's> = Query<
+    'w,
+    's,
+    (&'static PosedSkeleton, &'static PoseStatus),
+    (With<Character>, With<PoseGround>),
+>;
+
 /// `--ground`: the character stands and balances from the start.
 fn start_standing(
     mut commands: Commands,
@@ -35,11 +46,7 @@ fn start_standing(
 }
 
 /// G: ground contacts on or off; B: balance on or off.
-fn toggle_standing(
-    mut commands: Commands,
-    keys: Res<ButtonInput<KeyCode>>,
-    character: Query<(Entity, Has<PoseGround>, Option<&PoseBalance>), With<Character>>,
-) {
+fn toggle_standing(mut commands: Commands, keys: Res<ButtonInput<KeyCode>>, character: Standing) {
     for (e, grounded, balance) in &character {
         if keys.just_pressed(KeyCode::KeyG) {
             if grounded {
@@ -59,10 +66,7 @@ fn toggle_standing(
 }
 
 /// The support polygon of the planted feet and the centre of mass seen along gravity.
-fn draw_balance(
-    mut gizmos: Gizmos,
-    character: Query<(&PosedSkeleton, &PoseStatus), (With<Character>, With<PoseGround>)>,
-) {
+fn draw_balance(mut gizmos: Gizmos, character: Grounded) {
     for (posed, status) in &character {
         let corners = &status.support_polygon;
         if corners.is_empty() {
