@@ -91,7 +91,6 @@ fn drag(
         com_margin_min: f64::INFINITY,
         replants: 0,
     };
-    let masses = vertex_masses(model);
     let mut last: Option<PoseSolution> = None;
     let mut previous: Option<Vec<Option<Vec<DVec3>>>> = None;
     let drag_to = |reach: f64| Handle {
@@ -133,7 +132,6 @@ fn drag(
             }),
             balance: (balance && !support.is_empty()).then(|| Balance {
                 margin: 0.01 * size,
-                masses: Some(masses.clone()),
                 ..Balance::over(support.clone())
             }),
             ..Default::default()
@@ -154,7 +152,7 @@ fn drag(
             .expect("a solve");
         if frame > 0 {
             run.ms.push(t.elapsed().as_secs_f64() * 1e3);
-            measure(&mut run, model, &solved.pose, &tracker, ground, &masses);
+            measure(&mut run, model, &solved.pose, &tracker, ground);
         }
         // Planted patches: how far each moved since the last frame, while planted in both.
         let skinned = model.skin_welded(&solved.pose);
@@ -193,7 +191,6 @@ fn measure(
     pose: &SkeletonPose,
     tracker: &ContactTracker,
     ground: &dyn Ground,
-    masses: &[f64],
 ) {
     let size = model.topology().bounding_diagonal();
     let skinned = model.skin_welded(pose);
@@ -210,7 +207,7 @@ fn measure(
     }
     let support = tracker.support();
     if !support.is_empty()
-        && let Some(com) = centre_of_mass(model, pose, Some(masses))
+        && let Some(com) = centre_of_mass(model, pose, None)
     {
         let polygon = SupportPolygon::new(&support, DVec3::NEG_Y);
         let d = polygon.signed_distance(com) / size;

@@ -237,11 +237,6 @@ fn main() {
     let diagonal = bevy_wii_deform::deform::Topology::new(&tri.positions, &tri.triangles)
         .map(|t| t.bounding_diagonal() as f32)
         .unwrap_or(1.0);
-    let mesh = mesh_from_triangles(&tri.positions, &tri.triangles);
-    let (fixed, handle) = synth::slab_regions(&tri.positions, 1, 0.1, 0.1);
-    let fixed_set = fixed.clone();
-    let bundle_src = mesh.clone();
-    let h = app.world_mut().resource_mut::<Assets<Mesh>>().add(mesh);
     let deformable = Deformable {
         max_iterations: Some(iterations),
         tolerance: Some(0.0),
@@ -255,23 +250,20 @@ fn main() {
             region_radius: 0.3 * diagonal,
             ..default()
         };
+        let mesh = mesh_from_triangles(&tri.positions, &tri.triangles);
+        let h = app.world_mut().resource_mut::<Assets<Mesh>>().add(mesh);
         app.world_mut()
             .spawn((Mesh3d(h), deformable.clone(), grabbable))
             .id()
     } else {
-        let e = app
-            .world_mut()
-            .spawn((Mesh3d(h), deformable.clone(), FixedRegion(fixed)))
-            .id();
-        let (handle, transform) = DeformHandle::bundle(&bundle_src, e, handle);
-        app.world_mut().spawn((handle, transform, Dragged));
-        e
+        spawn_dragged_bar(&mut app, &tri, &deformable)
     };
     if grab {
         return run_grabs(&mut app, e, &tri, seconds, fps);
     }
     if args.set_changes {
-        return run_set_changes(&mut app, e, &tri, &fixed_set, diagonal, seconds, fps);
+        let (fixed, _) = synth::slab_regions(&tri.positions, 1, 0.1, 0.1);
+        return run_set_changes(&mut app, e, &tri, &fixed, diagonal, seconds, fps);
     }
     if args.many > 1 {
         let mut meshes = vec![e];
@@ -294,7 +286,8 @@ fn task_pools(async_threads: Option<usize>) -> bevy::app::TaskPoolPlugin {
     }
 }
 
-/// Another copy of the benchmark mesh, held at its bottom slab and dragged by its top one.
+/// The benchmark mesh, held at its bottom slab and dragged by its top one (`--many`: one
+/// copy of several).
 fn spawn_dragged_bar(app: &mut App, tri: &TriMesh, deformable: &Deformable) -> Entity {
     let mesh = mesh_from_triangles(&tri.positions, &tri.triangles);
     let (fixed, handle) = synth::slab_regions(&tri.positions, 1, 0.1, 0.1);

@@ -103,21 +103,16 @@ pub fn optional_word(parser: &mut Parser, word: &str) -> bool {
 }
 
 /// A model path as a user types it, made loadable by Bevy's asset server (whose root is the
-/// project's `assets/` folder; unapproved paths must be allowed): a path relative to the
-/// working directory or absolute, when the file is there, becomes absolute; otherwise one
-/// relative to `assets/` (`models/Fox.glb`) or, as before the models moved into the
-/// repository, to the project's parent folder (`shared/models/Fox.glb`).
+/// project's `assets/` folder; unapproved paths must be allowed): one relative to `assets/`
+/// (`models/Fox.glb`) stays as it is; one relative to the working directory or absolute, when
+/// the file is there, becomes absolute.
 pub fn asset_path(user: &str) -> String {
-    let manifest = project_dir();
-    let manifest = manifest.as_path();
-    let candidates: [PathBuf; 2] = [PathBuf::from(user), manifest.join("..").join(user)];
-    if manifest.join("assets").join(user).is_file() {
+    if project_dir().join("assets").join(user).is_file() {
         return user.to_string();
     }
-    candidates
-        .iter()
-        .find(|p| p.is_file())
-        .and_then(|p| std::fs::canonicalize(p).ok())
+    std::fs::canonicalize(user)
+        .ok()
+        .filter(|p| p.is_file())
         .map(|p| p.to_string_lossy().into_owned())
         .unwrap_or_else(|| user.to_string())
 }

@@ -38,7 +38,7 @@ pub struct Balance {
     /// Weight in [0, 1], as effectors': 0 is no balance; 1 holds the centre of mass a hundred
     /// times as firmly as a position effector of weight 1 holds its joint.
     pub weight: f64,
-    /// Mass per welded vertex (`None`: [`vertex_masses`], area per vertex).
+    /// Mass per welded vertex (`None`: area per vertex, [`SkinnedModel::area_masses`]).
     pub masses: Option<Vec<f64>>,
 }
 
@@ -86,21 +86,14 @@ pub fn vertex_masses(model: &SkinnedModel) -> Vec<f64> {
     mass
 }
 
-/// The centre of mass of `model` skinned by `pose` (`masses` per welded vertex, or
-/// [`vertex_masses`]). `None` when the masses sum to zero.
+/// The centre of mass of `model` skinned by `pose` (`masses` per welded vertex, or the
+/// model's [`SkinnedModel::area_masses`]). `None` when the masses sum to zero.
 pub fn centre_of_mass(
     model: &SkinnedModel,
     pose: &SkeletonPose,
     masses: Option<&[f64]>,
 ) -> Option<DVec3> {
-    let own;
-    let masses = match masses {
-        Some(m) => m,
-        None => {
-            own = vertex_masses(model);
-            &own
-        }
-    };
+    let masses = masses.unwrap_or_else(|| model.area_masses());
     let skinned = model.skin_welded(pose);
     let total: f64 = masses.iter().sum();
     (total > 0.0).then(|| {

@@ -119,6 +119,9 @@ pub struct SkinnedModel {
     rest_scale: f64,
     /// Per joint, the share of the body its rotation carries ([`super::inertia`]).
     relative_inertia: Vec<f64>,
+    /// Mass per welded vertex by area ([`super::balance::vertex_masses`]), made by the first
+    /// balance that needs it.
+    area_masses: std::sync::OnceLock<Vec<f64>>,
     pub(crate) q: Vec<f64>,
     pub(crate) k: Vec<f64>,
     pub(crate) c0: f64,
@@ -172,6 +175,7 @@ impl SkinnedModel {
         let relative_inertia = super::inertia::relative_inertia(&skeleton, &bind, &influences);
         let mut model = Self {
             relative_inertia,
+            area_masses: std::sync::OnceLock::new(),
             skeleton,
             topology,
             render_influences,
@@ -252,6 +256,13 @@ impl SkinnedModel {
             }
         }
         (0..n).filter(|&j| !reached[j]).collect()
+    }
+
+    /// Mass per welded vertex, a third of the bind-pose area of each triangle around it
+    /// ([`super::balance`]'s mass model), computed once.
+    pub fn area_masses(&self) -> &[f64] {
+        self.area_masses
+            .get_or_init(|| super::balance::vertex_masses(self))
     }
 
     /// Bind-pose position of each welded vertex (mesh space).

@@ -8,7 +8,7 @@ use bevy_wii_deform::pose::synth_rig::{SyntheticRig, mannequin_rig};
 use bevy_wii_deform::pose::*;
 use glam::DVec3;
 
-use crate::common::model_of;
+use crate::common::{model_of, solve_pose};
 
 const LEFT_WRIST: usize = 6;
 const ANKLES: [usize; 2] = [9, 15];
@@ -53,23 +53,15 @@ fn pulled(
         balance,
         ..Default::default()
     };
-    let solver = PoseSolver::new(
-        model.clone(),
-        &constraints,
+    solve_pose(
+        model,
         &rig.rest,
-        PoseSolverSettings::default(),
+        &constraints,
+        60,
+        PoseStart::Pose(&rig.rest),
     )
-    .unwrap();
-    let options = PoseSolveOptions {
-        max_iterations: 60,
-        tolerance: 0.0,
-    };
-    solver
-        .solve(&constraints, &options, PoseStart::Pose(&rig.rest), &|| {
-            false
-        })
-        .unwrap()
-        .pose
+    .unwrap()
+    .pose
 }
 
 /// Issue 42: a humanoid with both feet planted, its hand pulled outward 30 % of its height:
@@ -145,20 +137,13 @@ fn balance_input_is_checked_and_degenerate_supports_work() {
             balance: Some(balance),
             ..Default::default()
         };
-        let solver = PoseSolver::new(
-            model.clone(),
-            &constraints,
+        solve_pose(
+            &model,
             &rig.rest,
-            PoseSolverSettings::default(),
+            &constraints,
+            30,
+            PoseStart::Pose(&rig.rest),
         )
-        .unwrap();
-        let options = PoseSolveOptions {
-            max_iterations: 30,
-            tolerance: 0.0,
-        };
-        solver.solve(&constraints, &options, PoseStart::Pose(&rig.rest), &|| {
-            false
-        })
     };
     for bad in [
         Balance::over(vec![]),

@@ -8,7 +8,7 @@ use bevy_wii_deform::pose::synth_rig::{SyntheticRig, mannequin_rig};
 use bevy_wii_deform::pose::*;
 use glam::{DQuat, DVec3};
 
-use crate::common::model_of;
+use crate::common::{model_of, solve_pose};
 
 const HIPS: usize = 0;
 const LEFT_ANKLE: usize = 9;
@@ -49,17 +49,7 @@ impl Scene {
         start: PoseStart<'_>,
         iterations: u32,
     ) -> Result<PoseSolution, PoseError> {
-        let solver = PoseSolver::new(
-            self.model.clone(),
-            constraints,
-            &self.rig.rest,
-            PoseSolverSettings::default(),
-        )?;
-        let options = PoseSolveOptions {
-            max_iterations: iterations,
-            tolerance: 0.0,
-        };
-        solver.solve(constraints, &options, start, &|| false)
+        solve_pose(&self.model, &self.rig.rest, constraints, iterations, start)
     }
 
     fn skinned(&self, pose: &SkeletonPose) -> Vec<DVec3> {
@@ -69,6 +59,17 @@ impl Scene {
     fn sole_at(&self, pose: &SkeletonPose) -> Vec<DVec3> {
         let skinned = self.skinned(pose);
         self.sole.iter().map(|&v| skinned[v as usize]).collect()
+    }
+
+    /// The left sole planted on a 30° slope (rising along +x) through its rest centroid.
+    fn planted_on_a_30_degree_slope(&self) -> (GroundPlane, Contact) {
+        let rest_sole = self.sole_at(&self.rig.rest);
+        let centre = rest_sole.iter().sum::<DVec3>() / rest_sole.len() as f64;
+        let normal = DQuat::from_rotation_z(30f64.to_radians()) * DVec3::Y;
+        let slope = GroundPlane::new(centre, normal).unwrap();
+        let mut contact = Contact::new(LEFT_ANKLE, self.sole.clone(), slope);
+        contact.plant(&rest_sole, Some(DVec3::Y));
+        (slope, contact)
     }
 
     fn flat_ground(&self) -> GroundPlane {
@@ -88,12 +89,8 @@ fn sole_tilt_deg(s: &Scene, pose: &SkeletonPose, normal: DVec3) -> f64 {
 #[test]
 fn a_foot_planted_on_a_slope_lies_on_it() {
     let s = scene();
-    let rest_sole = s.sole_at(&s.rig.rest);
-    let centre = rest_sole.iter().sum::<DVec3>() / rest_sole.len() as f64;
-    let normal = DQuat::from_rotation_z(30f64.to_radians()) * DVec3::Y;
-    let slope = GroundPlane::new(centre, normal).unwrap();
-    let mut contact = Contact::new(LEFT_ANKLE, s.sole.clone(), slope);
-    contact.plant(&rest_sole, Some(DVec3::Y));
+    let (slope, contact) = s.planted_on_a_30_degree_slope();
+    let normal = slope.normal;
     let constraints = PoseConstraints {
         fixed_joints: vec![RIGHT_ANKLE],
         contacts: vec![contact],
@@ -304,12 +301,8 @@ fn bad_contacts_are_typed_errors() {
 #[test]
 fn on_a_slope_too_steep_for_the_ankle_the_limit_holds_and_the_edge_touches() {
     let s = scene();
-    let rest_sole = s.sole_at(&s.rig.rest);
-    let centre = rest_sole.iter().sum::<DVec3>() / rest_sole.len() as f64;
-    let normal = DQuat::from_rotation_z(30f64.to_radians()) * DVec3::Y;
-    let slope = GroundPlane::new(centre, normal).unwrap();
-    let mut contact = Contact::new(LEFT_ANKLE, s.sole.clone(), slope);
-    contact.plant(&rest_sole, Some(DVec3::Y));
+    let (slope, contact) = s.planted_on_a_30_degree_slope();
+    let normal = slope.normal;
     let mut limits = JointLimits::new(&s.rig.skeleton, &s.rig.rest);
     limits
         .set(LEFT_ANKLE, JointLimit::cone_deg((8.0, 8.0), (-5.0, 5.0)))

@@ -7,11 +7,10 @@ use std::time::Duration;
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 use bevy_wii_deform::pose::synth_rig::bar_rig;
-use bevy_wii_deform::pose::{JointTransform, SkeletonPose};
 use bevy_wii_deform::prelude::*;
 
 use crate::common;
-use common::{drive_solves, spawn_handle, spawn_rig, update_until};
+use common::{drive_solves, pose_of, spawn_handle, spawn_rig, update_until};
 
 fn app() -> App {
     let mut app = common::app();
@@ -20,22 +19,6 @@ fn app() -> App {
         16,
     )));
     app
-}
-
-fn pose_of(app: &App, joints: &[Entity]) -> SkeletonPose {
-    SkeletonPose {
-        local: joints
-            .iter()
-            .map(|&j| {
-                let t = app.world().get::<Transform>(j).unwrap();
-                JointTransform {
-                    translation: t.translation.as_dvec3(),
-                    rotation: t.rotation.as_dquat(),
-                    scale: t.scale.as_dvec3(),
-                }
-            })
-            .collect(),
-    }
 }
 
 #[test]

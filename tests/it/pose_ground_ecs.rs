@@ -6,11 +6,10 @@ use std::time::Duration;
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 use bevy_wii_deform::pose::synth_rig::mannequin_rig;
-use bevy_wii_deform::pose::{JointTransform, SkeletonPose};
 use bevy_wii_deform::prelude::*;
 
 use crate::common;
-use common::{drive_solves, spawn_handle, spawn_rig, update_until};
+use common::{drive_solves, pose_of, spawn_handle, spawn_rig, update_until};
 
 /// The deepest skinned vertex below `ground_y` (negative: below), world space, after a grab of
 /// the head pushed 0.6 m down, with or without `PoseGround` + `PoseBalance`; and the size.
@@ -68,19 +67,7 @@ fn pushed_down(stand: bool) -> (f32, f32, usize) {
         .get_resource::<SceneGround>()
         .map_or(0, |g| g.triangles);
     let posed = app.world().get::<PosedSkeleton>(root).unwrap().clone();
-    let pose = SkeletonPose {
-        local: joints
-            .iter()
-            .map(|&j| {
-                let t = app.world().get::<Transform>(j).unwrap();
-                JointTransform {
-                    translation: t.translation.as_dvec3(),
-                    rotation: t.rotation.as_dquat(),
-                    scale: t.scale.as_dvec3(),
-                }
-            })
-            .collect(),
-    };
+    let pose = pose_of(&app, &joints);
     let skinned = posed.to_world(posed.model.skin_render(&pose));
     let deepest = skinned
         .iter()
@@ -147,19 +134,7 @@ fn a_character_placed_above_a_slope_stands_on_it() {
     });
     app.update();
     let posed = app.world().get::<PosedSkeleton>(root).unwrap().clone();
-    let pose = SkeletonPose {
-        local: joints
-            .iter()
-            .map(|&j| {
-                let t = app.world().get::<Transform>(j).unwrap();
-                JointTransform {
-                    translation: t.translation.as_dvec3(),
-                    rotation: t.rotation.as_dquat(),
-                    scale: t.scale.as_dvec3(),
-                }
-            })
-            .collect(),
-    };
+    let pose = pose_of(&app, &joints);
     let skinned = posed.to_world(posed.model.skin_render(&pose));
     let normal = (tilt * Vec3::Y).as_dvec3();
     let height = |p: &glam::DVec3| (*p - at.as_dvec3()).dot(normal);

@@ -9,21 +9,17 @@ use glam::{DAffine3, DMat3, DVec3, DVec4};
 use super::params::Param;
 use crate::pose::balance::{Balance, SupportPolygon};
 use crate::pose::contacts::{Contact, GroundPlane};
+
+mod ground;
 use crate::pose::effectors::{
     CentroidEffector, Effector, EffectorGoal, ReferenceStiffness, StiffnessWeighting,
 };
 use crate::pose::skeleton::rotation_of;
 use crate::pose::{PoseError, Skeleton, VertexInfluences};
+pub(crate) use ground::validate_ground;
 
 /// An effector of weight 1 weighs this many joint pins.
 const EFFECTOR_STRENGTH: f64 = 100.0;
-/// Balance at weight 1 against a position effector at weight 1: the body leans out only where
-/// an effector is a hundred times stronger.
-const BALANCE_STRENGTH: f64 = 100.0;
-/// A contact's hold and non-penetration against a position effector at weight 1.
-const CONTACT_STRENGTH: f64 = 100.0;
-/// The contact skin, as a share of the model's size ([`ExtraTerms::skin`]).
-const CONTACT_SKIN: f64 = 1e-3;
 
 /// Strength of a weighted term: fades in over w ∈ [0, ¼].
 fn strength(weight: f64) -> f64 {
@@ -223,60 +219,7 @@ impl<'a> ExtraTerms<'a> {
                 weight: lw * strength(c.weight),
             });
         }
-        // Contacts: every patch vertex above its ground; a planted one held where it touched,
-        // its joint's up turned to the ground's normal.
-        let hold = CONTACT_STRENGTH * lw;
-        let one = |v: u32| joint_sums(skeleton.len(), input, std::iter::once((v, 1.0)));
-        for c in input.contacts {
-            for (k, &v) in c.patch.iter().enumerate() {
-                terms.push(Term::Above {
-                    sums: one(v),
-                    plane: c.ground,
-                    weight: hold,
-                });
-                if let Some(at) = c.planted.as_ref().and_then(|p| p.get(k)) {
-                    terms.push(Term::Centroid {
-                        sums: one(v),
-                        target: *at,
-                        weight: hold,
-                    });
-                }
-            }
-            if let (Some(_), Some(up)) = (&c.planted, c.up) {
-                let origin = input.reference_globals[c.joint].translation;
-                terms.push(Term::Aim {
-                    joint: c.joint,
-                    axis: up.normalize(),
-                    target: origin + c.ground.normal * (1e3 * input.length_scale),
-                    up: None,
-                    weight: lw,
-                });
-            }
-        }
-        if let Some((plane, vertices)) = input.floor {
-            for &v in vertices {
-                terms.push(Term::Above {
-                    sums: one(v),
-                    plane,
-                    weight: hold,
-                });
-            }
-        }
-        if let Some((b, masses)) = input.balance {
-            let total: f64 = masses.iter().sum();
-            if total > 0.0 {
-                let per_vertex = masses
-                    .iter()
-                    .enumerate()
-                    .map(|(v, m)| (v as u32, m / total));
-                terms.push(Term::Balance {
-                    sums: joint_sums(skeleton.len(), input, per_vertex),
-                    polygon: SupportPolygon::new(&b.support, b.gravity),
-                    margin: b.margin,
-                    weight: BALANCE_STRENGTH * lw * strength(b.weight),
-                });
-            }
-        }
+        ground::push_terms(&mut terms, skeleton.len(), input, lw);
         if let Some(s) = input.stiffness {
             let scale = |j: usize| match s.weighting {
                 StiffnessWeighting::Uniform => 1.0,
@@ -309,13 +252,6 @@ impl<'a> ExtraTerms<'a> {
     /// Whether there is anything to add.
     pub(crate) fn is_empty(&self) -> bool {
         self.terms.is_empty()
-    }
-
-    /// How far above its ground a vertex is held by a one-sided contact term: the penalty
-    /// balances a push at a depth proportional to it, so the term acts from a thin skin above
-    /// the surface and a pushed vertex comes to rest on the surface, not under it.
-    fn skin(&self) -> f64 {
-        CONTACT_SKIN * self.length_scale
     }
 
     /// World rotation of a joint (scale divided out).
@@ -395,23 +331,10 @@ impl<'a> ExtraTerms<'a> {
                     target,
                     weight,
                 } => (*weight, Rows::of(&[centroid_of(sums, skinning) - *target])),
-                Term::Above {
-                    sums,
-                    plane,
-                    weight,
-                } => {
-                    let depth = (plane.height(centroid_of(sums, skinning)) - self.skin()).min(0.0);
-                    (*weight, Rows::of(&[plane.normal * depth]))
-                }
-                Term::Balance {
-                    sums,
-                    polygon,
-                    margin,
-                    weight,
-                } => {
-                    let outside = polygon.violation(centroid_of(sums, skinning), *margin);
-                    (*weight, Rows::of(&[outside.unwrap_or(DVec3::ZERO)]))
-                }
+                Term::Above { weight, .. } | Term::Balance { weight, .. } => (
+                    *weight,
+                    Rows::of(&[self.one_sided_residual(term, skinning)]),
+                ),
                 Term::Stiffness {
                     joint,
                     reference,
@@ -444,10 +367,11 @@ impl<'a> ExtraTerms<'a> {
         sum
     }
 
-    /// The Jacobian blocks (one 3 × 3 per residual 3-vector) of a term for one parameter.
+    /// The Jacobian blocks (one 3 × 3 per residual 3-vector) of a term for one parameter, at
+    /// its `residual` there.
     fn jacobian(
         &self,
-        term: &Term,
+        (term, residual): (&Term, &Rows<DVec3>),
         param: Param,
         globals: &[DAffine3],
         skinning: &[DAffine3],
@@ -502,31 +426,8 @@ impl<'a> ExtraTerms<'a> {
             Term::Centroid { sums, .. } => self
                 .centroid_jacobian(sums, a, rotation, origin, skinning)
                 .map(|b| Rows::of(&[b])),
-            Term::Above { sums, plane, .. } => {
-                if plane.height(centroid_of(sums, skinning)) >= self.skin() {
-                    return None;
-                }
-                let across = outer(plane.normal, plane.normal);
-                self.centroid_jacobian(sums, a, rotation, origin, skinning)
-                    .map(|b| Rows::of(&[across * b]))
-            }
-            Term::Balance {
-                sums,
-                polygon,
-                margin,
-                ..
-            } => {
-                // Where the term is active, its residual changes with the centre of mass
-                // across the boundary (the allowed region's nearest point slides along it);
-                // over a single point, with all of its horizontal motion.
-                let outside = polygon.violation(centroid_of(sums, skinning), *margin)?;
-                let across = if polygon.corners().len() == 1 {
-                    let down = polygon.down();
-                    DMat3::IDENTITY - outer(down, down)
-                } else {
-                    let n = outside.try_normalize()?;
-                    outer(n, n)
-                };
+            Term::Above { sums, .. } | Term::Balance { sums, .. } => {
+                let across = ground::across(term, *residual.iter().next()?)?;
                 self.centroid_jacobian(sums, a, rotation, origin, skinning)
                     .map(|b| Rows::of(&[across * b]))
             }
@@ -605,7 +506,7 @@ impl<'a> ExtraTerms<'a> {
             }
             blocks.clear();
             blocks.extend(params.iter().enumerate().filter_map(|(p, &param)| {
-                self.jacobian(term, param, globals, skinning)
+                self.jacobian((term, r), param, globals, skinning)
                     .map(|j| (p, j))
             }));
             for (pa, ja) in &blocks {

@@ -8,7 +8,7 @@ use std::time::Instant;
 use glam::{DAffine3, DQuat};
 
 use super::arap::ClusterFit;
-use super::effector_terms::{ExtraInputs, ExtraTerms, validate};
+use super::effector_terms::{ExtraInputs, ExtraTerms, validate, validate_ground};
 use super::gauss_newton::HessianScratch;
 use super::step::{DampedSystem, Objective};
 use super::{
@@ -196,47 +196,11 @@ impl PoseSolver {
             &constraints.centroid_effectors,
             constraints.stiffness.as_ref(),
         )?;
-        if let Some(b) = &constraints.balance {
-            if !b.is_valid(self.model.topology().vertex_count()) {
-                return Err(PoseError::InvalidBalance(
-                    "support points, gravity, margin or masses are not usable",
-                ));
-            }
-            if !(b.weight.is_finite() && (0.0..=1.0).contains(&b.weight)) {
-                return Err(PoseError::InvalidConstraintWeight { weight: b.weight });
-            }
-        }
-        let vertex_count = self.model.topology().vertex_count();
-        for c in &constraints.contacts {
-            if c.joint >= skeleton.len() {
-                return Err(PoseError::JointOutOfRange {
-                    joint: c.joint,
-                    joint_count: skeleton.len(),
-                });
-            }
-            if let Some(&v) = c.patch.iter().find(|&&v| v as usize >= vertex_count) {
-                return Err(PoseError::VertexOutOfRange {
-                    vertex: v,
-                    vertex_count,
-                });
-            }
-            if !c.is_valid() {
-                return Err(PoseError::InvalidContact(
-                    "ground, planted points or up axis are not usable",
-                ));
-            }
-        }
-        if let Some(f) = &constraints.floor
-            && !(f.plane.point.is_finite()
-                && f.plane.normal.is_finite()
-                && (f.plane.normal.length() - 1.0).abs() < 1e-6
-                && f.band.is_finite()
-                && f.band >= 0.0)
-        {
-            return Err(PoseError::InvalidContact(
-                "the floor's plane or band is not usable",
-            ));
-        }
+        validate_ground(
+            constraints,
+            skeleton.len(),
+            self.model.topology().vertex_count(),
+        )?;
         let pose = match start {
             PoseStart::Pose(p) | PoseStart::Near { pose: p, .. } => p,
             PoseStart::Warm(s) => &s.pose,
@@ -299,11 +263,7 @@ impl PoseSolver {
         let skeleton = self.model.skeleton();
         let reference_skinning = skinning(&self.reference_globals, skeleton);
         let balance = constraints.balance.as_ref().filter(|b| b.weight > 0.0);
-        let masses = balance.map(|b| {
-            b.masses
-                .clone()
-                .unwrap_or_else(|| super::super::balance::vertex_masses(&self.model))
-        });
+        let masses = balance.map(|b| b.masses.as_deref().unwrap_or(self.model.area_masses()));
         // The floor's active set: the vertices near or below it where this solve starts.
         let floor_vertices: Vec<u32> = constraints.floor.as_ref().map_or(Vec::new(), |f| {
             self.model
@@ -317,7 +277,7 @@ impl PoseSolver {
         ExtraTerms::new(
             skeleton,
             &ExtraInputs {
-                balance: balance.zip(masses.as_deref()),
+                balance: balance.zip(masses),
                 contacts: &constraints.contacts,
                 floor: constraints
                     .floor

@@ -77,6 +77,47 @@ pub fn spawn_rig(app: &mut App, rig: &SyntheticRig, offset: Vec3) -> (Entity, Ve
     (root, joints, skinned)
 }
 
+/// Builds a pose solver for `constraints` with targets relative to `reference` and solves
+/// exactly `iterations` iterations from `start`.
+pub fn solve_pose(
+    model: &std::sync::Arc<bevy_wii_deform::pose::SkinnedModel>,
+    reference: &bevy_wii_deform::pose::SkeletonPose,
+    constraints: &bevy_wii_deform::pose::PoseConstraints,
+    iterations: u32,
+    start: bevy_wii_deform::pose::PoseStart<'_>,
+) -> Result<bevy_wii_deform::pose::PoseSolution, bevy_wii_deform::pose::PoseError> {
+    use bevy_wii_deform::pose::{PoseSolveOptions, PoseSolver, PoseSolverSettings};
+    let solver = PoseSolver::new(
+        model.clone(),
+        constraints,
+        reference,
+        PoseSolverSettings::default(),
+    )?;
+    let options = PoseSolveOptions {
+        max_iterations: iterations,
+        tolerance: 0.0,
+    };
+    solver.solve(constraints, &options, start, &|| false)
+}
+
+/// The pose on the joint entities `joints` (their `Transform`s), in skeleton order.
+pub fn pose_of(app: &App, joints: &[Entity]) -> bevy_wii_deform::pose::SkeletonPose {
+    use bevy_wii_deform::pose::{JointTransform, SkeletonPose};
+    SkeletonPose {
+        local: joints
+            .iter()
+            .map(|&j| {
+                let t = app.world().get::<Transform>(j).unwrap();
+                JointTransform {
+                    translation: t.translation.as_dvec3(),
+                    rotation: t.rotation.as_dquat(),
+                    scale: t.scale.as_dvec3(),
+                }
+            })
+            .collect(),
+    }
+}
+
 /// Updates until `done` holds, with a generous deadline for the background tasks.
 pub fn update_until(app: &mut App, what: &str, done: impl Fn(&mut App) -> bool) {
     let deadline = Instant::now() + Duration::from_secs(60);

@@ -1,0 +1,173 @@
+//! The ground's terms of a pose solve: contacts (patch vertices kept above their ground, a
+//! planted patch held where it was laid, its joint's up turned to the ground's normal), the
+//! floor, and balance — built from [`PoseConstraints`], one-sided where they are inequalities.
+
+use glam::{DMat3, DVec3};
+
+use super::{ExtraInputs, ExtraTerms, Term, centroid_of, joint_sums, outer, strength};
+use crate::pose::balance::SupportPolygon;
+use crate::pose::{PoseConstraints, PoseError};
+
+/// Balance at weight 1 against a position effector at weight 1: the body leans out only where
+/// an effector is a hundred times stronger.
+const BALANCE_STRENGTH: f64 = 100.0;
+/// A contact's hold and non-penetration against a position effector at weight 1.
+const CONTACT_STRENGTH: f64 = 100.0;
+/// The contact skin, as a share of the model's size ([`ExtraTerms::skin`]).
+const CONTACT_SKIN: f64 = 1e-3;
+
+/// Checks the balance, contacts and floor of `constraints` against a model of `joint_count`
+/// joints and `vertex_count` welded vertices.
+pub(crate) fn validate_ground(
+    constraints: &PoseConstraints,
+    joint_count: usize,
+    vertex_count: usize,
+) -> Result<(), PoseError> {
+    if let Some(b) = &constraints.balance {
+        if !b.is_valid(vertex_count) {
+            return Err(PoseError::InvalidBalance(
+                "support points, gravity, margin or masses are not usable",
+            ));
+        }
+        if !(b.weight.is_finite() && (0.0..=1.0).contains(&b.weight)) {
+            return Err(PoseError::InvalidConstraintWeight { weight: b.weight });
+        }
+    }
+    for c in &constraints.contacts {
+        if c.joint >= joint_count {
+            return Err(PoseError::JointOutOfRange {
+                joint: c.joint,
+                joint_count,
+            });
+        }
+        if let Some(&v) = c.patch.iter().find(|&&v| v as usize >= vertex_count) {
+            return Err(PoseError::VertexOutOfRange {
+                vertex: v,
+                vertex_count,
+            });
+        }
+        if !c.is_valid() {
+            return Err(PoseError::InvalidContact(
+                "ground, planted points or up axis are not usable",
+            ));
+        }
+    }
+    if let Some(f) = &constraints.floor
+        && !(f.plane.point.is_finite()
+            && f.plane.normal.is_finite()
+            && (f.plane.normal.length() - 1.0).abs() < 1e-6
+            && f.band.is_finite()
+            && f.band >= 0.0)
+    {
+        return Err(PoseError::InvalidContact(
+            "the floor's plane or band is not usable",
+        ));
+    }
+    Ok(())
+}
+
+/// Appends the contacts', the floor's and balance's terms of `input` (`lw`: a position
+/// effector's weight at weight 1).
+pub(super) fn push_terms(terms: &mut Vec<Term>, joints: usize, input: &ExtraInputs<'_>, lw: f64) {
+    // Contacts: every patch vertex above its ground; a planted one held where it touched,
+    // its joint's up turned to the ground's normal.
+    let hold = CONTACT_STRENGTH * lw;
+    let one = |v: u32| joint_sums(joints, input, std::iter::once((v, 1.0)));
+    for c in input.contacts {
+        for (k, &v) in c.patch.iter().enumerate() {
+            terms.push(Term::Above {
+                sums: one(v),
+                plane: c.ground,
+                weight: hold,
+            });
+            if let Some(at) = c.planted.as_ref().and_then(|p| p.get(k)) {
+                terms.push(Term::Centroid {
+                    sums: one(v),
+                    target: *at,
+                    weight: hold,
+                });
+            }
+        }
+        if let (Some(_), Some(up)) = (&c.planted, c.up) {
+            let origin = input.reference_globals[c.joint].translation;
+            terms.push(Term::Aim {
+                joint: c.joint,
+                axis: up.normalize(),
+                target: origin + c.ground.normal * (1e3 * input.length_scale),
+                up: None,
+                weight: lw,
+            });
+        }
+    }
+    if let Some((plane, vertices)) = input.floor {
+        for &v in vertices {
+            terms.push(Term::Above {
+                sums: one(v),
+                plane,
+                weight: hold,
+            });
+        }
+    }
+    if let Some((b, masses)) = input.balance {
+        let total: f64 = masses.iter().sum();
+        if total > 0.0 {
+            let per_vertex = masses
+                .iter()
+                .enumerate()
+                .map(|(v, m)| (v as u32, m / total));
+            terms.push(Term::Balance {
+                sums: joint_sums(joints, input, per_vertex),
+                polygon: SupportPolygon::new(&b.support, b.gravity),
+                margin: b.margin,
+                weight: BALANCE_STRENGTH * lw * strength(b.weight),
+            });
+        }
+    }
+}
+
+impl ExtraTerms<'_> {
+    /// How far above its ground a vertex is held by a one-sided contact term: the penalty
+    /// balances a push at a depth proportional to it, so the term acts from a thin skin above
+    /// the surface and a pushed vertex comes to rest on the surface, not under it.
+    fn skin(&self) -> f64 {
+        CONTACT_SKIN * self.length_scale
+    }
+
+    /// The residual of a one-sided term (zero while it holds): a vertex's depth under its
+    /// ground's skin along the normal, or the centre of mass's way out of its allowed region.
+    pub(super) fn one_sided_residual(&self, term: &Term, skinning: &[glam::DAffine3]) -> DVec3 {
+        match term {
+            Term::Above { sums, plane, .. } => {
+                let depth = (plane.height(centroid_of(sums, skinning)) - self.skin()).min(0.0);
+                plane.normal * depth
+            }
+            Term::Balance {
+                sums,
+                polygon,
+                margin,
+                ..
+            } => polygon
+                .violation(centroid_of(sums, skinning), *margin)
+                .unwrap_or(DVec3::ZERO),
+            _ => DVec3::ZERO,
+        }
+    }
+}
+
+/// What a one-sided term's active residual `r` changes with, as a projection of its point's
+/// motion: a vertex's depth along its ground's normal; the centre of mass across the support's
+/// boundary (the allowed region's nearest point slides along it), or, over a single point, with
+/// all of its motion across gravity. `None` while the term holds.
+pub(super) fn across(term: &Term, r: DVec3) -> Option<DMat3> {
+    match term {
+        Term::Above { plane, .. } => (r != DVec3::ZERO).then(|| outer(plane.normal, plane.normal)),
+        Term::Balance { polygon, .. } if polygon.corners().len() == 1 => {
+            (r != DVec3::ZERO).then(|| DMat3::IDENTITY - outer(polygon.down(), polygon.down()))
+        }
+        Term::Balance { .. } => {
+            let n = r.try_normalize()?;
+            Some(outer(n, n))
+        }
+        _ => None,
+    }
+}
