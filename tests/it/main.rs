@@ -9,6 +9,7 @@ mod character_grab;
 mod character_nodes;
 mod deform_core;
 mod deform_ecs;
+mod deform_obstacle;
 mod grab_ecs;
 mod grab_picking;
 mod input_turns;

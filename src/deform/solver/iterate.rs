@@ -6,6 +6,7 @@ use std::time::Instant;
 
 use glam::{DMat3, DQuat, DVec3};
 
+use super::contacts::ContactSet;
 use super::{ArapSolver, SolveError, SolveOptions, SolveStats};
 use crate::deform::anderson::Anderson;
 use crate::deform::lbfgs::{Lbfgs, dot};
@@ -18,7 +19,7 @@ const ARMIJO: f64 = 1e-4;
 const ROUNDING: f64 = 1e-12;
 
 /// The state a solve iterates on (solver memory order).
-pub(super) struct Iterate {
+pub(super) struct Iterate<'a> {
     /// All positions; free ones are the unknowns.
     pub x: Vec<DVec3>,
     /// Cell rotations.
@@ -37,6 +38,8 @@ pub(super) struct Iterate {
     pub energy: Option<f64>,
     /// Statistics so far.
     pub stats: SolveStats,
+    /// The obstacle the free vertices stay above, and its active set.
+    pub contacts: Option<ContactSet<'a>>,
 }
 
 impl ArapSolver {
@@ -55,6 +58,9 @@ impl ArapSolver {
         self.arap_rhs(&it.x, &it.mats, &mut it.rhs_by_vertex, &mut it.rhs);
         let tg = Instant::now();
         self.cot_factor.solve_in_place(&mut it.rhs, self.parallel);
+        if let Some(contacts) = it.contacts.as_mut() {
+            self.project_above(&mut it.rhs, contacts);
+        }
         it.stats.back_substitutions += 1;
         it.stats.rhs_s += (tg - tr).as_secs_f64();
         it.stats.global_s += tg.elapsed().as_secs_f64();
@@ -115,6 +121,9 @@ impl ArapSolver {
             it.stats.acceleration_s += ta.elapsed().as_secs_f64();
             let mut e = f64::INFINITY;
             if extrapolated {
+                if let Some(contacts) = it.contacts.as_mut() {
+                    self.project_above(&mut proposal, contacts);
+                }
                 self.write_free(&proposal, &mut it.x);
                 e = self.refit(it);
             }

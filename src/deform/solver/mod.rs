@@ -2,7 +2,6 @@
 //! warm-startable local/global iterations.
 
 use std::sync::Arc;
-use std::time::Instant;
 
 use super::constraints::{ConstraintError, Constraints, Role};
 use super::factor::LowerFactor;
@@ -10,14 +9,15 @@ use super::rotation::{add_outer, fit_rotation_warm};
 use super::topology::{MeshError, Topology, WeightMode};
 use glam::{DMat3, DQuat, DVec3};
 
+mod contacts;
 mod iterate;
 mod layout;
 mod newton;
 mod precompute;
+mod solve;
 mod system;
 use super::lbfgs::Lbfgs;
 use super::parallel::{Threading, for_chunks, sum_chunks_pair, zip_chunks};
-use iterate::Iterate;
 use layout::CellKind;
 pub(crate) use layout::Layout;
 use system::LazyFactor;
@@ -235,6 +235,9 @@ pub struct SolveStats {
     /// The cancel callback stopped the iterations early (the result is the last completed
     /// iteration).
     pub cancelled: bool,
+    /// Free vertices held on the obstacle's surface at the end
+    /// ([`ArapSolver::solve_above`]; 0 without one).
+    pub contacts: usize,
 }
 
 impl SolveStats {
@@ -318,6 +321,8 @@ pub struct ArapSolver {
     /// Whether the iterations' loops run on rayon's pool ([`SolverSettings::threading`]).
     parallel: bool,
     stats: PrecomputeStats,
+    /// Columns of the inverse system for vertices held on an obstacle.
+    columns: std::sync::Mutex<contacts::ColumnCache>,
 }
 
 impl std::fmt::Debug for ArapSolver {
@@ -355,162 +360,6 @@ impl ArapSolver {
     /// True when `constraints` has the vertex sets this solver was factorized for.
     pub fn accepts(&self, constraints: &Constraints) -> bool {
         self.constraints.same_sets(constraints)
-    }
-
-    /// Solves for the given constraint values. `should_cancel` is polled before every
-    /// iteration (and between Newton's conjugate-gradient steps, which then end that iteration
-    /// with the direction found so far); when it returns true the solve stops: with
-    /// [`SolveError::Cancelled`] if no iteration was done yet, otherwise with the last
-    /// completed iteration and [`SolveStats::cancelled`] set.
-    pub fn solve(
-        &self,
-        constraints: &Constraints,
-        options: &SolveOptions,
-        initial: InitialGuess<'_>,
-        should_cancel: &dyn Fn() -> bool,
-    ) -> Result<Solution, SolveError> {
-        let t0 = Instant::now();
-        if !self.accepts(constraints) {
-            return Err(SolveError::ConstraintSetChanged);
-        }
-        constraints.check_values()?;
-        let layout = &self.layout;
-        let n = layout.rest.len();
-        let mut stats = SolveStats::default();
-        let (mut x, mut quats) = self.starting_state(constraints, initial)?;
-        let mut mats: Vec<DMat3> = quats.iter().map(|q| DMat3::from_quat(*q)).collect();
-        let mut rhs = vec![DVec3::ZERO; self.free.len()];
-        let rhs_by_vertex = vec![DVec3::ZERO; n];
-
-        // Inactive cells (no free vertex in the one-ring) never change during the solve.
-        let tl = Instant::now();
-        let constant_energy = self.local_step(&x, &mut quats, &mut mats, false);
-        stats.local_s += tl.elapsed().as_secs_f64();
-
-        let ti = Instant::now();
-        let mut prev_energy = None;
-        match initial {
-            InitialGuess::Laplacian if !self.free.is_empty() => {
-                self.uniform_rhs(&x, &mut rhs);
-                self.back_substitute(self.uniform.get()?, &mut rhs, &mut x);
-            }
-            _ => {}
-        }
-        stats.init_s = ti.elapsed().as_secs_f64();
-        if !matches!(initial, InitialGuess::Warm(_) | InitialGuess::Rest) {
-            let tl = Instant::now();
-            let e = (constant_energy + self.local_step(&x, &mut quats, &mut mats, true))
-                / self.layout.rest_norm.max(f64::MIN_POSITIVE);
-            stats.local_s += tl.elapsed().as_secs_f64();
-            stats.initial_energy = Some(e);
-            prev_energy = Some(e);
-        }
-
-        let mut it = Iterate {
-            x,
-            quats,
-            mats,
-            rhs,
-            rhs_by_vertex,
-            trial: Vec::new(),
-            constant_energy,
-            energy: prev_energy,
-            stats,
-        };
-        let carry = self.iterate(&mut it, initial, options, should_cancel)?;
-        let Iterate {
-            x,
-            mut quats,
-            mut mats,
-            mut stats,
-            ..
-        } = it;
-        if matches!(initial, InitialGuess::Rest | InitialGuess::Warm(_)) && stats.iterations == 0 {
-            // Rotations of free cells were never fitted for these positions.
-            let e = constant_energy + self.local_step(&x, &mut quats, &mut mats, true);
-            stats.initial_energy = Some(e / self.layout.rest_norm.max(f64::MIN_POSITIVE));
-        }
-        if !x.iter().all(|p| p.is_finite()) || !quats.iter().all(|q| q.is_finite()) {
-            return Err(SolveError::NonFinite);
-        }
-        stats.total_s = t0.elapsed().as_secs_f64();
-        Ok(Solution {
-            positions: layout.scatter(&x),
-            rotations: layout.scatter(&quats),
-            stats,
-            history: carry,
-        })
-    }
-
-    /// The positions a solve starts from (known ones placed, free ones at rest or the warm
-    /// start's) and the rotations (identity, or the warm start's), in solver order.
-    fn starting_state(
-        &self,
-        constraints: &Constraints,
-        initial: InitialGuess<'_>,
-    ) -> Result<(Vec<DVec3>, Vec<DQuat>), SolveError> {
-        let layout = &self.layout;
-        let n = layout.rest.len();
-        let rest = &layout.rest[..];
-        let mut x: Vec<DVec3> = match initial {
-            InitialGuess::Warm(prev) => {
-                if prev.positions.len() != n || prev.rotations.len() != n {
-                    return Err(SolveError::WarmStartMismatch {
-                        got: prev.positions.len(),
-                        expected: n,
-                    });
-                }
-                layout.gather(&prev.positions)
-            }
-            _ => rest.to_vec(),
-        };
-        for i in 0..n {
-            let role = self.roles[i];
-            if role != Role::Free {
-                x[i] = constraints.position_of(role, rest[i]);
-            }
-        }
-        let quats = match initial {
-            InitialGuess::Warm(prev) => layout.gather(&prev.rotations),
-            _ => vec![DQuat::IDENTITY; n],
-        };
-        Ok((x, quats))
-    }
-
-    /// Runs the iterations of `options.acceleration`; the L-BFGS history to carry into a warm
-    /// start of this factorization.
-    fn iterate(
-        &self,
-        it: &mut Iterate,
-        initial: InitialGuess<'_>,
-        options: &SolveOptions,
-        should_cancel: &dyn Fn() -> bool,
-    ) -> Result<CarriedHistory, SolveError> {
-        if self.free.is_empty() {
-            return Ok(CarriedHistory::default());
-        }
-        match options.acceleration {
-            Acceleration::Lbfgs { depth } => {
-                let carried = match initial {
-                    InitialGuess::Warm(prev) => match &prev.history.0 {
-                        Some((id, h)) if *id == self.id && h.depth() == depth => Some(h),
-                        _ => None,
-                    },
-                    _ => None,
-                };
-                let mut history = carried.cloned().unwrap_or_else(|| Lbfgs::new(depth));
-                self.iterate_lbfgs(it, &mut history, options, should_cancel)?;
-                return Ok(CarriedHistory(Some((self.id, history))));
-            }
-            Acceleration::Newton { max_cg } => {
-                self.iterate_newton(it, max_cg, options, should_cancel)?
-            }
-            Acceleration::None => self.iterate_local_global(it, 0, options, should_cancel)?,
-            Acceleration::Anderson { depth } => {
-                self.iterate_local_global(it, depth, options, should_cancel)?
-            }
-        }
-        Ok(CarriedHistory::default())
     }
 
     /// Fits rotations for active (`true`) or inactive (`false`) cells; returns their summed

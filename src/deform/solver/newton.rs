@@ -248,6 +248,7 @@ mod tests {
             constant_energy: 0.0,
             energy: None,
             stats: SolveStats::default(),
+            contacts: None,
         };
         let gradient_at = |it: &mut Iterate, x: &[DVec3]| {
             it.x = x.to_vec();

@@ -98,6 +98,7 @@ impl ArapSolver {
             uniform,
             parallel,
             stats,
+            columns: Default::default(),
         })
     }
 }
