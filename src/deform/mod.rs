@@ -39,7 +39,7 @@ mod topology;
 pub use constraints::{ConstraintError, Constraints, Handle, RigidTransform};
 pub use energy::arap_energy;
 pub use io::{MeshIoError, TriMesh, bounding_box, centroid, glb_container};
-pub use obstacle::{HalfSpace, HeightField, HeightFieldError, Obstacle, SurfaceSample};
+pub use obstacle::{HeightField, HeightFieldError, Obstacle, PlaneObstacle, SurfaceSample};
 pub use parallel::{SERIAL_BELOW, Threading};
 pub use preview::{Preview, PreviewRegion};
 pub use rotation::{best_rotation_exact, fit_rotation_warm};

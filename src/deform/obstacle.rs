@@ -44,14 +44,14 @@ pub trait Obstacle: Send + Sync {
 
 /// An infinite plane: everything below it is solid.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct HalfSpace {
+pub struct PlaneObstacle {
     /// A point of the plane.
     pub point: DVec3,
     /// Unit normal, pointing out of the solid.
     pub normal: DVec3,
 }
 
-impl HalfSpace {
+impl PlaneObstacle {
     /// The plane through `point` with normal `normal` (normalised); `None` when the normal is
     /// zero or anything is not finite.
     pub fn new(point: DVec3, normal: DVec3) -> Option<Self> {
@@ -60,7 +60,7 @@ impl HalfSpace {
     }
 }
 
-impl Obstacle for HalfSpace {
+impl Obstacle for PlaneObstacle {
     fn surface_at(&self, _: DVec3) -> Option<SurfaceSample> {
         Some(SurfaceSample {
             point: self.point,

@@ -2,8 +2,14 @@
 
 use std::sync::Arc;
 
+use bevy::prelude::*;
 use bevy_wii_deform::deform::*;
+use bevy_wii_deform::prelude::{
+    DeformGround, DeformPlugin, DeformStatus, Ground, mesh_from_triangles,
+};
 use glam::DVec3;
+
+use crate::common::bar::{positions, regions, settle, spawn_bar};
 
 const NEVER: &dyn Fn() -> bool = &|| false;
 
@@ -188,7 +194,7 @@ fn a_floor_under_the_bar_changes_nothing() {
     let solver =
         ArapSolver::precompute(topology.clone(), &constraints, SolverSettings::default()).unwrap();
     constraints.handles[0].transform.translation = DVec3::new(0.0, 0.1, 0.1);
-    let floor = HalfSpace::new(DVec3::new(0.0, -1.0, 0.0), DVec3::Y).unwrap();
+    let floor = PlaneObstacle::new(DVec3::new(0.0, -1.0, 0.0), DVec3::Y).unwrap();
     let options = SolveOptions::default();
     let free = solver
         .solve(&constraints, &options, InitialGuess::Laplacian, NEVER)
@@ -210,4 +216,81 @@ fn a_floor_under_the_bar_changes_nothing() {
         .map(|(a, b)| a.distance(*b))
         .fold(0.0, f64::max);
     assert!(moved < 1e-12, "{moved}");
+}
+
+/// A bar `Deformable` lying along world +X with its axis 0.4 above a `Ground` quad at y = 0
+/// (the mesh turned, raised and scaled ×1.5 by its transform), its handle pushed 1.2 below
+/// and 0.3 across in world units; the mesh's world positions once settled.
+fn push_a_bar_into_a_ground_quad(on_ground: bool) -> (Vec<Vec3>, Vec<Vec3>, DeformStatus) {
+    let mut app = crate::common::app();
+    app.add_plugins(DeformPlugin::default());
+    let quad = [
+        DVec3::new(-3.0, 0.0, -3.0),
+        DVec3::new(3.0, 0.0, -3.0),
+        DVec3::new(3.0, 0.0, 3.0),
+        DVec3::new(-3.0, 0.0, 3.0),
+    ];
+    let floor = mesh_from_triangles(&quad, &[[0, 2, 1], [0, 3, 2]]);
+    let floor = app.world_mut().resource_mut::<Assets<Mesh>>().add(floor);
+    app.world_mut()
+        .spawn((Mesh3d(floor), Transform::default(), Ground));
+    let (e, handle, tri) = spawn_bar(&mut app);
+    let placement = Transform::from_xyz(0.0, 0.4, 0.0)
+        .with_rotation(Quat::from_rotation_z(-std::f32::consts::FRAC_PI_2))
+        .with_scale(Vec3::splat(1.5));
+    app.world_mut().entity_mut(e).insert(placement);
+    if on_ground {
+        app.world_mut()
+            .entity_mut(e)
+            .insert(DeformGround::default());
+    }
+    app.update();
+    settle(&mut app, e);
+    let to_local = placement.to_matrix().inverse();
+    let push = to_local.transform_vector3(Vec3::new(0.0, -1.2, 0.3));
+    app.world_mut()
+        .get_mut::<Transform>(handle)
+        .unwrap()
+        .translation += push;
+    settle(&mut app, e);
+    let world: Vec<Vec3> = positions(&app, e)
+        .iter()
+        .map(|p| placement.transform_point(*p))
+        .collect();
+    let (_, hv) = regions(&tri);
+    let end = hv.iter().map(|&v| world[v as usize]).collect();
+    (
+        world,
+        end,
+        app.world().get::<DeformStatus>(e).unwrap().clone(),
+    )
+}
+
+#[test]
+fn a_bar_grabbed_into_the_scene_ground_stops_at_it_and_slides_along() {
+    let lowest = |w: &[Vec3]| w.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+    let (through, _, status) = push_a_bar_into_a_ground_quad(false);
+    assert!(status.error.is_none(), "{status:?}");
+    assert!(
+        lowest(&through) < -0.5,
+        "without DeformGround: {}",
+        lowest(&through)
+    );
+
+    let (world, end, status) = push_a_bar_into_a_ground_quad(true);
+    assert!(status.error.is_none(), "{status:?}");
+    let size = 1.5 * (1.0f32 + 0.04 + 0.04).sqrt();
+    assert!(
+        lowest(&world) > -1e-3 * size,
+        "no vertex below the ground by more than 1e-3 of the size: {}",
+        lowest(&world)
+    );
+    // The end rests on the ground, moved across as far as the hand went.
+    let bottom = end.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+    assert!(bottom.abs() < 1e-3, "the end lies on the ground: {bottom}");
+    let across = end.iter().map(|p| p.z).sum::<f32>() / end.len() as f32;
+    assert!(
+        (across - 0.3).abs() < 1e-3,
+        "the end slid 0.3 across: {across}"
+    );
 }

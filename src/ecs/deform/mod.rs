@@ -140,6 +140,34 @@ pub struct Deformable {
     pub region_of_interest: Option<Vec<u32>>,
 }
 
+/// Keeps a [`Deformable`]'s bend on the game's ground ([`crate::ecs::SceneGround`]: the
+/// [`crate::ecs::Ground`] meshes or the game's own): no vertex goes below it, and a handle
+/// dragged into it slides along it instead ([`crate::deform::obstacle`]).
+///
+/// The ground under and around the mesh is sampled once into a height field (in the
+/// background, again when the mesh entity moves or the ground changes), across world +Y:
+/// `cells` samples along the mesh's rest bounding diagonal, `reach` diagonals of margin on
+/// every side. Between samples the ground is bilinear: a wall or a step is a slope one cell
+/// wide. A mesh that is itself [`crate::ecs::Ground`] stops at its own old shape: do not
+/// mark it.
+#[derive(Component, Debug, Clone, Copy, PartialEq, Reflect)]
+#[reflect(Component, Default)]
+pub struct DeformGround {
+    /// Samples along the mesh's rest bounding diagonal (at least 2).
+    pub cells: u32,
+    /// Margin around the mesh's rest bounds, in bounding diagonals.
+    pub reach: f32,
+}
+
+impl Default for DeformGround {
+    fn default() -> Self {
+        Self {
+            cells: 48,
+            reach: 0.5,
+        }
+    }
+}
+
 /// Vertices of a [`Deformable`] held at their rest position (render indices).
 #[derive(Component, Debug, Clone, Default, Reflect, PartialEq)]
 #[reflect(Component, Default)]
@@ -210,6 +238,8 @@ pub struct DeformStatus {
     pub solve_ms: f64,
     /// Completed solves so far.
     pub solves: u64,
+    /// Vertices held on the ground by the last solve ([`DeformGround`]).
+    pub ground_contacts: usize,
     /// The displayed pose is a preview ([`DeformConfig::preview`]): only the region near the
     /// handles was solved, while the whole mesh is factored; its solve follows.
     pub preview: bool,

@@ -54,6 +54,11 @@ impl SceneGround {
         }
     }
 
+    /// Whether `other` is this very ground (the same source, not an equal copy).
+    pub(crate) fn same_source(&self, other: &SceneGround) -> bool {
+        Arc::ptr_eq(&self.source, &other.source)
+    }
+
     /// The first surface below `from` along `down` within `max`, world space.
     pub fn cast_down(&self, from: DVec3, down: DVec3, max: f64) -> Option<GroundPlane> {
         self.source.cast_down(from, down, max)

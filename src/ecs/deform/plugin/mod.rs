@@ -2,6 +2,7 @@
 //! solves, collect them and write them back.
 
 mod ancestors;
+mod ground;
 mod poll;
 mod prepare;
 mod request;
@@ -23,8 +24,8 @@ use bevy::tasks::futures::check_ready;
 use bevy::tasks::{AsyncComputeTaskPool, Task};
 
 use super::{
-    DeformConfig, DeformError, DeformFailed, DeformHandle, DeformPhase, DeformSolved, DeformStatus,
-    Deformable, FixedRegion, mesh_positions,
+    DeformConfig, DeformError, DeformFailed, DeformGround, DeformHandle, DeformPhase, DeformSolved,
+    DeformStatus, Deformable, FixedRegion, mesh_positions,
 };
 use crate::deform::{
     Acceleration, ArapSolver, Constraints, Handle as CoreHandle, InitialGuess, Preview, Solution,
@@ -60,9 +61,13 @@ pub struct DeformPlugin {
 impl Plugin for DeformPlugin {
     fn build(&self, app: &mut App) {
         crate::ecs::scene::add_scene_roots(app);
+        if !app.is_plugin_added::<crate::ecs::GroundPlugin>() {
+            app.add_plugins(crate::ecs::GroundPlugin);
+        }
         app.insert_resource(self.config.clone())
             .register_type::<Deformable>()
             .register_type::<FixedRegion>()
+            .register_type::<DeformGround>()
             .register_type::<DeformHandle>()
             .register_type::<DeformStatus>()
             .register_type::<DeformConfig>()
@@ -127,6 +132,7 @@ struct FollowOn {
     constraints: Constraints,
     settings: SolverSettings,
     options: SolveOptions,
+    ground: Option<ground::GroundCache>,
 }
 
 struct SolveOutput {
@@ -170,6 +176,8 @@ pub struct DeformState {
     factoring: Option<(Constraints, Task<Result<ArapSolver, SolveError>>)>,
     /// The constraints of the latest solve started (what a finished factorization resumes).
     latest: Option<Constraints>,
+    /// The ground the solves keep the mesh above ([`DeformGround`]).
+    ground: Option<ground::GroundCache>,
 }
 
 impl DeformState {

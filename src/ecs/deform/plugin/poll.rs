@@ -108,6 +108,7 @@ fn take_landed(
     };
     status.iterations = s.solution.stats.iterations;
     status.energy = s.solution.stats.final_energy();
+    status.ground_contacts = s.solution.stats.contacts;
     status.solve_ms = out.ms;
     status.solves += 1;
     status.error = None;

@@ -114,6 +114,7 @@ impl DeformState {
             preview: None,
             factoring: None,
             latest: None,
+            ground: None,
         }
     }
 }

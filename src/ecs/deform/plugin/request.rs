@@ -3,7 +3,9 @@
 
 use super::*;
 use crate::deform::PreviewRegion;
+use crate::ecs::SceneGround;
 use crate::ecs::tasks::{Cancellation, ChainLink};
+use ground::GroundCache;
 
 /// Builds core constraints (welded indices) for one deformable.
 pub(super) fn build_constraints(
@@ -33,7 +35,9 @@ pub(super) fn request_solves(
         Option<Ref<FixedRegion>>,
         &mut DeformState,
         &mut DeformStatus,
+        Option<(&DeformGround, &GlobalTransform)>,
     )>,
+    scene_ground: Option<Res<SceneGround>>,
     mut handles: Query<(Entity, &mut DeformHandle, &mut Transform)>,
     mut removed: RemovedComponents<DeformHandle>,
     changed_deformable: Query<(), Changed<Deformable>>,
@@ -44,7 +48,7 @@ pub(super) fn request_solves(
         if h.pivot.is_some() {
             continue;
         }
-        let Ok((_, _, _, state, _)) = deformables.get(h.target) else {
+        let Ok((_, _, _, state, _, _)) = deformables.get(h.target) else {
             continue;
         };
         let Some(rest) = &state.rest else { continue };
@@ -63,7 +67,12 @@ pub(super) fn request_solves(
     }
     // Consume the removals so each one triggers exactly one re-solve.
     let any_removed = removed.read().count() > 0;
-    for (entity, deformable, fixed, mut state, mut status) in &mut deformables {
+    for (entity, deformable, fixed, mut state, mut status, on_ground) in &mut deformables {
+        let ground_changed = refresh_ground(
+            state.bypass_change_detection(),
+            on_ground,
+            scene_ground.as_deref(),
+        );
         let Some(rest) = state.rest.clone() else {
             continue;
         };
@@ -78,6 +87,7 @@ pub(super) fn request_solves(
             || fixed.as_ref().is_some_and(|f| f.is_changed())
             || changed_deformable.contains(entity)
             || any_removed
+            || ground_changed
             || !state.attempted && !mine.is_empty();
         if !changed && state.pending.is_none() {
             continue;
@@ -102,6 +112,7 @@ pub(super) fn request_solves(
             settings: solver_settings(deformable, &rest.topology),
             options: solve_options(false, deformable, &config),
             constraints: constraints.clone(),
+            ground: state.ground.clone(),
         };
         let Some(untaken) = state.solve.offer(offered) else {
             state.latest = Some(constraints);
@@ -115,6 +126,29 @@ pub(super) fn request_solves(
             continue; // it has ended: the poll starts the next solve with these
         }
         spawn_solve(state, &rest, deformable, &config, &mut status, false);
+    }
+}
+
+/// Keeps `state`'s ground current for a deformable with [`DeformGround`] (and its placement)
+/// on `scene`; true when it changed (the mesh is solved again against the new ground).
+fn refresh_ground(
+    state: &mut DeformState,
+    on_ground: Option<(&DeformGround, &GlobalTransform)>,
+    scene: Option<&SceneGround>,
+) -> bool {
+    match (on_ground, scene) {
+        (Some((settings, placement)), Some(scene)) => {
+            if state
+                .ground
+                .as_ref()
+                .is_some_and(|g| g.is_for(scene, settings, placement))
+            {
+                return false;
+            }
+            state.ground = Some(GroundCache::new(scene.clone(), *settings, *placement));
+            true
+        }
+        _ => state.ground.take().is_some(),
     }
 }
 
@@ -178,6 +212,7 @@ pub(super) fn spawn_solve(
         warm,
         laplacian_start,
         options: solve_options(settling, deformable, config),
+        ground: state.ground.clone(),
     };
     let mut job = job;
     state.solve.spawn(move |link| job.step(link));
@@ -228,6 +263,7 @@ struct SolveJob {
     warm: Option<Arc<Solution>>,
     laplacian_start: bool,
     options: SolveOptions,
+    ground: Option<GroundCache>,
 }
 
 impl SolveJob {
@@ -254,6 +290,7 @@ impl SolveJob {
                 self.constraints = next.constraints;
                 self.settings = next.settings;
                 self.options = next.options;
+                self.ground = next.ground;
                 true
             }
             _ => {
@@ -313,7 +350,19 @@ impl SolveJob {
             None => InitialGuess::Rest,
         };
         let cancel = || cancellation.superseded();
-        let solution = solver.solve(solving, &self.options, init, &cancel)?;
+        let rest_positions = rest.topology.positions();
+        let solution = match self
+            .ground
+            .as_ref()
+            .and_then(|g| g.obstacle(rest_positions))
+        {
+            Some(ground) => {
+                // A handle dragged into the ground slides along it.
+                let lifted = solving.lifted_above(rest_positions, ground);
+                solver.solve_above(&lifted, &self.options, init, ground, &cancel)?
+            }
+            None => solver.solve(solving, &self.options, init, &cancel)?,
+        };
         let pose = render_pose(rest, &solution);
         Ok(Solved {
             solver,
