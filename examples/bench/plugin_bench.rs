@@ -24,6 +24,10 @@
 //! `set_change_to_first_pose_ms_median` / `_p95` (change → first written pose: the preview of
 //! `DeformConfig::preview` on a large mesh) and `set_change_to_whole_pose_ms_median` (→ first
 //! pose solved on the whole mesh).
+//! `--collider` (feature `avian`): a ~10k-triangle plank whose Avian collider is rebuilt after
+//! each settled bend; `triangles`, `rebuilds`, `collider_frames_median` / `_max` (frames from
+//! a settled solve to its collider swapped in), `main_ms_median` / `_max` (the deform and
+//! collider systems), `frame_ms_median` / `_max` (the whole frame, Avian's step included).
 
 use std::time::{Duration, Instant};
 
@@ -33,6 +37,9 @@ use bevy_wii_deform::prelude::*;
 
 #[path = "../common/cli.rs"]
 mod cli;
+#[cfg(feature = "avian")]
+#[path = "collider_rebuild.rs"]
+mod collider_rebuild;
 
 #[derive(Resource, Default)]
 struct Timing {
@@ -131,7 +138,7 @@ fn drag(time: Res<Time>, timing: Res<Timing>, mut q: Query<&mut Transform, With<
 const USAGE: &str = "\
 usage: plugin_bench [--mesh PATH | --bar VERTICES] [--seconds S] [--iterations N] [--fps F]
                     [--grab | --set-changes [--no-preview] | --many N] [--plain]
-                    [--async-threads N] [--json]
+                    [--async-threads N] [--collider] [--json]
 
   --mesh PATH     an OBJ/OFF mesh (default ../shared/meshes/armadillo.off, else a 26k bar)
   --bar VERTICES  a generated bar of about that many vertices
@@ -144,6 +151,7 @@ usage: plugin_bench [--mesh PATH | --bar VERTICES] [--seconds S] [--iterations N
   --many N        N meshes dragged at once (~2k-vertex bars unless --mesh or --bar)
   --async-threads N  threads of Bevy's async compute pool (default: Bevy's, 1 on 2 cores)
   --plain         plain local/global iterations, no settling
+  --collider      (feature avian) a plank's collider rebuilt after each settled bend
   --json          accepted for older command lines: the JSON is always the last line";
 
 /// The command line.
@@ -163,6 +171,8 @@ struct Args {
     many: usize,
     /// `--async-threads N`: threads of Bevy's async compute pool (the solves').
     async_threads: Option<usize>,
+    /// `--collider`: the Avian collider rebuild benchmark.
+    collider: bool,
 }
 
 impl Args {
@@ -179,6 +189,7 @@ impl Args {
             plain: false,
             many: 1,
             async_threads: None,
+            collider: false,
         };
         let mut parser = cli::Parser::from_env();
         while let Some(arg) = cli::next(&mut parser, USAGE) {
@@ -196,6 +207,7 @@ impl Args {
                 cli::Arg::Long("async-threads") => {
                     args.async_threads = Some(cli::value(&mut parser, USAGE))
                 }
+                cli::Arg::Long("collider") => args.collider = true,
                 cli::Arg::Long("json") => {}
                 other => cli::unexpected(other, USAGE),
             }
@@ -207,6 +219,15 @@ impl Args {
 fn main() {
     let args = Args::parse();
     let (seconds, iterations, fps) = (args.seconds, args.iterations, args.fps);
+    if args.collider {
+        #[cfg(feature = "avian")]
+        return collider_rebuild::run(seconds, fps);
+        #[cfg(not(feature = "avian"))]
+        cli::fail(
+            "--collider needs the avian feature: cargo run --release --features avian --example plugin_bench -- --collider",
+            USAGE,
+        );
+    }
     let tri = match args.many {
         // Many small bendables: ~2k-vertex bars unless a mesh is named.
         n if n > 1 && args.mesh.is_none() => synth::bar_with_vertices(args.bar.unwrap_or(2000)),

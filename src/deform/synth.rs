@@ -70,6 +70,63 @@ pub fn bar(radial: u32, rings: u32, radius: f64, length: f64) -> TriMesh {
     }
 }
 
+/// A closed box ("plank") along +Y from `y = 0` to `y = length`, `thickness` across X and
+/// `width` across Z (centred), each face a grid: `cells` cells per unit of length, at least
+/// one per side. Faces share their edge vertices by position (bit-identical), so the seams
+/// weld ([`crate::deform::WeldPolicy::Seams`]); triangles wind counter-clockwise from outside.
+pub fn plank(length: f64, width: f64, thickness: f64, cells: f64) -> TriMesh {
+    let levels = |lo: f64, hi: f64| -> Vec<f64> {
+        let n = (((hi - lo) * cells).round() as usize).max(1);
+        (0..=n)
+            .map(|i| lo + (hi - lo) * i as f64 / n as f64)
+            .collect()
+    };
+    let axes = [
+        levels(-0.5 * thickness, 0.5 * thickness),
+        levels(0.0, length),
+        levels(-0.5 * width, 0.5 * width),
+    ];
+    let mut positions = Vec::new();
+    let mut triangles = Vec::new();
+    for k in 0..3 {
+        for outward in [false, true] {
+            // The face's two axes, ordered so that their cross product is its normal.
+            let (mut u, mut v) = ((k + 1) % 3, (k + 2) % 3);
+            if !outward {
+                std::mem::swap(&mut u, &mut v);
+            }
+            let fixed = if outward {
+                *axes[k].last().unwrap_or(&0.0)
+            } else {
+                axes[k][0]
+            };
+            let base = positions.len() as u32;
+            let (nu, nv) = (axes[u].len(), axes[v].len());
+            for j in 0..nv {
+                for i in 0..nu {
+                    let mut p = [0.0; 3];
+                    p[k] = fixed;
+                    p[u] = axes[u][i];
+                    p[v] = axes[v][j];
+                    positions.push(DVec3::from_array(p));
+                }
+            }
+            let id = |i: usize, j: usize| base + (j * nu + i) as u32;
+            for j in 0..nv - 1 {
+                for i in 0..nu - 1 {
+                    let (a, b, c, d) = (id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
+                    triangles.push([a, b, c]);
+                    triangles.push([a, c, d]);
+                }
+            }
+        }
+    }
+    TriMesh {
+        positions,
+        triangles,
+    }
+}
+
 /// A bar with about `target_vertices` vertices and a 1:10 radius:length ratio.
 pub fn bar_with_vertices(target_vertices: u32) -> TriMesh {
     let radial = ((target_vertices as f64 / 2.0).sqrt()).round().max(3.0) as u32;
@@ -561,6 +618,25 @@ mod tests {
             })
             .sum();
         assert!((vol - 4.18879).abs() < 0.15, "{vol}");
+    }
+
+    #[test]
+    fn a_plank_welds_closed_and_winds_outward() {
+        let m = plank(2.0, 0.6, 0.1, 20.0);
+        let t = crate::deform::Topology::new(&m.positions, &m.triangles).unwrap();
+        let edges = t.neighbor_list().len() / 2;
+        let chi = t.vertex_count() as i64 - edges as i64 + t.triangles().len() as i64;
+        assert_eq!(chi, 2, "the six faces weld into one closed surface");
+        assert!(t.vertex_count() < m.positions.len());
+        let vol: f64 = t
+            .triangles()
+            .iter()
+            .map(|tr| {
+                let [a, b, c] = tr.map(|i| t.positions()[i as usize]);
+                a.dot(b.cross(c)) / 6.0
+            })
+            .sum();
+        assert!((vol - 2.0 * 0.6 * 0.1).abs() < 1e-12, "{vol}");
     }
 
     #[test]

@@ -19,9 +19,12 @@
 mod deform;
 mod ground;
 mod input;
+#[cfg(feature = "avian")]
+pub mod physics;
 mod pose;
 mod scene;
 mod space;
+mod springs;
 mod tasks;
 mod wiimote;
 
@@ -49,6 +52,7 @@ pub use pose::{
     PoseSystems, PoseTimeline, Poseable, PoseableError, PosedSkeleton, SymmetricEditing,
 };
 pub use scene::{MissingSceneAssets, SceneAssetsMissing, SceneRootPlugin};
+pub use springs::{SpringBones, SpringPlugin, SpringSource, SpringStatus, SpringSystems};
 pub use wiimote::{
     ConnectionState, Wiimote, WiimoteButtonChanged, WiimoteCalibration, WiimoteConnected,
     WiimoteDisconnected, WiimoteEmulators, WiimoteFilter, WiimoteLink, WiimoteOrientationChanged,

@@ -54,6 +54,7 @@ mod model;
 pub mod placement;
 mod skeleton;
 mod solver;
+pub mod springs;
 pub mod synth_rig;
 
 pub use balance::{Balance, SupportPolygon, centre_of_mass, vertex_masses};
@@ -77,6 +78,10 @@ pub use skeleton::{
 pub use solver::{
     JointHandle, PoseConstraints, PoseSolution, PoseSolveOptions, PoseSolveStats, PoseSolver,
     PoseSolverSettings, PoseStart,
+};
+pub use springs::{
+    SpringChain, SpringCollider, SpringColliderShape, SpringError, SpringJoint, SpringRig,
+    SpringSettings, SpringState, VrmSpringError, read_vrm_springs, step_springs,
 };
 
 use crate::deform::MeshError;

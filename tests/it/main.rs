@@ -16,6 +16,8 @@ mod input_turns;
 mod malformed_gltf;
 mod missing_texture;
 mod mouse_control;
+#[cfg(feature = "avian")]
+mod physics_avian;
 mod pose_balance;
 mod pose_blend;
 mod pose_clip;
@@ -25,6 +27,7 @@ mod pose_core;
 mod pose_ecs;
 mod pose_effectors_ecs;
 mod pose_ground_ecs;
+mod pose_springs;
 mod scene_roundtrip;
 mod wiimote_device;
 mod wiimote_ecs;

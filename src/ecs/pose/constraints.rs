@@ -87,7 +87,7 @@ pub(super) fn rebase(
 }
 
 /// The character's limits, resolved against its skeleton (cached until `PoseLimits` changes).
-pub(super) fn resolve_limits(
+pub(crate) fn resolve_limits(
     posed: &PosedSkeleton,
     source: Option<&Ref<PoseLimits>>,
     cached: &mut Option<Arc<JointLimits>>,

@@ -33,6 +33,7 @@
 mod apply;
 mod blend;
 mod constraints;
+pub(crate) use constraints::resolve_limits;
 mod convert;
 mod ground_contacts;
 mod in_frame;

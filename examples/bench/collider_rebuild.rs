@@ -1,0 +1,119 @@
+//! `plugin_bench --collider` (feature `avian`): a plank of about 10k triangles, a static Avian
+//! body with `DeformCollider`, bent by its middle for 0.3 s then let settle, again and again;
+//! counts the frames from a settled solve to its collider swapped in, and the main thread's
+//! time in the deform and collider systems (and the whole frame, Avian's step included).
+
+use std::time::{Duration, Instant};
+
+use avian3d::prelude::*;
+use bevy::prelude::*;
+use bevy_wii_deform::deform::synth;
+use bevy_wii_deform::ecs::physics::{
+    DeformCollider, DeformColliderStatus, DeformPhysicsPlugin, DeformPhysicsSystems,
+};
+use bevy_wii_deform::prelude::*;
+
+use crate::{Timing, object, pace, percentile, start_timer, stop_timer};
+
+/// Runs the collider benchmark for `seconds` at `fps`; prints its JSON line.
+pub fn run(seconds: f64, fps: f64) {
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        bevy::asset::AssetPlugin::default(),
+        bevy::mesh::MeshPlugin,
+        bevy::transform::TransformPlugin,
+        PhysicsPlugins::default(),
+        DeformPlugin::default(),
+        DeformPhysicsPlugin,
+    ))
+    .init_resource::<Timing>()
+    .add_systems(Update, start_timer.before(DeformSystems::Prepare))
+    .add_systems(Update, stop_timer.after(DeformPhysicsSystems::Rebuild));
+    app.finish();
+    app.cleanup();
+    // ~10k triangles: a bar of ~5k vertices.
+    let tri = synth::bar_with_vertices(5000);
+    let mesh = mesh_from_triangles(&tri.positions, &tri.triangles);
+    let collider = Collider::trimesh_from_mesh(&mesh).expect("a closed bar");
+    let (fixed, _) = synth::slab_regions(&tri.positions, 1, 0.1, 0.1);
+    let middle: Vec<u32> = (0..tri.positions.len() as u32)
+        .filter(|&v| (tri.positions[v as usize].y - 0.5).abs() < 0.03)
+        .collect();
+    let bundle = DeformHandle::bundle(&mesh, Entity::PLACEHOLDER, middle);
+    let h = app.world_mut().resource_mut::<Assets<Mesh>>().add(mesh);
+    let plank = app
+        .world_mut()
+        .spawn((
+            Mesh3d(h),
+            Deformable::default(),
+            FixedRegion(fixed),
+            RigidBody::Static,
+            collider,
+            DeformCollider::default(),
+        ))
+        .id();
+    let (mut handle, rest) = bundle;
+    handle.target = plank;
+    let handle = app.world_mut().spawn((handle, rest)).id();
+    app.world_mut().resource_mut::<Timing>().measuring = true;
+
+    let frame = Duration::from_secs_f64(1.0 / fps.max(1.0));
+    let (mut frame_ms, mut to_collider) = (Vec::new(), Vec::new());
+    let mut settled_at: Option<(u64, u32)> = None;
+    let (start, mut n) = (Instant::now(), 0u32);
+    let rebuilds0 = rebuilds(&app, plank);
+    while start.elapsed().as_secs_f64() < seconds {
+        n += 1;
+        // Bend for 0.3 s of every second, then let it settle.
+        let t = start.elapsed().as_secs_f64();
+        if t.fract() < 0.3 {
+            let phase = (t.floor() as f32) * 0.7;
+            app.world_mut()
+                .get_mut::<Transform>(handle)
+                .unwrap()
+                .translation = rest.translation
+                + Vec3::new(0.1 * phase.cos(), 0.0, 0.1 * phase.sin()) * (t.fract() as f32 / 0.3);
+        }
+        let f0 = Instant::now();
+        app.update();
+        frame_ms.push(f0.elapsed().as_secs_f64() * 1e3);
+        let status = app.world().get::<DeformStatus>(plank).unwrap();
+        let built = app.world().get::<DeformColliderStatus>(plank).unwrap();
+        if status.phase == DeformPhase::Idle
+            && status.solves > built.built_from_solve
+            && settled_at.is_none_or(|(s, _)| s != status.solves)
+        {
+            settled_at = Some((status.solves, n));
+        }
+        if let Some((solve, at)) = settled_at
+            && built.built_from_solve == solve
+        {
+            to_collider.push(f64::from(n - at));
+            settled_at = None;
+        }
+        pace(frame, f0);
+    }
+    let mut main_ms = app.world().resource::<Timing>().frames_ms.clone();
+    main_ms.sort_by(f64::total_cmp);
+    frame_ms.sort_by(f64::total_cmp);
+    to_collider.sort_by(f64::total_cmp);
+    let report = object(serde_json::json!({
+        "triangles": tri.triangles.len(),
+        "frames": n,
+        "rebuilds": rebuilds(&app, plank) - rebuilds0,
+        "collider_frames_median": percentile(&to_collider, 0.5),
+        "collider_frames_max": to_collider.last().copied().unwrap_or(f64::NAN),
+        "main_ms_median": percentile(&main_ms, 0.5),
+        "main_ms_max": main_ms.last().copied().unwrap_or(f64::NAN),
+        "frame_ms_median": percentile(&frame_ms, 0.5),
+        "frame_ms_max": frame_ms.last().copied().unwrap_or(f64::NAN),
+    }));
+    println!("{}", serde_json::Value::Object(report));
+}
+
+fn rebuilds(app: &App, plank: Entity) -> u64 {
+    app.world()
+        .get::<DeformColliderStatus>(plank)
+        .map_or(0, |s| s.rebuilds)
+}

@@ -1,0 +1,118 @@
+//! Avian physics for bent meshes and posed characters (cargo feature `avian`, avian3d 0.7).
+//!
+//! - [`DeformCollider`] on a [`Deformable`](crate::ecs::Deformable) rebuilds its Avian
+//!   [`Collider`] from the bent mesh after each settled solve: the shape is built on the async
+//!   compute pool and swapped in when ready, so the main thread only copies the mesh's
+//!   positions. Avian cannot edit a triangle mesh in place; a new collider is the way.
+//! - [`Ground`](crate::ecs::Ground) entities with a [`Collider`] become the scene's ground
+//!   ([`SceneGround`](crate::ecs::SceneGround)) through Avian's ray casts against those
+//!   colliders, for characters with [`PoseGround`](crate::ecs::PoseGround) and meshes with
+//!   [`DeformGround`](crate::ecs::DeformGround). When at least one such collider exists, the
+//!   colliders are the ground and mesh-only `Ground` entities are not cast on.
+//!
+//! Add [`DeformPhysicsPlugin`] beside Avian's `PhysicsPlugins`.
+
+mod plugin;
+
+use avian3d::prelude::*;
+use bevy::prelude::*;
+use bevy::tasks::Task;
+use glam::DVec3;
+
+use crate::pose::{Ground as CoreGround, GroundPlane};
+
+pub use plugin::{DeformPhysicsPlugin, DeformPhysicsSystems};
+
+/// The collider a [`DeformCollider`] builds from the bent mesh.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Reflect)]
+pub enum ColliderShape {
+    /// A triangle mesh: the exact surface, hollow (for static bodies: a ramp, a plank).
+    #[default]
+    Trimesh,
+    /// The convex hull of the bent vertices (for dynamic bodies).
+    ConvexHull,
+}
+
+/// Rebuilds this [`Deformable`](crate::ecs::Deformable)'s Avian [`Collider`] from its bent
+/// mesh after each settled solve ([`DeformPhysicsPlugin`]).
+#[derive(Component, Debug, Clone, Default, Reflect)]
+#[reflect(Component, Default)]
+#[require(DeformColliderStatus)]
+pub struct DeformCollider {
+    /// Which shape to build.
+    pub shape: ColliderShape,
+}
+
+/// What the collider rebuilds of a [`DeformCollider`] did; readable by UIs and tests.
+#[derive(Component, Debug, Clone, Default, Reflect)]
+#[reflect(Component, Default)]
+pub struct DeformColliderStatus {
+    /// Colliders built and swapped in.
+    pub rebuilds: u64,
+    /// The deform solve count ([`DeformStatus::solves`](crate::ecs::DeformStatus::solves)) the
+    /// current collider was built from.
+    pub built_from_solve: u64,
+    /// Why the last rebuild failed (the previous collider stays), if it did.
+    pub error: Option<String>,
+}
+
+/// A collider being built in the background.
+#[derive(Component)]
+pub(crate) struct ColliderBuild {
+    task: Task<Result<Collider, String>>,
+    solve: u64,
+}
+
+/// The scene's ground as Avian colliders, cast on one by one (with their bounding boxes as a
+/// first test). A snapshot: shapes are shared, not copied.
+#[derive(Clone, Default)]
+pub struct ColliderGround {
+    colliders: Vec<(Collider, Vec3, Quat, ColliderAabb)>,
+}
+
+impl ColliderGround {
+    /// A ground of `colliders` placed at (translation, rotation), with their world boxes.
+    pub fn new(colliders: Vec<(Collider, Vec3, Quat, ColliderAabb)>) -> Self {
+        Self { colliders }
+    }
+
+    /// Colliders in the ground.
+    pub fn len(&self) -> usize {
+        self.colliders.len()
+    }
+
+    /// Whether the ground has no collider.
+    pub fn is_empty(&self) -> bool {
+        self.colliders.is_empty()
+    }
+}
+
+impl CoreGround for ColliderGround {
+    fn cast_down(&self, from: DVec3, down: DVec3, max: f64) -> Option<GroundPlane> {
+        let (origin, dir) = (from.as_vec3(), down.normalize_or_zero().as_vec3());
+        let end = origin + dir * max as f32;
+        let (lo, hi) = (origin.min(end), origin.max(end));
+        let mut best: Option<(f32, Vec3)> = None;
+        for (collider, translation, rotation, aabb) in &self.colliders {
+            if aabb.max.cmplt(lo).any() || aabb.min.cmpgt(hi).any() {
+                continue;
+            }
+            let Some((t, normal)) =
+                collider.cast_ray(*translation, *rotation, origin, dir, max as f32, true)
+            else {
+                continue;
+            };
+            if best.is_none_or(|(bt, _)| t < bt) {
+                best = Some((t, normal));
+            }
+        }
+        let (t, normal) = best?;
+        // The face's normal, turned to face the ray (a trimesh's winding may face either way).
+        let normal = if normal.dot(dir) > 0.0 {
+            -normal
+        } else {
+            normal
+        };
+        GroundPlane::new((origin + dir * t).as_dvec3(), normal.as_dvec3())
+    }
+}

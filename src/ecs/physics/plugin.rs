@@ -1,0 +1,181 @@
+//! Systems of [`DeformPhysicsPlugin`]: collider rebuilds after settled solves, and the
+//! colliders marked [`Ground`] as the scene's ground.
+
+use avian3d::prelude::*;
+use bevy::prelude::*;
+use bevy::tasks::AsyncComputeTaskPool;
+use bevy::tasks::futures::check_ready;
+
+use super::{ColliderBuild, ColliderGround, ColliderShape, DeformCollider, DeformColliderStatus};
+use crate::ecs::deform::mesh_positions;
+use crate::ecs::{DeformPhase, DeformStatus, DeformSystems, Ground, SceneGround};
+
+/// The systems of [`DeformPhysicsPlugin`].
+#[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum DeformPhysicsSystems {
+    /// `PreUpdate`: [`SceneGround`] from the [`Ground`] colliders.
+    Ground,
+    /// `Update`, after [`DeformSystems::Writeback`]: start collider builds for settled bends,
+    /// swap in the finished ones.
+    Rebuild,
+}
+
+/// Rebuilds the colliders of bent [`DeformCollider`] meshes and casts the ground on
+/// [`Ground`] colliders (module docs of [`crate::ecs::physics`]). Add it with Avian's
+/// `PhysicsPlugins` and the deform or pose plugins.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct DeformPhysicsPlugin;
+
+impl Plugin for DeformPhysicsPlugin {
+    fn build(&self, app: &mut App) {
+        app.register_type::<DeformCollider>()
+            .register_type::<DeformColliderStatus>()
+            .configure_sets(
+                Update,
+                DeformPhysicsSystems::Rebuild.after(DeformSystems::Writeback),
+            )
+            .add_systems(
+                PreUpdate,
+                collect_collider_ground.in_set(DeformPhysicsSystems::Ground),
+            )
+            .add_systems(
+                Update,
+                (start_collider_builds, swap_built_colliders)
+                    .chain()
+                    .in_set(DeformPhysicsSystems::Rebuild),
+            );
+    }
+}
+
+/// Starts a background collider build for every [`DeformCollider`] mesh whose last solve has
+/// settled (its status idle) and is newer than its collider.
+fn start_collider_builds(
+    mut commands: Commands,
+    meshes: Res<Assets<Mesh>>,
+    bent: Query<
+        (
+            Entity,
+            &DeformCollider,
+            &DeformStatus,
+            &DeformColliderStatus,
+            &Mesh3d,
+        ),
+        Without<ColliderBuild>,
+    >,
+) {
+    for (entity, wanted, status, built, mesh) in &bent {
+        let settled = status.phase == DeformPhase::Idle && status.error.is_none();
+        if !settled || status.solves == 0 || status.solves == built.built_from_solve {
+            continue;
+        }
+        let Some(mesh) = meshes.get(&mesh.0) else {
+            continue;
+        };
+        let Some(positions) = mesh_positions(mesh) else {
+            continue;
+        };
+        let triangles: Vec<[u32; 3]> = mesh
+            .indices()
+            .map(|i| {
+                let i: Vec<u32> = i.iter().map(|v| v as u32).collect();
+                i.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect()
+            })
+            .unwrap_or_default();
+        let shape = wanted.shape;
+        let task =
+            AsyncComputeTaskPool::get().spawn(async move { build(shape, positions, triangles) });
+        commands.entity(entity).try_insert(ColliderBuild {
+            task,
+            solve: status.solves,
+        });
+    }
+}
+
+/// The collider of `shape` over the bent mesh; a readable reason when it cannot be built.
+fn build(
+    shape: ColliderShape,
+    positions: Vec<Vec3>,
+    triangles: Vec<[u32; 3]>,
+) -> Result<Collider, String> {
+    if !positions.iter().all(|p| p.is_finite()) {
+        return Err("the bent mesh has non-finite positions".into());
+    }
+    match shape {
+        ColliderShape::Trimesh => {
+            if triangles.is_empty() {
+                return Err("the mesh has no triangles".into());
+            }
+            Collider::try_trimesh_with_config(
+                positions,
+                triangles,
+                TrimeshFlags::MERGE_DUPLICATE_VERTICES,
+            )
+            .map_err(|e| format!("no triangle mesh collider: {e:?}"))
+        }
+        ColliderShape::ConvexHull => Collider::convex_hull(positions)
+            .ok_or_else(|| "no convex hull (the vertices are flat or too few)".to_string()),
+    }
+}
+
+/// Swaps finished colliders in (the old one stays when a build failed).
+fn swap_built_colliders(
+    mut commands: Commands,
+    mut builds: Query<(Entity, &mut ColliderBuild, &mut DeformColliderStatus)>,
+) {
+    for (entity, mut build, mut status) in &mut builds {
+        let Some(result) = check_ready(&mut build.task) else {
+            continue;
+        };
+        status.built_from_solve = build.solve;
+        let mut entity = commands.entity(entity);
+        entity.try_remove::<ColliderBuild>();
+        match result {
+            Ok(collider) => {
+                entity.try_insert(collider);
+                status.rebuilds += 1;
+                status.error = None;
+            }
+            Err(reason) => status.error = Some(reason),
+        }
+    }
+}
+
+/// A [`Ground`] collider moved, was added or got another shape.
+type ChangedGroundCollider = (
+    With<Ground>,
+    Or<(
+        Changed<Collider>,
+        Changed<GlobalTransform>,
+        Added<ColliderAabb>,
+    )>,
+);
+
+/// Keeps [`SceneGround`] on the [`Ground`] colliders while there are any.
+fn collect_collider_ground(
+    mut commands: Commands,
+    colliders: Query<(&Collider, &GlobalTransform, &ColliderAabb), With<Ground>>,
+    changed: Query<(), ChangedGroundCollider>,
+    mut removed: RemovedComponents<Collider>,
+    mut ours: Local<bool>,
+) {
+    let any_removed = removed.read().count() > 0;
+    if changed.is_empty() && !any_removed {
+        return;
+    }
+    let snapshot: Vec<_> = colliders
+        .iter()
+        .map(|(c, t, aabb)| {
+            let (_, rotation, translation) = t.to_scale_rotation_translation();
+            (c.clone(), translation, rotation, *aabb)
+        })
+        .collect();
+    if snapshot.is_empty() {
+        if std::mem::take(&mut *ours) {
+            // The meshes are the ground again (GroundPlugin rebuilds it).
+            commands.remove_resource::<SceneGround>();
+        }
+        return;
+    }
+    *ours = true;
+    commands.insert_resource(SceneGround::custom(ColliderGround::new(snapshot)));
+}
