@@ -74,7 +74,7 @@ fn setup(
 ) {
     commands.spawn((
         Camera3d::default(),
-        Transform::from_xyz(0.0, 1.4, 3.6).looking_at(Vec3::new(0.0, 0.2, 0.0), Vec3::Y),
+        Transform::from_xyz(0.0, 1.9, 3.0).looking_at(Vec3::new(0.0, 0.0, 0.0), Vec3::Y),
     ));
     commands.spawn((
         DirectionalLight {
@@ -90,8 +90,9 @@ fn setup(
         RigidBody::Static,
         Collider::half_space(Vec3::Y),
     ));
-    // A plank 2.4 long lying along X: a bar turned onto its side, both ends held.
-    let bar = synth::bar(24, 80, 0.12, 2.4);
+    // A plank 2.4 long, 0.5 wide and 0.08 thick, lying along X (generated along +Y, turned
+    // onto its side), both ends held.
+    let bar = synth::plank(2.4, 0.5, 0.08, 25.0);
     let mesh = mesh_from_triangles(&bar.positions, &bar.triangles);
     let collider = Collider::trimesh_from_mesh(&mesh).expect("a closed bar");
     let ends: Vec<u32> = (0..bar.positions.len() as u32)
@@ -144,10 +145,10 @@ fn drop_balls(
     ));
 }
 
-/// Balls that rolled off fall on the floor; the oldest go once there are many.
+/// Balls that rolled off the plank go when they reach the floor.
 fn clear_fallen_balls(mut commands: Commands, balls: Query<(Entity, &Transform), With<Ball>>) {
     for (entity, transform) in &balls {
-        if transform.translation.y < -0.6 {
+        if transform.translation.y < -0.7 {
             commands.entity(entity).despawn();
         }
     }
@@ -162,7 +163,7 @@ fn push_the_plank(
     mut moves: MessageWriter<GrabMove>,
 ) {
     let (camera, cam, cam_transform) = *camera;
-    let middle = Vec3::new(0.0, 0.12, 0.0);
+    let middle = Vec3::new(0.0, 0.04, 0.0);
     let pointer = PointerId::Mouse;
     if frame.0 == 20 {
         grab.write(GrabStart {

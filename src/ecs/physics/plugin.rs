@@ -117,12 +117,18 @@ fn build(
     }
 }
 
-/// Swaps finished colliders in (the old one stays when a build failed).
+/// Swaps finished colliders in (the old one stays when a build failed). The old shape is
+/// freed on the compute pool: a large triangle mesh takes milliseconds to free.
 fn swap_built_colliders(
     mut commands: Commands,
-    mut builds: Query<(Entity, &mut ColliderBuild, &mut DeformColliderStatus)>,
+    mut builds: Query<(
+        Entity,
+        &mut ColliderBuild,
+        &mut DeformColliderStatus,
+        Option<&Collider>,
+    )>,
 ) {
-    for (entity, mut build, mut status) in &mut builds {
+    for (entity, mut build, mut status, old) in &mut builds {
         let Some(result) = check_ready(&mut build.task) else {
             continue;
         };
@@ -131,6 +137,11 @@ fn swap_built_colliders(
         entity.try_remove::<ColliderBuild>();
         match result {
             Ok(collider) => {
+                if let Some(old) = old.cloned() {
+                    AsyncComputeTaskPool::get()
+                        .spawn(async move { drop(old) })
+                        .detach();
+                }
                 entity.try_insert(collider);
                 status.rebuilds += 1;
                 status.error = None;
