@@ -29,6 +29,7 @@ mod pose_effectors_ecs;
 mod pose_ground_ecs;
 mod pose_springs;
 mod scene_roundtrip;
+mod springs_ecs;
 mod wiimote_device;
 mod wiimote_ecs;
 mod wiimote_ir;
