@@ -5,7 +5,8 @@
 //! effector turns each head toward a firefly that wanders over the field (the effectors are the
 //! firefly's children: targets that follow another entity), and `PoseInFrame` solves all of
 //! them every frame in parallel. The pose overrides the clip on the legs, neck and head only
-//! (`PoseBlend` with a `JointMask`); the spine and tail play on.
+//! (`PoseBlend` with a `JointMask`); the spine and tail play on, and the tail swings on spring
+//! bones after the clip and the pose (`SpringBones`; **T** turns them off and on).
 //!
 //! ```text
 //! cargo run --release --example crowd [-- N] [--screenshot PATH --frames N]
@@ -21,6 +22,8 @@ use bevy_wii_deform::prelude::*;
 mod cli;
 #[path = "common/screenshot.rs"]
 mod screenshot;
+#[path = "common/springy_tails.rs"]
+mod springy_tails;
 #[path = "common/terrain.rs"]
 mod terrain;
 
@@ -60,6 +63,7 @@ fn main() {
     let mut app = App::new();
     app.add_plugins(DefaultPlugins)
         .add_plugins((PosePlugin, IdlePlugin, FireflyPlugin))
+        .add_plugins(springy_tails::SpringyTailsPlugin)
         .insert_resource(Crowd(count))
         .add_systems(Startup, setup)
         .add_systems(Update, drop_on_ground.before(PoseSystems::Request));
@@ -303,6 +307,8 @@ fn setup(
             PoseStiffness(0.3),
             PoseGround::default(),
             PoseBalance::default(),
+            // The tail swings after the clip and the pose (T turns it off and on).
+            springy_tails::tail_springs(),
         ));
     }
 }

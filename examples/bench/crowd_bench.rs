@@ -18,6 +18,10 @@
 //! resident memory) and `rss_growth_kb_per_frame` (resident memory from frame 500 — or half
 //! the run, when shorter — to the end, per frame: flat under in-frame posing).
 //!
+//! `--springs` (`tail_springs.rs`): every Fox's tail on spring bones; adds `spring_chains`,
+//! `spring_joints` (across the characters) and `spring_ms_per_frame_median` (the wall time of
+//! `SpringSystems::Simulate`).
+//!
 //! `--terrain` (`walking_field.rs`): the characters stand on the crowd example's hilly,
 //! terraced terrain mesh (`Ground`; hills up to 30°, steps 10 units, about a third of the Fox's
 //! leg) with `PoseGround` and `PoseBalance` instead of foot effectors, and walk across it (40
@@ -30,6 +34,9 @@
 mod cli;
 #[path = "../common/headless_gltf.rs"]
 mod headless_gltf;
+#[path = "../common/springy_tails.rs"]
+mod springy_tails;
+mod tail_springs;
 #[path = "../common/terrain.rs"]
 mod terrain;
 mod walking_field;
@@ -52,11 +59,13 @@ struct Args {
     playing: bool,
     /// `--terrain`: on the crowd example's terrain mesh, walking, standing by `PoseGround`.
     terrain: bool,
+    /// `--springs`: every character's tail on spring bones.
+    springs: bool,
 }
 
 const USAGE: &str = "\
 usage: crowd_bench [--characters N] [--frames N] [--iterations N] [--model PATH] [--playing]
-                   [--terrain] [--json]
+                   [--terrain] [--springs] [--json]
 
   --characters N  Foxes (default 100)
   --frames N      measured frames (default 120)
@@ -65,6 +74,7 @@ usage: crowd_bench [--characters N] [--frames N] [--iterations N] [--model PATH]
   --playing       each plays its clip; the pose is an additive layer over it
   --terrain       on a hilly, terraced terrain mesh (Ground), walking, stood by PoseGround and
                   PoseBalance (no foot effectors)
+  --springs       every tail on spring bones (SpringBones by name); adds the spring time
   --json          accepted for older command lines: the JSON is always the last line";
 
 fn args() -> Args {
@@ -75,6 +85,7 @@ fn args() -> Args {
         model: "assets/models/Fox.glb".into(),
         playing: false,
         terrain: false,
+        springs: false,
     };
     let mut parser = cli::Parser::from_env();
     while let Some(arg) = cli::next(&mut parser, USAGE) {
@@ -85,6 +96,7 @@ fn args() -> Args {
             cli::Arg::Long("model") => args.model = cli::string(&mut parser, USAGE),
             cli::Arg::Long("playing") => args.playing = true,
             cli::Arg::Long("terrain") => args.terrain = true,
+            cli::Arg::Long("springs") => args.springs = true,
             cli::Arg::Long("json") => {}
             other => cli::unexpected(other, USAGE),
         }
@@ -121,7 +133,7 @@ fn main() {
     }
     // Bevy resolves a relative asset folder against the executable's; make it absolute.
     let dir = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
-    let mut app = headless_app(&dir);
+    let mut app = headless_app(&dir, args.springs);
     let (scene, clip) = load_scene(&mut app, &file.to_string_lossy());
     if args.playing && clip.is_none() {
         eprintln!("--playing: {} has no animation", path.display());
@@ -149,6 +161,9 @@ fn main() {
                     iterations: args.iterations,
                 },
             ));
+            if args.springs {
+                fox.insert(springy_tails::tail_springs());
+            }
             if field.is_some() {
                 fox.insert((
                     PoseGround::default(),
@@ -206,6 +221,11 @@ fn main() {
         clock.measuring = true;
         clock.frames_ms.reserve_exact(args.frames);
     }
+    if args.springs {
+        app.world_mut()
+            .resource_mut::<tail_springs::SpringClock>()
+            .measuring = true;
+    }
     // Every character's solve time every frame, kept as a histogram: a list of them grew by
     // 800 bytes a frame for 100 characters (the growth the in-frame memory check found).
     let mut solve_ms = LogHistogram::default();
@@ -236,6 +256,7 @@ fn main() {
         _ => None,
     };
     let ground_report = field.as_ref().map(|f| f.report(&app, &roots));
+    let spring_report = args.springs.then(|| tail_springs::report(&mut app, &roots));
     let mut frames = std::mem::take(&mut app.world_mut().resource_mut::<SolverClock>().frames_ms);
     frames.sort_by(f64::total_cmp);
     let pick = |v: &[f64], p: f64| v[((v.len() - 1) as f64 * p).round() as usize];
@@ -251,8 +272,9 @@ fn main() {
             "peak_rss_mb": peak_resident_kb().map(|kb| kb as f64 / 1024.0),
             "rss_growth_kb_per_frame": rss_growth_kb_per_frame,
     });
-    if let (Some(extra), Some(fields)) = (ground_report, report.as_object_mut()) {
-        fields.extend(extra);
+    if let Some(fields) = report.as_object_mut() {
+        fields.extend(ground_report.into_iter().flatten());
+        fields.extend(spring_report.into_iter().flatten());
     }
     println!("{report}");
 }
@@ -349,7 +371,7 @@ fn load_scene(app: &mut App, file: &str) -> (Handle<WorldAsset>, Option<Handle<A
 struct KeepLoaded(#[allow(dead_code)] Handle<bevy::gltf::Gltf>);
 
 /// A headless app that loads glTF scenes and poses characters, time stepped 16 ms a frame.
-fn headless_app(dir: &std::path::Path) -> App {
+fn headless_app(dir: &std::path::Path, springs: bool) -> App {
     let mut app = App::new();
     // Two threads for the compute pool on a two-core machine (Bevy's default gives it what IO
     // and async compute leave: one): in-frame solves run on it, when those pools are idle.
@@ -373,10 +395,14 @@ fn headless_app(dir: &std::path::Path) -> App {
                     .before(PoseSystems::Apply),
                 stop_clock
                     .after(PoseSystems::Apply)
+                    .before(bevy_wii_deform::ecs::SpringSystems::Simulate)
                     .before(TransformSystems::Propagate),
             ),
         )
         .add_systems(Update, bob_targets.before(PoseSystems::Request));
+    if springs {
+        tail_springs::add(&mut app);
+    }
     app.finish();
     app.cleanup();
     app

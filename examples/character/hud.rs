@@ -67,7 +67,7 @@ fn update_hud(
     };
     let pinned = pins.map_or(0, |p| p.0.len());
     let mut line = format!(
-        "drag the character to pose it | F feet pins ({pinned} pinned) | G ground | B balance | S save | L load | R reset\n\
+        "drag the character to pose it | F feet pins ({pinned} pinned) | G ground | B balance | T tail springs | S save | L load | R reset\n\
          {} joints, {} vertices | last solve {} iterations, {:.2} ms | {}",
         status.joints, status.vertices, status.iterations, status.solve_ms, message.0
     );

@@ -7,6 +7,7 @@
 //! * **Left-drag on the character**: grabs the vertices around the point under the cursor
 //!   (on the *posed* mesh: picking ray-casts the CPU-skinned positions) and drags them in the
 //!   view plane; the skeleton follows, As-Rigid-As-Possible. Release: the pose stays.
+//! * **T**: the tail on spring bones or not (on at start: it swings as the Fox is dragged).
 //! * **F**: pin / unpin the feet (the joints nearest the ground; pinned at start).
 //! * **S** / **L**: save the pose (RON + a one-keyframe glTF clip) to `poses/` / load the RON.
 //! * **R**: back to the pose the character was loaded in.
@@ -52,6 +53,8 @@ mod missing_textures;
 #[path = "../common/remote_cursor.rs"]
 mod remote_cursor;
 mod scene;
+#[path = "../common/springy_tails.rs"]
+mod springy_tails;
 mod standing;
 mod timeline;
 mod ui;
@@ -173,6 +176,7 @@ fn main() {
         authoring::AuthorDemoPlugin,
         missing_textures::MissingTexturesPlugin,
         standing::StandingPlugin,
+        springy_tails::SpringyTailsPlugin,
     ))
     .run();
 }

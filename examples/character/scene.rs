@@ -51,7 +51,13 @@ fn setup(
         Ground,
     ));
     let scene = assets.load(GltfAssetLabel::Scene(0).from_asset(args.model.clone()));
-    commands.spawn((WorldAssetRoot(scene), Poseable::default(), Character));
+    commands.spawn((
+        WorldAssetRoot(scene),
+        Poseable::default(),
+        Character,
+        // Joints named "tail" swing on springs (T turns them off); other rigs have none.
+        crate::springy_tails::tail_springs(),
+    ));
 }
 
 /// Puts the ground under the character's lowest posed point once it is known: rigs from other
