@@ -23,6 +23,7 @@
 
 mod anderson;
 pub(crate) mod constraints;
+pub mod dynamics;
 mod energy;
 mod factor;
 mod io;
@@ -37,6 +38,7 @@ pub mod synth;
 mod topology;
 
 pub use constraints::{ConstraintError, Constraints, Handle, RigidTransform};
+pub use dynamics::{DynamicsSettings, Motion};
 pub use energy::arap_energy;
 pub use io::{MeshIoError, TriMesh, bounding_box, centroid, glb_container};
 pub use obstacle::{HeightField, HeightFieldError, Obstacle, PlaneObstacle, SurfaceSample};

@@ -8,6 +8,7 @@ mod fixtures;
 mod character_grab;
 mod character_nodes;
 mod deform_core;
+mod deform_dynamics;
 mod deform_ecs;
 mod deform_obstacle;
 mod grab_ecs;

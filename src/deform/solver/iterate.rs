@@ -40,6 +40,9 @@ pub(super) struct Iterate<'a> {
     pub stats: SolveStats,
     /// The obstacle the free vertices stay above, and its active set.
     pub contacts: Option<ContactSet<'a>>,
+    /// The inertial target of the free vertices (elimination order), weighted by
+    /// [`super::SolverSettings::inertia`] in every global step.
+    pub inertial: Option<Vec<DVec3>>,
 }
 
 impl ArapSolver {
@@ -56,6 +59,12 @@ impl ArapSolver {
     pub(super) fn global_step(&self, it: &mut Iterate) {
         let tr = Instant::now();
         self.arap_rhs(&it.x, &it.mats, &mut it.rhs_by_vertex, &mut it.rhs);
+        if let Some(target) = &it.inertial {
+            let w = self.settings.inertia;
+            for (r, y) in it.rhs.iter_mut().zip(target) {
+                *r += w * *y;
+            }
+        }
         let tg = Instant::now();
         self.cot_factor.solve_in_place(&mut it.rhs, self.parallel);
         if let Some(contacts) = it.contacts.as_mut() {

@@ -66,6 +66,11 @@ pub struct SolverSettings {
     pub ordering: FillOrdering,
     /// Where the loops of the iterations run (the positions are the same either way).
     pub threading: Threading,
+    /// Weight of each free vertex's pull toward an inertial target
+    /// ([`ArapSolver::solve_inertial`]), added to the system's diagonal: `m / (k h²)` for a
+    /// vertex mass `m`, an ARAP stiffness `k` and a time step `h` ([`crate::deform::dynamics`]).
+    /// 0 (the default): the static problem.
+    pub inertia: f64,
 }
 
 /// Per-solve options.

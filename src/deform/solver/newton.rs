@@ -249,6 +249,7 @@ mod tests {
             energy: None,
             stats: SolveStats::default(),
             contacts: None,
+            inertial: None,
         };
         let gradient_at = |it: &mut Iterate, x: &[DVec3]| {
             it.x = x.to_vec();

@@ -81,6 +81,7 @@ impl ArapSolver {
                 weights: &layout.weights,
                 free: &free,
                 free_index: &free_index,
+                inertia: settings.inertia,
             };
             factor(&laplacians, settings.factorization, split, t1, &mut stats)?
         };

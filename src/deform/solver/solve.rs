@@ -27,7 +27,7 @@ impl ArapSolver {
         initial: InitialGuess<'_>,
         should_cancel: &dyn Fn() -> bool,
     ) -> Result<Solution, SolveError> {
-        self.solve_with(constraints, options, initial, None, should_cancel)
+        self.solve_with(constraints, options, initial, None, None, should_cancel)
     }
 
     /// [`ArapSolver::solve`] keeping every free vertex on or above `obstacle` (in the mesh's
@@ -44,7 +44,84 @@ impl ArapSolver {
         obstacle: &dyn Obstacle,
         should_cancel: &dyn Fn() -> bool,
     ) -> Result<Solution, SolveError> {
-        self.solve_with(constraints, options, initial, Some(obstacle), should_cancel)
+        self.solve_with(
+            constraints,
+            options,
+            initial,
+            Some(obstacle),
+            None,
+            should_cancel,
+        )
+    }
+
+    /// One implicit time step's solve: the ARAP energy plus
+    /// [`SolverSettings::inertia`](super::SolverSettings::inertia)` · |x − target|²` over the
+    /// free vertices (`target`: welded positions, the inertial prediction `x + h v`), as
+    /// projective dynamics does — the same local/global iterations with the mass term in the
+    /// factored system. Runs plain local/global iterations whatever `options.acceleration`
+    /// says; the reported energies are the ARAP part. `obstacle`, when given, is kept above as
+    /// in [`ArapSolver::solve_above`].
+    pub fn solve_inertial(
+        &self,
+        constraints: &Constraints,
+        options: &SolveOptions,
+        initial: InitialGuess<'_>,
+        target: &[DVec3],
+        obstacle: Option<&dyn Obstacle>,
+        should_cancel: &dyn Fn() -> bool,
+    ) -> Result<Solution, SolveError> {
+        if target.len() != self.layout.rest.len() {
+            return Err(SolveError::WarmStartMismatch {
+                got: target.len(),
+                expected: self.layout.rest.len(),
+            });
+        }
+        if !target.iter().all(|p| p.is_finite()) {
+            return Err(SolveError::NonFinite);
+        }
+        self.solve_with(
+            constraints,
+            options,
+            initial,
+            obstacle,
+            Some(target),
+            should_cancel,
+        )
+    }
+
+    /// The lowest eigenvalue of the factored system (the free vertices' Laplacian, plus
+    /// [`SolverSettings::inertia`](super::SolverSettings::inertia)), by inverse iteration from a
+    /// fixed start: the slowest mode's stiffness per unit mass ([`crate::deform::dynamics`]).
+    /// 0 without free vertices.
+    pub fn lowest_eigenvalue(&self) -> f64 {
+        let m = self.free.len();
+        if m == 0 {
+            return 0.0;
+        }
+        // Three starts at once (one per coordinate), smooth and not orthogonal to the
+        // slowest mode of a mesh held anywhere.
+        let mut v: Vec<DVec3> = (0..m)
+            .map(|k| {
+                let t = k as f64 / m as f64;
+                DVec3::new(1.0, 1.0 + t, 1.0 + (7.0 * t).sin())
+            })
+            .collect();
+        let mut estimate = DVec3::ZERO;
+        for _ in 0..40 {
+            let before: DVec3 = v.iter().map(|p| *p * *p).sum::<DVec3>();
+            self.cot_factor.solve_in_place(&mut v, self.parallel);
+            let after: DVec3 = v.iter().map(|p| *p * *p).sum::<DVec3>();
+            estimate = DVec3::new(
+                (before.x / after.x).sqrt(),
+                (before.y / after.y).sqrt(),
+                (before.z / after.z).sqrt(),
+            );
+            let scale = DVec3::ONE / DVec3::new(after.x.sqrt(), after.y.sqrt(), after.z.sqrt());
+            for p in &mut v {
+                *p *= scale;
+            }
+        }
+        estimate.min_element()
     }
 
     fn solve_with(
@@ -53,6 +130,7 @@ impl ArapSolver {
         options: &SolveOptions,
         initial: InitialGuess<'_>,
         obstacle: Option<&dyn Obstacle>,
+        inertial: Option<&[DVec3]>,
         should_cancel: &dyn Fn() -> bool,
     ) -> Result<Solution, SolveError> {
         let t0 = Instant::now();
@@ -103,6 +181,10 @@ impl ArapSolver {
             energy: prev_energy,
             stats,
             contacts: obstacle.map(ContactSet::new),
+            inertial: inertial.map(|target| {
+                let target = self.layout.gather(target);
+                self.free.iter().map(|&i| target[i as usize]).collect()
+            }),
         };
         let carry = self.iterate(&mut it, initial, options, should_cancel)?;
         let Iterate {
@@ -176,6 +258,11 @@ impl ArapSolver {
         should_cancel: &dyn Fn() -> bool,
     ) -> Result<CarriedHistory, SolveError> {
         if self.free.is_empty() {
+            return Ok(CarriedHistory::default());
+        }
+        if it.inertial.is_some() {
+            // A time step: the global step carries the inertial target.
+            self.iterate_local_global(it, 0, options, should_cancel)?;
             return Ok(CarriedHistory::default());
         }
         if it.contacts.is_some() {

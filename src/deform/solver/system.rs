@@ -21,6 +21,8 @@ pub(super) struct FreeLaplacians<'a> {
     pub(super) weights: &'a [f64],
     pub(super) free: &'a [u32],
     pub(super) free_index: &'a [u32],
+    /// Added to the cotangent Laplacian's diagonal ([`super::SolverSettings::inertia`]).
+    pub(super) inertia: f64,
 }
 
 /// Upper triangle pattern of the free Laplacians, compressed columns, sorted rows.
@@ -92,7 +94,7 @@ impl FreeLaplacians<'_> {
                         self.offsets[i as usize] as usize..self.offsets[i as usize + 1] as usize;
                     self.side(i, col, false, &mut side);
                     rows.push(col);
-                    cotangent.push(self.weights[range.clone()].iter().sum::<f64>());
+                    cotangent.push(self.weights[range.clone()].iter().sum::<f64>() + self.inertia);
                     uniform.push(range.len() as f64);
                     for &(r, w) in &side {
                         rows.push(r);
