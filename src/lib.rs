@@ -23,10 +23,10 @@ pub mod prelude {
         Topology, TriMesh, WeldPolicy, arap_energy,
     };
     pub use crate::ecs::{
-        ConnectionState, DeformConfig, DeformError, DeformFailed, DeformGround, DeformHandle,
-        DeformPhase, DeformPlugin, DeformSolved, DeformStatus, DeformSystems, Deformable,
-        DeformableFrom, DeformableScene, FixedRegion, GrabButton, GrabEnd, GrabMove, GrabPlugin,
-        GrabStart, GrabTurn, GrabTwist, Grabbable, Ground, InputSystems, JointMask,
+        ConnectionState, DeformConfig, DeformDynamics, DeformError, DeformFailed, DeformGround,
+        DeformHandle, DeformPhase, DeformPlugin, DeformSolved, DeformStatus, DeformSystems,
+        Deformable, DeformableFrom, DeformableScene, FixedRegion, GrabButton, GrabEnd, GrabMove,
+        GrabPlugin, GrabStart, GrabTurn, GrabTwist, Grabbable, Ground, InputSystems, JointMask,
         MissingSceneAssets, MouseControlPlugin, MouseHandleControl, PinnedJoints, PoseAnchor,
         PoseBalance, PoseBlend, PoseBlendMode, PoseEffector, PoseEffectorKind, PoseFailed,
         PoseGround, PoseInFrame, PoseJointHandle, PoseLimits, PoseModels, PosePlugin, PoseSolved,

@@ -32,9 +32,9 @@ use bevy::app::PluginGroupBuilder;
 use bevy::prelude::*;
 
 pub use deform::{
-    DeformConfig, DeformError, DeformFailed, DeformGround, DeformHandle, DeformPhase, DeformPlugin,
-    DeformSolved, DeformState, DeformStatus, DeformSystems, Deformable, DeformableFrom,
-    DeformableScene, FixedRegion, MESH_WAIT_FRAMES, mesh_from_triangles,
+    DeformConfig, DeformDynamics, DeformError, DeformFailed, DeformGround, DeformHandle,
+    DeformPhase, DeformPlugin, DeformSolved, DeformState, DeformStatus, DeformSystems, Deformable,
+    DeformableFrom, DeformableScene, FixedRegion, MESH_WAIT_FRAMES, mesh_from_triangles,
 };
 pub use ground::{Ground, GroundPlugin, SceneGround};
 pub use input::{

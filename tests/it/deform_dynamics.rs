@@ -143,3 +143,66 @@ fn frame_rates_and_a_hitch_step_the_same_motion() {
     let hitched = tip_path(settings, 60.0, 4.0, Some(30));
     assert!(hitched.iter().all(|x| x.is_finite() && x.abs() < 0.31));
 }
+
+/// The handle's vertices' mean x and the far half's mean x of a bar in a DeformPlugin app.
+fn mean_x(app: &bevy::prelude::App, e: bevy::prelude::Entity, vertices: &[u32]) -> f32 {
+    let p = crate::common::bar::positions(app, e);
+    vertices.iter().map(|&v| p[v as usize].x).sum::<f32>() / vertices.len() as f32
+}
+
+#[test]
+fn a_dynamic_bar_lags_a_fast_move_overshoots_and_springs_back_when_let_go() {
+    use bevy::prelude::*;
+    use bevy::time::TimeUpdateStrategy;
+    use bevy_wii_deform::prelude::{DeformDynamics, DeformPlugin, DeformStatus};
+
+    let mut app = crate::common::app();
+    app.add_plugins(DeformPlugin::default())
+        .insert_resource(TimeUpdateStrategy::ManualDuration(
+            std::time::Duration::from_secs_f64(1.0 / 60.0),
+        ));
+    let (e, handle, tri) = crate::common::bar::spawn_bar(&mut app);
+    app.world_mut()
+        .entity_mut(e)
+        .insert(DeformDynamics::default());
+    // The middle ring: free, between the held bottom and the handle at the top.
+    let middle: Vec<u32> = (0..tri.positions.len() as u32)
+        .filter(|&v| (tri.positions[v as usize].y - 0.6).abs() < 0.02)
+        .collect();
+    crate::common::update_until(&mut app, "the dynamic factorization", |a| {
+        a.world()
+            .get::<DeformStatus>(e)
+            .is_some_and(|s| s.solves > 0)
+    });
+    // The handle jumps 0.3 sideways and holds there.
+    app.world_mut()
+        .get_mut::<Transform>(handle)
+        .unwrap()
+        .translation
+        .x += 0.3;
+    let mut path = Vec::new();
+    for _ in 0..600 {
+        app.update();
+        path.push(mean_x(&app, e, &middle));
+    }
+    let settled = *path.last().unwrap();
+    assert!(settled > 0.05, "the middle follows the handle: {settled}");
+    assert!(
+        path[2] < 0.5 * settled,
+        "it lags the move: {} of {settled}",
+        path[2]
+    );
+    let most = path.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+    assert!(
+        most > settled * 1.05,
+        "it overshoots: {most} past {settled}"
+    );
+    assert!((path[590] - settled).abs() < 1e-3 * settled.max(1.0));
+    // Let go (an elastic mesh's grab does this at release): it rings back to its rest.
+    app.world_mut().entity_mut(handle).despawn();
+    for _ in 0..900 {
+        app.update();
+    }
+    let back = mean_x(&app, e, &middle);
+    assert!(back.abs() < 1e-3, "back at rest: {back}");
+}

@@ -168,6 +168,53 @@ impl Default for DeformGround {
     }
 }
 
+/// Gives a [`Deformable`]'s bend inertia ([`crate::deform::dynamics`]): a grabbed mesh lags
+/// behind a fast drag, and a released one overshoots and rings down to its rest — the pose its
+/// handles hold (the new shape, when editing), or the original shape when `elastic` (the grab's
+/// handle is let go at release). Replaces the static solves for this mesh: every frame runs
+/// the time steps its time holds (in the frame up to [`DeformDynamics::IN_FRAME_BELOW`]
+/// vertices, on the compute pool above).
+#[derive(Component, Debug, Clone, Copy, PartialEq, Reflect)]
+#[reflect(Component, Default)]
+pub struct DeformDynamics {
+    /// Ringing of the mesh's slowest mode as its Laplacian sees it, Hz (slender parts ring
+    /// slower; [`crate::deform::DynamicsSettings::frequency`]).
+    pub frequency: f32,
+    /// Damping ratio of that mode (1: no overshoot).
+    pub damping: f32,
+    /// Spring back to the original shape when a grab lets go, rather than hold the new one.
+    pub elastic: bool,
+    /// Local/global iterations per time step (more: less numerical damping, more time).
+    pub iterations: u32,
+}
+
+impl DeformDynamics {
+    /// Meshes under this many vertices step in the frame; larger ones on the compute pool.
+    pub const IN_FRAME_BELOW: usize = 4000;
+
+    /// The core's settings.
+    pub fn settings(&self) -> crate::deform::DynamicsSettings {
+        crate::deform::DynamicsSettings {
+            frequency: f64::from(self.frequency),
+            damping: f64::from(self.damping),
+            iterations: self.iterations.max(1),
+            ..Default::default()
+        }
+    }
+}
+
+impl Default for DeformDynamics {
+    fn default() -> Self {
+        let core = crate::deform::DynamicsSettings::default();
+        Self {
+            frequency: core.frequency as f32,
+            damping: core.damping as f32,
+            elastic: false,
+            iterations: core.iterations,
+        }
+    }
+}
+
 /// Vertices of a [`Deformable`] held at their rest position (render indices).
 #[derive(Component, Debug, Clone, Default, Reflect, PartialEq)]
 #[reflect(Component, Default)]
@@ -234,9 +281,11 @@ pub struct DeformStatus {
     pub iterations: u32,
     /// Normalised ARAP energy after the last solve.
     pub energy: f64,
-    /// Milliseconds of the last solve (including precompute when the sets changed).
+    /// Milliseconds of the last solve (including precompute when the sets changed); with
+    /// [`DeformDynamics`], per time step of the last batch.
     pub solve_ms: f64,
-    /// Completed solves so far.
+    /// Completed solves so far (with [`DeformDynamics`]: poses written, one per frame that
+    /// stepped).
     pub solves: u64,
     /// Vertices held on the ground by the last solve ([`DeformGround`]).
     pub ground_contacts: usize,

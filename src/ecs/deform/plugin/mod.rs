@@ -2,6 +2,7 @@
 //! solves, collect them and write them back.
 
 mod ancestors;
+mod dynamics;
 mod ground;
 mod poll;
 mod prepare;
@@ -24,8 +25,8 @@ use bevy::tasks::futures::check_ready;
 use bevy::tasks::{AsyncComputeTaskPool, Task};
 
 use super::{
-    DeformConfig, DeformError, DeformFailed, DeformGround, DeformHandle, DeformPhase, DeformSolved,
-    DeformStatus, Deformable, FixedRegion, mesh_positions,
+    DeformConfig, DeformDynamics, DeformError, DeformFailed, DeformGround, DeformHandle,
+    DeformPhase, DeformSolved, DeformStatus, Deformable, FixedRegion, mesh_positions,
 };
 use crate::deform::{
     Acceleration, ArapSolver, Constraints, Handle as CoreHandle, InitialGuess, Preview, Solution,
@@ -68,6 +69,7 @@ impl Plugin for DeformPlugin {
             .register_type::<Deformable>()
             .register_type::<FixedRegion>()
             .register_type::<DeformGround>()
+            .register_type::<DeformDynamics>()
             .register_type::<DeformHandle>()
             .register_type::<DeformStatus>()
             .register_type::<DeformConfig>()
@@ -95,7 +97,9 @@ impl Plugin for DeformPlugin {
                     )
                         .chain()
                         .in_set(DeformSystems::Prepare),
-                    request_solves.in_set(DeformSystems::Request),
+                    (request_solves, dynamics::step_dynamics)
+                        .chain()
+                        .in_set(DeformSystems::Request),
                     poll_tasks.in_set(DeformSystems::Poll),
                     write_back.in_set(DeformSystems::Writeback),
                     crate::ecs::scene::note_missing_scene_assets::<DeformStatus>,

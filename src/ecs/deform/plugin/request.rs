@@ -36,6 +36,7 @@ pub(super) fn request_solves(
         &mut DeformState,
         &mut DeformStatus,
         Option<(&DeformGround, &GlobalTransform)>,
+        Has<DeformDynamics>,
     )>,
     scene_ground: Option<Res<SceneGround>>,
     mut handles: Query<(Entity, &mut DeformHandle, &mut Transform)>,
@@ -48,7 +49,7 @@ pub(super) fn request_solves(
         if h.pivot.is_some() {
             continue;
         }
-        let Ok((_, _, _, state, _, _)) = deformables.get(h.target) else {
+        let Ok((_, _, _, state, _, _, _)) = deformables.get(h.target) else {
             continue;
         };
         let Some(rest) = &state.rest else { continue };
@@ -67,7 +68,10 @@ pub(super) fn request_solves(
     }
     // Consume the removals so each one triggers exactly one re-solve.
     let any_removed = removed.read().count() > 0;
-    for (entity, deformable, fixed, mut state, mut status, on_ground) in &mut deformables {
+    for (entity, deformable, fixed, mut state, mut status, on_ground, dynamic) in &mut deformables {
+        if dynamic {
+            continue; // stepped in time instead (`dynamics.rs`)
+        }
         let ground_changed = refresh_ground(
             state.bypass_change_detection(),
             on_ground,

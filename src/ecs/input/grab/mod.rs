@@ -125,6 +125,11 @@ impl ActiveGrabs {
         self.0.get(&pointer).map(|g| g.mesh)
     }
 
+    /// The meshes being grabbed.
+    pub fn meshes(&self) -> impl Iterator<Item = Entity> + '_ {
+        self.0.values().map(|g| g.mesh)
+    }
+
     /// How many grabs are in progress.
     pub fn len(&self) -> usize {
         self.0.len()

@@ -12,7 +12,9 @@ use crate::deform::Topology;
 use crate::ecs::input::view::{arcball_rotation, turned_in_space, view_plane_motion};
 use crate::ecs::input::{InputSystems, configure_input_sets};
 use crate::ecs::pose::{HandlePositionOnly, PinnedJoints, PoseAnchor, PosedSkeleton};
-use crate::ecs::{DeformHandle, DeformState, Deformable, DeformableFrom, FixedRegion};
+use crate::ecs::{
+    DeformDynamics, DeformHandle, DeformState, Deformable, DeformableFrom, FixedRegion,
+};
 
 use super::{
     ActiveGrab, ActiveGrabs, GrabButton, GrabEnd, GrabHandle, GrabMove, GrabStart, GrabTurn,
@@ -82,7 +84,7 @@ impl Plugin for GrabPlugin {
             )
             .add_systems(
                 Update,
-                (place_grabs, move_grabs, end_grabs)
+                (place_grabs, move_grabs, end_grabs, let_elastic_meshes_go)
                     .chain()
                     .in_set(InputSystems::MoveHandles),
             );
@@ -531,4 +533,20 @@ fn render_vertices(topology: &Arc<Topology>, welded: &[u32]) -> Vec<u32> {
         .filter(|(_, w)| welded.binary_search(w).is_ok())
         .map(|(r, _)| r as u32)
         .collect()
+}
+
+/// An elastic [`DeformDynamics`] mesh springs back when its grab lets go: the grab's handle
+/// goes (a static mesh keeps it, holding the new shape).
+pub(super) fn let_elastic_meshes_go(
+    mut commands: Commands,
+    grabs: Res<ActiveGrabs>,
+    released: Query<(Entity, &DeformDynamics, &GrabHandle)>,
+) {
+    for (mesh, dynamics, handle) in &released {
+        let held = grabs.meshes().any(|m| m == mesh);
+        if dynamics.elastic && !held {
+            commands.entity(handle.0).try_despawn();
+            commands.entity(mesh).try_remove::<GrabHandle>();
+        }
+    }
 }

@@ -1,0 +1,216 @@
+//! [`DeformDynamics`]: meshes stepped in time instead of solved to rest. Constraints come from
+//! the handles as for static solves; each constraint set gets its dynamic factorization on the
+//! compute pool (the static one's lowest eigenvalue sets the inertia); every frame runs the
+//! steps its time holds, in the frame for small meshes and on the compute pool for large ones
+//! (one step batch in flight; the time of frames meanwhile is added to the next).
+
+use std::sync::Arc;
+
+use bevy::tasks::{AsyncComputeTaskPool, Task};
+
+use super::*;
+use crate::deform::{DynamicsSettings, Motion};
+
+/// The motion of one [`DeformDynamics`] mesh (runtime state, not reflected).
+#[derive(Component, Default)]
+pub(super) struct DynamicsRuntime {
+    /// The dynamic factorization and the settings and constraint sets it is for.
+    solver: Option<(Arc<ArapSolver>, DynamicsSettings, Constraints)>,
+    /// A factorization under way, for these settings and sets.
+    factoring: Option<(
+        DynamicsSettings,
+        Constraints,
+        Task<Result<ArapSolver, SolveError>>,
+    )>,
+    motion: Option<Motion>,
+    /// A batch of steps on the compute pool (large meshes): the motion after it, the pose it
+    /// makes and its milliseconds per step.
+    stepping: Option<Task<(Motion, Stepped)>>,
+    /// Frame time not yet handed to a step batch.
+    waiting: f64,
+}
+
+/// What a batch of steps made: the pose to show (none when no step was due) and the
+/// milliseconds per step.
+type Stepped = Result<(Option<RenderPose>, f64), SolveError>;
+
+/// Runs the steps `dt` holds and builds the pose to show.
+fn run_steps(
+    motion: &mut Motion,
+    solver: &ArapSolver,
+    rest: &Rest,
+    constraints: &Constraints,
+    settings: &DynamicsSettings,
+    dt: f64,
+) -> Stepped {
+    let t0 = std::time::Instant::now();
+    let steps = motion.advance(solver, constraints, settings, dt, None)?;
+    let pose = (steps > 0)
+        .then(|| motion.solution().map(|s| render_pose(rest, s)))
+        .flatten();
+    Ok((
+        pose,
+        t0.elapsed().as_secs_f64() * 1e3 / f64::from(steps.max(1)),
+    ))
+}
+
+/// The factorization of `constraints` for `settings`: the static system's lowest eigenvalue
+/// gives the inertia of the dynamic one.
+fn factor(
+    topology: Arc<Topology>,
+    constraints: &Constraints,
+    base: SolverSettings,
+    settings: &DynamicsSettings,
+) -> Result<ArapSolver, SolveError> {
+    let lambda =
+        ArapSolver::precompute(topology.clone(), constraints, base.clone())?.lowest_eigenvalue();
+    ArapSolver::precompute(
+        topology,
+        constraints,
+        SolverSettings {
+            inertia: settings.inertia(lambda),
+            ..base
+        },
+    )
+}
+
+/// Steps every [`DeformDynamics`] mesh by the frame's time.
+#[allow(clippy::type_complexity)] // a system's queries, named by their parameters
+pub(super) fn step_dynamics(
+    mut commands: Commands,
+    time: Res<Time>,
+    mut meshes: Query<(
+        Entity,
+        &Deformable,
+        &DeformDynamics,
+        Option<&FixedRegion>,
+        &mut DeformState,
+        &mut DeformStatus,
+        Option<&mut DynamicsRuntime>,
+    )>,
+    handles: Query<(&DeformHandle, &Transform)>,
+) {
+    let dt = f64::from(time.delta_secs());
+    for (entity, deformable, dynamics, fixed, mut state, mut status, runtime) in &mut meshes {
+        let Some(rest) = state.rest.clone() else {
+            continue;
+        };
+        let Some(mut runtime) = runtime else {
+            commands
+                .entity(entity)
+                .try_insert(DynamicsRuntime::default());
+            continue;
+        };
+        let runtime = &mut *runtime;
+        let settings = dynamics.settings();
+        let mine: Vec<(&DeformHandle, &Transform)> = handles
+            .iter()
+            .filter(|(h, _)| h.target == entity && h.pivot.is_some())
+            .collect();
+        let constraints = build_constraints(&rest.topology, fixed, &mine);
+        let base = solver_settings(deformable, &rest.topology);
+        // A new constraint set (or new settings): factor it on the pool.
+        let current =
+            |s: &DynamicsSettings, c: &Constraints| *s == settings && c.same_sets(&constraints);
+        let fits = runtime
+            .solver
+            .as_ref()
+            .is_some_and(|(_, s, c)| current(s, c));
+        let under_way = runtime
+            .factoring
+            .as_ref()
+            .is_some_and(|(s, c, _)| current(s, c));
+        if !fits && !under_way {
+            let (topology, sets, base) = (rest.topology.clone(), constraints.clone(), base.clone());
+            let task = AsyncComputeTaskPool::get()
+                .spawn(async move { factor(topology, &sets, base, &settings) });
+            runtime.factoring = Some((settings, constraints.clone(), task));
+            status.phase = DeformPhase::Factorizing;
+        }
+        if let Some((s, c, task)) = runtime.factoring.as_mut()
+            && let Some(result) = check_ready(task)
+        {
+            match result {
+                Ok(solver) => runtime.solver = Some((Arc::new(solver), *s, c.clone())),
+                Err(e) => status.error = Some(DeformError::Solve(e)),
+            }
+            runtime.factoring = None;
+        }
+        let Some((solver, _, _)) = runtime
+            .solver
+            .as_ref()
+            .filter(|(_, s, c)| current(s, c))
+            .cloned()
+        else {
+            continue;
+        };
+        let motion = runtime.motion.get_or_insert_with(|| match &state.last {
+            Some(last) => Motion::from_solution((**last).clone()),
+            None => Motion::at_rest(rest.topology.positions().to_vec()),
+        });
+        runtime.waiting += dt;
+        let landed = if rest.topology.vertex_count() < DeformDynamics::IN_FRAME_BELOW {
+            let waiting = std::mem::take(&mut runtime.waiting);
+            Some(run_steps(
+                motion,
+                &solver,
+                &rest,
+                &constraints,
+                &settings,
+                waiting,
+            ))
+        } else {
+            // A batch on the pool: land the last one, start the next with the time since.
+            let mut landed = None;
+            if let Some(task) = runtime.stepping.as_mut()
+                && let Some((moved, result)) = check_ready(task)
+            {
+                *motion = moved;
+                runtime.stepping = None;
+                landed = Some(result);
+            }
+            if runtime.stepping.is_none() {
+                let (mut moving, waiting) = (motion.clone(), std::mem::take(&mut runtime.waiting));
+                let (rest, constraints) = (rest.clone(), constraints.clone());
+                runtime.stepping = Some(AsyncComputeTaskPool::get().spawn(async move {
+                    let result = run_steps(
+                        &mut moving,
+                        &solver,
+                        &rest,
+                        &constraints,
+                        &settings,
+                        waiting,
+                    );
+                    (moving, result)
+                }));
+            }
+            landed
+        };
+        match landed {
+            Some(Ok((Some(pose), ms_per_step))) if finite(&pose) => {
+                status.solve_ms = ms_per_step;
+                let state = state.bypass_change_detection();
+                state.ready = Some(pose);
+                if let Some(solution) = runtime.motion.as_ref().and_then(Motion::solution) {
+                    status.iterations = solution.stats.iterations;
+                    status.energy = solution.stats.final_energy();
+                    state.last = Some(Arc::new(solution.clone()));
+                }
+                status.solves += 1;
+                status.error = None;
+                let moving = runtime.motion.as_ref().map_or(0.0, Motion::max_speed);
+                status.phase = if moving > 1e-6 * rest.topology.bounding_diagonal() {
+                    DeformPhase::Solving
+                } else {
+                    DeformPhase::Idle
+                };
+            }
+            Some(Err(e)) => {
+                // The last good pose stays; the motion starts again from it.
+                status.error = Some(DeformError::Solve(e));
+                runtime.motion = None;
+            }
+            _ => {}
+        }
+    }
+}
