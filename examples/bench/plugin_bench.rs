@@ -24,6 +24,10 @@
 //! `set_change_to_first_pose_ms_median` / `_p95` (change → first written pose: the preview of
 //! `DeformConfig::preview` on a large mesh) and `set_change_to_whole_pose_ms_median` (→ first
 //! pose solved on the whole mesh).
+//! `--dynamics`: the mesh stepped in time (`DeformDynamics`, `--iterations` per step) while
+//! dragged; adds `poses_per_s`, `ms_per_step` (median of the plugin's per-step time),
+//! `ms_per_static_iteration` (a plain static iteration of the same mesh and constraints, the
+//! core timed in the same run) and `dynamics_step_ratio` (their ratio).
 //! `--collider` (feature `avian`): a ~10k-triangle plank whose Avian collider is rebuilt after
 //! each settled bend; `triangles`, `rebuilds`, `collider_frames_median` / `_max` (frames from
 //! a settled solve to its collider swapped in), `main_ms_median` / `_max` (the deform and
@@ -40,6 +44,8 @@ mod cli;
 #[cfg(feature = "avian")]
 #[path = "collider_rebuild.rs"]
 mod collider_rebuild;
+#[path = "dynamics_drag.rs"]
+mod dynamics_drag;
 
 #[derive(Resource, Default)]
 struct Timing {
@@ -138,7 +144,7 @@ fn drag(time: Res<Time>, timing: Res<Timing>, mut q: Query<&mut Transform, With<
 const USAGE: &str = "\
 usage: plugin_bench [--mesh PATH | --bar VERTICES] [--seconds S] [--iterations N] [--fps F]
                     [--grab | --set-changes [--no-preview] | --many N] [--plain]
-                    [--async-threads N] [--collider] [--json]
+                    [--async-threads N] [--collider | --dynamics] [--json]
 
   --mesh PATH     an OBJ/OFF mesh (default ../shared/meshes/armadillo.off, else a 26k bar)
   --bar VERTICES  a generated bar of about that many vertices
@@ -152,6 +158,7 @@ usage: plugin_bench [--mesh PATH | --bar VERTICES] [--seconds S] [--iterations N
   --async-threads N  threads of Bevy's async compute pool (default: Bevy's, 1 on 2 cores)
   --plain         plain local/global iterations, no settling
   --collider      (feature avian) a plank's collider rebuilt after each settled bend
+  --dynamics      the mesh stepped in time (DeformDynamics, --iterations per step)
   --json          accepted for older command lines: the JSON is always the last line";
 
 /// The command line.
@@ -173,6 +180,8 @@ struct Args {
     async_threads: Option<usize>,
     /// `--collider`: the Avian collider rebuild benchmark.
     collider: bool,
+    /// `--dynamics`: the dragged mesh stepped in time.
+    dynamics: bool,
 }
 
 impl Args {
@@ -190,6 +199,7 @@ impl Args {
             many: 1,
             async_threads: None,
             collider: false,
+            dynamics: false,
         };
         let mut parser = cli::Parser::from_env();
         while let Some(arg) = cli::next(&mut parser, USAGE) {
@@ -208,6 +218,7 @@ impl Args {
                     args.async_threads = Some(cli::value(&mut parser, USAGE))
                 }
                 cli::Arg::Long("collider") => args.collider = true,
+                cli::Arg::Long("dynamics") => args.dynamics = true,
                 cli::Arg::Long("json") => {}
                 other => cli::unexpected(other, USAGE),
             }
@@ -285,6 +296,9 @@ fn main() {
     if args.set_changes {
         let (fixed, _) = synth::slab_regions(&tri.positions, 1, 0.1, 0.1);
         return run_set_changes(&mut app, e, &tri, &fixed, diagonal, seconds, fps);
+    }
+    if args.dynamics {
+        return dynamics_drag::run(&mut app, e, &tri, iterations, seconds, fps);
     }
     if args.many > 1 {
         let mut meshes = vec![e];

@@ -12,9 +12,10 @@ use crate::screenshot::{ScreenshotPlugin, UnattendedFrame};
 use crate::{Bar, cli, remote_cursor};
 
 const USAGE: &str = "\
-usage: playground [--pointer [emulated]] [--screenshot PATH [--frames N]]
+usage: playground [--pointer [emulated]] [--wobble] [--screenshot PATH [--frames N]]
 
   --pointer [emulated]  a Wii Remote points with its IR camera (emulated: a scripted one)
+  --wobble              things wobble and spring back when let go (W switches it)
   --screenshot PATH     bend the bar by a scripted grab, save frame N to PATH, exit
   --frames N            the frame to save (default 60)";
 
@@ -23,6 +24,8 @@ usage: playground [--pointer [emulated]] [--screenshot PATH [--frames N]]
 pub struct Options {
     /// `--pointer [emulated]`: `Some(emulated)`.
     pointer: Option<bool>,
+    /// `--wobble`: start with the objects elastic (`DeformDynamics`).
+    wobble: bool,
     /// `--screenshot PATH`.
     screenshot: Option<String>,
     /// `--frames N`.
@@ -46,6 +49,7 @@ impl Options {
                     options.screenshot = Some(cli::string(&mut parser, USAGE))
                 }
                 cli::Arg::Long("frames") => options.frames = cli::value(&mut parser, USAGE),
+                cli::Arg::Long("wobble") => options.wobble = true,
                 other => cli::unexpected(other, USAGE),
             }
         }
@@ -58,6 +62,8 @@ pub struct HarnessPlugin(pub Options);
 
 impl Plugin for HarnessPlugin {
     fn build(&self, app: &mut App) {
+        app.insert_resource(Wobble(self.0.wobble))
+            .add_systems(Update, (switch_wobble, make_things_wobble).chain());
         if let Some(emulated) = self.0.pointer {
             // The Wii Remote as a second pointer: A grabs where it points.
             app.add_plugins((
@@ -69,6 +75,40 @@ impl Plugin for HarnessPlugin {
             let frames = self.0.frames;
             app.add_plugins(ScreenshotPlugin { path, frames })
                 .add_systems(Update, grab_the_bar);
+        }
+    }
+}
+
+/// Whether the objects wobble (`--wobble`, W).
+#[derive(Resource)]
+struct Wobble(bool);
+
+/// W: wobbling on or off.
+fn switch_wobble(keys: Option<Res<ButtonInput<KeyCode>>>, mut wobble: ResMut<Wobble>) {
+    if keys.is_some_and(|k| k.just_pressed(KeyCode::KeyW)) {
+        wobble.0 = !wobble.0;
+    }
+}
+
+/// Gives every bendable thing inertia and an elastic release while wobbling is on: let go, it
+/// rings back to its shape (`DeformDynamics`); off, a bend stays where it is let go.
+fn make_things_wobble(
+    mut commands: Commands,
+    wobble: Res<Wobble>,
+    things: Query<(Entity, Has<DeformDynamics>), With<Deformable>>,
+) {
+    for (thing, wobbling) in &things {
+        match (wobble.0, wobbling) {
+            (true, false) => {
+                commands.entity(thing).insert(DeformDynamics {
+                    elastic: true,
+                    ..default()
+                });
+            }
+            (false, true) => {
+                commands.entity(thing).remove::<DeformDynamics>();
+            }
+            _ => {}
         }
     }
 }

@@ -3,8 +3,9 @@
 //! — that you grab with the mouse and bend. Press on a thing, drag, release: the pose stays.
 //!
 //! ```text
-//! cargo run --release --example playground [-- --pointer [emulated]] [--screenshot PATH --frames N]
+//! cargo run --release --example playground [-- --pointer [emulated]] [--wobble] [--screenshot PATH --frames N]
 //! ```
+//! **W** (or `--wobble`): things wobble when let go and spring back to their shape.
 //! Three things make an object bendable: `Deformable` (on a mesh, or on a glTF scene root: it
 //! applies to the meshes below), `Grabbable` (radii along the surface), and the plugins —
 //! `DeformPlugin`, `GrabPlugin` and a picking backend (`MeshPickingPlugin`). The unattended

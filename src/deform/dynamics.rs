@@ -130,7 +130,7 @@ impl Motion {
         dt: f64,
         obstacle: Option<&dyn Obstacle>,
     ) -> Result<u32, SolveError> {
-        if !(dt.is_finite() && dt >= 0.0) || !settings.is_valid() {
+        if !(dt.is_finite() && dt >= 0.0 && settings.is_valid()) {
             return Err(SolveError::NonFinite);
         }
         let h = settings.step;
@@ -154,24 +154,31 @@ impl Motion {
                 .zip(&self.velocities)
                 .map(|(x, v)| *x + *v * h)
                 .collect();
-            let start = Solution {
-                positions: target.clone(),
-                rotations: self
-                    .last
-                    .as_ref()
-                    .map(|s| s.rotations.clone())
-                    .unwrap_or_else(|| vec![glam::DQuat::IDENTITY; target.len()]),
+            // The last step's solution starts this one (its rotations; positions moved to the
+            // prediction), without a copy.
+            let mut start = self.last.take().unwrap_or_else(|| Solution {
+                positions: Vec::new(),
+                rotations: vec![glam::DQuat::IDENTITY; target.len()],
                 stats: Default::default(),
                 history: Default::default(),
-            };
-            let next = solver.solve_inertial(
+            });
+            let previous = std::mem::replace(&mut start.positions, target);
+            let result = solver.solve_inertial(
                 constraints,
                 &options,
                 InitialGuess::Warm(&start),
-                &target,
+                &start.positions,
                 obstacle,
                 &|| false,
-            )?;
+            );
+            let next = match result {
+                Ok(next) => next,
+                Err(e) => {
+                    start.positions = previous;
+                    self.last = Some(start);
+                    return Err(e);
+                }
+            };
             for ((v, x), n) in self
                 .velocities
                 .iter_mut()

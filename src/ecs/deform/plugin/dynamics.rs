@@ -17,11 +17,7 @@ pub(super) struct DynamicsRuntime {
     /// The dynamic factorization and the settings and constraint sets it is for.
     solver: Option<(Arc<ArapSolver>, DynamicsSettings, Constraints)>,
     /// A factorization under way, for these settings and sets.
-    factoring: Option<(
-        DynamicsSettings,
-        Constraints,
-        Task<Result<ArapSolver, SolveError>>,
-    )>,
+    factoring: Option<Factoring>,
     motion: Option<Motion>,
     /// A batch of steps on the compute pool (large meshes): the motion after it, the pose it
     /// makes and its milliseconds per step.
@@ -29,6 +25,13 @@ pub(super) struct DynamicsRuntime {
     /// Frame time not yet handed to a step batch.
     waiting: f64,
 }
+
+/// A dynamic factorization under way: the settings and constraint sets it is for.
+type Factoring = (
+    DynamicsSettings,
+    Constraints,
+    Task<Result<ArapSolver, SolveError>>,
+);
 
 /// What a batch of steps made: the pose to show (none when no step was due) and the
 /// milliseconds per step.
