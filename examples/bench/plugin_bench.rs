@@ -24,10 +24,11 @@
 //! `set_change_to_first_pose_ms_median` / `_p95` (change → first written pose: the preview of
 //! `DeformConfig::preview` on a large mesh) and `set_change_to_whole_pose_ms_median` (→ first
 //! pose solved on the whole mesh).
-//! `--dynamics`: the mesh stepped in time (`DeformDynamics`, `--iterations` per step) while
-//! dragged; adds `poses_per_s`, `ms_per_step` (median of the plugin's per-step time),
-//! `ms_per_static_iteration` (a plain static iteration of the same mesh and constraints, the
-//! core timed in the same run) and `dynamics_step_ratio` (their ratio).
+//! `--dynamics`: the drag solved statically for half the time (one iteration per solve), then
+//! stepped in time (`DeformDynamics`, `--iterations` per step); adds `poses_per_s`,
+//! `ms_per_step` (median of the worker's time per step), `ms_per_static_iteration` (median of
+//! its time per one-iteration static solve, same run; both include the pose for the mesh) and
+//! `dynamics_step_ratio` (their ratio).
 //! `--collider` (feature `avian`): a ~10k-triangle plank whose Avian collider is rebuilt after
 //! each settled bend; `triangles`, `rebuilds`, `collider_frames_median` / `_max` (frames from
 //! a settled solve to its collider swapped in), `main_ms_median` / `_max` (the deform and
@@ -476,7 +477,7 @@ fn bench_mesh(path: Option<String>, bar: Option<u32>) -> TriMesh {
 /// for the whole mesh, `DeformConfig::preview`).
 fn deform_plugin(args: &Args) -> DeformPlugin {
     let mut config = DeformConfig::default();
-    if args.plain {
+    if args.plain || args.dynamics {
         config.acceleration = bevy_wii_deform::deform::Acceleration::None;
         config.settle_iterations = 0;
     }

@@ -595,6 +595,23 @@ mod tests {
         assert_eq!(m.triangles.len(), 2 * 100 * 199 + 200);
     }
 
+    /// The Euler characteristic of `m` once welded (2: one closed surface) and its signed
+    /// volume (positive: triangles wind outward).
+    fn euler_and_volume(m: &TriMesh) -> (i64, f64, usize) {
+        let t = crate::deform::Topology::new(&m.positions, &m.triangles).unwrap();
+        let edges = t.neighbor_list().len() / 2;
+        let chi = t.vertex_count() as i64 - edges as i64 + t.triangles().len() as i64;
+        let vol: f64 = t
+            .triangles()
+            .iter()
+            .map(|tr| {
+                let [a, b, c] = tr.map(|i| t.positions()[i as usize]);
+                a.dot(b.cross(c)) / 6.0
+            })
+            .sum();
+        (chi, vol, t.vertex_count())
+    }
+
     #[test]
     fn implicit_sphere_is_closed_and_outward() {
         let m = implicit_surface(
@@ -603,39 +620,19 @@ mod tests {
             DVec3::splat(1.3),
             20,
         );
-        let t = crate::deform::Topology::new(&m.positions, &m.triangles).unwrap();
-        // Closed: every edge has exactly two triangles (Euler characteristic 2).
-        let edges = t.neighbor_list().len() / 2;
-        let chi = t.vertex_count() as i64 - edges as i64 + t.triangles().len() as i64;
+        // Closed: every edge has exactly two triangles (Euler characteristic 2); outward:
+        // positive signed volume ≈ 4/3 π.
+        let (chi, vol, _) = euler_and_volume(&m);
         assert_eq!(chi, 2);
-        // Outward: positive signed volume ≈ 4/3 π.
-        let vol: f64 = t
-            .triangles()
-            .iter()
-            .map(|tr| {
-                let [a, b, c] = tr.map(|i| t.positions()[i as usize]);
-                a.dot(b.cross(c)) / 6.0
-            })
-            .sum();
         assert!((vol - 4.18879).abs() < 0.15, "{vol}");
     }
 
     #[test]
     fn a_plank_welds_closed_and_winds_outward() {
         let m = plank(2.0, 0.6, 0.1, 20.0);
-        let t = crate::deform::Topology::new(&m.positions, &m.triangles).unwrap();
-        let edges = t.neighbor_list().len() / 2;
-        let chi = t.vertex_count() as i64 - edges as i64 + t.triangles().len() as i64;
+        let (chi, vol, welded) = euler_and_volume(&m);
         assert_eq!(chi, 2, "the six faces weld into one closed surface");
-        assert!(t.vertex_count() < m.positions.len());
-        let vol: f64 = t
-            .triangles()
-            .iter()
-            .map(|tr| {
-                let [a, b, c] = tr.map(|i| t.positions()[i as usize]);
-                a.dot(b.cross(c)) / 6.0
-            })
-            .sum();
+        assert!(welded < m.positions.len());
         assert!((vol - 2.0 * 0.6 * 0.1).abs() < 1e-12, "{vol}");
     }
 

@@ -166,14 +166,22 @@ pub enum SpringError {
         chain: String,
     },
     /// A setting is not finite, or out of its range.
-    #[error("spring chain {chain:?} has a setting out of range (drag in [0, 1], finite values)")]
+    #[error(
+        "spring chain {chain:?} has a setting out of range (stiffness, gravity power and hit \
+         radius ≥ 0, drag in [0, 1], all finite)"
+    )]
     InvalidSetting {
-        /// The chain.
+        /// The chain (empty for the rig's time stepping).
         chain: String,
     },
-    /// A collider or collider group refers to something that does not exist.
-    #[error("a collider or collider group refers to a missing joint or collider")]
-    InvalidCollider,
+    /// A collider is not finite or has no positive radius, names a missing joint, or a group
+    /// names a missing collider (or a chain a missing group).
+    #[error("spring collider {collider} is invalid (a missing joint or collider, or a radius ≤ 0)")]
+    InvalidCollider {
+        /// The collider's index (or the group's, for a group that names a missing collider;
+        /// or the chain's, for a chain naming a missing group).
+        collider: usize,
+    },
 }
 
 impl SpringRig {
@@ -248,7 +256,11 @@ impl SpringRig {
                     .iter()
                     .all(|v| v.is_finite())
                     && sj.gravity_dir.is_finite();
-                if !finite || !(0.0..=1.0).contains(&sj.drag) || sj.hit_radius < 0.0 {
+                let in_range = (0.0..=1.0).contains(&sj.drag)
+                    && sj.stiffness >= 0.0
+                    && sj.gravity_power >= 0.0
+                    && sj.hit_radius >= 0.0;
+                if !finite || !in_range {
                     return Err(SpringError::InvalidSetting {
                         chain: chain.name.clone(),
                     });
@@ -257,15 +269,15 @@ impl SpringRig {
             if chain.center.is_some_and(|c| c >= n) {
                 return Err(bad(chain.center.unwrap_or(0)));
             }
-            if chain
+            if let Some(&g) = chain
                 .collider_groups
                 .iter()
-                .any(|&g| g >= self.collider_groups.len())
+                .find(|&&g| g >= self.collider_groups.len())
             {
-                return Err(SpringError::InvalidCollider);
+                return Err(SpringError::InvalidCollider { collider: g });
             }
         }
-        let colliders_ok = self.colliders.iter().all(|c| {
+        for (k, c) in self.colliders.iter().enumerate() {
             let (radius, points) = match c.shape {
                 SpringColliderShape::Sphere { offset, radius } => (radius, [offset, offset]),
                 SpringColliderShape::Capsule {
@@ -274,18 +286,18 @@ impl SpringRig {
                     radius,
                 } => (radius, [offset, tail]),
             };
-            c.joint < n
+            let ok = c.joint < n
                 && radius.is_finite()
-                && radius >= 0.0
-                && points.iter().all(|p| p.is_finite())
-        });
-        let groups_ok = self
-            .collider_groups
-            .iter()
-            .flatten()
-            .all(|&c| c < self.colliders.len());
-        if !colliders_ok || !groups_ok {
-            return Err(SpringError::InvalidCollider);
+                && radius > 0.0
+                && points.iter().all(|p| p.is_finite());
+            if !ok {
+                return Err(SpringError::InvalidCollider { collider: k });
+            }
+        }
+        for (g, group) in self.collider_groups.iter().enumerate() {
+            if group.iter().any(|&c| c >= self.colliders.len()) {
+                return Err(SpringError::InvalidCollider { collider: g });
+            }
         }
         let s = &self.settings;
         if !(s.step > 0.0 && s.step.is_finite() && s.teleport_distance > 0.0) || s.max_steps == 0 {
