@@ -182,8 +182,11 @@ impl ArapSolver {
             stats,
             contacts: obstacle.map(ContactSet::new),
             inertial: inertial.map(|target| {
-                let target = self.layout.gather(target);
-                self.free.iter().map(|&i| target[i as usize]).collect()
+                let welded = &self.layout.to_welded;
+                self.free
+                    .iter()
+                    .map(|&i| target[welded[i as usize] as usize])
+                    .collect()
             }),
         };
         let carry = self.iterate(&mut it, initial, options, should_cancel)?;
