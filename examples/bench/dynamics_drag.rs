@@ -9,7 +9,9 @@ use bevy::prelude::*;
 use bevy_wii_deform::deform::TriMesh;
 use bevy_wii_deform::prelude::*;
 
-use crate::{main_thread_report, measure_frames, object, percentile};
+use std::time::Duration;
+
+use crate::{Timing, main_thread_report, measure_frames, object, pace, percentile};
 
 /// Drags the mesh `e` for `seconds` at `fps`: first half static (one-iteration solves, the
 /// plugin's worker time per solve), then with `DeformDynamics` (its worker time per step);
@@ -40,14 +42,20 @@ pub fn run(app: &mut App, e: Entity, tri: &TriMesh, iterations: u32, seconds: f6
         );
     }
     let solves0 = app.world().get::<DeformStatus>(e).unwrap().solves;
+    app.world_mut().resource_mut::<Timing>().measuring = true;
     let mut step_ms = Vec::new();
-    let start = Instant::now();
-    // The frames, with the last landed batch's milliseconds per step after each slice.
+    let (start, frame) = (Instant::now(), Duration::from_secs_f64(1.0 / fps.max(1.0)));
+    let mut seen = solves0;
+    // Every frame; each batch that landed gives its milliseconds per step.
     while start.elapsed().as_secs_f64() < seconds / 2.0 {
-        let (_, _) = measure_frames(app, (seconds / 40.0).max(0.05), fps);
-        if let Some(s) = app.world().get::<DeformStatus>(e) {
-            step_ms.push(s.solve_ms);
+        let f0 = Instant::now();
+        app.update();
+        let status = app.world().get::<DeformStatus>(e).unwrap();
+        if status.solves != seen {
+            seen = status.solves;
+            step_ms.push(status.solve_ms);
         }
+        pace(frame, f0);
     }
     let elapsed = start.elapsed().as_secs_f64();
     let status = app.world().get::<DeformStatus>(e).unwrap().clone();
