@@ -1,7 +1,7 @@
 //! Bends that wobble: the ARAP energy given inertia, stepped in time as projective dynamics
 //! does (Bouaziz et al. 2014) — each implicit step minimises
 //! `k · E_ARAP(x) + Σ m/(2h²) |x − (x₀ + h v₀)|²` by the same local/global iterations, with the
-//! mass term in the factored system ([`SolverSettings::inertia`]): one more factorization per
+//! mass term in the factored system ([`SolverSettings::inertia`](super::SolverSettings::inertia)): one more factorization per
 //! constraint set, steps that cost what a static iteration costs, stable for any step.
 //!
 //! Without gravity only the ratio of mass to stiffness matters, so the settings give it as a

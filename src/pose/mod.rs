@@ -81,7 +81,7 @@ pub use solver::{
 };
 pub use springs::{
     SpringChain, SpringCollider, SpringColliderShape, SpringError, SpringJoint, SpringRig,
-    SpringSettings, SpringState, VrmSpringError, read_vrm_springs, step_springs,
+    SpringRonError, SpringSettings, SpringState, VrmSpringError, read_vrm_springs, step_springs,
 };
 
 use crate::deform::MeshError;

@@ -485,3 +485,45 @@ fn one_step_per_60_hz_frame_is_the_vrm_update_rule() {
     }
     assert!(tail.x > 1e-4, "the bone swung toward the pull");
 }
+
+#[test]
+fn a_spring_rig_in_ron_names_its_joints() {
+    let rig = synth_rig::bar_rig(5, 8, 10);
+    let text = r#"(
+        chains: [(name: "bar", joints: ["bone1", "bone2", "bone3", "bone4"],
+                  stiffness: 0.5, drag: 0.2, gravity_power: 1.0, collider_groups: [0])],
+        colliders: [(joint: "bone0", offset: (0.0, 0.1, 0.2), radius: 0.05),
+                     (joint: "bone0", offset: (0.0, 0.0, 0.0), tail: (0.0, 0.3, 0.0), radius: 0.02)],
+        collider_groups: [[0, 1]],
+    )"#;
+    let springs = SpringRig::from_ron(text, &rig.skeleton).unwrap();
+    let chain = &springs.chains[0];
+    assert_eq!(
+        chain.joints.iter().map(|j| j.joint).collect::<Vec<_>>(),
+        vec![1, 2, 3, 4]
+    );
+    assert!(
+        chain
+            .joints
+            .iter()
+            .all(|j| j.stiffness == 0.5 && j.drag == 0.2)
+    );
+    assert_eq!(chain.joints[0].hit_radius, SpringJoint::new(0).hit_radius);
+    assert!(matches!(
+        springs.colliders[1].shape,
+        SpringColliderShape::Capsule { .. }
+    ));
+    // A joint the skeleton lacks, a drag out of range, and bad syntax fail typed.
+    assert!(matches!(
+        SpringRig::from_ron(&text.replace("bone3", "bone9"), &rig.skeleton),
+        Err(SpringRonError::UnknownJoint { owner, joint }) if owner == "bar" && joint == "bone9"
+    ));
+    assert!(matches!(
+        SpringRig::from_ron(&text.replace("drag: 0.2", "drag: 2.0"), &rig.skeleton),
+        Err(SpringRonError::Rig(SpringError::InvalidSetting { chain })) if chain == "bar"
+    ));
+    assert!(matches!(
+        SpringRig::from_ron("(chains: [", &rig.skeleton),
+        Err(SpringRonError::Parse(_))
+    ));
+}

@@ -1,5 +1,6 @@
 //! Spring bones: chains of joints (tails, ears, hair) that lag, swing and settle after the pose,
-//! following the update rule of VRM 1.0's `VRMC_springBone` (read with [`read_vrm_springs`]).
+//! following the update rule of VRM 1.0's `VRMC_springBone` (read with [`read_vrm_springs`];
+//! rigs without the extension: [`SpringRig::from_names`], [`SpringRig::from_ron`]).
 //!
 //! Each joint of a chain but the last carries a bone to the next; the bone's *tail* (the next
 //! joint's position) is a point mass integrated in world space (or in the chain's centre
@@ -24,6 +25,7 @@
 //! [`SpringSettings::max_steps`] steps drops the excess time (a hitch); a placement jump beyond
 //! [`SpringSettings::teleport_distance`] resets the tails to the animated pose (no whip).
 
+mod ron_file;
 mod vrm;
 
 use glam::{DAffine3, DQuat, DVec3};
@@ -31,6 +33,7 @@ use serde::{Deserialize, Serialize};
 
 use super::{JointLimits, Skeleton, SkeletonPose};
 
+pub use ron_file::SpringRonError;
 pub use vrm::{VrmSpringError, read_vrm_springs};
 
 /// Rounds of pushing a tail out of the colliders and back to its bone's length per step.
