@@ -1,6 +1,9 @@
 //! Bend a plank and watch the balls follow the bend (feature `avian`): the plank is a static
 //! Avian body whose collider is rebuilt from the bent mesh after each settled solve
-//! (`DeformCollider`); balls drop on it every second. Press on the plank, drag, release.
+//! (`DeformCollider`); balls drop on it every second. Behind it the Fox stands on the floor
+//! (`PoseGround`: the floor's Avian collider is the `Ground`) with a kinematic capsule on each
+//! bone (`PosedColliders`), and every other ball bounces off it. Press on the plank (or the
+//! Fox), drag, release.
 //!
 //! ```text
 //! cargo run --release --features avian --example physics [-- --screenshot PATH --frames N]
@@ -11,8 +14,9 @@
 use avian3d::prelude::*;
 use bevy::picking::pointer::PointerId;
 use bevy::prelude::*;
+use bevy::world_serialization::WorldAssetRoot;
 use bevy_wii_deform::deform::synth;
-use bevy_wii_deform::ecs::physics::{DeformCollider, DeformPhysicsPlugin};
+use bevy_wii_deform::ecs::physics::{DeformCollider, DeformPhysicsPlugin, PosedColliders};
 use bevy_wii_deform::prelude::*;
 
 #[path = "common/cli.rs"]
@@ -32,7 +36,12 @@ fn main() {
     let mut app = App::new();
     app.add_plugins(DefaultPlugins)
         .add_plugins((PhysicsPlugins::default(), DeformPhysicsPlugin))
-        .add_plugins((DeformPlugin::default(), GrabPlugin, MeshPickingPlugin))
+        .add_plugins((
+            DeformPlugin::default(),
+            PosePlugin,
+            GrabPlugin,
+            MeshPickingPlugin,
+        ))
         .add_systems(Startup, setup)
         .add_systems(Update, (drop_balls, clear_fallen_balls));
     if let Some(shot) = unattended() {
@@ -71,6 +80,7 @@ fn setup(
     mut commands: Commands,
     mut meshes: ResMut<Assets<Mesh>>,
     mut materials: ResMut<Assets<StandardMaterial>>,
+    assets: Res<AssetServer>,
 ) {
     commands.spawn((
         Camera3d::default(),
@@ -89,6 +99,18 @@ fn setup(
         Transform::from_xyz(0.0, -0.8, 0.0),
         RigidBody::Static,
         Collider::half_space(Vec3::Y),
+        Ground,
+    ));
+    // The Fox (about a metre long at this scale) standing on the floor behind the plank.
+    commands.spawn((
+        WorldAssetRoot(assets.load(GltfAssetLabel::Scene(0).from_asset("models/Fox.glb"))),
+        Transform::from_xyz(0.0, -0.8, -1.0)
+            .with_scale(Vec3::splat(0.01))
+            .with_rotation(Quat::from_rotation_y(1.2)),
+        Poseable::default(),
+        PoseGround::default(),
+        PosedColliders::default(),
+        Grabbable::default(),
     ));
     // A plank 2.4 long, 0.5 wide and 0.08 thick, lying along X (generated along +Y, turned
     // onto its side), both ends held.
@@ -134,14 +156,19 @@ fn drop_balls(
     }
     *next = time.elapsed_secs() + 1.0;
     *count += 1;
+    // Every other ball over the Fox's back.
     let x = ((*count as f32 * 0.618).fract() - 0.5) * 1.6;
+    let at = match *count % 2 {
+        0 => Vec3::new(x, 1.0, 0.0),
+        _ => Vec3::new(x * 0.2, 1.0, -1.0),
+    };
     commands.spawn((
         Ball,
         RigidBody::Dynamic,
         Collider::sphere(0.08),
         Mesh3d(look.0.clone()),
         MeshMaterial3d(look.1.clone()),
-        Transform::from_xyz(x, 1.0, 0.0),
+        Transform::from_translation(at),
     ));
 }
 

@@ -39,6 +39,7 @@
 
 pub mod balance;
 pub mod blend;
+pub mod capsules;
 pub mod clip;
 pub mod contacts;
 pub mod effectors;
@@ -59,6 +60,7 @@ pub mod synth_rig;
 
 pub use balance::{Balance, SupportPolygon, centre_of_mass, vertex_masses};
 pub use blend::{BlendMode, additive_layer_for, blend_joint, blend_pose};
+pub use capsules::{BoneCapsule, fit_bone_capsules};
 pub use clip::{ClipError, KEY_TIME_EPSILON, KeyInterpolation, PoseClip, PoseKey};
 pub use contacts::{Contact, Floor, GroundPlane};
 pub use effectors::{

@@ -158,3 +158,68 @@ fn ground_colliders_are_the_scene_ground() {
     assert!(empty.is_empty());
     assert!(empty.cast_down(DVec3::Y, DVec3::NEG_Y, 5.0).is_none());
 }
+
+/// A four-bone bar character (radius 0.1) lying along world +X at height 0, maybe with
+/// `PosedColliders`, and a ball of radius 0.05 dropped on its middle: the ball's height after
+/// 1.5 simulated seconds, and the capsules made.
+fn ball_on_a_posed_bar(with_colliders: bool) -> (f32, usize) {
+    use bevy_wii_deform::ecs::physics::{BoneCollider, PosedColliders};
+    use bevy_wii_deform::pose::synth_rig;
+
+    let mut app = crate::common::app();
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(
+        1.0 / 60.0,
+    )));
+    app.add_plugins((PhysicsPlugins::default(), PosePlugin, DeformPhysicsPlugin));
+    app.finish();
+    app.cleanup();
+    let rig = synth_rig::bar_rig(4, 16, 40);
+    let (root, _, _) = crate::common::spawn_rig(&mut app, &rig, Vec3::ZERO);
+    app.world_mut().get_mut::<Transform>(root).unwrap().rotation =
+        Quat::from_rotation_z(-std::f32::consts::FRAC_PI_2);
+    app.world_mut().entity_mut(root).insert(Poseable::default());
+    if with_colliders {
+        app.world_mut()
+            .entity_mut(root)
+            .insert(PosedColliders::default());
+    }
+    crate::common::update_until(&mut app, "the posed character", |a| {
+        a.world().get::<PosedSkeleton>(root).is_some()
+    });
+    for _ in 0..3 {
+        app.update();
+    }
+    let capsules = app
+        .world_mut()
+        .query::<&BoneCollider>()
+        .iter(app.world())
+        .count();
+    let ball = app
+        .world_mut()
+        .spawn((
+            RigidBody::Dynamic,
+            Collider::sphere(0.05),
+            Transform::from_xyz(0.5, 0.6, 0.0),
+        ))
+        .id();
+    for _ in 0..90 {
+        app.update();
+    }
+    (
+        app.world().get::<Transform>(ball).unwrap().translation.y,
+        capsules,
+    )
+}
+
+#[test]
+fn a_ball_lands_on_a_posed_characters_bone_capsules() {
+    let (y, capsules) = ball_on_a_posed_bar(true);
+    assert_eq!(capsules, 4, "a capsule per bone");
+    assert!(
+        (y - 0.15).abs() < 0.03,
+        "the ball rests on the bar's skin (0.1 + its radius): {y}"
+    );
+    let (y, capsules) = ball_on_a_posed_bar(false);
+    assert_eq!(capsules, 0);
+    assert!(y < -1.0, "without the capsules it falls through: {y}");
+}

@@ -10,6 +10,11 @@
 //!   [`DeformGround`](crate::ecs::DeformGround). When at least one such collider exists, the
 //!   colliders are the ground and mesh-only `Ground` entities are not cast on.
 //!
+//! - [`PosedColliders`] on a [`Poseable`](crate::ecs::Poseable) character gives each bone a
+//!   kinematic capsule fitted to its skin ([`crate::pose::fit_bone_capsules`]), a child of the
+//!   joint entity, so it follows the pose and the animation: hits and pushes meet the posed
+//!   body.
+//!
 //! Add [`DeformPhysicsPlugin`] beside Avian's `PhysicsPlugins`.
 
 mod plugin;
@@ -61,6 +66,30 @@ pub struct DeformColliderStatus {
 pub(crate) struct ColliderBuild {
     task: Task<Result<Collider, String>>,
     solve: u64,
+}
+
+/// Kinematic capsules on a posed character's bones ([`DeformPhysicsPlugin`]), built once the
+/// character is prepared: one per joint carrying skin, a child of the joint entity.
+#[derive(Component, Debug, Clone, Copy, PartialEq, Reflect)]
+#[reflect(Component, Default)]
+pub struct PosedColliders {
+    /// A vertex belongs to a joint's capsule when weighted at least this much to it.
+    pub min_weight: f32,
+}
+
+impl Default for PosedColliders {
+    fn default() -> Self {
+        Self { min_weight: 0.5 }
+    }
+}
+
+/// A capsule of [`PosedColliders`] (on the child entity of a joint).
+#[derive(Component, Debug, Clone, Copy, PartialEq, Eq, Reflect)]
+#[reflect(Component)]
+pub struct BoneCollider {
+    /// The character whose bone this is.
+    #[entities]
+    pub character: Entity,
 }
 
 /// The scene's ground as Avian colliders, cast on one by one (with their bounding boxes as a

@@ -1,14 +1,18 @@
-//! Systems of [`DeformPhysicsPlugin`]: collider rebuilds after settled solves, and the
-//! colliders marked [`Ground`] as the scene's ground.
+//! Systems of [`DeformPhysicsPlugin`]: collider rebuilds after settled solves, the colliders
+//! marked [`Ground`] as the scene's ground, capsules on posed bones.
 
 use avian3d::prelude::*;
 use bevy::prelude::*;
 use bevy::tasks::AsyncComputeTaskPool;
 use bevy::tasks::futures::check_ready;
 
-use super::{ColliderBuild, ColliderGround, ColliderShape, DeformCollider, DeformColliderStatus};
+use super::{
+    BoneCollider, ColliderBuild, ColliderGround, ColliderShape, DeformCollider,
+    DeformColliderStatus, PosedColliders,
+};
 use crate::ecs::deform::mesh_positions;
-use crate::ecs::{DeformPhase, DeformStatus, DeformSystems, Ground, SceneGround};
+use crate::ecs::{DeformPhase, DeformStatus, DeformSystems, Ground, PosedSkeleton, SceneGround};
+use crate::pose::fit_bone_capsules;
 
 /// The systems of [`DeformPhysicsPlugin`].
 #[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -30,6 +34,8 @@ impl Plugin for DeformPhysicsPlugin {
     fn build(&self, app: &mut App) {
         app.register_type::<DeformCollider>()
             .register_type::<DeformColliderStatus>()
+            .register_type::<PosedColliders>()
+            .register_type::<BoneCollider>()
             .configure_sets(
                 Update,
                 DeformPhysicsSystems::Rebuild.after(DeformSystems::Writeback),
@@ -40,7 +46,11 @@ impl Plugin for DeformPhysicsPlugin {
             )
             .add_systems(
                 Update,
-                (start_collider_builds, swap_built_colliders)
+                (
+                    start_collider_builds,
+                    swap_built_colliders,
+                    fit_posed_colliders,
+                )
                     .chain()
                     .in_set(DeformPhysicsSystems::Rebuild),
             );
@@ -147,6 +157,41 @@ fn swap_built_colliders(
                 status.error = None;
             }
             Err(reason) => status.error = Some(reason),
+        }
+    }
+}
+
+/// A character with [`PosedColliders`] that was (re)prepared or changed its settings.
+type CharactersToFit = Or<(Added<PosedSkeleton>, Changed<PosedColliders>)>;
+
+/// Gives the bones of a newly posed [`PosedColliders`] character their capsules (replacing
+/// any it had).
+fn fit_posed_colliders(
+    mut commands: Commands,
+    characters: Query<(Entity, &PosedSkeleton, &PosedColliders), CharactersToFit>,
+    bones: Query<(Entity, &BoneCollider)>,
+) {
+    for (character, posed, settings) in &characters {
+        for (bone, of) in &bones {
+            if of.character == character {
+                commands.entity(bone).try_despawn();
+            }
+        }
+        for capsule in fit_bone_capsules(&posed.model, f64::from(settings.min_weight)) {
+            let Some(&joint) = posed.joints.get(capsule.joint) else {
+                continue;
+            };
+            commands.spawn((
+                BoneCollider { character },
+                RigidBody::Kinematic,
+                Collider::capsule_endpoints(
+                    capsule.radius as f32,
+                    capsule.a.as_vec3(),
+                    capsule.b.as_vec3(),
+                ),
+                Transform::default(),
+                ChildOf(joint),
+            ));
         }
     }
 }
