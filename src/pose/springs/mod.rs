@@ -20,8 +20,9 @@
 //! linearly between the frame's start and end, and the frame shows the tails interpolated
 //! between the last two steps — a VRM runtime updates once per frame, so its motion depends on
 //! the frame rate; this one moves as that runtime does at 60 fps, at any frame rate. Joint
-//! limits ([`JointLimits`]) are applied to the turned joints, and a tail is pushed out of the
-//! colliders and put back at its bone's length four times over, not once. A frame longer than
+//! limits ([`JointLimits`]) are applied to the turned joints, and a tail inside a collider goes
+//! to the nearest point that is both outside it and at its bone's length (VRM pushes it out,
+//! then restores the length, which can leave it inside), four passes over the colliders. A frame longer than
 //! [`SpringSettings::max_steps`] steps drops the excess time (a hitch); a placement jump beyond
 //! [`SpringSettings::teleport_distance`] resets the tails to the animated pose (no whip).
 
@@ -568,6 +569,21 @@ fn push_out(p: DVec3, head: DVec3, length: f64, a: DVec3, b: DVec3, radius: f64)
     let d = away.length();
     if d >= radius || d == 0.0 {
         return p;
+    }
+    // The tail must stay `length` from the head and `radius` from the collider's centre: on
+    // the circle where the two spheres meet, the point nearest the tail. (VRM pushes out, then
+    // restores the length, which can leave the tail inside.)
+    let axis = closest - head;
+    let span = axis.length();
+    if span > 0.0 && span < length + radius && span > (length - radius).abs() {
+        let along = (span * span + length * length - radius * radius) / (2.0 * span);
+        let circle = (length * length - along * along).max(0.0).sqrt();
+        let n = axis / span;
+        let centre = head + n * along;
+        let across = (p - centre) - n * (p - centre).dot(n);
+        if let Some(dir) = across.try_normalize() {
+            return centre + dir * circle;
+        }
     }
     let pushed = closest + away / d * radius;
     head + (pushed - head).normalize_or_zero() * length
