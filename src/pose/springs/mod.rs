@@ -22,9 +22,10 @@
 //! the frame rate; this one moves as that runtime does at 60 fps, at any frame rate. Joint
 //! limits ([`JointLimits`]) are applied to the turned joints, and a tail inside a collider goes
 //! to the nearest point that is both outside it and at its bone's length (VRM pushes it out,
-//! then restores the length, which can leave it inside), four passes over the colliders. A frame longer than
-//! [`SpringSettings::max_steps`] steps drops the excess time (a hitch); a placement jump beyond
-//! [`SpringSettings::teleport_distance`] resets the tails to the animated pose (no whip).
+//! then restores the length, which can leave it inside), four passes over the colliders. A
+//! frame longer than [`SpringSettings::max_steps`] steps drops the excess time (a hitch); a
+//! placement jump beyond [`SpringSettings::teleport_distance`] resets the tails to the
+//! animated pose (no whip).
 
 mod ron_file;
 mod vrm;
