@@ -294,3 +294,64 @@ fn a_bar_grabbed_into_the_scene_ground_stops_at_it_and_slides_along() {
         "the end slid 0.3 across: {across}"
     );
 }
+
+#[test]
+fn a_wobbling_bar_pushed_into_the_ground_never_passes_below_it() {
+    use bevy::time::TimeUpdateStrategy;
+    use bevy_wii_deform::prelude::DeformDynamics;
+
+    let mut app = crate::common::app();
+    app.add_plugins(DeformPlugin::default())
+        .insert_resource(TimeUpdateStrategy::ManualDuration(
+            std::time::Duration::from_secs_f64(1.0 / 60.0),
+        ));
+    let quad = [
+        DVec3::new(-3.0, 0.0, -3.0),
+        DVec3::new(3.0, 0.0, -3.0),
+        DVec3::new(3.0, 0.0, 3.0),
+        DVec3::new(-3.0, 0.0, 3.0),
+    ];
+    let floor = mesh_from_triangles(&quad, &[[0, 2, 1], [0, 3, 2]]);
+    let floor = app.world_mut().resource_mut::<Assets<Mesh>>().add(floor);
+    app.world_mut()
+        .spawn((Mesh3d(floor), Transform::default(), Ground));
+    let (e, handle, _) = spawn_bar(&mut app);
+    // Lying along +X, its axis 0.3 above the floor.
+    let placement = Transform::from_xyz(0.0, 0.3, 0.0)
+        .with_rotation(Quat::from_rotation_z(-std::f32::consts::FRAC_PI_2));
+    app.world_mut().entity_mut(e).insert((
+        placement,
+        DeformGround::default(),
+        DeformDynamics::default(),
+    ));
+    crate::common::update_until(&mut app, "the first step", |a| {
+        a.world()
+            .get::<DeformStatus>(e)
+            .is_some_and(|s| s.solves > 0)
+    });
+    // A fast push of the free end 0.8 down: the bar swings into the floor and rings.
+    let push = placement
+        .to_matrix()
+        .inverse()
+        .transform_vector3(Vec3::new(0.0, -0.8, 0.0));
+    app.world_mut()
+        .get_mut::<Transform>(handle)
+        .unwrap()
+        .translation += push;
+    let mut deepest = 0.0f32;
+    let mut touched = 0;
+    for _ in 0..240 {
+        app.update();
+        let lowest = positions(&app, e)
+            .iter()
+            .map(|p| placement.transform_point(*p).y)
+            .fold(f32::INFINITY, f32::min);
+        deepest = deepest.min(lowest);
+        touched = touched.max(app.world().get::<DeformStatus>(e).unwrap().ground_contacts);
+    }
+    assert!(touched > 0, "the swing reached the floor");
+    assert!(
+        deepest > -1e-3,
+        "no frame shows a vertex below the floor: {deepest}"
+    );
+}

@@ -33,28 +33,47 @@ type Factoring = (
     Task<Result<ArapSolver, SolveError>>,
 );
 
-/// What a batch of steps made: the pose to show (none when no step was due) and the
-/// milliseconds per step.
-type Stepped = Result<(Option<RenderPose>, f64), SolveError>;
+/// What a batch of steps made, when a step was due: the pose to show, the last step's
+/// solution (the next static solve's warm start), the fastest vertex's speed and the
+/// milliseconds per step. `None` when no step was due.
+type Stepped = Result<Option<(RenderPose, Arc<Solution>, f64, f64)>, SolveError>;
 
-/// Runs the steps `dt` holds and builds the pose to show.
-fn run_steps(
-    motion: &mut Motion,
-    solver: &ArapSolver,
-    rest: &Rest,
-    constraints: &Constraints,
-    settings: &DynamicsSettings,
-    dt: f64,
-) -> Stepped {
+/// Runs the steps `dt` holds (above the ground when `ground` is given: handles lifted onto
+/// it, vertices kept above it) and builds what the frame shows.
+fn run_steps(motion: &mut Motion, job: &StepJob, dt: f64) -> Stepped {
     let t0 = std::time::Instant::now();
-    let steps = motion.advance(solver, constraints, settings, dt, None)?;
-    let pose = (steps > 0)
-        .then(|| motion.solution().map(|s| render_pose(rest, s)))
-        .flatten();
-    Ok((
+    let positions = job.rest.topology.positions();
+    let obstacle = job.ground.as_ref().and_then(|g| g.obstacle(positions));
+    let lifted;
+    let constraints = match obstacle {
+        Some(ground) => {
+            lifted = job.constraints.lifted_above(positions, ground);
+            &lifted
+        }
+        None => &job.constraints,
+    };
+    let obstacle = obstacle.map(|g| g as &dyn crate::deform::Obstacle);
+    let steps = motion.advance(&job.solver, constraints, &job.settings, dt, obstacle)?;
+    let Some(solution) = motion.solution().filter(|_| steps > 0) else {
+        return Ok(None);
+    };
+    let pose = render_pose(&job.rest, solution);
+    let ms = t0.elapsed().as_secs_f64() * 1e3 / f64::from(steps);
+    Ok(Some((
         pose,
-        t0.elapsed().as_secs_f64() * 1e3 / f64::from(steps.max(1)),
-    ))
+        Arc::new(solution.clone()),
+        motion.max_speed(),
+        ms,
+    )))
+}
+
+/// What a batch of steps works with.
+struct StepJob {
+    solver: Arc<ArapSolver>,
+    rest: Arc<Rest>,
+    constraints: Constraints,
+    settings: DynamicsSettings,
+    ground: Option<ground::GroundCache>,
 }
 
 /// The factorization of `constraints` for `settings`: the static system's lowest eigenvalue
@@ -85,7 +104,7 @@ pub(super) fn step_dynamics(
     mut meshes: Query<(
         Entity,
         &Deformable,
-        &DeformDynamics,
+        Ref<DeformDynamics>,
         Option<&FixedRegion>,
         &mut DeformState,
         &mut DeformStatus,
@@ -105,6 +124,12 @@ pub(super) fn step_dynamics(
             continue;
         };
         let runtime = &mut *runtime;
+        if dynamics.is_added() {
+            // Turned on again: start from the pose on screen, not where it was turned off.
+            runtime.motion = None;
+            runtime.stepping = None;
+            runtime.waiting = 0.0;
+        }
         let settings = dynamics.settings();
         let mine: Vec<(&DeformHandle, &Transform)> = handles
             .iter()
@@ -139,74 +164,67 @@ pub(super) fn step_dynamics(
             }
             runtime.factoring = None;
         }
-        let Some((solver, _, _)) = runtime
+        let Some(solver) = runtime
             .solver
             .as_ref()
             .filter(|(_, s, c)| current(s, c))
-            .cloned()
+            .map(|(solver, _, _)| solver.clone())
         else {
             continue;
         };
-        let motion = runtime.motion.get_or_insert_with(|| match &state.last {
+        let start = || match &state.last {
             Some(last) => Motion::from_solution((**last).clone()),
             None => Motion::at_rest(rest.topology.positions().to_vec()),
-        });
+        };
+        let job = StepJob {
+            solver,
+            rest: rest.clone(),
+            constraints,
+            settings,
+            ground: state.ground.clone(),
+        };
         runtime.waiting += dt;
         let landed = if rest.topology.vertex_count() < DeformDynamics::IN_FRAME_BELOW {
             let waiting = std::mem::take(&mut runtime.waiting);
-            Some(run_steps(
-                motion,
-                &solver,
-                &rest,
-                &constraints,
-                &settings,
-                waiting,
-            ))
+            let motion = runtime.motion.get_or_insert_with(start);
+            Some(run_steps(motion, &job, waiting))
         } else {
             // A batch on the pool: land the last one, start the next with the time since.
+            // The motion goes with the batch (no copy on the main thread).
             let mut landed = None;
             if let Some(task) = runtime.stepping.as_mut()
                 && let Some((moved, result)) = check_ready(task)
             {
-                *motion = moved;
+                runtime.motion = Some(moved);
                 runtime.stepping = None;
                 landed = Some(result);
             }
             if runtime.stepping.is_none() {
-                let (mut moving, waiting) = (motion.clone(), std::mem::take(&mut runtime.waiting));
-                let (rest, constraints) = (rest.clone(), constraints.clone());
+                let mut moving = runtime.motion.take().unwrap_or_else(start);
+                let waiting = std::mem::take(&mut runtime.waiting);
                 runtime.stepping = Some(AsyncComputeTaskPool::get().spawn(async move {
-                    let result = run_steps(
-                        &mut moving,
-                        &solver,
-                        &rest,
-                        &constraints,
-                        &settings,
-                        waiting,
-                    );
+                    let result = run_steps(&mut moving, &job, waiting);
                     (moving, result)
                 }));
             }
             landed
         };
         match landed {
-            Some(Ok((Some(pose), ms_per_step))) if finite(&pose) => {
+            Some(Ok(Some((pose, solution, speed, ms_per_step)))) if finite(&pose) => {
                 status.solve_ms = ms_per_step;
-                let state = state.bypass_change_detection();
-                state.ready = Some(pose);
-                if let Some(solution) = runtime.motion.as_ref().and_then(Motion::solution) {
-                    status.iterations = solution.stats.iterations;
-                    status.energy = solution.stats.final_energy();
-                    state.last = Some(Arc::new(solution.clone()));
-                }
+                status.iterations = solution.stats.iterations;
+                status.energy = solution.stats.final_energy();
+                status.ground_contacts = solution.stats.contacts;
                 status.solves += 1;
                 status.error = None;
-                let moving = runtime.motion.as_ref().map_or(0.0, Motion::max_speed);
-                status.phase = if moving > 1e-6 * rest.topology.bounding_diagonal() {
+                status.phase = if speed > 1e-6 * rest.topology.bounding_diagonal() {
                     DeformPhase::Solving
                 } else {
                     DeformPhase::Idle
                 };
+                let state = state.bypass_change_detection();
+                state.ready = Some(pose);
+                state.last = Some(solution);
             }
             Some(Err(e)) => {
                 // The last good pose stays; the motion starts again from it.

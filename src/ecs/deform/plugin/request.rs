@@ -69,14 +69,14 @@ pub(super) fn request_solves(
     // Consume the removals so each one triggers exactly one re-solve.
     let any_removed = removed.read().count() > 0;
     for (entity, deformable, fixed, mut state, mut status, on_ground, dynamic) in &mut deformables {
-        if dynamic {
-            continue; // stepped in time instead (`dynamics.rs`)
-        }
         let ground_changed = refresh_ground(
             state.bypass_change_detection(),
             on_ground,
             scene_ground.as_deref(),
         );
+        if dynamic {
+            continue; // stepped in time instead (`dynamics.rs`), on the same ground
+        }
         let Some(rest) = state.rest.clone() else {
             continue;
         };
