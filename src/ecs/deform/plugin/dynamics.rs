@@ -33,10 +33,21 @@ type Factoring = (
     Task<Result<ArapSolver, SolveError>>,
 );
 
-/// What a batch of steps made, when a step was due: the pose to show, the last step's
-/// solution (the next static solve's warm start), the fastest vertex's speed and the
-/// milliseconds per step. `None` when no step was due.
-type Stepped = Result<Option<(RenderPose, Arc<Solution>, f64, f64)>, SolveError>;
+/// What a batch of steps made, when a step was due (`None` when none was).
+struct Steps {
+    /// The pose to show.
+    pose: RenderPose,
+    /// The last step's solution once the mesh has come to rest (the next static solve's warm
+    /// start; not copied while it moves).
+    at_rest: Option<Arc<Solution>>,
+    /// The last step's statistics.
+    stats: SolveStats,
+    /// Milliseconds per step.
+    ms: f64,
+}
+
+/// A batch's outcome.
+type Stepped = Result<Option<Steps>, SolveError>;
 
 /// Runs the steps `dt` holds (above the ground when `ground` is given: handles lifted onto
 /// it, vertices kept above it) and builds what the frame shows.
@@ -58,14 +69,20 @@ fn run_steps(motion: &mut Motion, job: &StepJob, dt: f64) -> Stepped {
         return Ok(None);
     };
     let pose = render_pose(&job.rest, solution);
+    let speed = motion.max_speed();
+    let at_rest = (speed <= RESTING_SPEED * job.rest.topology.bounding_diagonal())
+        .then(|| Arc::new(solution.clone()));
     let ms = t0.elapsed().as_secs_f64() * 1e3 / f64::from(steps);
-    Ok(Some((
+    Ok(Some(Steps {
         pose,
-        Arc::new(solution.clone()),
-        motion.max_speed(),
+        at_rest,
+        stats: solution.stats.clone(),
         ms,
-    )))
+    }))
 }
+
+/// Below this speed (bounding diagonals per second) a mesh counts as at rest.
+const RESTING_SPEED: f64 = 1e-6;
 
 /// What a batch of steps works with.
 struct StepJob {
@@ -210,21 +227,22 @@ pub(super) fn step_dynamics(
             landed
         };
         match landed {
-            Some(Ok(Some((pose, solution, speed, ms_per_step)))) if finite(&pose) => {
-                status.solve_ms = ms_per_step;
-                status.iterations = solution.stats.iterations;
-                status.energy = solution.stats.final_energy();
-                status.ground_contacts = solution.stats.contacts;
+            Some(Ok(Some(steps))) if finite(&steps.pose) => {
+                status.solve_ms = steps.ms;
+                status.iterations = steps.stats.iterations;
+                status.energy = steps.stats.final_energy();
+                status.ground_contacts = steps.stats.contacts;
                 status.solves += 1;
                 status.error = None;
-                status.phase = if speed > 1e-6 * rest.topology.bounding_diagonal() {
-                    DeformPhase::Solving
-                } else {
-                    DeformPhase::Idle
+                status.phase = match steps.at_rest {
+                    Some(_) => DeformPhase::Idle,
+                    None => DeformPhase::Solving,
                 };
                 let state = state.bypass_change_detection();
-                state.ready = Some(pose);
-                state.last = Some(solution);
+                state.ready = Some(steps.pose);
+                if let Some(solution) = steps.at_rest {
+                    state.last = Some(solution);
+                }
             }
             Some(Err(e)) => {
                 // The last good pose stays; the motion starts again from it.
