@@ -218,12 +218,14 @@ fn a_floor_under_the_bar_changes_nothing() {
     assert!(moved < 1e-12, "{moved}");
 }
 
-/// A bar `Deformable` lying along world +X with its axis 0.4 above a `Ground` quad at y = 0
-/// (the mesh turned, raised and scaled ×1.5 by its transform), its handle pushed 1.2 below
-/// and 0.3 across in world units; the mesh's world positions once settled.
-fn push_a_bar_into_a_ground_quad(on_ground: bool) -> (Vec<Vec3>, Vec<Vec3>, DeformStatus) {
+/// A `DeformPlugin` app at 60 frames a second with a `Ground` quad 6 wide at y = 0.
+fn ground_quad_app() -> App {
     let mut app = crate::common::app();
-    app.add_plugins(DeformPlugin::default());
+    app.add_plugins(DeformPlugin::default()).insert_resource(
+        bevy::time::TimeUpdateStrategy::ManualDuration(std::time::Duration::from_secs_f64(
+            1.0 / 60.0,
+        )),
+    );
     let quad = [
         DVec3::new(-3.0, 0.0, -3.0),
         DVec3::new(3.0, 0.0, -3.0),
@@ -234,6 +236,14 @@ fn push_a_bar_into_a_ground_quad(on_ground: bool) -> (Vec<Vec3>, Vec<Vec3>, Defo
     let floor = app.world_mut().resource_mut::<Assets<Mesh>>().add(floor);
     app.world_mut()
         .spawn((Mesh3d(floor), Transform::default(), Ground));
+    app
+}
+
+/// A bar `Deformable` lying along world +X with its axis 0.4 above a `Ground` quad at y = 0
+/// (the mesh turned, raised and scaled ×1.5 by its transform), its handle pushed 1.2 below
+/// and 0.3 across in world units; the mesh's world positions once settled.
+fn push_a_bar_into_a_ground_quad(on_ground: bool) -> (Vec<Vec3>, Vec<Vec3>, DeformStatus) {
+    let mut app = ground_quad_app();
     let (e, handle, tri) = spawn_bar(&mut app);
     let placement = Transform::from_xyz(0.0, 0.4, 0.0)
         .with_rotation(Quat::from_rotation_z(-std::f32::consts::FRAC_PI_2))
@@ -297,24 +307,9 @@ fn a_bar_grabbed_into_the_scene_ground_stops_at_it_and_slides_along() {
 
 #[test]
 fn a_wobbling_bar_pushed_into_the_ground_never_passes_below_it() {
-    use bevy::time::TimeUpdateStrategy;
     use bevy_wii_deform::prelude::DeformDynamics;
 
-    let mut app = crate::common::app();
-    app.add_plugins(DeformPlugin::default())
-        .insert_resource(TimeUpdateStrategy::ManualDuration(
-            std::time::Duration::from_secs_f64(1.0 / 60.0),
-        ));
-    let quad = [
-        DVec3::new(-3.0, 0.0, -3.0),
-        DVec3::new(3.0, 0.0, -3.0),
-        DVec3::new(3.0, 0.0, 3.0),
-        DVec3::new(-3.0, 0.0, 3.0),
-    ];
-    let floor = mesh_from_triangles(&quad, &[[0, 2, 1], [0, 3, 2]]);
-    let floor = app.world_mut().resource_mut::<Assets<Mesh>>().add(floor);
-    app.world_mut()
-        .spawn((Mesh3d(floor), Transform::default(), Ground));
+    let mut app = ground_quad_app();
     let (e, handle, _) = spawn_bar(&mut app);
     // Lying along +X, its axis 0.3 above the floor.
     let placement = Transform::from_xyz(0.0, 0.3, 0.0)

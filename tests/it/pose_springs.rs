@@ -40,34 +40,58 @@ fn run(
     path: impl Fn(f64) -> DVec3,
     at: &[f64],
 ) -> Vec<DVec3> {
-    let mut state = SpringState::default();
-    let frames = (seconds * fps).round() as usize;
+    let frames = (seconds * fps).round() as usize + 1;
     let mut out = Vec::new();
-    for f in 0..=frames {
+    let place = |t: f64| DAffine3::from_translation(path(t));
+    simulate(
+        springs,
+        rig,
+        (frames, fps),
+        place,
+        None,
+        |t, placement, pose| {
+            if at.iter().any(|a| (a - t).abs() < 1e-9) {
+                let swung = joints_world(rig, placement, pose);
+                let animated = joints_world(rig, placement, &rig.rest);
+                out.push(swung[4] - animated[4]);
+            }
+        },
+    );
+    out
+}
+
+/// Steps the rest pose's springs for `frames` frames at `fps` (the first starts them), the
+/// character placed by `placement(t)`; `each(t, placement, pose)` sees every frame.
+fn simulate(
+    springs: &SpringRig,
+    rig: &synth_rig::SyntheticRig,
+    (frames, fps): (usize, f64),
+    placement: impl Fn(f64) -> DAffine3,
+    limits: Option<&JointLimits>,
+    mut each: impl FnMut(f64, DAffine3, &SkeletonPose),
+) -> SkeletonPose {
+    let mut state = SpringState::default();
+    let mut pose = rig.rest.clone();
+    for f in 0..frames {
         let t = f as f64 / fps;
-        let placement = DAffine3::from_translation(path(t));
-        let mut pose = rig.rest.clone();
+        let at = placement(t);
+        pose = rig.rest.clone();
         let dt = if f == 0 { 0.0 } else { 1.0 / fps };
         step_springs(
             springs,
             &rig.skeleton,
-            placement,
+            at,
             &mut pose,
             dt,
-            None,
+            limits,
             &mut state,
         );
-        if at.iter().any(|a| (a - t).abs() < 1e-9) {
-            let swung = joints_world(rig, placement, &pose);
-            let animated = joints_world(rig, placement, &rig.rest);
-            out.push(swung[4] - animated[4]);
-        }
+        each(t, at, &pose);
     }
-    out
+    pose
 }
 
-/// The pose after `frames` 60 Hz frames of the rest pose placed by `placement` (the first
-/// frame starts the springs).
+/// The pose after `frames` 60 Hz frames of the rest pose placed by `placement`.
 fn swing(
     springs: &SpringRig,
     rig: &synth_rig::SyntheticRig,
@@ -75,22 +99,14 @@ fn swing(
     frames: usize,
     limits: Option<&JointLimits>,
 ) -> SkeletonPose {
-    let mut state = SpringState::default();
-    let mut pose = rig.rest.clone();
-    for f in 0..frames {
-        pose = rig.rest.clone();
-        let dt = if f == 0 { 0.0 } else { 1.0 / 60.0 };
-        step_springs(
-            springs,
-            &rig.skeleton,
-            placement,
-            &mut pose,
-            dt,
-            limits,
-            &mut state,
-        );
-    }
-    pose
+    simulate(
+        springs,
+        rig,
+        (frames, 60.0),
+        |_| placement,
+        limits,
+        |_, _, _| {},
+    )
 }
 
 #[test]
@@ -226,24 +242,19 @@ fn a_collider_keeps_the_chain_out() {
     });
     springs.collider_groups.push(vec![0]);
     let deepest = |springs: &SpringRig| {
-        let mut state = SpringState::default();
         let mut worst = f64::NEG_INFINITY;
-        for f in 0..240 {
-            let mut pose = rig.rest.clone();
-            let dt = if f == 0 { 0.0 } else { 1.0 / 60.0 };
-            step_springs(
-                springs,
-                &rig.skeleton,
-                placement,
-                &mut pose,
-                dt,
-                None,
-                &mut state,
-            );
-            for p in &joints_world(&rig, placement, &pose)[1..] {
-                worst = worst.max(ball_radius + 0.02 - p.distance(ball_at));
-            }
-        }
+        simulate(
+            springs,
+            &rig,
+            (240, 60.0),
+            |_| placement,
+            None,
+            |_, at, pose| {
+                for p in &joints_world(&rig, at, pose)[1..] {
+                    worst = worst.max(ball_radius + 0.02 - p.distance(ball_at));
+                }
+            },
+        );
         worst
     };
     assert!(
