@@ -264,15 +264,8 @@ mod tests {
     #[test]
     fn the_nearest_joint_to_a_click_is_picked() {
         use bevy_wii_deform::pose::synth_rig::bar_rig;
-        use bevy_wii_deform::pose::{ModelSettings, SkinnedModel};
         let rig = bar_rig(3, 8, 12);
-        let model = SkinnedModel::new(
-            rig.skeleton.clone(),
-            &rig.mesh,
-            &rig.rest,
-            ModelSettings::default(),
-        )
-        .unwrap();
+        let model = rig.model().unwrap();
         let mut world = World::new();
         let joints: Vec<Entity> = rig
             .skeleton

@@ -83,18 +83,12 @@ fn segment_distance(p: DVec3, a: DVec3, b: DVec3) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pose::{ModelSettings, synth_rig};
+    use crate::pose::synth_rig;
 
     #[test]
     fn a_bar_rigs_capsules_follow_its_bones_with_its_radius() {
         let rig = synth_rig::bar_rig(4, 16, 40);
-        let model = SkinnedModel::new(
-            rig.skeleton.clone(),
-            &rig.mesh,
-            &rig.rest,
-            ModelSettings::default(),
-        )
-        .unwrap();
+        let model = rig.model().unwrap();
         let capsules = fit_bone_capsules(&model, 0.5);
         assert_eq!(capsules.len(), 4, "{capsules:?}");
         for c in &capsules {

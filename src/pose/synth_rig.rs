@@ -18,6 +18,16 @@ pub struct SyntheticRig {
 }
 
 impl SyntheticRig {
+    /// The rig's skinned model with the default settings.
+    pub fn model(&self) -> Result<SkinnedModel, super::PoseError> {
+        SkinnedModel::new(
+            self.skeleton.clone(),
+            &self.mesh,
+            &self.rest,
+            super::ModelSettings::default(),
+        )
+    }
+
     /// Welded vertices of `model` whose bind position satisfies `keep`.
     pub fn vertices_where(&self, model: &SkinnedModel, keep: impl Fn(DVec3) -> bool) -> Vec<u32> {
         (0..model.bind_positions().len() as u32)

@@ -386,16 +386,7 @@ pub struct FoxFile(pub Handle<bevy::gltf::Gltf>);
 
 /// The skinned model of a generated rig (default settings).
 pub fn model_of(rig: &SyntheticRig) -> std::sync::Arc<bevy_wii_deform::pose::SkinnedModel> {
-    use bevy_wii_deform::pose::{ModelSettings, SkinnedModel};
-    std::sync::Arc::new(
-        SkinnedModel::new(
-            rig.skeleton.clone(),
-            &rig.mesh,
-            &rig.rest,
-            ModelSettings::default(),
-        )
-        .unwrap(),
-    )
+    std::sync::Arc::new(rig.model().unwrap())
 }
 
 /// Updates until the character has had no solve running and none landed for 10 frames (a
