@@ -569,13 +569,18 @@ const MANNEQUIN_PARTS: [(DVec3, DVec3, f64); 11] = [
 
 /// Signed distance to a capsule from `a` to `b` with radius `r`.
 pub fn capsule(p: DVec3, a: DVec3, b: DVec3, r: f64) -> f64 {
+    (p - closest_on_segment(p, a, b)).length() - r
+}
+
+/// The point of the segment `a`–`b` nearest `p` (`a` when the segment is a point).
+pub fn closest_on_segment(p: DVec3, a: DVec3, b: DVec3) -> DVec3 {
     let ab = b - a;
     let t = if ab.length_squared() > 0.0 {
         ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0)
     } else {
-        0.0 // a sphere
+        0.0
     };
-    (p - (a + ab * t)).length() - r
+    a + ab * t
 }
 
 /// Polynomial smooth minimum (blend radius `k`), for smooth unions of distance fields.

@@ -10,6 +10,7 @@
 use glam::DVec3;
 
 use super::SkinnedModel;
+use crate::deform::synth::capsule;
 
 /// A capsule rigid with a joint, in the joint's space.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -54,7 +55,7 @@ pub fn fit_bone_capsules(model: &SkinnedModel, min_weight: f64) -> Vec<BoneCapsu
             }
         };
         let a = DVec3::ZERO;
-        let mut distances: Vec<f64> = points.iter().map(|p| segment_distance(*p, a, b)).collect();
+        let mut distances: Vec<f64> = points.iter().map(|p| capsule(*p, a, b, 0.0)).collect();
         distances.sort_by(f64::total_cmp);
         let radius = distances[(distances.len() - 1) * 3 / 4];
         if radius > 0.0 && radius.is_finite() && b.is_finite() {
@@ -67,17 +68,6 @@ pub fn fit_bone_capsules(model: &SkinnedModel, min_weight: f64) -> Vec<BoneCapsu
         }
     }
     capsules
-}
-
-/// Distance from `p` to the segment `a`–`b`.
-fn segment_distance(p: DVec3, a: DVec3, b: DVec3) -> f64 {
-    let ab = b - a;
-    let t = if ab.length_squared() > 0.0 {
-        ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    p.distance(a + ab * t)
 }
 
 #[cfg(test)]

@@ -44,6 +44,10 @@ struct Active {
 pub(super) struct ContactSet<'a> {
     obstacle: &'a dyn Obstacle,
     active: Vec<Active>,
+    /// Scratch of every projection (kept between iterations): the positions it started from,
+    /// and which vertices are held.
+    start: Vec<DVec3>,
+    held: Vec<bool>,
 }
 
 impl<'a> ContactSet<'a> {
@@ -51,6 +55,8 @@ impl<'a> ContactSet<'a> {
         Self {
             obstacle,
             active: Vec::new(),
+            start: Vec::new(),
+            held: Vec::new(),
         }
     }
 
@@ -64,10 +70,28 @@ impl ArapSolver {
     /// Projects the free positions `y` (elimination order) onto the obstacle's allowed side in
     /// the Laplacian's norm (module docs).
     pub(super) fn project_above(&self, y: &mut [DVec3], contacts: &mut ContactSet<'_>) {
+        let (mut y0, mut held) = (
+            std::mem::take(&mut contacts.start),
+            std::mem::take(&mut contacts.held),
+        );
+        y0.clear();
+        y0.extend_from_slice(y);
+        held.clear();
+        held.resize(y.len(), false);
+        self.project_from(y, &y0, &mut held, contacts);
+        (contacts.start, contacts.held) = (y0, held);
+    }
+
+    /// [`Self::project_above`] from the positions `y0` (a copy of `y`), `held` all false.
+    fn project_from(
+        &self,
+        y: &mut [DVec3],
+        y0: &[DVec3],
+        held: &mut [bool],
+        contacts: &mut ContactSet<'_>,
+    ) {
         let obstacle = contacts.obstacle;
-        let y0 = y.to_vec();
         // Vertices held by the last projection start held, on the surface where they are now.
-        let mut held = vec![false; y.len()];
         contacts.active.retain_mut(|a| {
             let k = a.k as usize;
             let sample = obstacle
@@ -83,16 +107,16 @@ impl ArapSolver {
                 _ => false,
             }
         });
-        hold_below(obstacle, y, &mut held, &mut contacts.active);
+        hold_below(obstacle, y, held, &mut contacts.active);
         for _ in 0..ACTIVE_SET_ROUNDS {
             if contacts.active.is_empty() {
-                y.copy_from_slice(&y0);
+                y.copy_from_slice(y0);
                 return;
             }
             let columns = self.columns(contacts.active.iter().map(|a| a.k));
-            let Some(lambda) = multipliers(&contacts.active, &columns, &y0) else {
+            let Some(lambda) = multipliers(&contacts.active, &columns, y0) else {
                 contacts.active.clear();
-                y.copy_from_slice(&y0);
+                y.copy_from_slice(y0);
                 return;
             };
             // A positive multiplier pulls its vertex down onto the surface: let those go.
@@ -106,16 +130,16 @@ impl ArapSolver {
                 });
                 continue;
             }
-            y.copy_from_slice(&y0);
+            y.copy_from_slice(y0);
             correct(&contacts.active, &columns, &lambda, y);
-            if !hold_below(obstacle, y, &mut held, &mut contacts.active) {
+            if !hold_below(obstacle, y, held, &mut contacts.active) {
                 return;
             }
         }
         // Out of rounds: every held vertex on its plane, whatever its multiplier.
         let columns = self.columns(contacts.active.iter().map(|a| a.k));
-        if let Some(lambda) = multipliers(&contacts.active, &columns, &y0) {
-            y.copy_from_slice(&y0);
+        if let Some(lambda) = multipliers(&contacts.active, &columns, y0) {
+            y.copy_from_slice(y0);
             correct(&contacts.active, &columns, &lambda, y);
         }
     }

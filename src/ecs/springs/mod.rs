@@ -107,4 +107,6 @@ pub(crate) struct SpringRuntime {
     /// Per skeleton joint: the rotation the springs wrote last frame, and the animated one it
     /// replaced (a joint nobody rewrote since is still animated by that one).
     written: Vec<Option<(Quat, Quat)>>,
+    /// The character's `PoseLimits`, resolved against its skeleton (until they change).
+    limits: Option<Arc<crate::pose::JointLimits>>,
 }

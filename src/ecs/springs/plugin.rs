@@ -10,8 +10,7 @@ use super::{SpringBones, SpringRuntime, SpringSource, SpringStatus};
 use crate::ecs::pose::resolve_limits;
 use crate::ecs::{PoseLimits, PoseSystems, PosedSkeleton};
 use crate::pose::{
-    JointLimits, JointTransform, SkeletonPose, SpringRig, SpringState, read_vrm_springs,
-    step_springs,
+    JointTransform, SkeletonPose, SpringRig, SpringState, read_vrm_springs, step_springs,
 };
 
 /// The spring systems' place: `PostUpdate`, after [`PoseSystems::Apply`] (and so after the
@@ -81,6 +80,7 @@ fn resolve_springs(
                     written: vec![None; skeleton.len()],
                     rig,
                     state: SpringState::default(),
+                    limits: None,
                 });
             }
             Err(error) => {
@@ -103,10 +103,9 @@ fn simulate_springs(
         Option<Ref<PoseLimits>>,
     )>,
     mut joints: Query<&mut Transform>,
-    mut limits_cache: Local<bevy::platform::collections::HashMap<Entity, Arc<JointLimits>>>,
 ) {
     let dt = f64::from(time.delta_secs());
-    for (bones, posed, mut runtime, limits) in &mut characters {
+    'characters: for (bones, posed, mut runtime, limits) in &mut characters {
         let runtime = &mut *runtime;
         if !bones.enabled {
             runtime.state.reset();
@@ -118,7 +117,7 @@ fn simulate_springs(
         let mut local = Vec::with_capacity(posed.joints.len());
         for (j, &entity) in posed.joints.iter().enumerate() {
             let Ok(t) = joints.get(entity) else {
-                return;
+                continue 'characters; // a joint despawned: this character's springs wait
             };
             let rotation = match runtime.written[j] {
                 Some((wrote, animated)) if wrote == t.rotation => animated,
@@ -132,17 +131,9 @@ fn simulate_springs(
         }
         let animated = SkeletonPose { local };
         let mut pose = animated.clone();
-        let key = posed.joints[0];
-        let limits = limits.and_then(|source| {
-            let mut cached = limits_cache.get(&key).cloned();
-            let resolved = resolve_limits(posed, Some(&source), &mut cached)
-                .ok()
-                .flatten();
-            if let Some(l) = &resolved {
-                limits_cache.insert(key, l.clone());
-            }
-            resolved
-        });
+        let limits = resolve_limits(posed, limits.as_ref(), &mut runtime.limits)
+            .ok()
+            .flatten();
         step_springs(
             &runtime.rig,
             posed.model.skeleton(),

@@ -34,6 +34,7 @@ use glam::{DAffine3, DQuat, DVec3};
 use serde::{Deserialize, Serialize};
 
 use super::{JointLimits, Skeleton, SkeletonPose};
+use crate::deform::synth::closest_on_segment;
 
 pub use ron_file::SpringRonError;
 pub use vrm::{VrmSpringError, read_vrm_springs};
@@ -559,13 +560,7 @@ fn chain_colliders(
 
 /// `p` pushed out of the capsule `a`–`b` of `radius`, then put back at `length` from `head`.
 fn push_out(p: DVec3, head: DVec3, length: f64, a: DVec3, b: DVec3, radius: f64) -> DVec3 {
-    let ab = b - a;
-    let t = if ab.length_squared() > 0.0 {
-        ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    let closest = a + ab * t;
+    let closest = closest_on_segment(p, a, b);
     let away = p - closest;
     let d = away.length();
     if d >= radius || d == 0.0 {
