@@ -9,15 +9,18 @@
 #![doc = include_str!("../docs/guide.md")]
 #![warn(missing_docs)]
 
+pub mod controllers;
 pub mod deform;
 pub mod ecs;
 pub mod history;
 pub mod pose;
-pub mod wiimote;
 
 /// Everything most apps need: the plugins, their components, messages and settings, and the
 /// core types a game touches. Listed by name, so nothing internal leaks in.
 pub mod prelude {
+    pub use crate::controllers::wiimote::{
+        EmulatorConfig, EmulatorControls, FilterKind, RemoteProblem,
+    };
     pub use crate::deform::{
         ArapSolver, Constraints, InitialGuess, RigidTransform, SolveOptions, SolverSettings,
         Topology, TriMesh, WeldPolicy, arap_energy,
@@ -38,5 +41,4 @@ pub mod prelude {
         WiimoteProblem, WiimoteProblems, WiimoteSettings, WiimoteSource, WiimoteSystems,
         mesh_from_triangles,
     };
-    pub use crate::wiimote::{EmulatorConfig, EmulatorControls, FilterKind, RemoteProblem};
 }

@@ -22,7 +22,7 @@
 #[path = "../common/cli.rs"]
 mod cli;
 
-use bevy_wii_deform::wiimote::{
+use bevy_wii_deform::controllers::wiimote::{
     FilterKind, SensorModel,
     drift::{self, SessionSet},
 };

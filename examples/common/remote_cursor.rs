@@ -6,9 +6,9 @@
 use std::sync::Arc;
 
 use bevy::prelude::*;
+use bevy_wii_deform::controllers::wiimote::FnMotion;
+use bevy_wii_deform::controllers::wiimote::ir::{PointerSetup, aimed_at};
 use bevy_wii_deform::ecs::{Wiimote, WiimoteEmulators, WiimotePlugin, WiimotePointerPlugin};
-use bevy_wii_deform::wiimote::FnMotion;
-use bevy_wii_deform::wiimote::ir::{PointerSetup, aimed_at};
 
 /// The Wii Remote source for `--pointer [emulated]`, with the IR pointer in the default room
 /// (a 42-inch screen seen from 2 m, the bar above it).

@@ -8,10 +8,10 @@ use bevy::camera::RenderTarget;
 use bevy::prelude::*;
 use bevy::render::render_resource::TextureFormat;
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured, save_to_disk};
+use bevy_wii_deform::controllers::wiimote::FnMotion;
+use bevy_wii_deform::controllers::wiimote::protocol::Buttons;
 use bevy_wii_deform::deform::centroid;
 use bevy_wii_deform::prelude::*;
-use bevy_wii_deform::wiimote::FnMotion;
-use bevy_wii_deform::wiimote::protocol::Buttons;
 use glam::DVec3;
 
 use crate::challenge::Challenge;

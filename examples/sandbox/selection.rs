@@ -127,7 +127,7 @@ fn brush_ray(
     // The mouse first; else a remote pointing at the screen with A held paints where it points.
     let pointed = remotes
         .iter()
-        .filter(|w| w.pressed(bevy_wii_deform::wiimote::protocol::Buttons::A))
+        .filter(|w| w.pressed(bevy_wii_deform::controllers::wiimote::protocol::Buttons::A))
         .find_map(|w| w.pointer);
     let ray = if buttons.pressed(MouseButton::Left) {
         cursor_ray(&window, &camera)

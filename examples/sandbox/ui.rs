@@ -4,9 +4,9 @@
 use bevy::ecs::system::SystemParam;
 use bevy::prelude::*;
 use bevy_egui::{EguiContexts, EguiPrimaryContextPass, egui};
+use bevy_wii_deform::controllers::wiimote::protocol::Buttons;
+use bevy_wii_deform::controllers::wiimote::{DemoMotion, RemoteCommand, Still};
 use bevy_wii_deform::prelude::*;
-use bevy_wii_deform::wiimote::protocol::Buttons;
-use bevy_wii_deform::wiimote::{DemoMotion, RemoteCommand, Still};
 
 use crate::challenge::{CLOSE_ENOUGH, Challenge, ChallengeState, Results, TaskList};
 use crate::files::{FileCommand, FilePaths};

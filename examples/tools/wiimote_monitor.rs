@@ -14,8 +14,8 @@ mod cli;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use bevy_wii_deform::wiimote::protocol::Buttons;
-use bevy_wii_deform::wiimote::*;
+use bevy_wii_deform::controllers::wiimote::protocol::Buttons;
+use bevy_wii_deform::controllers::wiimote::*;
 
 fn button_names(b: Buttons) -> String {
     let names = [

@@ -1,5 +1,5 @@
 //! The ECS layer: components, messages, systems and plugins. Thin glue over
-//! [`crate::deform`] and [`crate::wiimote`].
+//! [`crate::deform`] and [`crate::controllers::wiimote`].
 //!
 //! | plugin | what it adds | system sets |
 //! |---|---|---|

@@ -196,7 +196,7 @@ fn grab_shift_turn_and_wheel_twist_turn_scaled_meshes_by_the_drag() {
 /// (the scale divided out), and turns it 1:1 while it moves.
 #[test]
 fn the_remote_moves_and_turns_a_handle_in_a_scaled_space_at_world_speed() {
-    use bevy_wii_deform::wiimote::protocol::Buttons;
+    use bevy_wii_deform::controllers::wiimote::protocol::Buttons;
     let mut app = app();
     app.insert_resource(bevy::time::TimeUpdateStrategy::ManualDuration(
         Duration::from_millis(10),

@@ -16,6 +16,7 @@ mod grab_picking;
 mod input_turns;
 mod malformed_gltf;
 mod missing_texture;
+mod motion_pads;
 mod mouse_control;
 #[cfg(feature = "avian")]
 mod physics_avian;

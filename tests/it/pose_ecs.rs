@@ -351,7 +351,7 @@ fn the_fox_from_bevys_gltf_loader_is_poseable() {
 /// follows to within 1°; a gain of 0.9 would be 3° off), the pinned root stays.
 #[test]
 fn the_wii_remote_turns_a_character_handle_one_to_one() {
-    use bevy_wii_deform::wiimote::protocol::Buttons;
+    use bevy_wii_deform::controllers::wiimote::protocol::Buttons;
     let mut app = app();
     app.add_plugins(WiimoteControlPlugin);
     app.world_mut()

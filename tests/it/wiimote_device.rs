@@ -5,8 +5,8 @@ use std::sync::Arc;
 
 use crate::common::shared;
 
-use bevy_wii_deform::wiimote::protocol::*;
-use bevy_wii_deform::wiimote::*;
+use bevy_wii_deform::controllers::wiimote::protocol::*;
+use bevy_wii_deform::controllers::wiimote::*;
 use glam::{DQuat, DVec3};
 use proptest::prelude::*;
 
@@ -286,7 +286,7 @@ proptest! {
     #[test]
     fn session_survives_garbage_from_the_device(seed in any::<u64>()) {
         // A transport that answers with random bytes: connect must fail cleanly.
-        struct Garbage(bevy_wii_deform::wiimote::Rng, u64);
+        struct Garbage(bevy_wii_deform::controllers::wiimote::Rng, u64);
         impl Transport for Garbage {
             fn write(&mut self, r: &[u8]) -> Result<usize, TransportError> { Ok(r.len()) }
             fn read_timeout(&mut self, buf: &mut [u8], ms: u32) -> Result<usize, TransportError> {
@@ -297,7 +297,7 @@ proptest! {
             }
             fn now_us(&self) -> u64 { self.1 }
         }
-        let mut s = Session::new(Garbage(bevy_wii_deform::wiimote::Rng::new(seed), 0), SessionConfig { retries: 0, command_timeout_ms: 30, ..Default::default() });
+        let mut s = Session::new(Garbage(bevy_wii_deform::controllers::wiimote::Rng::new(seed), 0), SessionConfig { retries: 0, command_timeout_ms: 30, ..Default::default() });
         // Random bytes never make a Wii Remote: connecting fails with a typed error, and
         // polling afterwards neither panics nor reports a connection.
         prop_assert!(s.connect().is_err(), "garbage connected");
@@ -1014,7 +1014,7 @@ fn a_session_recorded_with_another_sensor_model_uses_it() {
     let real = set.record(4, 40.0);
     let same = set.record_with_sensor(set.sensor(), 4, 40.0);
     assert_eq!(real.samples, same.samples);
-    let ideal_accel = bevy_wii_deform::wiimote::SensorModel {
+    let ideal_accel = bevy_wii_deform::controllers::wiimote::SensorModel {
         accel_misalignment: 0.0,
         accel_scale_error: 0.0,
         ..set.sensor()

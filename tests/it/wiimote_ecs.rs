@@ -6,9 +6,9 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use bevy::prelude::*;
+use bevy_wii_deform::controllers::wiimote::protocol::Buttons;
+use bevy_wii_deform::controllers::wiimote::{EmulatorClock, FnMotion, Still};
 use bevy_wii_deform::prelude::*;
-use bevy_wii_deform::wiimote::protocol::Buttons;
-use bevy_wii_deform::wiimote::{EmulatorClock, FnMotion, Still};
 use glam::{DQuat, DVec3};
 
 use crate::common::bar::*;
@@ -217,7 +217,7 @@ fn wiimote_app() -> (App, Entity, Entity) {
     app.insert_resource(bevy::time::TimeUpdateStrategy::ManualDuration(
         Duration::from_millis(10),
     ));
-    let clock = bevy_wii_deform::wiimote::EmulatorClock::new();
+    let clock = bevy_wii_deform::controllers::wiimote::EmulatorClock::new();
     app.add_plugins((
         DeformPlugin::default(),
         WiimotePlugin {
@@ -336,7 +336,7 @@ fn collect_problems(mut reader: MessageReader<WiimoteProblem>, mut seen: ResMut<
 
 #[test]
 fn a_remote_that_cannot_be_opened_reaches_a_message_and_its_entity() {
-    use bevy_wii_deform::wiimote::{EmulatorConfig, OpenErrorKind, RemoteProblem};
+    use bevy_wii_deform::controllers::wiimote::{EmulatorConfig, OpenErrorKind, RemoteProblem};
     let mut app = app();
     app.add_plugins(WiimotePlugin {
         source: WiimoteSource::Emulator(vec![EmulatorConfig {
@@ -475,8 +475,8 @@ fn the_remote_turns_a_handle_one_to_one_in_camera_space_and_translates_only_whil
 /// away, the pointer is gone (the bar out of view) and the orientation streams on.
 #[test]
 fn the_plugin_points_with_the_ir_camera() {
-    use bevy_wii_deform::wiimote::EmulatedBar;
-    use bevy_wii_deform::wiimote::ir::PointerSetup;
+    use bevy_wii_deform::controllers::wiimote::EmulatedBar;
+    use bevy_wii_deform::controllers::wiimote::ir::PointerSetup;
     let mut app = app();
     app.insert_resource(bevy::time::TimeUpdateStrategy::ManualDuration(
         Duration::from_millis(10),
@@ -534,11 +534,11 @@ fn the_plugin_points_with_the_ir_camera() {
 /// A headless app with a bendable bar in front of a camera, and an emulated remote that sees
 /// the sensor bar of `setup` from `position` and is a picking pointer (`WiimotePointerPlugin`).
 fn remote_pointer_app(
-    setup: bevy_wii_deform::wiimote::ir::PointerSetup,
+    setup: bevy_wii_deform::controllers::wiimote::ir::PointerSetup,
     position: glam::DVec3,
 ) -> (App, Entity, Entity) {
+    use bevy_wii_deform::controllers::wiimote::EmulatedBar;
     use bevy_wii_deform::deform::synth;
-    use bevy_wii_deform::wiimote::EmulatedBar;
     let mut app = app();
     app.add_plugins((
         bevy::window::WindowPlugin::default(),
@@ -597,9 +597,9 @@ fn remote_pointer_app(
 #[test]
 fn the_remote_points_at_a_mesh_and_a_grabs_it() {
     use bevy::picking::pointer::PointerId;
+    use bevy_wii_deform::controllers::wiimote::ir::PointerSetup;
+    use bevy_wii_deform::controllers::wiimote::protocol::Buttons;
     use bevy_wii_deform::ecs::ActiveGrabs;
-    use bevy_wii_deform::wiimote::ir::PointerSetup;
-    use bevy_wii_deform::wiimote::protocol::Buttons;
     let setup = PointerSetup::default();
     let position = glam::DVec3::ZERO;
     let (mut app, camera, bar) = remote_pointer_app(setup, position);

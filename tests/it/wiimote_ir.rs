@@ -1,7 +1,7 @@
 //! The IR camera: hand-made byte vectors, the camera model and the pointer.
 
-use bevy_wii_deform::wiimote::ir::*;
-use bevy_wii_deform::wiimote::{
+use bevy_wii_deform::controllers::wiimote::ir::*;
+use bevy_wii_deform::controllers::wiimote::{
     EmulatedRemote, EmulatorConfig, MotionPlusState, Session, SessionConfig, SessionError,
     SessionEvent,
 };
@@ -309,7 +309,7 @@ fn the_init_sequence_reaches_the_emulated_camera_and_a_silent_camera_is_a_typed_
 /// lands within 1 % of where the remote aims, and the MotionPlus keeps streaming beside them.
 #[test]
 fn an_emulated_remote_streams_the_bar_in_report_0x37_and_points_where_it_aims() {
-    use bevy_wii_deform::wiimote::{EmulatedBar, EmulatorControls, Still};
+    use bevy_wii_deform::controllers::wiimote::{EmulatedBar, EmulatorControls, Still};
     use std::sync::Arc;
     let setup = PointerSetup::default();
     let position = DVec3::new(0.1, 0.3, 0.0);
@@ -383,8 +383,8 @@ fn an_emulated_remote_streams_the_bar_in_report_0x37_and_points_where_it_aims() 
 /// view, and each time the bar leaves the view the heading does not jump by 0.5°.
 #[test]
 fn the_bar_holds_the_heading_and_losing_it_does_not_jump() {
-    use bevy_wii_deform::wiimote::drift;
-    use bevy_wii_deform::wiimote::{FilterKind, FusionFilter, SensorModel};
+    use bevy_wii_deform::controllers::wiimote::drift;
+    use bevy_wii_deform::controllers::wiimote::{FilterKind, FusionFilter, SensorModel};
     let rec = drift::record_pointing(SensorModel::default(), 3, 600.0, 0.5);
     let share = rec.in_view_share();
     assert!((0.4..0.65).contains(&share), "bar in view {share}");

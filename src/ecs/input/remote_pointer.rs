@@ -11,9 +11,9 @@ use bevy::picking::pointer::{Location, PointerAction, PointerButton, PointerId, 
 use bevy::prelude::*;
 use bevy::window::{PrimaryWindow, WindowRef};
 
+use crate::controllers::wiimote::protocol::Buttons;
 use crate::ecs::GrabTurn;
 use crate::ecs::wiimote::{Wiimote, WiimoteSystems};
-use crate::wiimote::protocol::Buttons;
 
 /// Gives every [`Wiimote`] with a pointer ([`WiimotePlugin::pointer`](crate::ecs::WiimotePlugin::pointer))
 /// a bevy_picking pointer ([`WiimotePointer::id`]) on the primary window; A is its primary

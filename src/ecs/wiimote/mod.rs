@@ -6,9 +6,9 @@ mod plugin;
 
 use bevy::prelude::*;
 
-use crate::wiimote::ir::PointerSetup;
-use crate::wiimote::smoothing::PointerSmoothing;
-use crate::wiimote::{
+use crate::controllers::wiimote::ir::PointerSetup;
+use crate::controllers::wiimote::smoothing::PointerSmoothing;
+use crate::controllers::wiimote::{
     EmulatorConfig, EmulatorControls, FilterKind, RemoteCommand, RemoteId, RemoteProblem,
     WiimoteManager, protocol::Buttons,
 };

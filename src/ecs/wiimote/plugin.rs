@@ -9,9 +9,9 @@ use super::{
     WiimoteProblem, WiimoteProblems, WiimoteSettings, WiimoteSource, remote_to_bevy,
     remote_vec_to_bevy,
 };
-use crate::wiimote::ir::{IrSensitivity, PointerSetup};
-use crate::wiimote::smoothing::{PointerSmoothing, SmoothedPointer};
-use crate::wiimote::{
+use crate::controllers::wiimote::ir::{IrSensitivity, PointerSetup};
+use crate::controllers::wiimote::smoothing::{PointerSmoothing, SmoothedPointer};
+use crate::controllers::wiimote::{
     CalibrationPhase, EmulatedBar, EmulatorClock, EmulatorConfig, EmulatorControls, ManagerConfig,
     ManagerEvent, MotionPlusState, RemoteCommand, RemoteSource, SessionConfig, WiimoteManager,
 };
@@ -366,7 +366,7 @@ fn apply_event(w: &mut Wiimote, entity: Entity, event: &ManagerEvent, out: &mut 
 fn apply_orientation(
     w: &mut Wiimote,
     entity: Entity,
-    sample: &crate::wiimote::OrientationSample,
+    sample: &crate::controllers::wiimote::OrientationSample,
 ) -> Option<WiimoteOrientationChanged> {
     let q = remote_to_bevy(sample.orientation);
     let av = remote_vec_to_bevy(sample.angular_velocity);

@@ -5,14 +5,14 @@ use bevy::prelude::*;
 use bevy::window::PrimaryWindow;
 
 use super::{Grab, MouseHandleControl, WiimoteHandleControl};
+use crate::controllers::wiimote::RemoteCommand;
+use crate::controllers::wiimote::protocol::Buttons;
 use crate::ecs::WiimoteSystems;
 use crate::ecs::input::view::{
     arcball_rotation, rotation_of_space, turned_in_space, view_plane_motion,
 };
 use crate::ecs::input::{InputSystems, configure_input_sets};
 use crate::ecs::wiimote::{ConnectionState, Wiimote, WiimoteLink};
-use crate::wiimote::RemoteCommand;
-use crate::wiimote::protocol::Buttons;
 
 /// Adds [`WiimoteHandleControl`] (requires [`WiimotePlugin`](crate::ecs::WiimotePlugin)).
 #[derive(Debug, Clone, Default)]

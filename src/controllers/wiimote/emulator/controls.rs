@@ -2,8 +2,8 @@
 
 use glam::DQuat;
 
-use crate::wiimote::motion::{Motion, Still};
-use crate::wiimote::protocol::{Buttons, NunchukFrame};
+use crate::controllers::motion::{Motion, Still};
+use crate::controllers::wiimote::protocol::{Buttons, NunchukFrame};
 
 use std::sync::{Arc, Mutex};
 
@@ -57,7 +57,7 @@ impl EmulatorControls {
         self.with(|s| s.motion_plus_plugged = plugged);
     }
     /// Powers the remote off (false) or on again (true). While off, I/O fails with
-    /// [`TransportError::Disconnected`](crate::wiimote::TransportError::Disconnected); powering on starts a fresh connection.
+    /// [`TransportError::Disconnected`](crate::controllers::wiimote::TransportError::Disconnected); powering on starts a fresh connection.
     pub fn set_connected(&self, connected: bool) {
         self.with(|s| {
             if connected && !s.connected {

@@ -47,7 +47,7 @@ impl EmulatorClock {
     }
 
     /// Blocks until the clock reaches `t_us` or is closed.
-    pub(super) fn wait_until(&self, t_us: u64) {
+    pub(crate) fn wait_until(&self, t_us: u64) {
         let mut state = self.state();
         while state.now_us < t_us && !state.closed {
             state = self.0.1.wait(state).unwrap_or_else(|e| e.into_inner());

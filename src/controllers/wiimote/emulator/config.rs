@@ -122,8 +122,8 @@ pub struct EmulatorConfig {
     /// Sensor error model.
     pub sensors: SensorModel,
     /// Emulates a remote the OS lists but refuses to open (the manager reports this as a
-    /// [`crate::wiimote::RemoteProblem`] and retries); `None` opens normally.
-    pub open_error: Option<crate::wiimote::OpenErrorKind>,
+    /// [`crate::controllers::wiimote::RemoteProblem`] and retries); `None` opens normally.
+    pub open_error: Option<crate::controllers::wiimote::OpenErrorKind>,
     /// The IR camera (I2C device 0xB0) answers register writes and reads (`PROTOCOL.md` §17);
     /// `false` emulates a unit whose camera does not answer (error 7, as for an absent device).
     pub camera: bool,
@@ -137,7 +137,7 @@ pub struct EmulatorConfig {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EmulatedBar {
     /// The bar and screen (room frame of the emulated motion).
-    pub setup: crate::wiimote::ir::PointerSetup,
+    pub setup: crate::controllers::wiimote::ir::PointerSetup,
     /// Where the remote is, relative to the nominal standing point.
     pub position: glam::DVec3,
     /// Gaussian pixel noise per coordinate before quantisation (σ, pixels).

@@ -10,7 +10,7 @@
 //! `y = −distance` in front of a remote at the origin.
 //!
 //! ```
-//! use bevy_wii_deform::wiimote::ir::*;
+//! use bevy_wii_deform::controllers::wiimote::ir::*;
 //! use glam::{DQuat, DVec3};
 //!
 //! let setup = PointerSetup::default();

@@ -11,13 +11,13 @@ use crossbeam_channel::{Receiver, Sender, TrySendError, bounded, unbounded};
 
 use super::diagnosis::RemoteProblem;
 use super::emulator::{EmulatedRemote, EmulatorConfig, EmulatorControls};
-use super::filter::FilterKind;
 use super::protocol::{Buttons, NunchukFrame};
 use super::session::{
     ExtensionState, MotionPlusState, OrientationSample, RemoteInfo, Session, SessionConfig,
     SessionEvent,
 };
-use super::transport::Transport;
+use crate::controllers::fusion::FilterKind;
+use crate::controllers::transport::Transport;
 
 /// Identifies one remote for the lifetime of a manager (stable across reconnects of the
 /// same device path / emulator).
@@ -500,7 +500,7 @@ fn run_hid_remote(
 ) {
     use super::diagnosis::LinuxDevices;
     use super::session::SessionError;
-    use super::transport::{HidTransport, TransportError};
+    use crate::controllers::transport::{HidTransport, TransportError};
     let node = std::path::Path::new(path);
     let transport = match HidTransport::open(path) {
         Ok(t) => t,
@@ -561,7 +561,7 @@ fn scan_hid(
     config: SessionConfig,
 ) {
     use super::diagnosis::LinuxDevices;
-    use super::transport::discover;
+    use crate::controllers::transport::discover;
     let mut ids: HashMap<String, RemoteId> = HashMap::new();
     let busy: Arc<Mutex<HashSet<String>>> = Arc::default();
     let reported: Reported = Arc::default();

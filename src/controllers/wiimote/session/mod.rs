@@ -17,7 +17,6 @@ mod stream;
 
 pub use sample_clock::SampleClock;
 
-use super::filter::{Calibration, FilterKind, ImuSample, OrientationFilter};
 use super::ir::{
     IR_MODE_REGISTER, IrCamera, IrDots, IrInitStep, IrMode, IrSensitivity, decode_basic,
     ir_init_sequence,
@@ -26,7 +25,8 @@ use super::protocol::{
     AccelCalibration, AddressSpace, Buttons, ExtensionData, ExtensionId, InputReport,
     MotionPlusCalibration, NunchukFrame, OutputReport, ReadReply, Status, classify_extension,
 };
-use super::transport::{Transport, TransportError};
+use crate::controllers::fusion::{Calibration, FilterKind, ImuSample, OrientationFilter};
+use crate::controllers::transport::{Transport, TransportError};
 
 /// Session settings.
 #[derive(Debug, Clone, PartialEq)]

@@ -1,9 +1,10 @@
-//! The Wii Remote + MotionPlus device layer (no Bevy): protocol, transports (hidapi and a
-//! byte-exact emulator), the connection state machine, orientation filters, the drift
-//! benchmark and a multi-remote manager. Specification: `docs/PROTOCOL.md` in the repository.
+//! The Wii Remote + MotionPlus driver (no Bevy): protocol, transports (hidapi and a
+//! byte-exact emulator), the connection state machine, the drift benchmark and the
+//! multi-controller manager. The orientation filters it feeds live in
+//! [`crate::controllers::fusion`] and are re-exported here. Specification: `docs/PROTOCOL.md` in the repository.
 //!
 //! ```
-//! use bevy_wii_deform::wiimote::*;
+//! use bevy_wii_deform::controllers::wiimote::*;
 //!
 //! // An emulated Wii Remote Plus turning about its yaw axis at 30 deg/s.
 //! let remote = EmulatedRemote::new(EmulatorConfig::default());
@@ -24,37 +25,33 @@
 pub mod diagnosis;
 pub mod drift;
 mod emulator;
-mod filter;
 pub mod ir;
 mod manager;
-mod motion;
 pub mod protocol;
-mod rng;
 mod session;
 pub mod smoothing;
-mod transport;
 
+pub use super::fusion::{
+    BarHeading, Calibration, CalibrationPhase, FilterKind, FusionFilter, ImuSample,
+    OrientationFilter, PaperFilter, RawIntegration, StillnessBias, VqfFilter, snap_tilt,
+};
+pub use super::motion::{
+    ConstantRate, DemoMotion, FnMotion, GRAVITY, Motion, Still, body_rate, from_yaw_elevation_roll,
+    specific_force_g,
+};
+pub use super::rng::Rng;
+#[cfg(feature = "hidapi")]
+pub use super::transport::{DeviceInfo, HidTransport, discover};
+pub use super::transport::{Transport, TransportError};
 pub use diagnosis::{LinuxDevices, OpenErrorKind, RemoteProblem};
 pub use emulator::{
     EmulatedBar, EmulatedRemote, EmulatorClock, EmulatorConfig, EmulatorControls, SensorModel,
     Variant,
 };
-pub use filter::{
-    BarHeading, Calibration, CalibrationPhase, FilterKind, FusionFilter, ImuSample,
-    OrientationFilter, PaperFilter, RawIntegration, StillnessBias, VqfFilter, snap_tilt,
-};
 pub use manager::{
     ManagerConfig, ManagerEvent, RemoteCommand, RemoteId, RemoteSource, WiimoteManager,
 };
-pub use motion::{
-    ConstantRate, DemoMotion, FnMotion, GRAVITY, Motion, Still, body_rate, from_yaw_elevation_roll,
-    specific_force_g,
-};
-pub use rng::Rng;
 pub use session::{
     ExtensionState, MotionPlusState, OrientationSample, RemoteInfo, RemoteKind, SampleClock,
     Session, SessionConfig, SessionError, SessionEvent,
 };
-#[cfg(feature = "hidapi")]
-pub use transport::{DeviceInfo, HidTransport, discover};
-pub use transport::{Transport, TransportError};

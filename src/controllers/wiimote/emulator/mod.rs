@@ -10,7 +10,7 @@
 //! registers and the MotionPlus activation; `controls.rs` — buttons, hot-plug, power from
 //! outside; `clock.rs` — pacing by the app's time.
 //!
-//! [`Motion`]: crate::wiimote::Motion
+//! [`Motion`]: crate::controllers::wiimote::Motion
 
 use std::collections::VecDeque;
 use std::time::Instant;
@@ -18,8 +18,8 @@ use std::time::Instant;
 use glam::{DQuat, DVec3};
 
 use super::protocol::{AccelCalibration, Buttons, MotionPlusCalibration};
-use super::rng::Rng;
-use super::transport::{Transport, TransportError};
+use crate::controllers::rng::Rng;
+use crate::controllers::transport::{Transport, TransportError};
 use reports::{EEPROM_SIZE, MpPhase, PendingRead};
 use sensors::Unit;
 

@@ -4,7 +4,7 @@
 use std::collections::VecDeque;
 
 use super::{EmulatedRemote, Variant};
-use crate::wiimote::protocol::{AddressSpace, OutputReport};
+use crate::controllers::wiimote::protocol::{AddressSpace, OutputReport};
 
 /// Where the MotionPlus is in its activation sequence.
 #[derive(Debug, Clone, Copy, PartialEq)]

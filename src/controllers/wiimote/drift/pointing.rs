@@ -4,9 +4,9 @@
 use glam::{DQuat, DVec3};
 
 use super::{START_STILL, smoothstep};
-use crate::wiimote::from_yaw_elevation_roll;
-use crate::wiimote::motion::Motion;
-use crate::wiimote::rng::Rng;
+use crate::controllers::motion::Motion;
+use crate::controllers::rng::Rng;
+use crate::controllers::wiimote::from_yaw_elevation_roll;
 
 /// Length of one point-then-turn-away cycle, s.
 const CYCLE: f64 = 40.0;

@@ -88,7 +88,7 @@ impl SmoothedPointer {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::wiimote::Rng;
+    use crate::controllers::wiimote::Rng;
 
     /// Held still with ±1-pixel-like noise the pointer trembles at least 3× less; swept at half a
     /// screen per second it trails by under 30 ms.

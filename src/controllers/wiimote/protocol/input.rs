@@ -178,7 +178,7 @@ pub enum InputReport {
         /// [`classify_extension`], which needs to know whether a MotionPlus is active).
         extension: Option<[u8; 6]>,
         /// The IR camera's bytes, if the report carries them: 12 extended-mode bytes in 0x33,
-        /// 10 basic-mode bytes in 0x36 and 0x37 (decode with [`crate::wiimote::ir`]).
+        /// 10 basic-mode bytes in 0x36 and 0x37 (decode with [`crate::controllers::wiimote::ir`]).
         ir: Option<Vec<u8>>,
     },
 }

@@ -6,13 +6,13 @@ use glam::DMat3;
 
 use super::reports::MpPhase;
 use super::{EmulatedRemote, SensorModel};
-use crate::wiimote::ir::{IR_MODE_REGISTER, IrCamera, encode_basic, encode_extended};
-use crate::wiimote::motion::{self, Motion};
-use crate::wiimote::protocol::{
+use crate::controllers::motion::{self, Motion};
+use crate::controllers::rng::Rng;
+use crate::controllers::wiimote::ir::{IR_MODE_REGISTER, IrCamera, encode_basic, encode_extended};
+use crate::controllers::wiimote::protocol::{
     AccelCalibration, AccelRaw, GyroRange, MotionPlusCalibration, MotionPlusFrame,
     encode_buttons_accel,
 };
-use crate::wiimote::rng::Rng;
 
 /// Per-unit sensor constants drawn from the seed.
 #[derive(Debug, Clone)]

@@ -1,4 +1,4 @@
-//! The byte transport under a session: hidapi for real remotes, or the emulator.
+//! The byte transport under a session: hidapi for real controllers, or an emulator.
 
 /// Transport failures.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -9,13 +9,16 @@ pub enum TransportError {
     /// Another I/O error (message from the OS / hidapi).
     #[error("I/O error: {0}")]
     Io(String),
+    /// The device does not answer this request (e.g. feature reports on a Wii Remote).
+    #[error("the device does not support {0}")]
+    Unsupported(&'static str),
     /// The device node could not be opened.
     #[error("cannot open {node}: {kind:?}")]
     Open {
         /// Device node.
         node: String,
         /// Why.
-        kind: super::diagnosis::OpenErrorKind,
+        kind: crate::controllers::wiimote::diagnosis::OpenErrorKind,
     },
 }
 
@@ -29,6 +32,11 @@ pub trait Transport: Send {
     /// Microseconds on this transport's clock (wall clock for hardware, virtual for the
     /// emulator), used to timestamp samples.
     fn now_us(&self) -> u64;
+    /// Reads feature report `buf[0]` into `buf` (report id first). Returns bytes read.
+    /// Wii Remotes have none; Sony pads keep their calibration there.
+    fn get_feature_report(&mut self, _buf: &mut [u8]) -> Result<usize, TransportError> {
+        Err(TransportError::Unsupported("feature reports"))
+    }
 }
 
 impl<T: Transport + ?Sized> Transport for Box<T> {
@@ -41,6 +49,9 @@ impl<T: Transport + ?Sized> Transport for Box<T> {
     fn now_us(&self) -> u64 {
         (**self).now_us()
     }
+    fn get_feature_report(&mut self, buf: &mut [u8]) -> Result<usize, TransportError> {
+        (**self).get_feature_report(buf)
+    }
 }
 
 #[cfg(feature = "hidapi")]
@@ -51,7 +62,7 @@ mod hid {
     use std::time::Instant;
 
     use super::{Transport, TransportError};
-    use crate::wiimote::protocol::{
+    use crate::controllers::wiimote::protocol::{
         NAME_ORIGINAL, NAME_PLUS, PRODUCT_ID_ORIGINAL, PRODUCT_ID_PLUS, VENDOR_ID,
     };
 
@@ -102,7 +113,9 @@ mod hid {
         /// so the node is probed first).
         pub fn open(path: &str) -> Result<Self, TransportError> {
             #[cfg(target_os = "linux")]
-            if let Err(kind) = crate::wiimote::diagnosis::probe_open(std::path::Path::new(path)) {
+            if let Err(kind) =
+                crate::controllers::wiimote::diagnosis::probe_open(std::path::Path::new(path))
+            {
                 return Err(TransportError::Open {
                     node: path.to_string(),
                     kind,
@@ -139,5 +152,58 @@ mod hid {
         fn now_us(&self) -> u64 {
             self.epoch.elapsed().as_micros() as u64
         }
+        fn get_feature_report(&mut self, buf: &mut [u8]) -> Result<usize, TransportError> {
+            self.device
+                .get_feature_report(buf)
+                .map_err(|e| TransportError::Io(e.to_string()))
+        }
+    }
+
+    /// A motion controller other than a Wii Remote found by [`discover_pads`].
+    #[derive(Debug, Clone, PartialEq, Eq)]
+    pub struct PadDeviceInfo {
+        /// OS path (e.g. `/dev/hidraw5`).
+        pub path: String,
+        /// What it is.
+        pub kind: crate::controllers::ControllerKind,
+        /// How it is connected (hidapi's bus type; USB when unknown).
+        pub link: crate::controllers::Link,
+        /// Product string, if readable.
+        pub product: Option<String>,
+        /// Serial (Bluetooth address), if readable.
+        pub serial: Option<String>,
+    }
+
+    /// Lists DualSense, DualShock 4, Switch Pro and Joy-Con controllers by vendor and
+    /// product id, one entry per device node (a pad's first HID interface).
+    pub fn discover_pads() -> Result<Vec<PadDeviceInfo>, TransportError> {
+        use crate::controllers::ControllerKind;
+        use crate::controllers::Link;
+        let api = hidapi::HidApi::new().map_err(|e| TransportError::Io(e.to_string()))?;
+        let mut out: Vec<PadDeviceInfo> = Vec::new();
+        for d in api.device_list() {
+            let Some(kind) = ControllerKind::from_ids(d.vendor_id(), d.product_id()) else {
+                continue;
+            };
+            if kind == ControllerKind::WiiRemote {
+                continue;
+            }
+            let path = d.path().to_string_lossy().into_owned();
+            if out.iter().any(|o| o.path == path) {
+                continue;
+            }
+            let link = match d.bus_type() {
+                hidapi::BusType::Bluetooth => Link::Bluetooth,
+                _ => Link::Usb,
+            };
+            out.push(PadDeviceInfo {
+                path,
+                kind,
+                link,
+                product: d.product_string().map(str::to_string),
+                serial: d.serial_number().map(str::to_string),
+            });
+        }
+        Ok(out)
     }
 }

@@ -14,12 +14,12 @@ use std::time::Instant;
 use glam::{DQuat, DVec2, DVec3};
 
 use super::emulator::{EmulatedBar, EmulatedRemote, EmulatorConfig, SensorModel, Variant};
-use super::filter::{FilterKind, ImuSample, OrientationFilter};
 use super::ir::{IrCamera, IrSensitivity, PointerSetup};
-use super::motion::{Motion, from_yaw_elevation_roll};
-use super::rng::Rng;
 use super::session::{Session, SessionConfig, SessionEvent};
-use super::transport::Transport;
+use crate::controllers::fusion::{FilterKind, ImuSample, OrientationFilter};
+use crate::controllers::motion::{Motion, from_yaw_elevation_roll};
+use crate::controllers::rng::Rng;
+use crate::controllers::transport::Transport;
 
 mod pointing;
 pub use pointing::PointingScenario;

@@ -9,7 +9,7 @@
 //!   our gated stillness detector ([`StillnessBias`]) in place of VQF's rest detection, no
 //!   dead zone, and the sensor bar as a heading reference while the IR camera sees it
 //!   ([`BarHeading`]).
-//! * [`crate::wiimote::VqfFilter`] — VQF (Laidig & Seel 2023), 6-axis, the published state of
+//! * [`crate::controllers::wiimote::VqfFilter`] — VQF (Laidig & Seel 2023), 6-axis, the published state of
 //!   the art.
 //!
 //! Orientation is world←body with world Z up and the body axes of §5.3.
@@ -90,7 +90,7 @@ pub trait OrientationFilter: Send {
     /// Restarts bias calibration (hold the remote still afterwards).
     fn calibrate_now(&mut self);
     /// What the IR camera saw with the sample just given to [`Self::update`]: the body-frame
-    /// direction to the sensor bar's centre (`crate::wiimote::ir::IrCamera::bar_direction`),
+    /// direction to the sensor bar's centre (`crate::controllers::wiimote::ir::IrCamera::bar_direction`),
     /// `None` when the bar is not in view. Filters with a heading reference ([`FusionFilter`])
     /// correct their heading from it; the others ignore it.
     fn observe_bar(&mut self, _bar: Option<DVec3>) {}
@@ -110,7 +110,7 @@ pub enum FilterKind {
     /// [`FusionFilter`] (default).
     #[default]
     Fusion,
-    /// [`crate::wiimote::VqfFilter`].
+    /// [`crate::controllers::wiimote::VqfFilter`].
     Vqf,
 }
 
@@ -183,7 +183,7 @@ mod tests {
 
     #[test]
     fn snap_tilt_matches_gravity_and_keeps_heading() {
-        let truth = crate::wiimote::motion::from_yaw_elevation_roll(0.8, 0.4, -0.3);
+        let truth = crate::controllers::motion::from_yaw_elevation_roll(0.8, 0.4, -0.3);
         let f = truth.inverse() * DVec3::Z;
         let wrong = DQuat::from_rotation_z(0.8) * DQuat::from_rotation_x(-0.2);
         let q = snap_tilt(wrong, f);
