@@ -23,12 +23,13 @@
 //! * **`--author-demo OUT.glb`**: poses the character by three scripted grabs, keys them at
 //!   0, 0.5 and 1 s, exports the clip, plays it back through Bevy's glTF loader and prints
 //!   the playback error as JSON (see [`authoring`]).
-//! * **`--pointer [emulated]`**: the Wii Remote's IR camera points (a ring where it points):
-//!   hold A on the character to grab there, point elsewhere to drag, turn the remote to turn
-//!   the grab 1:1, add B to turn without moving.
-//! * **`--remote`**: a Wii Remote (MotionPlus) drives a handle on the head: hold B and turn
-//!   the remote to turn the head 1:1, D-pad to move it (`--remote emulated` for the built-in
-//!   emulator).
+//! * **`--pointer [emulated[=KIND]]`**: a motion controller points — a Wii Remote with its IR
+//!   camera, a DualSense, DualShock 4 or Switch pad with its gyro (a ring where it points):
+//!   hold A (Cross) on the character to grab there, point elsewhere to drag, turn the
+//!   controller to turn the grab 1:1, add the clutch (B, R2, ZR) to turn without moving.
+//! * **`--remote [emulated[=KIND]]`**: a motion controller drives a handle on the head: hold
+//!   the clutch and turn it to turn the head 1:1, D-pad to move it (`emulated=dualsense` and
+//!   the like for the built-in emulators).
 //!
 //! The app is plugins, one per job: [`scene::ScenePlugin`] (camera, light, the
 //! character), [`grab::CharacterGrabPlugin`], [`files::PoseFilesPlugin`],
@@ -63,6 +64,7 @@ mod unattended;
 mod undo_keys;
 
 use bevy::prelude::*;
+use bevy_wii_deform::controllers::ControllerKind;
 use bevy_wii_deform::prelude::*;
 
 /// Command-line options.
@@ -74,12 +76,13 @@ pub struct Args {
     pub screenshot: Option<String>,
     /// Frames before the screenshot.
     pub frames: u32,
-    /// `--remote [emulated]`: drive a head handle with a Wii Remote.
+    /// `--remote [emulated[=KIND]]`: drive a head handle with a motion controller.
     pub remote: Option<WiimotePlugin>,
-    /// `--pointer [emulated]`: the Wii Remote's IR camera as a pointer (a sensor bar above a
-    /// 42-inch screen seen from 2 m): point, hold A to grab, turn to turn, B to turn only.
-    /// `Some(true)`: an emulated remote sweeping over the screen.
-    pub pointer: Option<bool>,
+    /// `--pointer [emulated[=KIND]]`: a motion controller as a pointer (a Wii Remote's IR
+    /// camera with a sensor bar above a 42-inch screen seen from 2 m, a pad's gyro): point,
+    /// hold A to grab, turn to turn, the clutch to turn only. `Some(Some(kind))`: an emulated
+    /// controller sweeping over the screen.
+    pub pointer: Option<Option<ControllerKind>>,
     /// `--author-demo OUT.glb`: author a three-key clip by script, export, play back, exit.
     pub author_demo: Option<String>,
     /// `--ground`: stand on the stage with contacts and balance from the start (G and B
@@ -88,13 +91,15 @@ pub struct Args {
 }
 
 const USAGE: &str = "\
-usage: character [MODEL.glb] [--model MODEL.glb] [--remote [emulated]] [--pointer [emulated]]
+usage: character [MODEL.glb] [--model MODEL.glb] [--remote [emulated[=KIND]]] [--pointer [emulated[=KIND]]]
                  [--screenshot PATH [--frames N]] [--author-demo OUT.glb] [--ground]
 
   MODEL.glb             a rigged glTF (default: the Fox, assets/models/Fox.glb); a path
                         relative to the working directory, to assets/, or absolute
-  --remote [emulated]   a Wii Remote turns a handle on the head (emulated: the built-in emulator)
-  --pointer [emulated]  the Wii Remote's IR camera points; A grabs
+  --remote [emulated]   a motion controller turns a handle on the head (emulated: the built-in
+                        emulator; emulated=KIND for a pad: dualsense, ds4, switch-pro, joycon-l,
+                        joycon-r)
+  --pointer [emulated]  a motion controller points (IR camera or gyro); A / Cross grabs
   --screenshot PATH     script a grab, save frame N to PATH, exit
   --frames N            the frame to save (default 120)
   --author-demo OUT.glb author a three-key clip by script, export it, play it back, exit
@@ -129,14 +134,11 @@ impl Args {
                     args.author_demo = Some(cli::string(&mut parser, USAGE))
                 }
                 cli::Arg::Long("pointer") => {
-                    args.pointer = Some(cli::optional_word(&mut parser, "emulated"))
+                    args.pointer = Some(cli::emulated_controller(&mut parser, None, USAGE))
                 }
                 cli::Arg::Long("remote") => {
-                    args.remote = Some(if cli::optional_word(&mut parser, "emulated") {
-                        WiimotePlugin::emulated()
-                    } else {
-                        WiimotePlugin::default()
-                    })
+                    let emulated = cli::emulated_controller(&mut parser, None, USAGE);
+                    args.remote = Some(remote_cursor::controllers(emulated))
                 }
                 other => cli::unexpected(other, USAGE),
             }
@@ -153,7 +155,9 @@ fn main() {
     } else if let Some(emulated) = args.pointer {
         app.add_plugins((
             remote_cursor::pointing_remote(emulated),
-            remote_cursor::RemoteCursorPlugin { emulated },
+            remote_cursor::RemoteCursorPlugin {
+                emulated: emulated.is_some(),
+            },
         ));
     }
     app.add_plugins(DefaultPlugins.set(AssetPlugin {

@@ -136,3 +136,38 @@ fn project_dir() -> PathBuf {
         .map(PathBuf::from)
         .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")))
 }
+
+/// The optional value of `--remote` / `--pointer` / `--emulate`: nothing (real controllers:
+/// `None`), `emulated` (an emulated Wii Remote) or `emulated=KIND` — `wiimote`, `dualsense`,
+/// `dualsense-edge`, `ds4`, `switch-pro`, `joycon-l`, `joycon-r` (`joycon` = `joycon-r`).
+/// `bare` is what the flag means on its own (`--emulate` alone is emulated). A bad kind
+/// exits 2.
+pub fn emulated_controller(
+    parser: &mut Parser,
+    bare: Option<bevy_wii_deform::controllers::ControllerKind>,
+    usage: &str,
+) -> Option<bevy_wii_deform::controllers::ControllerKind> {
+    use bevy_wii_deform::controllers::ControllerKind;
+    let word = match parser.optional_value() {
+        Some(v) => Some(positional(v, usage)),
+        None => parser.try_raw_args().and_then(|mut raw| {
+            let next = raw.peek()?.to_str()?.to_string();
+            (next == "emulated" || next.starts_with("emulated=")).then(|| {
+                raw.next();
+                next
+            })
+        }),
+    };
+    let Some(word) = word else {
+        return bare;
+    };
+    let kind = word.strip_prefix("emulated").unwrap_or(&word);
+    let kind = kind.strip_prefix('=').unwrap_or(kind);
+    if kind.is_empty() {
+        return Some(ControllerKind::WiiRemote);
+    }
+    Some(
+        ControllerKind::from_name(kind)
+            .unwrap_or_else(|| fail(format!("unknown controller {kind:?}"), usage)),
+    )
+}

@@ -1,24 +1,32 @@
-//! The Wii Remote as a pointer in the example apps: the library's `WiimotePointerPlugin`
-//! (point, hold A to grab there, turn to turn the grab 1:1, add B to turn only) and a ring
-//! drawn where the remote points, filled while the sensor bar holds the remote's heading.
-//! `--pointer emulated` aims an emulated remote in a slow figure-eight over the screen.
+//! A motion controller as a pointer in the example apps: the library's
+//! `WiimotePointerPlugin` (point, hold A — Cross on a Sony pad, A on a Switch one — to grab
+//! there, turn to turn the grab 1:1, add the clutch to turn only) and a ring drawn where the
+//! controller points, filled while a sensor bar holds a Wii Remote's heading. A Wii Remote
+//! points with its IR camera, a pad with its gyro (Home / PS recentres). `--pointer
+//! emulated[=KIND]` aims an emulated controller in a slow figure-eight over the screen.
 
 use std::sync::Arc;
 
 use bevy::prelude::*;
+use bevy_wii_deform::controllers::ControllerKind;
 use bevy_wii_deform::controllers::wiimote::FnMotion;
 use bevy_wii_deform::controllers::wiimote::ir::{PointerSetup, aimed_at};
 use bevy_wii_deform::ecs::{Wiimote, WiimoteEmulators, WiimotePlugin, WiimotePointerPlugin};
 
-/// The Wii Remote source for `--pointer [emulated]`, with the IR pointer in the default room
-/// (a 42-inch screen seen from 2 m, the bar above it).
-pub fn pointing_remote(emulated: bool) -> WiimotePlugin {
-    let source = if emulated {
-        WiimotePlugin::emulated()
-    } else {
-        WiimotePlugin::default()
-    };
-    source.with_pointer(PointerSetup::default())
+/// The controllers: real ones (`None`), or one emulated controller of that kind.
+pub fn controllers(emulated: Option<ControllerKind>) -> WiimotePlugin {
+    match emulated {
+        None => WiimotePlugin::default(),
+        Some(ControllerKind::WiiRemote) => WiimotePlugin::emulated(),
+        Some(pad) => WiimotePlugin::emulated_pad(pad),
+    }
+}
+
+/// The controller source for `--pointer [emulated[=KIND]]`, with the IR pointer in the
+/// default room (a 42-inch screen seen from 2 m, the bar above it) and the gyro pointer for
+/// pads.
+pub fn pointing_remote(emulated: Option<ControllerKind>) -> WiimotePlugin {
+    controllers(emulated).with_pointer(PointerSetup::default())
 }
 
 /// The remote's picking pointer and its on-screen ring (add with [`pointing_remote`]).

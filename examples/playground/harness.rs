@@ -1,20 +1,24 @@
-//! What the playground needs besides the game itself: its command line, the Wii Remote
-//! pointer (`--pointer [emulated]`: point at a thing, hold A, move and turn the remote,
-//! release — the library's `WiimotePointerPlugin`, with a ring drawn where the remote points),
+//! What the playground needs besides the game itself: its command line, a motion
+//! controller as a pointer (`--pointer [emulated[=KIND]]`: a Wii Remote's IR camera or a
+//! pad's gyro; point at a thing, hold A / Cross, move and turn the controller, release — the
+//! library's `WiimotePointerPlugin`, with a ring drawn where it points),
 //! and the unattended run (`--screenshot PATH --frames N`: a scripted grab bends the bar, frame
 //! N is saved, the app exits).
 
 use bevy::picking::pointer::PointerId;
 use bevy::prelude::*;
+use bevy_wii_deform::controllers::ControllerKind;
 use bevy_wii_deform::prelude::*;
 
 use crate::screenshot::{ScreenshotPlugin, UnattendedFrame};
 use crate::{Bar, cli, remote_cursor};
 
 const USAGE: &str = "\
-usage: playground [--pointer [emulated]] [--wobble] [--screenshot PATH [--frames N]]
+usage: playground [--pointer [emulated[=KIND]]] [--wobble] [--screenshot PATH [--frames N]]
 
-  --pointer [emulated]  a Wii Remote points with its IR camera (emulated: a scripted one)
+  --pointer [emulated]  a motion controller points: a Wii Remote with its IR camera, a pad
+                        with its gyro (emulated: a scripted Wii Remote; emulated=KIND: a
+                        scripted dualsense, ds4, switch-pro, joycon-l or joycon-r)
   --wobble              things wobble and spring back when let go (W switches it)
   --screenshot PATH     bend the bar by a scripted grab, save frame N to PATH, exit
   --frames N            the frame to save (default 60)";
@@ -22,8 +26,8 @@ usage: playground [--pointer [emulated]] [--wobble] [--screenshot PATH [--frames
 /// The playground's command line.
 #[derive(Debug, Clone, Default)]
 pub struct Options {
-    /// `--pointer [emulated]`: `Some(emulated)`.
-    pointer: Option<bool>,
+    /// `--pointer [emulated[=KIND]]`: `Some(the emulated kind, if emulated)`.
+    pointer: Option<Option<ControllerKind>>,
     /// `--wobble`: start with the objects elastic (`DeformDynamics`).
     wobble: bool,
     /// `--screenshot PATH`.
@@ -43,7 +47,7 @@ impl Options {
         while let Some(arg) = cli::next(&mut parser, USAGE) {
             match arg {
                 cli::Arg::Long("pointer") => {
-                    options.pointer = Some(cli::optional_word(&mut parser, "emulated"))
+                    options.pointer = Some(cli::emulated_controller(&mut parser, None, USAGE))
                 }
                 cli::Arg::Long("screenshot") => {
                     options.screenshot = Some(cli::string(&mut parser, USAGE))
@@ -65,10 +69,12 @@ impl Plugin for HarnessPlugin {
         app.insert_resource(Wobble(self.0.wobble))
             .add_systems(Update, (switch_wobble, make_things_wobble).chain());
         if let Some(emulated) = self.0.pointer {
-            // The Wii Remote as a second pointer: A grabs where it points.
+            // A motion controller as a second pointer: A grabs where it points.
             app.add_plugins((
                 remote_cursor::pointing_remote(emulated),
-                remote_cursor::RemoteCursorPlugin { emulated },
+                remote_cursor::RemoteCursorPlugin {
+                    emulated: emulated.is_some(),
+                },
             ));
         }
         if let Some(path) = self.0.screenshot.clone() {

@@ -3,13 +3,15 @@
 //!
 //! ```text
 //! cargo run --release --example sandbox [-- MODEL|PATH.obj|PATH.off|PATH.gltf|PATH.glb]
-//!     [--task NAME] [--demo] [--emulate] [--pointer] [--bend] [--screenshot PATH --frames N]
+//!     [--task NAME] [--demo] [--emulate[=KIND]] [--pointer] [--bend] [--screenshot PATH --frames N]
 //!     [--windowless]
 //! ```
 //! Mouse: right-drag orbits, wheel zooms, middle-drag pans. In *Paint* mode left-drag paints
 //! with the brush; in *Pose* mode left-drag turns the handle with an arcball, Shift+left-drag
 //! moves it in the view plane. Wiimote: hold B and turn the remote (1:1), D-pad/+/− move,
-//! Home recentres. `--pointer`: the remote's IR camera points too (a ring where it points,
+//! Home recentres. A DualSense, DualShock 4 or Switch pad works the same way (R2 / ZR the
+//! clutch, PS / Home recentres; `--emulate=dualsense` and the like emulate one). `--pointer`:
+//! the remote's IR camera (a pad's gyro) points too (a ring where it points,
 //! filled while the sensor bar holds its heading); in *Paint* mode hold A to paint where it
 //! points. Ctrl+Z / Ctrl+Y undo and redo.
 //!
@@ -68,6 +70,7 @@ use bevy::render::settings::WgpuSettings;
 use bevy::window::ExitCondition;
 use bevy::winit::WinitPlugin;
 use bevy_egui::EguiPlugin;
+use bevy_wii_deform::controllers::ControllerKind;
 use bevy_wii_deform::deform::TriMesh;
 use bevy_wii_deform::prelude::*;
 
@@ -161,7 +164,8 @@ struct Args {
     model: String,
     task: Option<String>,
     demo: bool,
-    emulate: bool,
+    /// `--emulate[=KIND]`: the emulated controller instead of real ones.
+    emulate: Option<ControllerKind>,
     /// `--pointer`: the remote's IR camera points (a ring where it points); A paints.
     pointer: bool,
     windowless: bool,
@@ -169,14 +173,15 @@ struct Args {
 }
 
 const USAGE: &str = "\
-usage: sandbox [MODEL] [--task NAME] [--demo] [--emulate] [--pointer] [--bend]
+usage: sandbox [MODEL] [--task NAME] [--demo] [--emulate[=KIND]] [--pointer] [--bend]
                [--screenshot PATH [--frames N]] [--windowless [--check-not-blank]]
 
   MODEL              a built-in model (bar, cactus, mannequin: the default) or an OBJ, OFF,
                      glTF or GLB file
   --task NAME        start a challenge task (assets/tasks/NAME.ron)
   --demo             an emulated Wii Remote plays the mannequin_wave task
-  --emulate          the built-in Wii Remote emulator instead of a real remote
+  --emulate[=KIND]   a built-in emulator instead of a real controller: wiimote (default),
+                     dualsense, dualsense-edge, ds4, switch-pro, joycon-l, joycon-r
   --pointer          the remote's IR camera points; A paints
   --bend             fix the lowest quarter, turn and move the top fifth (unattended runs)
   --screenshot PATH  save frame N to PATH, exit
@@ -190,7 +195,7 @@ impl Args {
             model: "mannequin".into(),
             task: None,
             demo: false,
-            emulate: false,
+            emulate: None,
             pointer: false,
             windowless: false,
             unattended: Unattended {
@@ -204,7 +209,13 @@ impl Args {
                 cli::Arg::Value(model) => args.model = cli::positional(model, USAGE),
                 cli::Arg::Long("task") => args.task = Some(cli::string(&mut parser, USAGE)),
                 cli::Arg::Long("demo") => args.demo = true,
-                cli::Arg::Long("emulate") => args.emulate = true,
+                cli::Arg::Long("emulate") => {
+                    args.emulate = cli::emulated_controller(
+                        &mut parser,
+                        Some(ControllerKind::WiiRemote),
+                        USAGE,
+                    )
+                }
                 cli::Arg::Long("pointer") => args.pointer = true,
                 cli::Arg::Long("windowless") => args.windowless = true,
                 cli::Arg::Long("bend") => args.unattended.bend = true,
@@ -219,7 +230,9 @@ impl Args {
         if args.demo && args.task.is_none() {
             args.task = Some("mannequin_wave".into());
         }
-        args.emulate |= args.demo || args.windowless;
+        if args.demo || args.windowless {
+            args.emulate.get_or_insert(ControllerKind::WiiRemote);
+        }
         args.unattended.demo = args.demo;
         args.unattended.windowless = args.windowless;
         args
@@ -277,13 +290,11 @@ fn main() -> AppExit {
     add_bevy(&mut app, args.windowless);
     let wiimote = if args.pointer {
         app.add_plugins(remote_cursor::RemoteCursorPlugin {
-            emulated: args.emulate,
+            emulated: args.emulate.is_some(),
         });
         remote_cursor::pointing_remote(args.emulate)
-    } else if args.emulate {
-        WiimotePlugin::emulated()
     } else {
-        WiimotePlugin::default()
+        remote_cursor::controllers(args.emulate)
     };
     app.add_plugins((
         DeformPlugin::default(),

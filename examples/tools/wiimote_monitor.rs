@@ -1,12 +1,14 @@
-//! Terminal monitor for Wii Remotes: lists remotes, shows live orientation, buttons, battery
-//! and calibration state. `--emulate` runs the same against the software emulator.
+//! Terminal monitor for every motion controller — Wii Remotes, DualSense, DualShock 4, Switch
+//! Pro, Joy-Con: lists them, shows live orientation, buttons, battery and calibration state.
+//! `--emulate` runs the same against a software emulator (`--device` picks which).
 //!
 //! ```text
-//! cargo run --release --example wiimote_monitor [-- --emulate] [--seconds 30] [--filter ours|vqf|paper|raw]
+//! cargo run --release --example wiimote_monitor [-- --emulate [--device dualsense]] [--seconds 30] [--filter ours|vqf|paper|raw]
 //! ```
-//! On Linux, when a remote is listed but unusable (or none is), it prints why with the exact
-//! fix: hidraw permissions → the udev rule to add; the hid-wiimote kernel driver bound → the
-//! unbind line with the remote's real HID id, or the blacklist line; busy; no answer.
+//! On Linux, when a controller is listed but unusable (or none is), it prints why with the
+//! exact fix: hidraw permissions → the udev rules to add; the hid-wiimote or hid-nintendo
+//! kernel driver bound → the unbind line with the device's real HID id, or the blacklist
+//! line; Steam's controller support holding a pad; busy; no answer.
 
 #[path = "../common/cli.rs"]
 mod cli;
@@ -14,8 +16,10 @@ mod cli;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use bevy_wii_deform::controllers::pads::PadEmulatorConfig;
 use bevy_wii_deform::controllers::wiimote::protocol::Buttons;
 use bevy_wii_deform::controllers::wiimote::*;
+use bevy_wii_deform::controllers::{ControllerKind, Link};
 
 fn button_names(b: Buttons) -> String {
     let names = [
@@ -45,20 +49,31 @@ fn button_names(b: Buttons) -> String {
 
 /// The emulator (with a scripted motion) or real remotes over hidapi, listing what hidapi
 /// sees and, when it sees none, why (permissions, the kernel driver); `None` without hidapi.
-fn remote_source(emulate: bool) -> Option<RemoteSource> {
-    if emulate {
+fn remote_source(emulate: Option<ControllerKind>) -> Option<RemoteSource> {
+    if let Some(kind) = emulate {
         let controls = EmulatorControls::default();
         controls.set_motion(Arc::new(DemoMotion));
-        println!("Using the software emulator (Wii Remote Plus, scripted motion).");
-        return Some(RemoteSource::Emulated(vec![(
-            EmulatorConfig::default(),
-            controls,
-        )]));
+        println!("Using the software emulator ({kind}, scripted motion).");
+        let emulated = match kind {
+            ControllerKind::WiiRemote => EmulatorConfig::default().into(),
+            pad => PadEmulatorConfig::new(pad, Link::Bluetooth).into(),
+        };
+        return Some(RemoteSource::Emulated(vec![(emulated, controls)]));
     }
     #[cfg(feature = "hidapi")]
     {
+        let pads = bevy_wii_deform::controllers::discover_pads().unwrap_or_default();
+        for p in &pads {
+            println!(
+                "found {} over {} ({:?}) at {}",
+                p.kind,
+                p.link.name(),
+                p.serial,
+                p.path
+            );
+        }
         match discover() {
-            Ok(list) if !list.is_empty() => {
+            Ok(list) if !list.is_empty() || !pads.is_empty() => {
                 for d in &list {
                     println!(
                         "found {} (PID {:04X}) {:?} at {}",
@@ -70,7 +85,10 @@ fn remote_source(emulate: bool) -> Option<RemoteSource> {
                 }
             }
             Ok(_) => {
-                println!("No Wii Remote visible through hidapi. Pair it with the red SYNC button.");
+                println!(
+                    "No motion controller visible through hidapi. Pair a Wii Remote with its red \
+                     SYNC button, a pad with its pairing button, or plug it in."
+                );
                 for problem in LinuxDevices::system().diagnose_all() {
                     println!("- {problem}");
                 }
@@ -101,6 +119,16 @@ fn print_event(event: &ManagerEvent) {
             info.accel_calibration_valid,
             info.battery
         ),
+        ManagerEvent::PadConnected { id, info } => println!(
+            "controller {id} connected: {} over {}, {} calibration",
+            info.kind,
+            info.link.name(),
+            if info.factory_calibration {
+                "factory"
+            } else {
+                "datasheet (the unit's could not be read)"
+            }
+        ),
         ManagerEvent::Disconnected { id, reason } => {
             println!("remote {id} disconnected: {reason}")
         }
@@ -128,18 +156,26 @@ fn print_event(event: &ManagerEvent) {
 }
 
 const USAGE: &str = "\
-usage: wiimote_monitor [--emulate] [--seconds S] [--filter fusion|paper|vqf|raw]
+usage: wiimote_monitor [--emulate] [--device KIND] [--seconds S] [--filter fusion|paper|vqf|raw]
 
-  --emulate    the built-in emulator instead of a real remote
+  --emulate    the built-in emulator instead of a real controller
+  --device K   which one to emulate: wiimote (default), dualsense, dualsense-edge, ds4,
+               switch-pro, joycon-l, joycon-r (joycon = joycon-r)
   --seconds S  how long to print samples (default 30)
   --filter F   the orientation filter (default fusion)";
 
 fn main() {
     let (mut emulate, mut seconds, mut filter) = (false, 30.0f64, FilterKind::Fusion);
+    let mut device = ControllerKind::WiiRemote;
     let mut parser = cli::Parser::from_env();
     while let Some(arg) = cli::next(&mut parser, USAGE) {
         match arg {
             cli::Arg::Long("emulate") => emulate = true,
+            cli::Arg::Long("device") => {
+                let name = cli::string(&mut parser, USAGE);
+                device = ControllerKind::from_name(&name)
+                    .unwrap_or_else(|| cli::fail(format!("unknown device {name:?}"), USAGE));
+            }
             cli::Arg::Long("seconds") => seconds = cli::value(&mut parser, USAGE),
             cli::Arg::Long("filter") => {
                 filter = match cli::string(&mut parser, USAGE).as_str() {
@@ -153,7 +189,7 @@ fn main() {
             other => cli::unexpected(other, USAGE),
         }
     }
-    let Some(source) = remote_source(emulate) else {
+    let Some(source) = remote_source(emulate.then_some(device)) else {
         return;
     };
     let manager = WiimoteManager::start(ManagerConfig {

@@ -18,6 +18,7 @@
 
 pub mod crc;
 pub mod fusion;
+pub mod gyro_pointer;
 pub mod motion;
 pub mod pads;
 mod report;

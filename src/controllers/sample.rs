@@ -7,9 +7,10 @@ use super::fusion::ImuSample;
 use super::motion::GRAVITY;
 
 /// The controller families the crate reads.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub enum ControllerKind {
     /// Nintendo Wii Remote (Plus, or with a MotionPlus attached).
+    #[default]
     WiiRemote,
     /// Sony DualSense (PlayStation 5).
     DualSense,

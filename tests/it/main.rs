@@ -18,6 +18,7 @@ mod malformed_gltf;
 mod missing_texture;
 mod motion_pads;
 mod mouse_control;
+mod pads_ecs;
 #[cfg(feature = "avian")]
 mod physics_avian;
 mod pose_balance;

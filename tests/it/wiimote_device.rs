@@ -927,7 +927,7 @@ fn diagnosis_of_a_root_only_node_gives_the_udev_rule() {
     );
     let text = problems[0].to_string();
     assert!(
-        text.contains("60-wiimote.rules") && text.contains("057E:0330"),
+        text.contains("60-motion-controllers.rules") && text.contains("057E:0330"),
         "{text}"
     );
     // The error of an actual open is authoritative, whatever the mode bits say.

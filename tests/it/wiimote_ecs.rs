@@ -29,7 +29,7 @@ fn two_remotes() -> (App, [Entity; 2], [EmulatorControls; 2], [Entity; 2]) {
     };
     app.add_plugins((
         WiimotePlugin {
-            source: WiimoteSource::Emulator(vec![config(), config()]),
+            source: WiimoteSource::Emulator(vec![config().into(), config().into()]),
             ..default()
         },
         WiimoteControlPlugin,
@@ -221,10 +221,13 @@ fn wiimote_app() -> (App, Entity, Entity) {
     app.add_plugins((
         DeformPlugin::default(),
         WiimotePlugin {
-            source: WiimoteSource::Emulator(vec![EmulatorConfig {
-                clock: Some(clock),
-                ..default()
-            }]),
+            source: WiimoteSource::Emulator(vec![
+                EmulatorConfig {
+                    clock: Some(clock),
+                    ..default()
+                }
+                .into(),
+            ]),
             ..default()
         },
         WiimoteControlPlugin,
@@ -339,10 +342,13 @@ fn a_remote_that_cannot_be_opened_reaches_a_message_and_its_entity() {
     use bevy_wii_deform::controllers::wiimote::{EmulatorConfig, OpenErrorKind, RemoteProblem};
     let mut app = app();
     app.add_plugins(WiimotePlugin {
-        source: WiimoteSource::Emulator(vec![EmulatorConfig {
-            open_error: Some(OpenErrorKind::PermissionDenied),
-            ..Default::default()
-        }]),
+        source: WiimoteSource::Emulator(vec![
+            EmulatorConfig {
+                open_error: Some(OpenErrorKind::PermissionDenied),
+                ..Default::default()
+            }
+            .into(),
+        ]),
         ..Default::default()
     });
     app.init_resource::<SeenProblems>()
@@ -486,15 +492,18 @@ fn the_plugin_points_with_the_ir_camera() {
     let spot = glam::DVec2::new(0.7, 0.35);
     let aim = crate::wiimote_ir::aiming(position, setup.screen_point(spot), 25f64.to_radians());
     app.add_plugins(WiimotePlugin {
-        source: WiimoteSource::Emulator(vec![EmulatorConfig {
-            clock: Some(EmulatorClock::new()),
-            sensor_bar: Some(EmulatedBar {
-                setup,
-                position,
-                noise_px: 0.0,
-            }),
-            ..default()
-        }]),
+        source: WiimoteSource::Emulator(vec![
+            EmulatorConfig {
+                clock: Some(EmulatorClock::new()),
+                sensor_bar: Some(EmulatedBar {
+                    setup,
+                    position,
+                    noise_px: 0.0,
+                }),
+                ..default()
+            }
+            .into(),
+        ]),
         pointer: Some(setup),
         ..default()
     });
@@ -549,15 +558,18 @@ fn remote_pointer_app(
         DeformPlugin::default(),
         GrabPlugin,
         WiimotePlugin {
-            source: WiimoteSource::Emulator(vec![EmulatorConfig {
-                clock: Some(EmulatorClock::new()),
-                sensor_bar: Some(EmulatedBar {
-                    setup,
-                    position,
-                    noise_px: 0.0,
-                }),
-                ..default()
-            }]),
+            source: WiimoteSource::Emulator(vec![
+                EmulatorConfig {
+                    clock: Some(EmulatorClock::new()),
+                    sensor_bar: Some(EmulatedBar {
+                        setup,
+                        position,
+                        noise_px: 0.0,
+                    }),
+                    ..default()
+                }
+                .into(),
+            ]),
             pointer: Some(setup),
             ..default()
         },

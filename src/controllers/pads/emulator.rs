@@ -89,7 +89,7 @@ impl PadSensorModel {
 }
 
 /// What is emulated and how.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct PadEmulatorConfig {
     /// The device.
     pub kind: ControllerKind,

@@ -1,9 +1,11 @@
-//! Why a Wii Remote that Linux lists cannot be used, and the exact fix.
+//! Why a motion controller that Linux lists cannot be used, and the exact fix.
 //!
-//! hidapi's hidraw backend lists remotes from sysfs without opening them, so a remote can be
-//! listed and still be unusable: its `/dev/hidrawN` node is root-only (no udev rule), or the
-//! kernel's `hid-wiimote` driver is bound to it and answers the remote's reports itself, or
-//! another program holds it. [`LinuxDevices`] reads sysfs and `/dev` under root paths that
+//! hidapi's hidraw backend lists controllers from sysfs without opening them, so one can be
+//! listed and still be unusable: its `/dev/hidrawN` node is root-only (no udev rule), or a
+//! kernel driver that talks to the device itself is bound to it (`hid-wiimote` for Wii
+//! Remotes, `hid-nintendo` for Switch controllers; Sony's `hid-playstation` shares the
+//! device and is no obstacle), or another program holds it (Dolphin; Steam's controller
+//! support, which re-configures pads). [`LinuxDevices`] reads sysfs and `/dev` under root paths that
 //! tests point at a fake tree, and turns what it finds (plus the error of a failed open) into
 //! typed [`RemoteProblem`]s whose `Display` is the fix to apply.
 
@@ -13,9 +15,21 @@ use std::path::{Path, PathBuf};
 /// Name of the kernel's Wii Remote HID driver in sysfs (`/sys/bus/hid/drivers/wiimote`).
 pub const KERNEL_DRIVER: &str = "wiimote";
 
-/// The udev rule that gives the logged-in user access to Wii Remote hidraw nodes.
+/// Name of the kernel's Switch controller driver in sysfs (`hid-nintendo`).
+pub const NINTENDO_DRIVER: &str = "nintendo";
+
+/// The udev rules that give the logged-in user access to every supported controller's
+/// hidraw node (USB and Bluetooth alike: the HID id names vendor and product): Wii Remote
+/// (057E:0306, 0330), Joy-Con L/R and Switch Pro (057E:2006, 2007, 2009), DualShock 4
+/// (054C:05C4, 09CC, 0BA0), DualSense and Edge (054C:0CE6, 0DF2).
 pub const UDEV_RULE: &str = "KERNEL==\"hidraw*\", KERNELS==\"*:057E:0306.*\", TAG+=\"uaccess\"\n\
-                             KERNEL==\"hidraw*\", KERNELS==\"*:057E:0330.*\", TAG+=\"uaccess\"";
+KERNEL==\"hidraw*\", KERNELS==\"*:057E:0330.*\", TAG+=\"uaccess\"\n\
+KERNEL==\"hidraw*\", KERNELS==\"*:057E:200[679].*\", TAG+=\"uaccess\"\n\
+KERNEL==\"hidraw*\", KERNELS==\"*:054C:05C4.*\", TAG+=\"uaccess\"\n\
+KERNEL==\"hidraw*\", KERNELS==\"*:054C:09CC.*\", TAG+=\"uaccess\"\n\
+KERNEL==\"hidraw*\", KERNELS==\"*:054C:0BA0.*\", TAG+=\"uaccess\"\n\
+KERNEL==\"hidraw*\", KERNELS==\"*:054C:0CE6.*\", TAG+=\"uaccess\"\n\
+KERNEL==\"hidraw*\", KERNELS==\"*:054C:0DF2.*\", TAG+=\"uaccess\"";
 
 /// Why a device node could not be opened (the `io::ErrorKind`s that matter here).
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -46,8 +60,8 @@ impl From<&io::Error> for OpenErrorKind {
 pub enum RemoteProblem {
     /// The hidraw node is not readable and writable by this user: a udev rule is missing.
     #[error(
-        "{node} is not accessible to this user. Add /etc/udev/rules.d/60-wiimote.rules with\n{UDEV_RULE}\n\
-         then run `sudo udevadm control --reload-rules && sudo udevadm trigger` and reconnect the remote."
+        "{node} is not accessible to this user. Add /etc/udev/rules.d/60-motion-controllers.rules with\n{UDEV_RULE}\n\
+         then run `sudo udevadm control --reload-rules && sudo udevadm trigger` and reconnect the controller."
     )]
     PermissionDenied {
         /// Device node, e.g. `/dev/hidraw3`.
@@ -65,6 +79,30 @@ pub enum RemoteProblem {
         node: String,
         /// The HID device id, e.g. `0005:057E:0306.0007`.
         hid_id: String,
+    },
+    /// The kernel's `hid-nintendo` driver is bound to a Switch controller: it runs its own
+    /// start sequence and subcommands, which collide with ours.
+    #[error(
+        "the kernel's hid-nintendo driver is bound to {node} ({hid_id}) and drives the controller itself. \
+         Unbind it for this controller (as root):\n  \
+         echo {hid_id} > /sys/bus/hid/drivers/nintendo/unbind && echo {hid_id} > /sys/bus/hid/drivers/hid-generic/bind\n\
+         or for good: echo 'blacklist hid_nintendo' | sudo tee /etc/modprobe.d/nintendo.conf, then reconnect."
+    )]
+    NintendoDriverBound {
+        /// Device node.
+        node: String,
+        /// The HID device id, e.g. `0005:057E:2009.0008`.
+        hid_id: String,
+    },
+    /// Steam is running: its controller support opens pads and re-configures them (Switch
+    /// report modes, Sony lightbars), so a pad may not answer or may change mode under us.
+    #[error(
+        "Steam is running and its controller support drives {node} too. Quit Steam, or turn off \
+         Steam Input for this controller (Settings → Controller), then reconnect it."
+    )]
+    SteamRunning {
+        /// Device node.
+        node: String,
     },
     /// Another program holds the device.
     #[error(
@@ -132,6 +170,8 @@ impl RemoteProblem {
         match self {
             RemoteProblem::PermissionDenied { node }
             | RemoteProblem::KernelDriverBound { node, .. }
+            | RemoteProblem::NintendoDriverBound { node, .. }
+            | RemoteProblem::SteamRunning { node }
             | RemoteProblem::Busy { node }
             | RemoteProblem::NoAnswer { node }
             | RemoteProblem::OpenFailed { node, .. }
@@ -141,9 +181,11 @@ impl RemoteProblem {
     }
 }
 
-/// A hidraw node that belongs to a Wii Remote.
+/// A hidraw node that belongs to a motion controller.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct HidrawNode {
+    /// What it is.
+    pub kind: crate::controllers::ControllerKind,
     /// Device node path under the device root (e.g. `/dev/hidraw3`).
     pub node: PathBuf,
     /// HID device id (`bus:vendor:product.instance`), e.g. `0005:057E:0306.0007`.
@@ -216,6 +258,13 @@ impl LinuxDevices {
 
     /// Every hidraw node whose HID device is a Wii Remote (by vendor/product id or name).
     pub fn wiimote_nodes(&self) -> Vec<HidrawNode> {
+        let mut nodes = self.controller_nodes();
+        nodes.retain(|n| n.kind == crate::controllers::ControllerKind::WiiRemote);
+        nodes
+    }
+
+    /// Every hidraw node whose HID device is a supported motion controller.
+    pub fn controller_nodes(&self) -> Vec<HidrawNode> {
         let Ok(dir) = std::fs::read_dir(self.sys_root.join("class/hidraw")) else {
             return Vec::new();
         };
@@ -224,9 +273,7 @@ impl LinuxDevices {
             .filter_map(|entry| {
                 let device = entry.path().join("device");
                 let uevent = std::fs::read_to_string(device.join("uevent")).ok()?;
-                if !is_wiimote_uevent(&uevent) {
-                    return None;
-                }
+                let kind = controller_of_uevent(&uevent)?;
                 let hid_id = std::fs::canonicalize(&device)
                     .ok()
                     .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
@@ -236,6 +283,7 @@ impl LinuxDevices {
                     .ok()
                     .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()));
                 Some(HidrawNode {
+                    kind,
                     node: self.dev_root.join(entry.file_name()),
                     hid_id,
                     driver,
@@ -252,13 +300,18 @@ impl LinuxDevices {
     pub fn diagnose(&self, node: &Path, open_error: Option<&OpenErrorKind>) -> Vec<RemoteProblem> {
         let name = node.to_string_lossy().into_owned();
         let mut out = Vec::new();
-        if let Some(found) = self.wiimote_nodes().into_iter().find(|n| n.node == node)
-            && found.driver.as_deref() == Some(KERNEL_DRIVER)
-        {
-            out.push(RemoteProblem::KernelDriverBound {
-                node: name.clone(),
-                hid_id: found.hid_id,
-            });
+        if let Some(found) = self.controller_nodes().into_iter().find(|n| n.node == node) {
+            match found.driver.as_deref() {
+                Some(KERNEL_DRIVER) => out.push(RemoteProblem::KernelDriverBound {
+                    node: name.clone(),
+                    hid_id: found.hid_id,
+                }),
+                Some(NINTENDO_DRIVER) => out.push(RemoteProblem::NintendoDriverBound {
+                    node: name.clone(),
+                    hid_id: found.hid_id,
+                }),
+                _ => {}
+            }
         }
         let denied = match open_error {
             Some(OpenErrorKind::PermissionDenied) => true,
@@ -279,9 +332,9 @@ impl LinuxDevices {
         out
     }
 
-    /// Problems of every Wii Remote node (before any open: permissions from mode bits).
+    /// Problems of every controller node (before any open: permissions from mode bits).
     pub fn diagnose_all(&self) -> Vec<RemoteProblem> {
-        self.wiimote_nodes()
+        self.controller_nodes()
             .iter()
             .flat_map(|n| self.diagnose(&n.node, None))
             .collect()
@@ -314,11 +367,39 @@ pub fn probe_open(node: &Path) -> Result<(), OpenErrorKind> {
         .map_err(|e| OpenErrorKind::from(&e))
 }
 
-fn is_wiimote_uevent(uevent: &str) -> bool {
-    let upper = uevent.to_ascii_uppercase();
-    (upper.contains("0000057E") || upper.contains(":057E:"))
-        && (upper.contains("00000306") || upper.contains("00000330"))
-        || upper.contains("RVL-CNT")
+/// The controller a hidraw device's `uevent` names (`HID_ID=bus:vendor:product`, or a Wii
+/// Remote's `RVL-CNT` name for clones with other ids).
+fn controller_of_uevent(uevent: &str) -> Option<crate::controllers::ControllerKind> {
+    use crate::controllers::ControllerKind;
+    let ids = uevent
+        .lines()
+        .find_map(|l| l.strip_prefix("HID_ID="))
+        .and_then(|id| {
+            let mut parts = id.split(':').skip(1);
+            let vendor = u16::from_str_radix(parts.next()?, 16).ok()?;
+            let product = u16::from_str_radix(parts.next()?, 16).ok()?;
+            ControllerKind::from_ids(vendor, product)
+        });
+    ids.or_else(|| {
+        uevent
+            .to_ascii_uppercase()
+            .contains("RVL-CNT")
+            .then_some(ControllerKind::WiiRemote)
+    })
+}
+
+/// Whether a process named `steam` runs (from `/proc/*/comm` under `proc_root`).
+pub fn steam_running(proc_root: &Path) -> bool {
+    let Ok(dir) = std::fs::read_dir(proc_root) else {
+        return false;
+    };
+    dir.flatten().any(|e| {
+        e.file_name()
+            .to_string_lossy()
+            .bytes()
+            .all(|b| b.is_ascii_digit())
+            && std::fs::read_to_string(e.path().join("comm")).is_ok_and(|c| c.trim() == "steam")
+    })
 }
 
 /// `HID_ID=0005:0000057E:00000306` → `0005:057E:0306` (the instance suffix is unknown here).

@@ -14,9 +14,10 @@ use super::emulator::{EmulatedRemote, EmulatorConfig, EmulatorControls};
 use super::protocol::{Buttons, NunchukFrame};
 use super::session::{
     ExtensionState, MotionPlusState, OrientationSample, RemoteInfo, Session, SessionConfig,
-    SessionEvent,
+    SessionError, SessionEvent,
 };
 use crate::controllers::fusion::FilterKind;
+use crate::controllers::pads::{EmulatedPad, PadEmulatorConfig, PadInfo, PadSession};
 use crate::controllers::transport::Transport;
 
 /// Identifies one remote for the lifetime of a manager (stable across reconnects of the
@@ -26,6 +27,13 @@ pub type RemoteId = u32;
 /// What the manager reports.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ManagerEvent {
+    /// A gyro pad (DualSense, DualShock 4, Switch Pro, Joy-Con) finished its start sequence.
+    PadConnected {
+        /// Controller.
+        id: RemoteId,
+        /// What the start sequence learned (kind, link, calibration).
+        info: PadInfo,
+    },
     /// A remote finished its handshake.
     Connected {
         /// Remote.
@@ -120,14 +128,45 @@ pub enum RemoteCommand {
     SetFilter(FilterKind),
 }
 
-/// Where remotes come from.
+/// One emulated controller of any kind.
+#[derive(Debug, Clone, PartialEq)]
+pub enum EmulatedController {
+    /// A Wii Remote.
+    Wiimote(EmulatorConfig),
+    /// A gyro pad.
+    Pad(PadEmulatorConfig),
+}
+
+impl EmulatedController {
+    /// The clock it is paced by, if any.
+    pub fn clock(&self) -> Option<&super::EmulatorClock> {
+        match self {
+            EmulatedController::Wiimote(c) => c.clock.as_ref(),
+            EmulatedController::Pad(c) => c.clock.as_ref(),
+        }
+    }
+}
+
+impl From<EmulatorConfig> for EmulatedController {
+    fn from(c: EmulatorConfig) -> Self {
+        EmulatedController::Wiimote(c)
+    }
+}
+
+impl From<PadEmulatorConfig> for EmulatedController {
+    fn from(c: PadEmulatorConfig) -> Self {
+        EmulatedController::Pad(c)
+    }
+}
+
+/// Where controllers come from.
 #[derive(Clone)]
 pub enum RemoteSource {
-    /// Real remotes over hidapi (scanned every 2 s).
+    /// Real controllers over hidapi — Wii Remotes and gyro pads — scanned every 2 s.
     #[cfg(feature = "hidapi")]
     Hid,
-    /// One emulated remote per entry (real-time clock), each with its controls.
-    Emulated(Vec<(EmulatorConfig, EmulatorControls)>),
+    /// One emulated controller per entry (real-time clock), each with its controls.
+    Emulated(Vec<(EmulatedController, EmulatorControls)>),
 }
 
 /// Manager settings.
@@ -152,7 +191,8 @@ impl Default for ManagerConfig {
                 EmulatorConfig {
                     realtime: true,
                     ..Default::default()
-                },
+                }
+                .into(),
                 EmulatorControls::default(),
             )]),
             session: SessionConfig::default(),
@@ -191,7 +231,7 @@ impl WiimoteManager {
         let mut clocks = Vec::new();
         match config.source.clone() {
             RemoteSource::Emulated(list) => {
-                clocks.extend(list.iter().filter_map(|(emu, _)| emu.clock.clone()));
+                clocks.extend(list.iter().filter_map(|(emu, _)| emu.clock().cloned()));
                 for (i, (emu, controls)) in list.into_iter().enumerate() {
                     let id = i as RemoteId;
                     let mut session = config.session.clone();
@@ -199,38 +239,26 @@ impl WiimoteManager {
                     let (ctx, crx) = unbounded();
                     lock(&commands).insert(id, ctx);
                     let (tx, stop) = (tx.clone(), stop.clone());
-                    threads.push(std::thread::spawn(move || {
-                        let problem_tx = tx.clone();
-                        let mut reported = false;
-                        let open = move || {
-                            if let Some(kind) = &emu.open_error {
-                                if !reported {
-                                    reported = true;
-                                    let node = format!("emulator:{id}");
-                                    let problem = RemoteProblem::from_open_error(&node, kind);
-                                    send(
-                                        &problem_tx,
-                                        ManagerEvent::Problem {
-                                            id: Some(id),
-                                            problem,
+                    threads.push(std::thread::spawn(move || match emu {
+                        EmulatedController::Wiimote(emu) => {
+                            run_emulated_remote(id, emu, controls, session, tx, crx, stop);
+                        }
+                        EmulatedController::Pad(pad) => {
+                            let (kind, link) = (pad.kind, pad.link);
+                            let open = || {
+                                controls.connected().then(|| {
+                                    EmulatedPad::with_controls(
+                                        PadEmulatorConfig {
+                                            realtime: true,
+                                            ..pad.clone()
                                         },
-                                    );
-                                }
-                                return None;
-                            }
-                            if controls.connected() {
-                                Some(EmulatedRemote::with_controls(
-                                    EmulatorConfig {
-                                        realtime: true,
-                                        ..emu.clone()
-                                    },
-                                    controls.clone(),
-                                ))
-                            } else {
-                                None
-                            }
-                        };
-                        run_remote(id, open, session, tx, crx, stop, true);
+                                        controls.clone(),
+                                    )
+                                })
+                            };
+                            let make = |t, c| PadSession::new(t, kind, link, c);
+                            run_remote(id, open, make, session, tx, crx, stop, true);
+                        }
                     }));
                 }
             }
@@ -302,21 +330,132 @@ fn send(tx: &Sender<ManagerEvent>, e: ManagerEvent) {
     }
 }
 
+/// Runs one emulated Wii Remote (reporting an emulated open error once, if it has one).
+fn run_emulated_remote(
+    id: RemoteId,
+    emu: EmulatorConfig,
+    controls: EmulatorControls,
+    session: SessionConfig,
+    tx: Sender<ManagerEvent>,
+    commands: Receiver<RemoteCommand>,
+    stop: Arc<AtomicBool>,
+) {
+    let problem_tx = tx.clone();
+    let mut reported = false;
+    let open = move || {
+        if let Some(kind) = &emu.open_error {
+            if !reported {
+                reported = true;
+                let node = format!("emulator:{id}");
+                let problem = RemoteProblem::from_open_error(&node, kind);
+                send(
+                    &problem_tx,
+                    ManagerEvent::Problem {
+                        id: Some(id),
+                        problem,
+                    },
+                );
+            }
+            return None;
+        }
+        controls.connected().then(|| {
+            EmulatedRemote::with_controls(
+                EmulatorConfig {
+                    realtime: true,
+                    ..emu.clone()
+                },
+                controls.clone(),
+            )
+        })
+    };
+    run_remote(id, open, Session::new, session, tx, commands, stop, true);
+}
+
+/// What the manager's I/O loop needs of a session, Wii Remote or pad.
+trait ControllerSession {
+    /// Runs the handshake; the event announcing the controller.
+    fn connect_event(&mut self, id: RemoteId) -> Result<ManagerEvent, SessionError>;
+    /// Reads and processes what arrived within `timeout_ms`.
+    fn poll(&mut self, timeout_ms: u32) -> Result<(), SessionError>;
+    /// Takes the events produced so far.
+    fn take_events(&mut self) -> Vec<SessionEvent>;
+    /// Recentres.
+    fn recenter(&mut self);
+    /// Restarts bias calibration.
+    fn calibrate_now(&mut self);
+    /// Switches the filter.
+    fn set_filter(&mut self, kind: FilterKind);
+    /// Rumble on/off (pads: ignored).
+    fn set_rumble(&mut self, on: bool) -> Result<(), SessionError>;
+}
+
+impl<T: Transport> ControllerSession for Session<T> {
+    fn connect_event(&mut self, id: RemoteId) -> Result<ManagerEvent, SessionError> {
+        self.connect()
+            .map(|info| ManagerEvent::Connected { id, info })
+    }
+    fn poll(&mut self, timeout_ms: u32) -> Result<(), SessionError> {
+        Session::poll(self, timeout_ms)
+    }
+    fn take_events(&mut self) -> Vec<SessionEvent> {
+        self.drain_events().collect()
+    }
+    fn recenter(&mut self) {
+        Session::recenter(self);
+    }
+    fn calibrate_now(&mut self) {
+        Session::calibrate_now(self);
+    }
+    fn set_filter(&mut self, kind: FilterKind) {
+        Session::set_filter(self, kind);
+    }
+    fn set_rumble(&mut self, on: bool) -> Result<(), SessionError> {
+        Session::set_rumble(self, on)
+    }
+}
+
+impl<T: Transport> ControllerSession for PadSession<T> {
+    fn connect_event(&mut self, id: RemoteId) -> Result<ManagerEvent, SessionError> {
+        self.connect()
+            .map(|info| ManagerEvent::PadConnected { id, info })
+    }
+    fn poll(&mut self, timeout_ms: u32) -> Result<(), SessionError> {
+        PadSession::poll(self, timeout_ms)
+    }
+    fn take_events(&mut self) -> Vec<SessionEvent> {
+        self.drain_events().collect()
+    }
+    fn recenter(&mut self) {
+        PadSession::recenter(self);
+    }
+    fn calibrate_now(&mut self) {
+        PadSession::calibrate_now(self);
+    }
+    fn set_filter(&mut self, kind: FilterKind) {
+        PadSession::set_filter(self, kind);
+    }
+    fn set_rumble(&mut self, _on: bool) -> Result<(), SessionError> {
+        Ok(())
+    }
+}
+
 /// How a remote's I/O loop ended.
 #[derive(Debug)]
 enum RemoteExit {
     /// Stopped, or the source had no more transports.
     Stopped,
     /// The handshake failed (without reconnecting).
-    ConnectFailed(super::session::SessionError),
+    ConnectFailed(SessionError),
     /// It was connected and went away (without reconnecting).
     Disconnected,
 }
 
 /// Connects, polls, reports; on disconnect waits and reconnects until `stop`.
-fn run_remote<T: Transport, F: FnMut() -> Option<T>>(
+#[allow(clippy::too_many_arguments)]
+fn run_remote<T, S: ControllerSession>(
     id: RemoteId,
-    mut open: F,
+    mut open: impl FnMut() -> Option<T>,
+    make: impl Fn(T, SessionConfig) -> S,
     config: SessionConfig,
     tx: Sender<ManagerEvent>,
     commands: Receiver<RemoteCommand>,
@@ -332,18 +471,18 @@ fn run_remote<T: Transport, F: FnMut() -> Option<T>>(
             std::thread::sleep(Duration::from_millis(100));
             continue;
         };
-        let mut session = Session::new(
+        let mut session = make(
             transport,
             SessionConfig {
                 filter,
                 ..config.clone()
             },
         );
-        match session.connect() {
-            Ok(info) => send(&tx, ManagerEvent::Connected { id, info }),
+        match session.connect_event(id) {
+            Ok(event) => send(&tx, event),
             Err(e) => {
                 forward(id, &mut session, &tx);
-                if let super::session::SessionError::UnsupportedDevice(what) = e {
+                if let SessionError::UnsupportedDevice(what) = e {
                     let problem = RemoteProblem::Unsupported {
                         node: format!("remote {id}"),
                         what: what.to_string(),
@@ -396,9 +535,9 @@ fn run_remote<T: Transport, F: FnMut() -> Option<T>>(
 
 /// Applies the commands waiting for a connected remote (switching filters updates `filter`,
 /// kept across reconnects); the first that fails ends the session, with its reason.
-fn apply_commands<T: Transport>(
+fn apply_commands(
     commands: &Receiver<RemoteCommand>,
-    session: &mut Session<T>,
+    session: &mut impl ControllerSession,
     filter: &mut FilterKind,
 ) -> Option<String> {
     while let Ok(c) = commands.try_recv() {
@@ -425,8 +564,8 @@ fn apply_commands<T: Transport>(
     None
 }
 
-fn forward<T: Transport>(id: RemoteId, session: &mut Session<T>, tx: &Sender<ManagerEvent>) {
-    for e in session.drain_events() {
+fn forward(id: RemoteId, session: &mut impl ControllerSession, tx: &Sender<ManagerEvent>) {
+    for e in session.take_events() {
         let m = match e {
             SessionEvent::Buttons {
                 buttons,
@@ -486,12 +625,15 @@ fn report_once(
     map.insert(key.to_string(), problems);
 }
 
-/// Opens and runs one listed remote; a failed open or a handshake nobody answers is
-/// diagnosed (sysfs: permissions, the kernel driver) and reported.
+/// Opens and runs one listed controller (`pad`: a gyro pad of that kind and link; `None`: a
+/// Wii Remote); a failed open or a handshake nobody answers is diagnosed (sysfs:
+/// permissions, the kernel driver) and reported.
 #[cfg(feature = "hidapi")]
+#[allow(clippy::too_many_arguments)]
 fn run_hid_remote(
     id: RemoteId,
     path: &str,
+    pad: Option<(crate::controllers::ControllerKind, crate::controllers::Link)>,
     session: SessionConfig,
     tx: Sender<ManagerEvent>,
     commands: Receiver<RemoteCommand>,
@@ -524,15 +666,29 @@ fn run_hid_remote(
     // One open per discovery: a dead handle never recovers, the scanner finds the device
     // again when it comes back.
     let mut once = Some(transport);
-    match run_remote(
-        id,
-        || once.take(),
-        session,
-        tx.clone(),
-        commands,
-        stop,
-        false,
-    ) {
+    let exit = match pad {
+        None => run_remote(
+            id,
+            || once.take(),
+            Session::new,
+            session,
+            tx.clone(),
+            commands,
+            stop,
+            false,
+        ),
+        Some((kind, link)) => run_remote(
+            id,
+            || once.take(),
+            |t, c| PadSession::new(t, kind, link, c),
+            session,
+            tx.clone(),
+            commands,
+            stop,
+            false,
+        ),
+    };
+    match exit {
         RemoteExit::ConnectFailed(SessionError::Timeout(_) | SessionError::Transport(_)) => {
             let mut problems = LinuxDevices::system().diagnose(node, None);
             if !problems
@@ -540,6 +696,11 @@ fn run_hid_remote(
                 .any(|p| matches!(p, RemoteProblem::KernelDriverBound { .. }))
             {
                 problems.push(RemoteProblem::NoAnswer {
+                    node: path.to_string(),
+                });
+            }
+            if pad.is_some() && super::diagnosis::steam_running(std::path::Path::new("/proc")) {
+                problems.push(RemoteProblem::SteamRunning {
                     node: path.to_string(),
                 });
             }
@@ -561,26 +722,36 @@ fn scan_hid(
     config: SessionConfig,
 ) {
     use super::diagnosis::LinuxDevices;
-    use crate::controllers::transport::discover;
+    use crate::controllers::transport::{discover, discover_pads};
     let mut ids: HashMap<String, RemoteId> = HashMap::new();
     let busy: Arc<Mutex<HashSet<String>>> = Arc::default();
     let reported: Reported = Arc::default();
     let mut threads: Vec<JoinHandle<()>> = Vec::new();
     while !stop.load(Ordering::Relaxed) {
-        match discover() {
+        let listed = discover().and_then(|remotes| {
+            let mut all: Vec<(String, Option<_>)> =
+                remotes.into_iter().map(|d| (d.path, None)).collect();
+            all.extend(
+                discover_pads()?
+                    .into_iter()
+                    .map(|p| (p.path, Some((p.kind, p.link)))),
+            );
+            Ok(all)
+        });
+        match listed {
             Ok(found) => {
                 if found.is_empty() {
                     // Nothing listed: say why, if sysfs knows (e.g. nodes hidapi skipped).
                     let problems = LinuxDevices::system().diagnose_all();
                     report_once(&tx, &reported, "", None, problems);
                 }
-                for dev in found {
-                    if lock(&busy).contains(&dev.path) {
+                for (path, pad) in found {
+                    if lock(&busy).contains(&path) {
                         continue;
                     }
                     let next = ids.len() as RemoteId;
-                    let id = *ids.entry(dev.path.clone()).or_insert(next);
-                    lock(&busy).insert(dev.path.clone());
+                    let id = *ids.entry(path.clone()).or_insert(next);
+                    lock(&busy).insert(path.clone());
                     let (ctx, crx) = unbounded();
                     lock(&commands).insert(id, ctx);
                     let mut session = config.clone();
@@ -590,10 +761,10 @@ fn scan_hid(
                         stop.clone(),
                         busy.clone(),
                         reported.clone(),
-                        dev.path,
+                        path,
                     );
                     threads.push(std::thread::spawn(move || {
-                        run_hid_remote(id, &path, session, tx, crx, stop, &reported);
+                        run_hid_remote(id, &path, pad, session, tx, crx, stop, &reported);
                         lock(&busy).remove(&path);
                     }));
                 }

@@ -49,7 +49,8 @@ pub use emulator::{
     Variant,
 };
 pub use manager::{
-    ManagerConfig, ManagerEvent, RemoteCommand, RemoteId, RemoteSource, WiimoteManager,
+    EmulatedController, ManagerConfig, ManagerEvent, RemoteCommand, RemoteId, RemoteSource,
+    WiimoteManager,
 };
 pub use session::{
     ExtensionState, MotionPlusState, OrientationSample, RemoteInfo, RemoteKind, SampleClock,

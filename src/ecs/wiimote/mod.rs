@@ -6,10 +6,11 @@ mod plugin;
 
 use bevy::prelude::*;
 
+use crate::controllers::ControllerKind;
 use crate::controllers::wiimote::ir::PointerSetup;
 use crate::controllers::wiimote::smoothing::PointerSmoothing;
 use crate::controllers::wiimote::{
-    EmulatorConfig, EmulatorControls, FilterKind, RemoteCommand, RemoteId, RemoteProblem,
+    EmulatedController, EmulatorControls, FilterKind, RemoteCommand, RemoteId, RemoteProblem,
     WiimoteManager, protocol::Buttons,
 };
 
@@ -45,8 +46,10 @@ impl From<WiimoteFilter> for FilterKind {
 pub enum WiimoteSource {
     /// Real remotes over hidapi.
     Hardware,
-    /// Emulated remotes (tests, demos, users without hardware), one per config.
-    Emulator(Vec<EmulatorConfig>),
+    /// Emulated controllers (tests, demos, users without hardware), one per config: Wii
+    /// Remotes ([`EmulatorConfig`]) or gyro pads
+    /// ([`PadEmulatorConfig`](crate::controllers::pads::PadEmulatorConfig)), each `.into()`.
+    Emulator(Vec<EmulatedController>),
 }
 /// Current Wiimote settings (mirrored from the plugin). Changing `filter` switches every
 /// connected remote's filter.
@@ -62,6 +65,9 @@ pub struct WiimoteSettings {
     /// How the pointer is smoothed (see [`WiimotePlugin::pointer_smoothing`]).
     #[reflect(ignore)]
     pub pointer_smoothing: Option<PointerSmoothing>,
+    /// The pads' gyro pointer (see [`WiimotePlugin::gyro_pointer`]).
+    #[reflect(ignore)]
+    pub gyro_pointer: Option<crate::controllers::gyro_pointer::GyroPointerSettings>,
 }
 
 /// The running device manager (dropping it stops and joins its threads).
@@ -106,12 +112,16 @@ pub enum WiimoteCalibration {
     Unknown,
 }
 
-/// One Wii Remote, on its own entity.
+/// One motion controller on its own entity — a Wii Remote or a gyro pad (DualSense,
+/// DualShock 4, Switch Pro, Joy-Con); the name is the crate's first device's.
 #[derive(Component, Debug, Clone, Default, Reflect)]
 #[reflect(Component, Default)]
 pub struct Wiimote {
     /// Manager id (stable across reconnects).
     pub id: u32,
+    /// What it is.
+    #[reflect(ignore)]
+    pub kind: ControllerKind,
     /// Orientation in Bevy's frame (Y up, the remote pointing along −Z at identity),
     /// relative to the last recentre.
     pub orientation: Quat,
@@ -119,7 +129,8 @@ pub struct Wiimote {
     pub angular_velocity: Vec3,
     /// Held buttons (bits of [`Buttons`]).
     pub buttons: u16,
-    /// Battery level byte (~0x60–0x70 when full).
+    /// Battery level byte: a Wii Remote's own (0xC8 = full); a pad's charge as the same
+    /// scale, percent × 2.
     pub battery: u8,
     /// Gyro calibration.
     pub calibration: WiimoteCalibration,

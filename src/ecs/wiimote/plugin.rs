@@ -9,12 +9,17 @@ use super::{
     WiimoteProblem, WiimoteProblems, WiimoteSettings, WiimoteSource, remote_to_bevy,
     remote_vec_to_bevy,
 };
+use crate::controllers::gyro_pointer::{GyroPointer, GyroPointerSettings};
+use crate::controllers::pads::PadEmulatorConfig;
 use crate::controllers::wiimote::ir::{IrSensitivity, PointerSetup};
+use crate::controllers::wiimote::protocol::Buttons;
 use crate::controllers::wiimote::smoothing::{PointerSmoothing, SmoothedPointer};
 use crate::controllers::wiimote::{
-    CalibrationPhase, EmulatedBar, EmulatorClock, EmulatorConfig, EmulatorControls, ManagerConfig,
-    ManagerEvent, MotionPlusState, RemoteCommand, RemoteSource, SessionConfig, WiimoteManager,
+    CalibrationPhase, EmulatedBar, EmulatedController, EmulatorClock, EmulatorConfig,
+    EmulatorControls, ManagerConfig, ManagerEvent, MotionPlusState, RemoteCommand, RemoteSource,
+    SessionConfig, WiimoteManager,
 };
+use crate::controllers::{ControllerKind, Link};
 
 /// Wiimote systems, in `PreUpdate`.
 #[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -26,7 +31,8 @@ pub enum WiimoteSystems {
     /// before [`crate::ecs::DeformSystems::Request`]).
     Control,
 }
-/// Adds Wii Remote input. See [`Wiimote`] and the messages in this module.
+/// Adds motion-controller input — Wii Remotes and gyro pads. See [`Wiimote`] and the
+/// messages in this module.
 #[derive(Debug, Clone)]
 pub struct WiimotePlugin {
     /// Filter used by every session.
@@ -40,6 +46,10 @@ pub struct WiimotePlugin {
     /// Smoothing of [`Wiimote::pointer`] (a One Euro filter: steady at rest, little lag in
     /// motion; `PROTOCOL.md` §17.5); `None` gives the camera's raw pointer.
     pub pointer_smoothing: Option<PointerSmoothing>,
+    /// The gyro pointer of controllers without an IR camera (pads): [`Wiimote::pointer`]
+    /// moves as the controller turns (player-space gyro) and recentres on the recentre
+    /// button. `None` (the default): no pointer for them.
+    pub gyro_pointer: Option<GyroPointerSettings>,
 }
 
 impl Default for WiimotePlugin {
@@ -48,10 +58,11 @@ impl Default for WiimotePlugin {
             filter: WiimoteFilter::Fusion,
             pointer: None,
             pointer_smoothing: Some(PointerSmoothing::default()),
+            gyro_pointer: None,
             source: if cfg!(feature = "hidapi") {
                 WiimoteSource::Hardware
             } else {
-                WiimoteSource::Emulator(vec![EmulatorConfig::default()])
+                WiimoteSource::Emulator(vec![EmulatorConfig::default().into()])
             },
         }
     }
@@ -61,7 +72,18 @@ impl WiimotePlugin {
     /// One emulated Wii Remote Plus.
     pub fn emulated() -> Self {
         Self {
-            source: WiimoteSource::Emulator(vec![EmulatorConfig::default()]),
+            source: WiimoteSource::Emulator(vec![EmulatorConfig::default().into()]),
+            ..Default::default()
+        }
+    }
+
+    /// One emulated gyro pad of `kind` over Bluetooth (a DualSense, a Switch Pro…), driven
+    /// like the emulated Wii Remote through [`WiimoteEmulators`].
+    pub fn emulated_pad(kind: ControllerKind) -> Self {
+        Self {
+            source: WiimoteSource::Emulator(vec![
+                PadEmulatorConfig::new(kind, Link::Bluetooth).into(),
+            ]),
             ..Default::default()
         }
     }
@@ -70,10 +92,17 @@ impl WiimotePlugin {
     /// room's sensor bar from its standing point (unless their config places one already), so
     /// `WiimotePlugin::emulated().with_pointer(PointerSetup::default())` points with no
     /// hardware (aim it through [`WiimoteEmulators`]).
+    ///
+    /// Pads get the gyro pointer ([`Self::gyro_pointer`], default settings unless set).
     pub fn with_pointer(mut self, setup: PointerSetup) -> Self {
         self.pointer = Some(setup);
+        self.gyro_pointer
+            .get_or_insert_with(GyroPointerSettings::default);
         if let WiimoteSource::Emulator(configs) = &mut self.source {
             for config in configs {
+                let EmulatedController::Wiimote(config) = config else {
+                    continue;
+                };
                 config.sensor_bar.get_or_insert(EmulatedBar {
                     setup,
                     position: glam::DVec3::ZERO,
@@ -94,7 +123,7 @@ impl Plugin for WiimotePlugin {
                 warn!("bevy_wii_deform built without the `hidapi` feature: using the emulator");
                 let c = EmulatorControls::default();
                 (
-                    RemoteSource::Emulated(vec![(EmulatorConfig::default(), c.clone())]),
+                    RemoteSource::Emulated(vec![(EmulatorConfig::default().into(), c.clone())]),
                     WiimoteEmulators(vec![c]),
                 )
             }
@@ -130,6 +159,7 @@ impl Plugin for WiimotePlugin {
                 filter: self.filter,
                 pointer: self.pointer,
                 pointer_smoothing: self.pointer_smoothing,
+                gyro_pointer: self.gyro_pointer,
             })
             .register_type::<Wiimote>()
             .register_type::<WiimoteSettings>()
@@ -149,7 +179,7 @@ impl Plugin for WiimotePlugin {
         // `TimeUpdateStrategy::ManualDuration` a test steps them frame by frame.
         let clocks: Vec<EmulatorClock> = match &self.source {
             WiimoteSource::Emulator(configs) => {
-                configs.iter().filter_map(|c| c.clock.clone()).collect()
+                configs.iter().filter_map(|c| c.clock().cloned()).collect()
             }
             _ => Vec::new(),
         };
@@ -205,12 +235,14 @@ fn receive_wiimote_events(
     mut open_problems: ResMut<WiimoteProblems>,
     settings: Res<WiimoteSettings>,
     mut smoothing: Local<Vec<(u32, SmoothedPointer)>>,
+    mut gyro_pointers: Local<Vec<(u32, GyroPointer)>>,
 ) {
     let mut out = EventOutputs {
         writers: &mut writers,
         open_problems: &mut open_problems,
         settings: &settings,
         smoothing: &mut smoothing,
+        gyro_pointers: &mut gyro_pointers,
     };
     // Entities spawned this frame are not queryable yet: buffer their state locally.
     let mut spawned: Vec<(Entity, Wiimote)> = Vec::new();
@@ -265,6 +297,7 @@ struct EventOutputs<'a, 'w> {
     open_problems: &'a mut WiimoteProblems,
     settings: &'a WiimoteSettings,
     smoothing: &'a mut Vec<(u32, SmoothedPointer)>,
+    gyro_pointers: &'a mut Vec<(u32, GyroPointer)>,
 }
 
 /// The remote an event is about (`None`: a problem with no remote, e.g. no permission to list
@@ -273,6 +306,7 @@ fn remote_of(event: &ManagerEvent) -> Option<u32> {
     match event {
         ManagerEvent::Problem { id, .. } => *id,
         ManagerEvent::Connected { id, .. }
+        | ManagerEvent::PadConnected { id, .. }
         | ManagerEvent::Disconnected { id, .. }
         | ManagerEvent::Buttons { id, .. }
         | ManagerEvent::Orientation { id, .. }
@@ -293,8 +327,19 @@ fn apply_event(w: &mut Wiimote, entity: Entity, event: &ManagerEvent, out: &mut 
             for p in w.problems.drain(..) {
                 out.open_problems.0.retain(|q| *q != p);
             }
+            w.kind = ControllerKind::WiiRemote;
             w.battery = info.battery;
             w.motion_plus = info.motion_plus == MotionPlusState::Active;
+            out.writers.connected.write(WiimoteConnected { entity, id });
+        }
+        ManagerEvent::PadConnected { info, .. } => {
+            w.connection = ConnectionState::Connected;
+            for p in w.problems.drain(..) {
+                out.open_problems.0.retain(|q| *q != p);
+            }
+            w.kind = info.kind;
+            // A gyro is built in: the "MotionPlus" flag means "has a gyro".
+            w.motion_plus = true;
             out.writers.connected.write(WiimoteConnected { entity, id });
         }
         ManagerEvent::Disconnected { .. } => {
@@ -308,6 +353,12 @@ fn apply_event(w: &mut Wiimote, entity: Entity, event: &ManagerEvent, out: &mut 
         ManagerEvent::Buttons { buttons, .. } => {
             let old = w.buttons;
             w.buttons = buttons.0;
+            // The recentre button puts a gyro pointer back at the centre.
+            if buttons.0 & !old & Buttons::HOME != 0
+                && let Some((_, p)) = out.gyro_pointers.iter_mut().find(|(i, _)| *i == id)
+            {
+                p.recentre();
+            }
             out.writers.buttons_changed.write(WiimoteButtonChanged {
                 entity,
                 buttons: buttons.0,
@@ -318,6 +369,20 @@ fn apply_event(w: &mut Wiimote, entity: Entity, event: &ManagerEvent, out: &mut 
         ManagerEvent::Orientation { sample, .. } => {
             if let Some(changed) = apply_orientation(w, entity, sample) {
                 out.writers.orientation.write(changed);
+                if let Some(settings) = out.settings.gyro_pointer
+                    && !w.kind.has_ir_camera()
+                {
+                    let pointers = &mut *out.gyro_pointers;
+                    let index = match pointers.iter().position(|(i, _)| *i == id) {
+                        Some(index) => index,
+                        None => {
+                            pointers.push((id, GyroPointer::new(settings)));
+                            pointers.len() - 1
+                        }
+                    };
+                    let at = pointers[index].1.update(sample.orientation);
+                    w.pointer = Some(at.as_vec2());
+                }
             }
         }
         ManagerEvent::Battery { level, .. } => w.battery = *level,
