@@ -3,8 +3,14 @@
 //! session set (`default`, `no_warm_up`, `continuous`, `pointing`; see `wiimote::drift`).
 //!
 //! ```text
-//! cargo run --release --example orientation_drift -- --json [--seeds 5] [--first-seed 1] [--seconds 600] [--set NAME] [--ideal LIST] [--in-view 0.5]
+//! cargo run --release --example orientation_drift -- --json [--device wiimote|dualsense|ds4|switch-pro|joycon] [--seeds 5] [--first-seed 1] [--seconds 600] [--set NAME] [--ideal LIST] [--in-view 0.5]
 //! ```
+//! `--device` runs the sessions through that controller's emulator and session instead of
+//! the Wii Remote's (its rate, quantisation, noise and bias; `PadSensorModel`). Pads have no
+//! IR camera (no `pointing` set) and no warm-up drift in their model (no `no_warm_up` set);
+//! every filter that depends on the sample period (ours, VQF) is built for the device's
+//! true period, VQF with its published default parameters (both in the JSON:
+//! `"device"`, `"rate_hz"`, `"vqf_settings"`).
 //! The `pointing` set aims at a screen with a sensor bar `--in-view` of the time (default
 //! 0.5) with the IR camera on; it adds `ours_ir` (our filter fed with the bar's sightings: the
 //! heading reference of `PROTOCOL.md` §17.6) and `in_view_share` (the share of samples in which
@@ -22,10 +28,12 @@
 #[path = "../common/cli.rs"]
 mod cli;
 
+use bevy_wii_deform::controllers::pads::{PadEmulatorConfig, PadSensorModel};
 use bevy_wii_deform::controllers::wiimote::{
     FilterKind, SensorModel,
     drift::{self, SessionSet},
 };
+use bevy_wii_deform::controllers::{ControllerKind, Link};
 
 /// `model` with the errors named in `list` (see the module docs) removed.
 fn idealised(mut model: SensorModel, list: &str) -> Result<SensorModel, String> {
@@ -58,6 +66,8 @@ struct SetReport {
 
 /// What one set is run with.
 struct RunSettings<'a> {
+    /// A pad's emulator (its kind, link and sensor model); `None`: the Wii Remote's.
+    pad: Option<PadEmulatorConfig>,
     ideal: &'a str,
     seeds: std::ops::RangeInclusive<u64>,
     seconds: f64,
@@ -66,11 +76,15 @@ struct RunSettings<'a> {
 
 fn run_set(set: SessionSet, run: &RunSettings) -> SetReport {
     let RunSettings {
+        ref pad,
         ideal,
         ref seeds,
         seconds,
         in_view,
     } = *run;
+    let period = pad
+        .as_ref()
+        .map_or(0.01, |p| 1.0 / p.sensors.sample_rate_hz());
     let sensor = match idealised(set.sensor(), ideal) {
         Ok(sensor) => sensor,
         Err(e) => {
@@ -84,10 +98,12 @@ fn run_set(set: SessionSet, run: &RunSettings) -> SetReport {
     let mut floors = Vec::new();
     let (mut with_bar, mut shares, mut pointer) = (Vec::new(), Vec::new(), Vec::new());
     for seed in seeds.clone() {
-        let rec = if set == SessionSet::Pointing {
-            drift::record_pointing(sensor.clone(), seed, seconds, in_view)
-        } else {
-            set.record_with_sensor(sensor.clone(), seed, seconds)
+        let rec = match pad {
+            Some(pad) => drift::record_pad(set, pad, seed, seconds).unwrap_or_default(),
+            None if set == SessionSet::Pointing => {
+                drift::record_pointing(sensor.clone(), seed, seconds, in_view)
+            }
+            None => set.record_with_sensor(sensor.clone(), seed, seconds),
         };
         eprintln!(
             "{} seed {seed}: {} samples, {:.0} s",
@@ -97,7 +113,7 @@ fn run_set(set: SessionSet, run: &RunSettings) -> SetReport {
         );
         floors.push(drift::accelerometer_tilt_floor(&rec));
         for (k, kind) in FilterKind::ALL.iter().enumerate() {
-            per_filter[k].push(drift::score(*kind, &rec));
+            per_filter[k].push(drift::score_at_period(*kind, &rec, period));
         }
         if set == SessionSet::Pointing {
             with_bar.push(drift::score_with_bar(FilterKind::Fusion, &rec));
@@ -184,9 +200,11 @@ fn filters_json(report: &SetReport) -> String {
 }
 
 const USAGE: &str = "\
-usage: orientation_drift [--seeds N] [--first-seed N] [--seconds S] [--set NAME] [--ideal WHAT]
-                         [--in-view SHARE] [--json]
+usage: orientation_drift [--device KIND] [--seeds N] [--first-seed N] [--seconds S] [--set NAME]
+                         [--ideal WHAT] [--in-view SHARE] [--json]
 
+  --device KIND    wiimote (default), dualsense, ds4, switch-pro, joycon (= joycon-r),
+                   joycon-l, joycon-r, dualsense-edge
   --seeds N        sessions per set (default 5)
   --first-seed N   the first seed (default 1)
   --seconds S      session length (default 600)
@@ -203,6 +221,7 @@ fn main() {
         drift::DEFAULT_IN_VIEW_SHARE,
         None::<String>,
     );
+    let mut device = ControllerKind::WiiRemote;
     let mut parser = cli::Parser::from_env();
     while let Some(arg) = cli::next(&mut parser, USAGE) {
         match arg {
@@ -213,12 +232,35 @@ fn main() {
             cli::Arg::Long("ideal") => ideal = cli::string(&mut parser, USAGE),
             cli::Arg::Long("in-view") => in_view = cli::value(&mut parser, USAGE),
             cli::Arg::Long("set") => set = Some(cli::string(&mut parser, USAGE)),
+            cli::Arg::Long("device") => {
+                let name = cli::string(&mut parser, USAGE);
+                device = ControllerKind::from_name(&name)
+                    .unwrap_or_else(|| cli::fail(format!("unknown device {name:?}"), USAGE));
+            }
             other => cli::unexpected(other, USAGE),
         }
     }
     let seeds = seeds.max(1.0) as u64;
     let first = first.max(0.0) as u64;
     let ideal = ideal.as_str();
+    let pad = (device != ControllerKind::WiiRemote).then(|| {
+        // Sony pads over USB, Switch controllers over Bluetooth: how each is most often held.
+        let link = if matches!(
+            device,
+            ControllerKind::SwitchPro | ControllerKind::JoyConLeft | ControllerKind::JoyConRight
+        ) {
+            Link::Bluetooth
+        } else {
+            Link::Usb
+        };
+        PadEmulatorConfig {
+            sensors: PadSensorModel::for_device(device, link),
+            ..PadEmulatorConfig::new(device, link)
+        }
+    });
+    if pad.is_some() && !ideal.is_empty() {
+        cli::fail("--ideal removes the Wii Remote's sensor errors only", USAGE);
+    }
     let sets: Vec<SessionSet> = match set.as_deref() {
         Some(name) => match SessionSet::from_name(name) {
             Some(set) => vec![set],
@@ -227,9 +269,17 @@ fn main() {
                 std::process::exit(2);
             }
         },
+        None if pad.is_some() => vec![SessionSet::Default, SessionSet::Continuous],
         None => SessionSet::ALL.to_vec(),
     };
+    if pad.is_some() && sets.contains(&SessionSet::Pointing) {
+        cli::fail("the pointing set needs an IR camera (a Wii Remote)", USAGE);
+    }
+    let rate_hz = pad
+        .as_ref()
+        .map_or(100.0, |p| p.sensors.sample_rate_hz());
     let run = RunSettings {
+        pad,
         ideal,
         seeds: first..=first + seeds - 1,
         seconds,
@@ -259,9 +309,12 @@ fn main() {
         // Which sensor errors were removed (`--ideal`), so an ablation is never read as a
         // default-set figure.
         println!(
-            "{{{}, \"sets\": {{{sets}}}, \"ideal\": {:?}}}",
+            "{{{}, \"sets\": {{{sets}}}, \"ideal\": {:?}, \"device\": \"{}\", \"rate_hz\": {rate_hz:.3}, \
+             \"vqf_settings\": {{\"sample_period_s\": {:.6}, \"params\": \"vqf-rs defaults (Laidig & Seel 2023)\"}}}}",
             filters_json(head),
-            ideal
+            ideal,
+            device.name(),
+            1.0 / rate_hz
         );
     }
 }

@@ -125,6 +125,20 @@ impl FilterKind {
         }
     }
 
+    /// Builds the filter for samples arriving every `sample_period_s` seconds (the device's
+    /// true period: VQF's and our filter's low-pass coefficients depend on it; the paper's
+    /// method and raw integration do not).
+    pub fn build_for_period(self, sample_period_s: f64) -> Box<dyn OrientationFilter> {
+        match self {
+            FilterKind::Fusion => Box::new(FusionFilter::new(sample_period_s)),
+            FilterKind::Vqf => Box::new(VqfFilter::new(
+                sample_period_s,
+                vqf_rs::Params::default(),
+            )),
+            other => other.build(),
+        }
+    }
+
     /// All filters, in report order.
     pub const ALL: [FilterKind; 4] = [
         FilterKind::Raw,

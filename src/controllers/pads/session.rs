@@ -10,7 +10,7 @@ use crate::controllers::transport::{Transport, TransportError};
 use crate::controllers::wiimote::{OrientationSample, SessionConfig, SessionError, SessionEvent};
 use crate::controllers::{ControllerKind, DecodeError, Link, PadButtons, PadReport};
 
-use super::{PadCalibration, PadDecoder, roles_to_wii};
+use super::{PadCalibration, PadDecoder, PadSensorModel, roles_to_wii};
 
 /// What the start sequence learned.
 #[derive(Debug, Clone, PartialEq)]
@@ -44,6 +44,7 @@ pub struct PadSession<T: Transport> {
     last_report_us: Option<u64>,
     last_sample_us: Option<u64>,
     report_interval_s: f64,
+    sample_period_s: f64,
     counter: u8,
     malformed: u64,
     last_error: Option<DecodeError>,
@@ -53,6 +54,7 @@ impl<T: Transport> PadSession<T> {
     /// A session (not connected yet). `kind` must be a pad (not a Wii Remote); a Wii Remote
     /// gets a decoder of Sony's layout and every report fails to decode.
     pub fn new(transport: T, kind: ControllerKind, link: Link, config: SessionConfig) -> Self {
+        let sample_period_s = 1.0 / PadSensorModel::for_device(kind, link).sample_rate_hz();
         let decoder = PadDecoder::new(kind, link)
             .or_else(|_| PadDecoder::new(ControllerKind::DualSense, link))
             .expect("the DualSense is a pad");
@@ -64,7 +66,8 @@ impl<T: Transport> PadSession<T> {
         Self {
             transport,
             decoder,
-            filter: config.filter.build(),
+            filter: config.filter.build_for_period(sample_period_s),
+            sample_period_s,
             config,
             events: VecDeque::new(),
             buf: vec![0u8; 512],
@@ -107,7 +110,7 @@ impl<T: Transport> PadSession<T> {
 
     /// Replaces the orientation filter.
     pub fn set_filter(&mut self, kind: FilterKind) {
-        self.filter = kind.build();
+        self.filter = kind.build_for_period(self.sample_period_s);
         self.config.filter = kind;
     }
 

@@ -188,9 +188,10 @@ impl SonyCalibration {
 /// The roles of Sony's buttons ([`PadButtons`]): clutch R2 or R1, grab Cross, recentre the
 /// PS button or Options, calibrate Triangle. `raw` holds the three button bytes (byte 0 in
 /// the low bits: d-pad hat, Square, Cross, Circle, Triangle; byte 1: L1, R1, L2, R2,
-/// Create/Share, Options, L3, R3; byte 2: PS, touchpad, mute).
-fn buttons(b: [u8; 3]) -> PadButtons {
-    let raw = b[0] as u32 | (b[1] as u32) << 8 | ((b[2] & 0x07) as u32) << 16;
+/// Create/Share, Options, L3, R3; byte 2: PS, touchpad, and the DualSense's mute — the
+/// DualShock 4 counts reports in that byte's upper six bits, which are masked off).
+fn buttons(b: [u8; 3], third_mask: u8) -> PadButtons {
+    let raw = b[0] as u32 | (b[1] as u32) << 8 | ((b[2] & third_mask) as u32) << 16;
     PadButtons {
         clutch: b[1] & 0x0A != 0,
         grab: b[0] & 0x20 != 0,
@@ -250,7 +251,8 @@ pub fn decode(
         let time = u16::from_le_bytes([c[9], c[10]]) as f64 * DS4_TICK_S;
         ([c[4], c[5], c[6]], 12, time, battery)
     };
-    let mut out = PadReport::new(buttons(button_bytes), Some(battery), crc_ok);
+    let third_mask = if is_dualsense(kind) { 0x07 } else { 0x03 };
+    let mut out = PadReport::new(buttons(button_bytes, third_mask), Some(battery), crc_ok);
     let raw = |i: usize| le_i16(c, gyro_at + 2 * i) as f64;
     let deg = std::f64::consts::PI / 180.0;
     let gyro = [0, 1, 2].map(|a| raw(a) * cal.gyro_dps_per_count[a] * deg);

@@ -21,7 +21,9 @@ use crate::controllers::motion::{Motion, from_yaw_elevation_roll};
 use crate::controllers::rng::Rng;
 use crate::controllers::transport::Transport;
 
+mod pads;
 mod pointing;
+pub use pads::record_pad;
 pub use pointing::PointingScenario;
 
 /// The share of each cycle the [`SessionSet::Pointing`] sessions aim at the screen (0.5).
@@ -84,6 +86,13 @@ impl DriftScenario {
     }
 
     /// (yaw, elevation, roll in degrees, swing angle in degrees).
+    /// Whether the scripted remote holds still at `t` (scored as still).
+    pub fn is_still(&self, t: f64) -> bool {
+        let moving = self.orientation(t + 0.3).angle_between(self.orientation(t - 0.3)) > 1e-9
+            || self.angles(t).3 != 0.0;
+        !moving
+    }
+
     fn angles(&self, t: f64) -> (f64, f64, f64, f64) {
         if t < START_STILL {
             return (0.0, 0.0, 0.0, 0.0);
@@ -287,12 +296,7 @@ impl SessionSet {
                 let scenario = std::sync::Arc::new(DriftScenario::new(seed, duration_s));
                 let still = {
                     let s = scenario.clone();
-                    move |t: f64| {
-                        let moving = s.orientation(t + 0.3).angle_between(s.orientation(t - 0.3))
-                            > 1e-9
-                            || s.angles(t).3 != 0.0;
-                        !moving
-                    }
+                    move |t: f64| s.is_still(t)
                 };
                 let end = scenario.duration();
                 record_motion(scenario, sensor, seed, end, still)
@@ -532,6 +536,12 @@ fn percentile(mut v: Vec<f64>, p: f64) -> f64 {
 /// the camera's sightings not given to it (a 6-axis run).
 pub fn score(kind: FilterKind, rec: &Recording) -> FilterScore {
     score_filter(&mut *kind.build(), rec)
+}
+
+/// As [`score`], the filter built for samples every `sample_period_s` seconds
+/// ([`FilterKind::build_for_period`]): the device's true period.
+pub fn score_at_period(kind: FilterKind, rec: &Recording, sample_period_s: f64) -> FilterScore {
+    score_filter(&mut *kind.build_for_period(sample_period_s), rec)
 }
 
 /// As [`score`], with the camera's sightings of the bar ([`Recording::bar`]) handed to the
