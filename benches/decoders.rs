@@ -11,8 +11,12 @@ use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 fn reports(kind: ControllerKind, link: Link, n: usize) -> Vec<Vec<u8>> {
     let mut pad = EmulatedPad::new(PadEmulatorConfig::new(kind, link));
     if switch::is_switch(kind) {
-        pad.write(&switch::subcommand_report(1, switch::SUB_INPUT_MODE, &[0x30]))
-            .unwrap();
+        pad.write(&switch::subcommand_report(
+            1,
+            switch::SUB_INPUT_MODE,
+            &[0x30],
+        ))
+        .unwrap();
         pad.write(&switch::subcommand_report(2, switch::SUB_IMU, &[0x01]))
             .unwrap();
     } else {

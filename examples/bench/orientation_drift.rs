@@ -275,9 +275,7 @@ fn main() {
     if pad.is_some() && sets.contains(&SessionSet::Pointing) {
         cli::fail("the pointing set needs an IR camera (a Wii Remote)", USAGE);
     }
-    let rate_hz = pad
-        .as_ref()
-        .map_or(100.0, |p| p.sensors.sample_rate_hz());
+    let rate_hz = pad.as_ref().map_or(100.0, |p| p.sensors.sample_rate_hz());
     let run = RunSettings {
         pad,
         ideal,

@@ -97,12 +97,14 @@ fn main() {
         cli::fail("--device is required", USAGE);
     };
     let decoder = PadDecoder::new(device, link).unwrap_or_else(|e| cli::fail(e, USAGE));
-    let (mut lines, mut decoded, mut errors, mut samples, mut crc_failures) = (0u64, 0u64, 0u64, 0u64, 0u64);
+    let (mut lines, mut decoded, mut errors, mut samples, mut crc_failures) =
+        (0u64, 0u64, 0u64, 0u64, 0u64);
     let stdin = std::io::stdin();
     for line in stdin.lock().lines() {
         let Ok(line) = line else { break };
         lines += 1;
-        let result = parse_hex(&line).and_then(|bytes| decoder.decode(&bytes).map_err(|e| e.to_string()));
+        let result =
+            parse_hex(&line).and_then(|bytes| decoder.decode(&bytes).map_err(|e| e.to_string()));
         match result {
             Ok(report) => {
                 decoded += 1;

@@ -131,10 +131,7 @@ impl FilterKind {
     pub fn build_for_period(self, sample_period_s: f64) -> Box<dyn OrientationFilter> {
         match self {
             FilterKind::Fusion => Box::new(FusionFilter::new(sample_period_s)),
-            FilterKind::Vqf => Box::new(VqfFilter::new(
-                sample_period_s,
-                vqf_rs::Params::default(),
-            )),
+            FilterKind::Vqf => Box::new(VqfFilter::new(sample_period_s, vqf_rs::Params::default())),
             other => other.build(),
         }
     }

@@ -85,14 +85,17 @@ impl DriftScenario {
         START_STILL + self.cycles as f64 * CYCLE + END_STILL
     }
 
-    /// (yaw, elevation, roll in degrees, swing angle in degrees).
     /// Whether the scripted remote holds still at `t` (scored as still).
     pub fn is_still(&self, t: f64) -> bool {
-        let moving = self.orientation(t + 0.3).angle_between(self.orientation(t - 0.3)) > 1e-9
+        let moving = self
+            .orientation(t + 0.3)
+            .angle_between(self.orientation(t - 0.3))
+            > 1e-9
             || self.angles(t).3 != 0.0;
         !moving
     }
 
+    /// (yaw, elevation, roll in degrees, swing angle in degrees).
     fn angles(&self, t: f64) -> (f64, f64, f64, f64) {
         if t < START_STILL {
             return (0.0, 0.0, 0.0, 0.0);
