@@ -64,7 +64,7 @@ fn report_json(r: &PadReport) -> Value {
 
 fn parse_hex(line: &str) -> Result<Vec<u8>, String> {
     let digits: String = line.chars().filter(|c| !c.is_whitespace()).collect();
-    if digits.len() % 2 != 0 {
+    if !digits.len().is_multiple_of(2) {
         return Err(format!("odd number of hex digits ({})", digits.len()));
     }
     (0..digits.len())

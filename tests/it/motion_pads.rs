@@ -73,7 +73,7 @@ fn a_real_resting_dualshock4_reads_one_g_up() {
     // On its cable, full.
     let battery = decoded.battery.unwrap();
     assert!(
-        battery.charging == false && battery.percent == 100,
+        !battery.charging && battery.percent == 100,
         "{battery:?}"
     );
     // Its sensor clock: 0x0C26 ticks of 16/3 µs.

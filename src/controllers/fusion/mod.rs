@@ -14,16 +14,16 @@
 //!
 //! Orientation is world←body with world Z up and the body axes of §5.3.
 
-mod fusion;
 mod heading;
+mod ours;
 mod paper;
 mod raw;
 mod stillness;
 mod vqf;
 
-pub use fusion::FusionFilter;
 use glam::{DQuat, DVec3};
 pub use heading::BarHeading;
+pub use ours::FusionFilter;
 pub use paper::PaperFilter;
 pub use raw::RawIntegration;
 pub use stillness::StillnessBias;

@@ -323,10 +323,8 @@ impl EmulatedPad {
                 let args = &report[11..];
                 let mut data = Vec::new();
                 match id {
-                    switch::SUB_INPUT_MODE => {
-                        if args.first() == Some(&switch::FULL_REPORT) {
-                            self.full_mode = true;
-                        }
+                    switch::SUB_INPUT_MODE if args.first() == Some(&switch::FULL_REPORT) => {
+                        self.full_mode = true;
                     }
                     switch::SUB_IMU => self.imu_on = args.first() == Some(&1),
                     switch::SUB_SPI_READ if args.len() >= 5 => {

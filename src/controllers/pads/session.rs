@@ -297,14 +297,14 @@ impl<T: Transport> PadSession<T> {
                 timestamp_us: now_us,
             });
         }
-        if let Some(b) = report.battery {
-            if self.battery != Some(b.percent) {
-                self.battery = Some(b.percent);
-                self.push(SessionEvent::Battery {
-                    level: (b.percent as u16 * 2).min(200) as u8,
-                    low: b.percent <= 10 && !b.charging,
-                });
-            }
+        if let Some(b) = report.battery
+            && self.battery != Some(b.percent)
+        {
+            self.battery = Some(b.percent);
+            self.push(SessionEvent::Battery {
+                level: (b.percent as u16 * 2).min(200) as u8,
+                low: b.percent <= 10 && !b.charging,
+            });
         }
         let samples = report.samples();
         if samples.is_empty() {

@@ -5,7 +5,7 @@ use glam::DVec3;
 
 use super::{
     FULL_REPORT, NOMINAL_ACCEL_DIVISOR, NOMINAL_GYRO_DIVISOR, REPLY_REPORT, SIMPLE_REPORT,
-    SPI_FACTORY_IMU, SPI_USER_IMU, USB_REPLY_REPORT,
+    SPI_FACTORY_IMU, USB_REPLY_REPORT,
 };
 use crate::controllers::rng::Rng;
 use crate::controllers::{ControllerKind, PadButtons};
@@ -63,10 +63,9 @@ impl SwitchUnit {
         (0..len as u32)
             .map(|i| {
                 let a = addr + i;
+                // Everything else erased, the user block included (no B2 A1 magic).
                 if (SPI_FACTORY_IMU..SPI_FACTORY_IMU + 24).contains(&a) {
                     self.factory[(a - SPI_FACTORY_IMU) as usize]
-                } else if (SPI_USER_IMU..SPI_USER_IMU + 26).contains(&a) {
-                    0xFF // no user calibration: no B2 A1 magic
                 } else {
                     0xFF
                 }

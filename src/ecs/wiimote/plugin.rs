@@ -234,15 +234,15 @@ fn receive_wiimote_events(
     mut writers: WiimoteWriters,
     mut open_problems: ResMut<WiimoteProblems>,
     settings: Res<WiimoteSettings>,
-    mut smoothing: Local<Vec<(u32, SmoothedPointer)>>,
-    mut gyro_pointers: Local<Vec<(u32, GyroPointer)>>,
+    mut pointers: Local<PointerStates>,
 ) {
+    let PointerStates { smoothing, gyro } = &mut *pointers;
     let mut out = EventOutputs {
         writers: &mut writers,
         open_problems: &mut open_problems,
         settings: &settings,
-        smoothing: &mut smoothing,
-        gyro_pointers: &mut gyro_pointers,
+        smoothing,
+        gyro_pointers: gyro,
     };
     // Entities spawned this frame are not queryable yet: buffer their state locally.
     let mut spawned: Vec<(Entity, Wiimote)> = Vec::new();
@@ -289,6 +289,13 @@ fn receive_wiimote_events(
     for (e, w) in spawned {
         commands.entity(e).try_insert(w);
     }
+}
+
+/// Each controller's pointer state: the IR pointer's smoothing, the gyro pointer.
+#[derive(Default)]
+struct PointerStates {
+    smoothing: Vec<(u32, SmoothedPointer)>,
+    gyro: Vec<(u32, GyroPointer)>,
 }
 
 /// Where a remote's events go besides its component.
