@@ -72,10 +72,7 @@ fn a_real_resting_dualshock4_reads_one_g_up() {
     assert!(s.gyro_rps.length().to_degrees() < 2.0);
     // On its cable, full.
     let battery = decoded.battery.unwrap();
-    assert!(
-        !battery.charging && battery.percent == 100,
-        "{battery:?}"
-    );
+    assert!(!battery.charging && battery.percent == 100, "{battery:?}");
     // Its sensor clock: 0x0C26 ticks of 16/3 µs.
     assert!((s.device_time_s.unwrap() - 3110.0 * 16.0 / 3.0e6).abs() < 1e-12);
 }
