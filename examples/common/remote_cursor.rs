@@ -49,6 +49,9 @@ impl Plugin for RemoteCursorPlugin {
 #[derive(Component)]
 struct RemoteCursor;
 
+/// Seconds the emulated controller rests before it sweeps.
+const REST_S: f64 = 3.0;
+
 const RING: f32 = 18.0;
 
 fn spawn_cursor(mut commands: Commands) {
@@ -93,12 +96,15 @@ fn move_cursor(
     }
 }
 
-/// The emulated remote aims at a slow figure-eight over the screen's middle (standing at the
-/// room's standing point, rolled a little), so the ring has something to show.
+/// The emulated controller rests on the table for its first [`REST_S`] seconds (a pad's gyro
+/// bias is estimated at rest: without a camera nothing else holds its heading), then aims at a
+/// slow figure-eight over the screen's middle (standing at the room's standing point, rolled a
+/// little), so the ring has something to show.
 fn sweep_emulated_remote(emulators: Res<WiimoteEmulators>) {
     let setup = PointerSetup::default();
     for controls in &emulators.0 {
         controls.set_motion(Arc::new(FnMotion(move |t: f64| {
+            let t = (t - REST_S).max(0.0);
             let spot = glam::DVec2::new(0.5 + 0.25 * (0.2 * t).sin(), 0.5 + 0.15 * (0.4 * t).sin());
             let target = setup.screen_point(spot);
             let roll = 0.2 * (0.3 * t).sin();
