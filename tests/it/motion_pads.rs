@@ -28,6 +28,69 @@ const DS4_USB_RESTING: &str = "01808080800800c40000260c00f0fff9ffeeffea00681f0e0
 const DS4_USB_CALIBRATION: &str =
     "020000000000007d22dcdd7d22dcdd7d22dcdd1c021c02002000e0002000e0002000e00700";
 
+// A DualSense's Bluetooth full report 0x31 (a pad lying still, buttons released), cut from an
+// HCI trace of a real DualSense talking to a BlueRetro adapter (darthcloud/bt_traces,
+// blueretro_logs/blueretro_v0.8_ps5_dualsense_inquiry_cfg_0x31.txt, its first input report 0x31;
+// the `A1` header byte stripped as hidapi delivers it). Device output, one report.
+const DUALSENSE_BT_REPORT: &str = "31217f807f8000000108000000c1c672880700fdfffdffa000761f85f75e035501008000000080000000000909000000000012145501040000979a894da9090e99000000000000000000eb58c020";
+
+// A Switch Pro Controller's reply to an SPI read of its stick calibration (0x603D, 18 bytes)
+// and one of its full reports 0x30 with the IMU off, from the same collection
+// (blueretro_logs/sw_pro_trace.txt).
+const SWITCH_PRO_SPI_REPLY: &str = "21234000000027687fcd277a0090103d60000012f56564e1477ff8d564b16779f0755fbc75620000000000000000000000";
+const SWITCH_PRO_FULL_IMU_OFF: &str = "303e4000000027787fce277a00000000000000000000000000000000000000000000000000000000000000000000000000";
+
+#[test]
+fn a_real_dualsense_bluetooth_report_checks_its_crc_and_reads_one_g() {
+    let report = hex(DUALSENSE_BT_REPORT);
+    let decoder = PadDecoder::new(ControllerKind::DualSense, Link::Bluetooth).unwrap();
+    let decoded = decoder.decode(&report).unwrap();
+    assert_eq!(decoded.crc_ok, Some(true));
+    let s = decoded.samples()[0];
+    let g = s.accel_mps2.length() / 9.80665;
+    // Datasheet scale (no calibration report in the trace): 1 g within 2 %.
+    assert!((g - 1.0).abs() < 0.02, "|a| = {g} g");
+    // Mostly along the face's normal (+Z in the body frame): it lies on a table, tilted.
+    assert!(
+        s.accel_mps2.z / s.accel_mps2.length() > 0.9,
+        "{}",
+        s.accel_mps2
+    );
+    assert!(s.gyro_rps.length().to_degrees() < 1.0);
+    // The pad's clock: 0x0155035E ticks of 1/3 µs.
+    assert!((s.device_time_s.unwrap() - 0x0155_035E as f64 / 3.0e6).abs() < 1e-12);
+    assert_eq!(
+        decoded.buttons,
+        bevy_wii_deform::controllers::PadButtons {
+            raw: 0x08,
+            ..Default::default()
+        }
+    );
+    // One bit off anywhere before the CRC and it no longer checks.
+    let mut flipped = report.clone();
+    flipped[30] ^= 0x01;
+    assert_eq!(decoder.decode(&flipped).unwrap().crc_ok, Some(false));
+}
+
+#[test]
+fn real_switch_pro_replies_and_reports_decode() {
+    let reply = switch::parse_reply(&hex(SWITCH_PRO_SPI_REPLY)).unwrap();
+    assert!(reply.ack);
+    assert_eq!(reply.id, switch::SUB_SPI_READ);
+    let data = switch::spi_data(&reply, 0x603D).unwrap();
+    assert_eq!(data.len(), 18);
+    assert_eq!(&data[..3], &[0xF5, 0x65, 0x64]);
+    // Asked for another address, the reply does not fit.
+    assert!(switch::spi_data(&reply, 0x6020).is_err());
+    // A full report before the IMU is enabled: a typed "IMU off", not zero samples.
+    let full = hex(SWITCH_PRO_FULL_IMU_OFF);
+    let cal = SwitchCalibration::nominal();
+    assert_eq!(
+        switch::decode(ControllerKind::SwitchPro, &full, &cal),
+        Err(DecodeError::ImuOff)
+    );
+}
+
 #[test]
 fn a_real_dualshock4_calibration_report_parses_as_linux_reads_it() {
     let report = hex(DS4_USB_CALIBRATION);
