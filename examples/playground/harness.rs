@@ -11,7 +11,7 @@ use bevy_wii_deform::controllers::ControllerKind;
 use bevy_wii_deform::prelude::*;
 
 use crate::screenshot::{ScreenshotPlugin, UnattendedFrame};
-use crate::{Bar, cli, remote_cursor};
+use crate::{Bar, Cactus, cli, remote_cursor};
 
 const USAGE: &str = "\
 usage: playground [--pointer [emulated[=KIND]]] [--wobble] [--screenshot PATH [--frames N]]
@@ -21,7 +21,9 @@ usage: playground [--pointer [emulated[=KIND]]] [--wobble] [--screenshot PATH [-
                         scripted dualsense, ds4, switch-pro, joycon-l or joycon-r)
   --wobble              things wobble and spring back when let go (W switches it)
   --screenshot PATH     bend the bar by a scripted grab, save frame N to PATH, exit
-  --frames N            the frame to save (default 60)";
+  --frames N            the frame to save (default 60)
+  --drag bar|cactus     with --screenshot: a scripted two-second drag of that thing, released
+                        before the frame is saved (the log gives grab → first pose and solves/s)";
 
 /// The playground's command line.
 #[derive(Debug, Clone, Default)]
@@ -34,6 +36,9 @@ pub struct Options {
     screenshot: Option<String>,
     /// `--frames N`.
     frames: u32,
+    /// `--drag bar|cactus`: a scripted 120-frame drag of the bar (`false`) or the cactus
+    /// (`true`) instead of the short grab.
+    drag: Option<bool>,
 }
 
 impl Options {
@@ -54,6 +59,13 @@ impl Options {
                 }
                 cli::Arg::Long("frames") => options.frames = cli::value(&mut parser, USAGE),
                 cli::Arg::Long("wobble") => options.wobble = true,
+                cli::Arg::Long("drag") => {
+                    options.drag = Some(match cli::string(&mut parser, USAGE).as_str() {
+                        "bar" => false,
+                        "cactus" => true,
+                        other => cli::fail(format!("unknown thing to drag {other:?}"), USAGE),
+                    })
+                }
                 other => cli::unexpected(other, USAGE),
             }
         }
@@ -67,7 +79,9 @@ pub struct HarnessPlugin(pub Options);
 impl Plugin for HarnessPlugin {
     fn build(&self, app: &mut App) {
         app.insert_resource(Wobble(self.0.wobble))
-            .add_systems(Update, (switch_wobble, make_things_wobble).chain());
+            .insert_resource(ScriptedDrag(self.0.drag))
+            .add_systems(Update, (switch_wobble, make_things_wobble).chain())
+            .add_systems(Last, report_grabs);
         if let Some(emulated) = self.0.pointer {
             // A motion controller as a second pointer: A grabs where it points.
             app.add_plugins((
@@ -119,38 +133,115 @@ fn make_things_wobble(
     }
 }
 
-/// Grabs the bar's tip at a third of the run and drags it for ten frames.
+/// The scripted drag's length in frames (`--drag`); the short grab's is 10.
+const LONG_DRAG: u32 = 120;
+
+/// Grabs the bar's tip (or, with `--drag cactus`, the cactus's top) at a third of the run and
+/// drags it: for ten frames, or with `--drag` for 120 frames and then lets go.
 fn grab_the_bar(
     frame: Res<UnattendedFrame>,
     shot: Res<ScreenshotPlugin>,
+    drag: Res<ScriptedDrag>,
     bar: Single<(Entity, &GlobalTransform), With<Bar>>,
+    cactus: Query<(Entity, &GlobalTransform), With<Cactus>>,
     camera: Single<(Entity, &Camera, &GlobalTransform)>,
     mut grab: MessageWriter<GrabStart>,
     mut moves: MessageWriter<GrabMove>,
+    mut ends: MessageWriter<GrabEnd>,
 ) {
     let frame = frame.0;
     let start = shot.frames / 3;
-    let (bar, bar_transform) = *bar;
+    let (target, transform, tip) = match (drag.0, cactus.single()) {
+        (Some(true), Ok((cactus, transform))) => (cactus, transform, Vec3::new(0.0, 1.0, 0.0)),
+        _ => (bar.0, bar.1, Vec3::new(0.0, 1.2, 0.0)),
+    };
     let (camera, cam, cam_transform) = *camera;
-    let tip = bar_transform.transform_point(Vec3::new(0.0, 1.2, 0.0));
+    let tip = transform.transform_point(tip);
     let pointer = PointerId::Mouse;
+    let frames = if drag.0.is_some() { LONG_DRAG } else { 10 };
     if frame == start {
         grab.write(GrabStart {
             pointer,
-            entity: bar,
+            entity: target,
             point: tip,
             camera,
         });
     }
     if frame > start
-        && frame <= start + 10
+        && frame <= start + frames
         && let Ok(from) = cam.world_to_viewport(cam_transform, tip)
     {
+        // A long drag sweeps back and forth, so the pose keeps changing.
+        let sweep = if drag.0.is_some() {
+            ((frame - start) as f32 * 0.1).sin() * 3.0
+        } else {
+            1.0
+        };
         moves.write(GrabMove {
             pointer,
             from,
-            to: from + Vec2::new(14.0, 6.0),
+            to: from + Vec2::new(14.0, 6.0) * sweep,
             rotate: false,
         });
+    }
+    if drag.0.is_some() && frame == start + frames + 1 {
+        ends.write(GrabEnd { pointer });
+    }
+}
+
+/// `--drag`: which thing the unattended run drags for long (`Some(true)`: the cactus).
+#[derive(Resource)]
+struct ScriptedDrag(Option<bool>);
+
+/// A grab's figures so far.
+#[derive(Default)]
+struct GrabFigures {
+    entity: Option<Entity>,
+    started: Option<bevy::platform::time::Instant>,
+    posed: bool,
+    solves: u32,
+}
+
+/// Logs how a grab went: from the press (`GrabStart`) to the grabbed mesh's first
+/// `DeformSolved` ("grab to first pose"), and at the release how many solves landed per second
+/// while it was held. The web test reads these lines from the browser's console.
+fn report_grabs(
+    mut starts: MessageReader<GrabStart>,
+    mut ends: MessageReader<GrabEnd>,
+    mut solved: MessageReader<DeformSolved>,
+    mut grab: Local<GrabFigures>,
+) {
+    for start in starts.read() {
+        *grab = GrabFigures {
+            entity: Some(start.entity),
+            started: Some(bevy::platform::time::Instant::now()),
+            ..default()
+        };
+    }
+    for s in solved.read() {
+        if grab.entity != Some(s.entity) {
+            continue;
+        }
+        grab.solves += 1;
+        if !grab.posed
+            && let Some(at) = grab.started
+        {
+            grab.posed = true;
+            info!(
+                "grab to first pose: {:.1} ms",
+                at.elapsed().as_secs_f64() * 1e3
+            );
+        }
+    }
+    if ends.read().count() > 0
+        && let Some(at) = grab.started.take()
+    {
+        let held = at.elapsed().as_secs_f64();
+        info!(
+            "grab released: {} solves in {held:.2} s, {:.1} solves/s",
+            grab.solves,
+            grab.solves as f64 / held.max(1e-9)
+        );
+        *grab = GrabFigures::default();
     }
 }

@@ -40,6 +40,10 @@ fn main() {
 #[derive(Component)]
 pub struct Bar;
 
+/// Marks the cactus (the unattended `--drag cactus` run grabs it).
+#[derive(Component)]
+pub struct Cactus;
+
 fn setup(
     mut commands: Commands,
     mut meshes: ResMut<Assets<Mesh>>,
@@ -83,13 +87,14 @@ fn setup(
         Transform::from_xyz(-0.3, 0.65, 0.0),
         bendable.clone(),
     ));
-    match TriMesh::read("assets/models/cactus.obj") {
+    match cactus() {
         Ok(cactus) => {
             commands.spawn((
                 Mesh3d(meshes.add(mesh_from_triangles(&cactus.positions, &cactus.triangles))),
                 material(0.3, 0.7, 0.3),
                 Transform::from_xyz(0.6, 0.0, 0.0),
                 bendable.clone(),
+                Cactus,
             ));
         }
         Err(e) => warn!("no cactus ({e}); run `cargo run --example make_assets`"),
@@ -101,4 +106,13 @@ fn setup(
         Transform::from_xyz(1.5, 0.0, 0.0).with_scale(Vec3::splat(0.6)),
         bendable,
     ));
+}
+
+/// The cactus: read from `assets/` on the desktop; compiled into the page on the web, which has
+/// no file system (the core parses bytes as well as files).
+fn cactus() -> Result<TriMesh, bevy_wii_deform::deform::MeshIoError> {
+    #[cfg(target_arch = "wasm32")]
+    return TriMesh::parse_obj(include_str!("../../assets/models/cactus.obj"));
+    #[cfg(not(target_arch = "wasm32"))]
+    TriMesh::read("assets/models/cactus.obj")
 }

@@ -59,7 +59,7 @@ pub use hid::*;
 
 #[cfg(feature = "hidapi")]
 mod hid {
-    use std::time::Instant;
+    use web_time::Instant;
 
     use super::{Transport, TransportError};
     use crate::controllers::wiimote::protocol::{

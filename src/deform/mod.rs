@@ -46,7 +46,7 @@ pub use parallel::{SERIAL_BELOW, Threading};
 pub use preview::{Preview, PreviewRegion};
 pub use rotation::{best_rotation_exact, fit_rotation_warm};
 pub use solver::{
-    Acceleration, ArapSolver, Factorization, FillOrdering, InitialGuess, PrecomputeStats, Solution,
-    SolveError, SolveOptions, SolveStats, SolverSettings,
+    Acceleration, ArapSolver, Factorization, FillOrdering, InitialGuess, PrecomputeStats,
+    SliceProgress, SlicedSolve, Solution, SolveError, SolveOptions, SolveStats, SolverSettings,
 };
 pub use topology::{MeshError, Topology, WeightMode, WeldPolicy};

@@ -29,10 +29,12 @@ pub enum Threading {
 pub const SERIAL_BELOW: usize = 3800;
 
 impl Threading {
-    /// Whether loops over `rows` free vertices run on rayon's pool.
+    /// Whether loops over `rows` free vertices run on rayon's pool. On the web
+    /// (`wasm32`, no threads) [`Threading::Auto`] is always serial: rayon would run the pieces
+    /// on the calling thread anyway, after the cost of handing them over.
     pub fn parallel_for(self, rows: usize) -> bool {
         match self {
-            Self::Auto => rows >= SERIAL_BELOW,
+            Self::Auto => !cfg!(target_arch = "wasm32") && rows >= SERIAL_BELOW,
             Self::Serial => false,
             Self::Parallel => true,
         }

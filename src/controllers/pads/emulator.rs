@@ -3,7 +3,7 @@
 //! for byte, with the device's rate, quantisation, noise and bias.
 
 use std::collections::VecDeque;
-use std::time::Instant;
+use web_time::Instant;
 
 use glam::DVec3;
 

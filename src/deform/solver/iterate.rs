@@ -2,7 +2,7 @@
 //! energy. All keep the energy from rising: an accelerated iterate that does not lower it is
 //! replaced by the plain local/global step, which never raises it.
 
-use std::time::Instant;
+use web_time::Instant;
 
 use glam::{DMat3, DQuat, DVec3};
 

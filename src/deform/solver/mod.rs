@@ -9,6 +9,7 @@ use super::rotation::{add_outer, fit_rotation_warm};
 use super::topology::{MeshError, Topology, WeightMode};
 use glam::{DMat3, DQuat, DVec3};
 
+mod budget;
 mod contacts;
 mod iterate;
 mod layout;
@@ -18,6 +19,7 @@ mod solve;
 mod system;
 use super::lbfgs::Lbfgs;
 use super::parallel::{Threading, for_chunks, sum_chunks_pair, zip_chunks};
+pub use budget::{SliceProgress, SlicedSolve};
 use layout::CellKind;
 pub(crate) use layout::Layout;
 use system::LazyFactor;

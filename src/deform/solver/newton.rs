@@ -5,7 +5,7 @@
 //! `M = Rᵀ dA`. Where the local/global iteration crawls along soft modes (a limb swinging on a
 //! thin joint costs little energy but much Laplacian motion), Newton sees their true curvature.
 
-use std::time::Instant;
+use web_time::Instant;
 
 use glam::{DMat3, DVec3};
 

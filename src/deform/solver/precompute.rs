@@ -1,7 +1,7 @@
 //! Precompute: a constraint set's free vertices, their elimination order and factor.
 
 use std::sync::Arc;
-use std::time::Instant;
+use web_time::Instant;
 
 use faer::Side;
 use faer::sparse::SymbolicSparseColMatRef;

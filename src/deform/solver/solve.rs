@@ -1,6 +1,6 @@
 //! A solve: the starting state, the iterations of the chosen acceleration, the result.
 
-use std::time::Instant;
+use web_time::Instant;
 
 use glam::{DMat3, DQuat, DVec3};
 

@@ -68,7 +68,11 @@ pub enum OptionalPreviewReflect {
 #[derive(Resource, Debug, Clone, Reflect)]
 #[reflect(Resource)]
 pub struct DeformConfig {
-    /// Iterations per solve when a [`Deformable`] does not override them.
+    /// Iterations per solve when a [`Deformable`] does not override them. This is also the
+    /// per-frame budget where solves cannot leave the frame's thread (the web: Bevy's task
+    /// pools run on the browser's main thread, so a task runs between two frames): one solve
+    /// per mesh and frame at most, the next warm-started from it (settling, or the latest
+    /// request — a newer one still wins), as [`crate::deform::SlicedSolve`] does in the core.
     pub max_iterations: u32,
     /// Relative energy decrease below which a solve stops early.
     pub tolerance: f32,

@@ -4,7 +4,7 @@
 //! pose) and [`SolveJob::run`] runs it; [`store_landed`] stores the result.
 
 use std::sync::Arc;
-use std::time::Instant;
+use web_time::Instant;
 
 use super::blend::{BlendMemory, additive_layer};
 use super::state::{LastSolve, PoseDrivers, PoseSolves};

@@ -3,7 +3,7 @@
 //! with the effector, stiffness and hinge terms (`gauss_newton.rs`, `effector_terms.rs`,
 //! `hinges.rs`), and takes one damped step that lowers the energy (`step.rs`).
 
-use std::time::Instant;
+use web_time::Instant;
 
 use glam::{DAffine3, DQuat};
 

@@ -9,7 +9,7 @@
 //! ([`PointingScenario`], the IR camera on: [`score_with_bar`] scores a filter fed with the
 //! bar's sightings, `ours_ir` in the benchmark).
 
-use std::time::Instant;
+use web_time::Instant;
 
 use glam::{DQuat, DVec2, DVec3};
 

@@ -13,7 +13,7 @@
 //! [`Motion`]: crate::controllers::wiimote::Motion
 
 use std::collections::VecDeque;
-use std::time::Instant;
+use web_time::Instant;
 
 use glam::{DQuat, DVec3};
 

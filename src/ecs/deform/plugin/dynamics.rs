@@ -52,7 +52,7 @@ type Stepped = Result<Option<Steps>, SolveError>;
 /// Runs the steps `dt` holds (above the ground when `ground` is given: handles lifted onto
 /// it, vertices kept above it) and builds what the frame shows.
 fn run_steps(motion: &mut Motion, job: &StepJob, dt: f64) -> Stepped {
-    let t0 = std::time::Instant::now();
+    let t0 = web_time::Instant::now();
     let positions = job.rest.topology.positions();
     let obstacle = job.ground.as_ref().and_then(|g| g.obstacle(positions));
     let lifted;

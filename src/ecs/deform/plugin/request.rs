@@ -307,7 +307,7 @@ impl SolveJob {
     /// Factors (if needed) and solves; stops early when `cancellation` says a newer request
     /// arrived.
     fn run(&self, cancellation: &Cancellation) -> SolveOutput {
-        let t0 = std::time::Instant::now();
+        let t0 = web_time::Instant::now();
         let result = self.solve(cancellation);
         let unsettled = result
             .as_ref()

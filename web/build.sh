@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# Builds the playground for the web into web/dist/, ready to serve as static files:
+#   bash web/build.sh && python3 -m http.server -d web/dist
+# then open http://localhost:8000. Installs what it needs: the wasm32 target, and
+# wasm-bindgen-cli at the version Cargo.lock pins (the CLI must match the library exactly).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$HOME/.cache/bevy_wii_deform/target}"
+
+if ! rustup target list --installed | grep -qx wasm32-unknown-unknown; then
+  rustup target add wasm32-unknown-unknown
+fi
+version=$(awk '$0 == "name = \"wasm-bindgen\"" { getline; gsub(/"/, "", $3); print $3; exit }' Cargo.lock)
+if ! command -v wasm-bindgen >/dev/null 2>&1 || ! wasm-bindgen --version | grep -qF " $version"; then
+  cargo install wasm-bindgen-cli --version "$version"
+fi
+
+# No hidapi in a browser; the `web` profile is release without debug info.
+cargo build --profile web --target wasm32-unknown-unknown --no-default-features --example playground
+
+dist=web/dist
+rm -rf "$dist"
+mkdir -p "$dist/assets/models"
+wasm-bindgen --target web --no-typescript --out-dir "$dist" --out-name playground \
+  "$CARGO_TARGET_DIR/wasm32-unknown-unknown/web/examples/playground.wasm"
+cp web/index.html "$dist/"
+# What the playground loads over HTTP (the cactus is compiled in).
+cp assets/models/alien.glb "$dist/assets/models/"
+echo "built $dist ($(du -sh "$dist" | cut -f1)); serve it with: python3 -m http.server -d $dist"

@@ -1,0 +1,168 @@
+// The web playground in headless Chromium: waits for the first rendered frame, presses on the
+// bar, drags and releases with real input events, and checks that the bar bent where the drag
+// went and that the console holds no error or panic. Prints one JSON object as its last line.
+//
+//   node web/test.mjs URL [SCREENSHOT_DIR]
+//
+// The bar is found by its colour (the playground's red bar, left of the scene): no coordinates
+// are assumed, so a moved camera does not break the test, a bar that does not bend does.
+
+import { chromium } from "playwright-core";
+import { PNG } from "pngjs";
+import { mkdirSync, writeFileSync } from "node:fs";
+
+const url = process.argv[2] ?? "http://127.0.0.1:8123/";
+const shots = process.argv[3] ?? "web/dist/screenshots";
+mkdirSync(shots, { recursive: true });
+
+/** Pixels of a colour class in a horizontal band of the screenshot: their vertical extent
+ *  and the mean x of the top and bottom tenths. `red`: the playground's bar (left half);
+ *  `green`: the cactus (between the middle and 70 % of the width). */
+function find(png, kind) {
+  const { width, height, data } = PNG.sync.read(png);
+  const [x0, x1] = kind === "red" ? [0, width / 2] : [width / 2, 0.7 * width];
+  const points = [];
+  for (let y = 0; y < height; y += 1) {
+    for (let x = Math.floor(x0); x < x1; x += 1) {
+      const i = 4 * (y * width + x);
+      const [r, g, b] = [data[i], data[i + 1], data[i + 2]];
+      const hit =
+        kind === "red"
+          ? r > 120 && r > 2.2 * g && r > 2.2 * b
+          : g > 100 && g > 1.6 * r && g > 1.6 * b;
+      if (hit) points.push([x, y]);
+    }
+  }
+  if (points.length < 200) return null;
+  const ys = points.map((p) => p[1]);
+  const top = Math.min(...ys);
+  const bottom = Math.max(...ys);
+  const band = (from, to) => {
+    const inBand = points.filter(([, y]) => y >= from && y <= to);
+    return inBand.reduce((s, [x]) => s + x, 0) / Math.max(inBand.length, 1);
+  };
+  const h = bottom - top;
+  return {
+    top,
+    bottom,
+    count: points.length,
+    topX: band(top, top + 0.1 * h),
+    bottomX: band(bottom - 0.1 * h, bottom),
+  };
+}
+const findBar = (png) => find(png, "red");
+
+const browser = await chromium.launch({
+  executablePath: process.env.CHROMIUM ?? "/usr/bin/chromium",
+  headless: true,
+  args: [
+    "--no-sandbox",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+    "--disable-quic",
+    // WebGL2 on the CPU: SwiftShader.
+    "--use-angle=swiftshader",
+    "--enable-unsafe-swiftshader",
+    "--ignore-gpu-blocklist",
+  ],
+});
+const page = await browser.newPage({ viewport: { width: 1280, height: 720 } });
+const errors = [];
+const firstPoses = [];
+const solveRates = [];
+page.on("console", (message) => {
+  const text = message.text();
+  const pose = /grab to first pose: ([0-9.]+) ms/.exec(text);
+  if (pose) firstPoses.push(Number(pose[1]));
+  const rate = /grab released: \d+ solves in [0-9.]+ s, ([0-9.]+) solves\/s/.exec(text);
+  if (rate) solveRates.push(Number(rate[1]));
+  if (message.type() === "error" || /panicked/.test(text)) errors.push(text);
+});
+page.on("pageerror", (error) => errors.push(String(error)));
+
+const started = Date.now();
+await page.goto(url);
+let bar = null;
+let firstFrame = null;
+while (Date.now() - started < 120_000) {
+  bar = findBar(await page.screenshot());
+  if (bar) {
+    firstFrame = (Date.now() - started) / 1000;
+    break;
+  }
+  await page.waitForTimeout(250);
+}
+const result = {
+  rendered: bar !== null,
+  bent: false,
+  console_errors: 0,
+  first_frame_s: firstFrame,
+  grab_to_first_pose_ms: null,
+  fps_while_dragging: null,
+};
+/** Presses near the top of `thing`, drags it right and down over `seconds` with real mouse
+ *  events, holds, screenshots, releases. Returns the frames per second the page rendered while
+ *  dragging and the held screenshot. */
+async function drag(thing, seconds, name) {
+  const x = Math.round(thing.topX);
+  const y = Math.round(thing.top + 0.08 * (thing.bottom - thing.top));
+  await page.evaluate(() => {
+    if (window.__frames !== undefined) return;
+    window.__frames = 0;
+    const tick = () => {
+      window.__frames += 1;
+      requestAnimationFrame(tick);
+    };
+    requestAnimationFrame(tick);
+  });
+  await page.mouse.move(x, y);
+  await page.waitForTimeout(300);
+  await page.mouse.down();
+  const start = Date.now();
+  const frames0 = await page.evaluate(() => window.__frames);
+  const steps = Math.round(seconds * 20);
+  for (let i = 1; i <= steps; i += 1) {
+    await page.mouse.move(x + (180 * i) / steps, y + (40 * i) / steps);
+    await page.waitForTimeout(50);
+  }
+  const frames1 = await page.evaluate(() => window.__frames);
+  const fps = (frames1 - frames0) / ((Date.now() - start) / 1000);
+  await page.waitForTimeout(1500);
+  const held = await page.screenshot();
+  writeFileSync(`${shots}/${name}.png`, held);
+  await page.mouse.up();
+  await page.waitForTimeout(800);
+  return { fps, held };
+}
+
+if (bar) {
+  // Let the scene settle (the glTF scene streams in), then find the bar again.
+  await page.waitForTimeout(2000);
+  const before = await page.screenshot();
+  writeFileSync(`${shots}/before.png`, before);
+  bar = findBar(before);
+  const { fps, held } = await drag(bar, 1.5, "bar_dragged");
+  result.fps_while_dragging = fps;
+  const after = findBar(held);
+  // Bent: the top of the bar followed the drag (to the right), its fixed foot stayed.
+  result.bent =
+    after !== null && after.topX - bar.topX > 40 && Math.abs(after.bottomX - bar.bottomX) < 15;
+  result.bar_top_moved_px = after ? after.topX - bar.topX : null;
+  // The cactus, for the figures (not part of the pass/fail).
+  const cactus = find(await page.screenshot(), "green");
+  if (cactus) {
+    const dragged = await drag(cactus, 2.0, "cactus_dragged");
+    result.cactus_fps_while_dragging = dragged.fps;
+  }
+}
+result.grab_to_first_pose_ms = firstPoses[0] ?? null;
+result.bar_solves_per_s = solveRates[0] ?? null;
+result.cactus_grab_to_first_pose_ms = firstPoses[1] ?? null;
+result.cactus_solves_per_s = solveRates[1] ?? null;
+result.console_errors = errors.length;
+for (const e of errors) console.error(`console: ${e}`);
+await browser.close();
+console.log(JSON.stringify(result));
+process.exit(result.rendered && result.bent && result.console_errors === 0 ? 0 : 1);
