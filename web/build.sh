@@ -21,7 +21,7 @@ cargo build --profile web --target wasm32-unknown-unknown --no-default-features 
 dist=web/dist
 rm -rf "$dist"
 mkdir -p "$dist/assets/models"
-wasm-bindgen --target web --no-typescript --out-dir "$dist" --out-name playground \
+wasm-bindgen --target web --no-typescript --remove-name-section --out-dir "$dist" --out-name playground \
   "$CARGO_TARGET_DIR/wasm32-unknown-unknown/web/examples/playground.wasm"
 cp web/index.html "$dist/"
 # What the playground loads over HTTP (the cactus is compiled in).

@@ -11,7 +11,7 @@ use bevy_wii_deform::controllers::ControllerKind;
 use bevy_wii_deform::prelude::*;
 
 use crate::screenshot::{ScreenshotPlugin, UnattendedFrame};
-use crate::{Bar, Cactus, cli, remote_cursor};
+use crate::{Bar, Cactus, Floor, cli, remote_cursor};
 
 const USAGE: &str = "\
 usage: playground [--pointer [emulated[=KIND]]] [--wobble] [--screenshot PATH [--frames N]]
@@ -23,7 +23,9 @@ usage: playground [--pointer [emulated[=KIND]]] [--wobble] [--screenshot PATH [-
   --screenshot PATH     bend the bar by a scripted grab, save frame N to PATH, exit
   --frames N            the frame to save (default 60)
   --drag bar|cactus     with --screenshot: a scripted two-second drag of that thing, released
-                        before the frame is saved (the log gives grab → first pose and solves/s)";
+                        before the frame is saved (the log gives grab → first pose and solves/s)
+  --light               render as the web build does: a 640×360 window, no multisampling, no
+                        tone mapping, no shadows, an unlit floor (for software GL)";
 
 /// The playground's command line.
 #[derive(Debug, Clone, Default)]
@@ -39,6 +41,8 @@ pub struct Options {
     /// `--drag bar|cactus`: a scripted 120-frame drag of the bar (`false`) or the cactus
     /// (`true`) instead of the short grab.
     drag: Option<bool>,
+    /// `--light` (always on the web): the web build's lighter rendering.
+    light: bool,
 }
 
 impl Options {
@@ -59,6 +63,7 @@ impl Options {
                 }
                 cli::Arg::Long("frames") => options.frames = cli::value(&mut parser, USAGE),
                 cli::Arg::Long("wobble") => options.wobble = true,
+                cli::Arg::Long("light") => options.light = true,
                 cli::Arg::Long("drag") => {
                     options.drag = Some(match cli::string(&mut parser, USAGE).as_str() {
                         "bar" => false,
@@ -69,7 +74,58 @@ impl Options {
                 other => cli::unexpected(other, USAGE),
             }
         }
+        options.light |= cfg!(target_arch = "wasm32");
         options
+    }
+}
+
+/// Bevy's default plugins, without asset `.meta` lookups (the web page serves none, and each
+/// miss is a console error); with `--light` (the web) a smaller window.
+pub fn default_plugins(options: &Options) -> impl PluginGroup {
+    let window = if options.light {
+        // A quarter of the desktop window's pixels: many browsers render WebGL in software
+        // (headless Chromium: SwiftShader), where a frame's cost grows with its pixels.
+        Window {
+            resolution: bevy::window::WindowResolution::new(640, 360),
+            ..default()
+        }
+    } else {
+        Window::default()
+    };
+    DefaultPlugins
+        .set(AssetPlugin {
+            meta_check: bevy::asset::AssetMetaCheck::Never,
+            ..default()
+        })
+        .set(WindowPlugin {
+            primary_window: Some(window),
+            ..default()
+        })
+}
+
+/// On the web (software WebGL in many browsers' sandboxes, one thread): no multisampling, no
+/// tone mapping pass, no shadow maps and an unlit floor, which cost most of a
+/// software-rendered frame.
+fn lighten_for_the_web(
+    mut commands: Commands,
+    cameras: Query<Entity, Added<Camera3d>>,
+    mut lights: Query<&mut DirectionalLight, Added<DirectionalLight>>,
+    floors: Query<&MeshMaterial3d<StandardMaterial>, Added<Floor>>,
+    mut materials: ResMut<Assets<StandardMaterial>>,
+) {
+    for floor in &floors {
+        if let Some(mut material) = materials.get_mut(&floor.0) {
+            material.unlit = true;
+        }
+    }
+    for camera in &cameras {
+        commands.entity(camera).insert((
+            Msaa::Off,
+            bevy::core_pipeline::tonemapping::Tonemapping::None,
+        ));
+    }
+    for mut light in &mut lights {
+        light.shadow_maps_enabled = false;
     }
 }
 
@@ -82,6 +138,9 @@ impl Plugin for HarnessPlugin {
             .insert_resource(ScriptedDrag(self.0.drag))
             .add_systems(Update, (switch_wobble, make_things_wobble).chain())
             .add_systems(Last, report_grabs);
+        if self.0.light {
+            app.add_systems(PostUpdate, lighten_for_the_web);
+        }
         if let Some(emulated) = self.0.pointer {
             // A motion controller as a second pointer: A grabs where it points.
             app.add_plugins((
@@ -145,9 +204,7 @@ fn grab_the_bar(
     bar: Single<(Entity, &GlobalTransform), With<Bar>>,
     cactus: Query<(Entity, &GlobalTransform), With<Cactus>>,
     camera: Single<(Entity, &Camera, &GlobalTransform)>,
-    mut grab: MessageWriter<GrabStart>,
-    mut moves: MessageWriter<GrabMove>,
-    mut ends: MessageWriter<GrabEnd>,
+    mut out: GrabWriters,
 ) {
     let frame = frame.0;
     let start = shot.frames / 3;
@@ -160,7 +217,7 @@ fn grab_the_bar(
     let pointer = PointerId::Mouse;
     let frames = if drag.0.is_some() { LONG_DRAG } else { 10 };
     if frame == start {
-        grab.write(GrabStart {
+        out.start.write(GrabStart {
             pointer,
             entity: target,
             point: tip,
@@ -177,7 +234,7 @@ fn grab_the_bar(
         } else {
             1.0
         };
-        moves.write(GrabMove {
+        out.moves.write(GrabMove {
             pointer,
             from,
             to: from + Vec2::new(14.0, 6.0) * sweep,
@@ -185,8 +242,16 @@ fn grab_the_bar(
         });
     }
     if drag.0.is_some() && frame == start + frames + 1 {
-        ends.write(GrabEnd { pointer });
+        out.ends.write(GrabEnd { pointer });
     }
+}
+
+/// The messages a scripted grab writes.
+#[derive(bevy::ecs::system::SystemParam)]
+struct GrabWriters<'w> {
+    start: MessageWriter<'w, GrabStart>,
+    moves: MessageWriter<'w, GrabMove>,
+    ends: MessageWriter<'w, GrabEnd>,
 }
 
 /// `--drag`: which thing the unattended run drags for long (`Some(true)`: the cactus).
@@ -200,6 +265,7 @@ struct GrabFigures {
     started: Option<bevy::platform::time::Instant>,
     posed: bool,
     solves: u32,
+    solve_ms: Vec<f64>,
 }
 
 /// Logs how a grab went: from the press (`GrabStart`) to the grabbed mesh's first
@@ -223,6 +289,7 @@ fn report_grabs(
             continue;
         }
         grab.solves += 1;
+        grab.solve_ms.push(s.solve_ms);
         if !grab.posed
             && let Some(at) = grab.started
         {
@@ -237,10 +304,13 @@ fn report_grabs(
         && let Some(at) = grab.started.take()
     {
         let held = at.elapsed().as_secs_f64();
+        grab.solve_ms.sort_by(f64::total_cmp);
+        let median = grab.solve_ms.get(grab.solve_ms.len() / 2).copied();
         info!(
-            "grab released: {} solves in {held:.2} s, {:.1} solves/s",
+            "grab released: {} solves in {held:.2} s, {:.1} solves/s, median solve {:.2} ms",
             grab.solves,
-            grab.solves as f64 / held.max(1e-9)
+            grab.solves as f64 / held.max(1e-9),
+            median.unwrap_or(f64::NAN)
         );
         *grab = GrabFigures::default();
     }

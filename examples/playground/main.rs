@@ -28,7 +28,7 @@ mod screenshot;
 fn main() {
     let options = harness::Options::parse();
     App::new()
-        .add_plugins(DefaultPlugins)
+        .add_plugins(harness::default_plugins(&options))
         .add_plugins((DeformPlugin::default(), GrabPlugin, MeshPickingPlugin))
         .add_plugins(missing_textures::MissingTexturesPlugin)
         .add_systems(Startup, setup)
@@ -39,6 +39,10 @@ fn main() {
 /// Marks the bar, which the unattended run bends by a scripted grab.
 #[derive(Component)]
 pub struct Bar;
+
+/// Marks the floor (drawn unlit on the web, where frames are often software-rendered).
+#[derive(Component)]
+pub struct Floor;
 
 /// Marks the cactus (the unattended `--drag cactus` run grabs it).
 #[derive(Component)]
@@ -64,6 +68,7 @@ fn setup(
     commands.spawn((
         Mesh3d(meshes.add(Plane3d::default().mesh().size(8.0, 8.0))),
         MeshMaterial3d(materials.add(Color::srgb(0.3, 0.35, 0.3))),
+        Floor,
     ));
     // Everything bendable gets the same two components (a wide region: smooth bends).
     let grab = Grabbable {

@@ -342,6 +342,7 @@ impl LinuxDevices {
 
     /// Whether the node's mode bits deny read+write to [`Self::user`] (ACLs are not read: an
     /// actual open's error is authoritative).
+    #[cfg(unix)]
     fn mode_denies(&self, node: &Path) -> bool {
         use std::os::unix::fs::MetadataExt;
         let (Some(user), Ok(meta)) = (&self.user, std::fs::metadata(node)) else {
@@ -354,6 +355,12 @@ impl LinuxDevices {
             || (user.groups.contains(&meta.gid()) && rw(3))
             || rw(0);
         !allowed
+    }
+
+    /// Mode bits exist on Unix only: elsewhere an actual open's error decides.
+    #[cfg(not(unix))]
+    fn mode_denies(&self, _node: &Path) -> bool {
+        false
     }
 }
 

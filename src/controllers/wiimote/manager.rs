@@ -1,7 +1,9 @@
 //! Discovers remotes and runs one I/O thread per remote, delivering typed events over a
 //! channel. Dropping the [`WiimoteManager`] stops and joins every thread.
 
-use std::collections::{HashMap, HashSet};
+use std::collections::HashMap;
+#[cfg(feature = "hidapi")]
+use std::collections::HashSet;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
@@ -445,7 +447,8 @@ enum RemoteExit {
     /// Stopped, or the source had no more transports.
     Stopped,
     /// The handshake failed (without reconnecting).
-    ConnectFailed(SessionError),
+    // Read by the hidapi scanner's diagnosis only.
+    ConnectFailed(#[cfg_attr(not(feature = "hidapi"), allow(dead_code))] SessionError),
     /// It was connected and went away (without reconnecting).
     Disconnected,
 }
