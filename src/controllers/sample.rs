@@ -157,8 +157,11 @@ impl MotionSample {
 /// Roles, per device (chosen so the paper's one-handed use carries over): **clutch** — hold
 /// to turn the handle (Wii B trigger, R2 / R1 on Sony pads, ZR / R on the Switch; ZL / L on a
 /// left Joy-Con); **grab** — press to grab what the pointer is on (Wii A, Cross, A / B);
-/// **recentre** (Wii Home, the PS button or Options, Home / Capture); **calibrate** — rest
-/// the controller and re-estimate the gyro bias (Wii 1, Triangle, X / Up).
+/// **recentre** (Wii Home, the PS button, Home / Capture); **calibrate** — rest the
+/// controller and re-estimate the gyro bias (Wii 1, Triangle, X / Up). The d-pad and the
+/// two small buttons move the handle as on the Wii Remote: **up/down/left/right** (the
+/// d-pad), **plus/minus** (Wii +/−, Options/Create, +/−). A left Joy-Con's arrows are its face
+/// buttons (grab, calibrate) and a right Joy-Con has no d-pad.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
 pub struct PadButtons {
     /// Hold to turn the handle.
@@ -169,6 +172,18 @@ pub struct PadButtons {
     pub recentre: bool,
     /// Restart the gyro bias estimate.
     pub calibrate: bool,
+    /// D-pad up.
+    pub up: bool,
+    /// D-pad down.
+    pub down: bool,
+    /// D-pad left.
+    pub left: bool,
+    /// D-pad right.
+    pub right: bool,
+    /// Plus (moves the handle away).
+    pub plus: bool,
+    /// Minus (moves the handle closer).
+    pub minus: bool,
     /// The device's button bits as they sit in its report (documented per protocol).
     pub raw: u32,
 }

@@ -443,3 +443,45 @@ fn the_switch_samples_are_integrated_oldest_first() {
     }
     assert!(checked > 200, "{checked}");
 }
+
+/// Every pad carries the controls' buttons: the roles, and the d-pad and +/− that move a
+/// handle (not on a Joy-Con held alone, whose arrows are face buttons or absent).
+#[test]
+fn the_controls_buttons_cross_every_pad() {
+    use bevy_wii_deform::controllers::wiimote::protocol::Buttons;
+    let held = Buttons::B
+        | Buttons::A
+        | Buttons::HOME
+        | Buttons::ONE
+        | Buttons::UP
+        | Buttons::RIGHT
+        | Buttons::PLUS;
+    for kind in [
+        ControllerKind::DualSense,
+        ControllerKind::DualShock4,
+        ControllerKind::SwitchPro,
+        ControllerKind::JoyConLeft,
+        ControllerKind::JoyConRight,
+    ] {
+        let pad = EmulatedPad::new(PadEmulatorConfig::new(kind, Link::Bluetooth));
+        pad.controls().set_buttons(Buttons(held));
+        let mut session = PadSession::new(pad, kind, Link::Bluetooth, SessionConfig::default());
+        session.connect().unwrap();
+        let mut seen = None;
+        for _ in 0..20 {
+            session.poll(50).unwrap();
+            for e in session.drain_events() {
+                if let SessionEvent::Buttons { buttons, .. } = e {
+                    seen = Some(buttons.0);
+                }
+            }
+        }
+        let expected = match kind {
+            ControllerKind::JoyConLeft | ControllerKind::JoyConRight => {
+                held & !(Buttons::UP | Buttons::RIGHT)
+            }
+            _ => held,
+        };
+        assert_eq!(seen, Some(expected), "{kind}");
+    }
+}

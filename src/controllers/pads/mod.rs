@@ -106,7 +106,7 @@ impl PadDecoder {
 }
 
 /// The roles as Wii Remote buttons, the vocabulary of the controls: clutch → B, grab → A,
-/// recentre → Home, calibrate → 1.
+/// recentre → Home, calibrate → 1, the d-pad → the d-pad, plus → +, minus → −.
 pub fn roles_to_wii(b: &PadButtons) -> Buttons {
     let mut bits = 0;
     for (held, bit) in [
@@ -114,6 +114,12 @@ pub fn roles_to_wii(b: &PadButtons) -> Buttons {
         (b.grab, Buttons::A),
         (b.recentre, Buttons::HOME),
         (b.calibrate, Buttons::ONE),
+        (b.up, Buttons::UP),
+        (b.down, Buttons::DOWN),
+        (b.left, Buttons::LEFT),
+        (b.right, Buttons::RIGHT),
+        (b.plus, Buttons::PLUS),
+        (b.minus, Buttons::MINUS),
     ] {
         if held {
             bits |= bit;
@@ -129,6 +135,12 @@ pub fn roles_from_wii(b: Buttons) -> PadButtons {
         grab: b.pressed(Buttons::A),
         recentre: b.pressed(Buttons::HOME),
         calibrate: b.pressed(Buttons::ONE),
+        up: b.pressed(Buttons::UP),
+        down: b.pressed(Buttons::DOWN),
+        left: b.pressed(Buttons::LEFT),
+        right: b.pressed(Buttons::RIGHT),
+        plus: b.pressed(Buttons::PLUS),
+        minus: b.pressed(Buttons::MINUS),
         raw: b.0 as u32,
     }
 }

@@ -89,9 +89,26 @@ impl SonyUnit {
 }
 
 /// The three button bytes for held roles (clutch → R2, grab → Cross, recentre → PS,
-/// calibrate → Triangle; d-pad released).
+/// calibrate → Triangle, the d-pad as the hat, plus → Options, minus → Create).
 pub(crate) fn button_bytes(b: &PadButtons) -> [u8; 3] {
-    let mut out = [0x08, 0, 0];
+    let hat = match (b.up, b.right, b.down, b.left) {
+        (true, true, _, _) => 1,
+        (_, true, true, _) => 3,
+        (_, _, true, true) => 5,
+        (true, _, _, true) => 7,
+        (true, _, _, _) => 0,
+        (_, true, _, _) => 2,
+        (_, _, true, _) => 4,
+        (_, _, _, true) => 6,
+        _ => 8,
+    };
+    let mut out = [hat, 0, 0];
+    if b.plus {
+        out[1] |= 0x20;
+    }
+    if b.minus {
+        out[1] |= 0x10;
+    }
     if b.grab {
         out[0] |= 0x20;
     }

@@ -186,17 +186,26 @@ impl SonyCalibration {
 }
 
 /// The roles of Sony's buttons ([`PadButtons`]): clutch R2 or R1, grab Cross, recentre the
-/// PS button or Options, calibrate Triangle. `raw` holds the three button bytes (byte 0 in
+/// PS button, calibrate Triangle, the d-pad (the hat), plus Options, minus Create/Share. `raw` holds the three button bytes (byte 0 in
 /// the low bits: d-pad hat, Square, Cross, Circle, Triangle; byte 1: L1, R1, L2, R2,
 /// Create/Share, Options, L3, R3; byte 2: PS, touchpad, and the DualSense's mute — the
 /// DualShock 4 counts reports in that byte's upper six bits, which are masked off).
 fn buttons(b: [u8; 3], third_mask: u8) -> PadButtons {
     let raw = b[0] as u32 | (b[1] as u32) << 8 | ((b[2] & third_mask) as u32) << 16;
+    // The hat: 0 north, clockwise in eighths, 8 (or more) released.
+    let hat = b[0] & 0x0F;
+    let pressed = |dirs: [u8; 3]| dirs.contains(&hat);
     PadButtons {
         clutch: b[1] & 0x0A != 0,
         grab: b[0] & 0x20 != 0,
-        recentre: b[2] & 0x01 != 0 || b[1] & 0x20 != 0,
+        recentre: b[2] & 0x01 != 0,
         calibrate: b[0] & 0x80 != 0,
+        up: pressed([7, 0, 1]),
+        right: pressed([1, 2, 3]),
+        down: pressed([3, 4, 5]),
+        left: pressed([5, 6, 7]),
+        plus: b[1] & 0x20 != 0,
+        minus: b[1] & 0x10 != 0,
         raw,
     }
 }

@@ -75,9 +75,23 @@ impl SwitchUnit {
 }
 
 /// Bytes 3–5 (right, shared, left) for held roles: clutch → ZR, grab → A, recentre →
-/// Home, calibrate → X; on a left Joy-Con ZL, →, Capture, ↑.
+/// Home, calibrate → X, the d-pad, + and −; on a left Joy-Con ZL, →, Capture, ↑ (and no
+/// d-pad); a right Joy-Con has none either.
 pub(crate) fn button_bytes(kind: ControllerKind, b: &PadButtons) -> [u8; 3] {
     let mut out = [0u8; 3];
+    out[1] |= if b.plus { 0x02 } else { 0 } | if b.minus { 0x01 } else { 0 };
+    if kind == ControllerKind::SwitchPro {
+        for (held, bit) in [
+            (b.down, 0x01),
+            (b.up, 0x02),
+            (b.right, 0x04),
+            (b.left, 0x08),
+        ] {
+            if held {
+                out[2] |= bit;
+            }
+        }
+    }
     if kind == ControllerKind::JoyConLeft {
         out[2] |= if b.clutch { 0x80 } else { 0 } | if b.grab { 0x04 } else { 0 };
         out[2] |= if b.calibrate { 0x02 } else { 0 };

@@ -151,16 +151,25 @@ impl SwitchCalibration {
     }
 }
 
-/// The roles of the Switch's buttons: clutch ZR/R (ZL/L), grab A/B (→ on a left Joy-Con),
-/// recentre Home/Capture, calibrate X (↑). `raw` holds bytes 3–5 of the report (right,
+/// The roles of the Switch's buttons: clutch ZR/R (ZL/L), grab A/B, recentre Home/Capture,
+/// calibrate X, the d-pad, plus +, minus −. A left Joy-Con held alone has its arrows as face
+/// buttons: → grabs and ↑ calibrates (no d-pad). `raw` holds bytes 3–5 of the report (right,
 /// shared, left) in its low 24 bits.
-fn buttons(b: [u8; 3]) -> PadButtons {
+fn buttons(kind: ControllerKind, b: [u8; 3]) -> PadButtons {
     let [right, shared, left] = b;
+    let arrows_are_faces = kind == ControllerKind::JoyConLeft;
+    let dpad = |bit: u8| !arrows_are_faces && left & bit != 0;
     PadButtons {
         clutch: right & 0xC0 != 0 || left & 0xC0 != 0,
-        grab: right & 0x0C != 0 || left & 0x04 != 0,
+        grab: right & 0x0C != 0 || (arrows_are_faces && left & 0x04 != 0),
         recentre: shared & 0x30 != 0,
-        calibrate: right & 0x02 != 0 || left & 0x02 != 0,
+        calibrate: right & 0x02 != 0 || (arrows_are_faces && left & 0x02 != 0),
+        up: dpad(0x02),
+        down: dpad(0x01),
+        right: dpad(0x04),
+        left: dpad(0x08),
+        plus: shared & 0x02 != 0,
+        minus: shared & 0x01 != 0,
         raw: right as u32 | (shared as u32) << 8 | (left as u32) << 16,
     }
 }
@@ -202,7 +211,7 @@ pub fn decode(
         });
     }
     let mut out = PadReport::new(
-        buttons([report[3], report[4], report[5]]),
+        buttons(kind, [report[3], report[4], report[5]]),
         Some(battery(report[2])),
         None,
     );
