@@ -485,3 +485,62 @@ fn the_controls_buttons_cross_every_pad() {
         assert_eq!(seen, Some(expected), "{kind}");
     }
 }
+
+/// After the start sequence a Sony pad shows the player (lights, colour); a rumble command
+/// drives its motors; over Bluetooth every output report carries a CRC the pad checks.
+#[test]
+fn sony_output_reports_light_the_player_and_rumble_with_a_crc() {
+    for (kind, link) in [
+        (ControllerKind::DualSense, Link::Bluetooth),
+        (ControllerKind::DualSense, Link::Usb),
+        (ControllerKind::DualShock4, Link::Bluetooth),
+        (ControllerKind::DualShock4, Link::Usb),
+    ] {
+        let pad = EmulatedPad::new(PadEmulatorConfig::new(kind, link));
+        let config = SessionConfig {
+            player: 2,
+            ..SessionConfig::default()
+        };
+        let mut session = PadSession::new(pad, kind, link, config);
+        session.connect().unwrap();
+        let shown = session.transport().last_output().expect("an output report");
+        assert_eq!(
+            shown.lightbar,
+            sony::player_output(2).lightbar,
+            "{kind} {link:?}"
+        );
+        if kind == ControllerKind::DualSense {
+            assert_eq!(shown.player_lights, 0b01010);
+        }
+        assert_eq!((shown.strong_motor, shown.weak_motor), (0, 0));
+        session.set_rumble(true).unwrap();
+        let rumbling = session.transport().last_output().unwrap();
+        assert!(
+            rumbling.strong_motor > 0 && rumbling.weak_motor > 0,
+            "{kind} {link:?}"
+        );
+        session.set_rumble(false).unwrap();
+        assert_eq!(session.transport().last_output().unwrap().strong_motor, 0);
+        assert_eq!(session.transport().refused_outputs(), 0);
+    }
+    // A Bluetooth output report with a wrong CRC is refused, and says why.
+    let mut report = sony::output_report(
+        ControllerKind::DualSense,
+        Link::Bluetooth,
+        1,
+        &sony::player_output(1),
+    );
+    assert!(sony::parse_output(ControllerKind::DualSense, Link::Bluetooth, &report).is_ok());
+    report[10] ^= 0x01;
+    assert_eq!(
+        sony::parse_output(ControllerKind::DualSense, Link::Bluetooth, &report),
+        Err(DecodeError::Crc)
+    );
+    let mut pad = EmulatedPad::new(PadEmulatorConfig::new(
+        ControllerKind::DualSense,
+        Link::Bluetooth,
+    ));
+    pad.write(&report).unwrap();
+    assert_eq!(pad.refused_outputs(), 1);
+    assert_eq!(pad.last_output(), None);
+}

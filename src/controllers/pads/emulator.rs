@@ -143,6 +143,8 @@ pub struct EmulatedPad {
     queue: VecDeque<Vec<u8>>,
     seq: u8,
     scratch: Vec<u8>,
+    output: Option<sony::SonyOutput>,
+    refused_outputs: u32,
 }
 
 impl EmulatedPad {
@@ -180,6 +182,8 @@ impl EmulatedPad {
             queue: VecDeque::new(),
             seq: 0,
             scratch: Vec::with_capacity(80),
+            output: None,
+            refused_outputs: 0,
             config,
         }
     }
@@ -192,6 +196,17 @@ impl EmulatedPad {
     /// The configuration.
     pub fn config(&self) -> &PadEmulatorConfig {
         &self.config
+    }
+
+    /// What the last output report a Sony pad took set (rumble, light bar, player lights).
+    pub fn last_output(&self) -> Option<sony::SonyOutput> {
+        self.output
+    }
+
+    /// Output reports a Sony pad refused (wrong id, short, or a Bluetooth CRC that does not
+    /// match: a real pad ignores them).
+    pub fn refused_outputs(&self) -> u32 {
+        self.refused_outputs
     }
 
     /// The gyro bias the unit has right now (body frame, deg/s): ground truth for tests.
@@ -351,8 +366,12 @@ impl Transport for EmulatedPad {
         }
         if switch::is_switch(self.config.kind) {
             self.answer_switch(report);
+        } else {
+            match sony::parse_output(self.config.kind, self.config.link, report) {
+                Ok(output) => self.output = Some(output),
+                Err(_) => self.refused_outputs += 1,
+            }
         }
-        // Sony output reports (lights, rumble) are accepted and change nothing emulated.
         Ok(report.len())
     }
 

@@ -46,6 +46,8 @@ pub struct PadSession<T: Transport> {
     report_interval_s: f64,
     sample_period_s: f64,
     counter: u8,
+    lights: sony::SonyOutput,
+    output_seq: u8,
     malformed: u64,
     last_error: Option<DecodeError>,
 }
@@ -78,6 +80,8 @@ impl<T: Transport> PadSession<T> {
             last_sample_us: None,
             report_interval_s,
             counter: 0,
+            lights: sony::SonyOutput::default(),
+            output_seq: 0,
             malformed: 0,
             last_error: None,
         }
@@ -112,6 +116,30 @@ impl<T: Transport> PadSession<T> {
     pub fn set_filter(&mut self, kind: FilterKind) {
         self.filter = kind.build_for_period(self.sample_period_s);
         self.config.filter = kind;
+    }
+
+    /// Rumble on or off (Sony pads: both motors at three quarters; Switch controllers: not
+    /// driven, their rumble encoding is not implemented).
+    pub fn set_rumble(&mut self, on: bool) -> Result<(), SessionError> {
+        if !sony::is_sony(self.decoder.kind()) {
+            return Ok(());
+        }
+        let level = if on { 192 } else { 0 };
+        self.lights.strong_motor = level;
+        self.lights.weak_motor = level;
+        self.write_sony_output()
+    }
+
+    fn write_sony_output(&mut self) -> Result<(), SessionError> {
+        self.output_seq = (self.output_seq + 1) & 0x0F;
+        let report = sony::output_report(
+            self.decoder.kind(),
+            self.decoder.link(),
+            self.output_seq,
+            &self.lights,
+        );
+        self.transport.write(&report)?;
+        Ok(())
     }
 
     /// Makes the current orientation the identity.
@@ -150,6 +178,11 @@ impl<T: Transport> PadSession<T> {
             PadCalibration::Switch(self.run_switch_start()?)
         };
         self.decoder.set_calibration(calibration);
+        // The player's number and colour (a Wii Remote lights its LEDs the same way).
+        if sony::is_sony(kind) {
+            self.lights = sony::player_output(self.config.player);
+            self.write_sony_output()?;
+        }
         let factory_calibration = match calibration {
             PadCalibration::Sony(c) => c.is_factory(),
             PadCalibration::Switch(c) => {
@@ -190,7 +223,7 @@ impl<T: Transport> PadSession<T> {
         let link = self.decoder.link();
         let mut factory = None;
         let mut user = None;
-        for step in switch::start_sequence(link) {
+        for step in switch::start_sequence(link, self.config.player) {
             match step {
                 StartStep::Usb(cmd) => {
                     self.exchange(&[0x80, cmd], |r| {

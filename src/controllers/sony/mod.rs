@@ -15,6 +15,9 @@
 //! crate's body frame ([`MotionSample`]): `(X, Y, Z) = (−x, z, y)`.
 
 pub(crate) mod emulate;
+mod output;
+
+pub use output::{SonyOutput, output_report, parse_output, player_output};
 
 use glam::DVec3;
 

@@ -260,10 +260,10 @@ impl StartStep {
     }
 }
 
-/// The start sequence for a link: over USB handshake (0x02), 3 Mbit (0x03), handshake again,
-/// HID only without timeout (0x04); then full report mode, IMU on, player light 1, and the
-/// two calibration reads.
-pub fn start_sequence(link: Link) -> Vec<StartStep> {
+/// The start sequence for a link and player (1–4): over USB handshake (0x02), 3 Mbit (0x03),
+/// handshake again, HID only without timeout (0x04); then full report mode, IMU on, the
+/// player's light, and the two calibration reads.
+pub fn start_sequence(link: Link, player: u8) -> Vec<StartStep> {
     let mut steps = Vec::new();
     if link == Link::Usb {
         steps.extend([0x02, 0x03, 0x02, 0x04].map(StartStep::Usb));
@@ -275,7 +275,11 @@ pub fn start_sequence(link: Link) -> Vec<StartStep> {
     steps.extend([
         StartStep::sub(SUB_INPUT_MODE, [FULL_REPORT, 0, 0, 0, 0], 1),
         StartStep::sub(SUB_IMU, [0x01, 0, 0, 0, 0], 1),
-        StartStep::sub(SUB_PLAYER_LIGHTS, [0x01, 0, 0, 0, 0], 1),
+        StartStep::sub(
+            SUB_PLAYER_LIGHTS,
+            [1 << (player.clamp(1, 4) - 1), 0, 0, 0, 0],
+            1,
+        ),
         spi(SPI_FACTORY_IMU, 24),
         spi(SPI_USER_IMU, 26),
     ]);

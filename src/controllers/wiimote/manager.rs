@@ -436,8 +436,8 @@ impl<T: Transport> ControllerSession for PadSession<T> {
     fn set_filter(&mut self, kind: FilterKind) {
         PadSession::set_filter(self, kind);
     }
-    fn set_rumble(&mut self, _on: bool) -> Result<(), SessionError> {
-        Ok(())
+    fn set_rumble(&mut self, on: bool) -> Result<(), SessionError> {
+        PadSession::set_rumble(self, on)
     }
 }
 
