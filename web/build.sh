@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# Builds the playground for the web into web/dist/, ready to serve as static files:
+# Builds the playground (and the character app with the Fox, as character.html) for the web
+# into web/dist/, ready to serve as static files:
 #   bash web/build.sh && python3 -m http.server -d web/dist
-# then open http://localhost:8000. Installs what it needs: the wasm32 target, and
+# then open http://localhost:8000 (the playground) or http://localhost:8000/character.html. Installs what it needs: the wasm32 target, and
 # wasm-bindgen-cli at the version Cargo.lock pins (the CLI must match the library exactly).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -16,14 +17,17 @@ if ! command -v wasm-bindgen >/dev/null 2>&1 || ! wasm-bindgen --version | grep 
 fi
 
 # No hidapi in a browser; the `web` profile is release without debug info.
-cargo build --profile web --target wasm32-unknown-unknown --no-default-features --example playground
+cargo build --profile web --target wasm32-unknown-unknown --no-default-features \
+  --example playground --example character
 
 dist=web/dist
 rm -rf "$dist"
 mkdir -p "$dist/assets/models"
-wasm-bindgen --target web --no-typescript --remove-name-section --out-dir "$dist" --out-name playground \
-  "$CARGO_TARGET_DIR/wasm32-unknown-unknown/web/examples/playground.wasm"
-cp web/index.html "$dist/"
-# What the playground loads over HTTP (the cactus is compiled in).
-cp assets/models/alien.glb "$dist/assets/models/"
+for app in playground character; do
+  wasm-bindgen --target web --no-typescript --remove-name-section --out-dir "$dist" --out-name "$app" \
+    "$CARGO_TARGET_DIR/wasm32-unknown-unknown/web/examples/$app.wasm"
+done
+cp web/index.html web/character.html "$dist/"
+# What the pages load over HTTP (the playground's cactus is compiled in).
+cp assets/models/alien.glb assets/models/Fox.glb "$dist/assets/models/"
 echo "built $dist ($(du -sh "$dist" | cut -f1)); serve it with: python3 -m http.server -d $dist"

@@ -168,6 +168,32 @@ if (bar) {
     result.cactus_fps_while_dragging = dragged.fps;
   }
 }
+// The character app's page (informational: its figures are not part of the pass/fail): it
+// renders the Fox (orange pixels) with no console error.
+{
+  const errorsBefore = errors.length;
+  await page.goto(new URL("character.html", url).href);
+  canvasBox = null;
+  const t0 = Date.now();
+  result.character_rendered = false;
+  while (Date.now() - t0 < 90_000) {
+    const { width, height, data } = PNG.sync.read(await page.screenshot());
+    let orange = 0;
+    for (let i = 0; i < width * height * 4; i += 16) {
+      const [r, g, b] = [data[i], data[i + 1], data[i + 2]];
+      if (r > 180 && g > 90 && g < 190 && b < 110) orange += 1;
+    }
+    if (orange > 500) {
+      result.character_rendered = true;
+      result.character_first_frame_s = (Date.now() - t0) / 1000;
+      break;
+    }
+    await page.waitForTimeout(500);
+  }
+  writeFileSync(`${shots}/character.png`, await page.screenshot());
+  result.character_console_errors = errors.length - errorsBefore;
+  errors.length = errorsBefore;
+}
 result.grab_to_first_pose_ms = firstPoses[0] ?? null;
 result.bar_solves_per_s = solveRates[0]?.[0] ?? null;
 result.bar_median_solve_ms = solveRates[0]?.[1] ?? null;

@@ -163,6 +163,8 @@ fn main() {
     app.add_plugins(DefaultPlugins.set(AssetPlugin {
         // A model may be given by any path (see `cli::asset_path`).
         unapproved_path_mode: bevy::asset::UnapprovedPathMode::Allow,
+        // No `.meta` files beside the models (on the web each lookup would be a 404).
+        meta_check: bevy::asset::AssetMetaCheck::Never,
         ..default()
     }))
     .add_plugins(PosePlugin)
