@@ -1,5 +1,6 @@
 //! CRC-32 (IEEE 802.3, reflected polynomial `0xEDB88320`, initial value and final XOR
-//! `0xFFFFFFFF`): the checksum Sony pads append to their Bluetooth reports. The Sony variant
+//! `0xFFFFFFFF`): the checksum of the Wii MotionPlus calibration block (`PROTOCOL.md` §8) and
+//! of Sony pads' Bluetooth reports. The Sony variant
 //! hashes a one-byte Bluetooth HID header first (the *seed*): `0xA1` for input reports,
 //! `0xA2` for output reports, `0xA3` for feature reports (`docs/PROTOCOL-SONY.md` §4).
 

@@ -130,6 +130,29 @@ pub enum DecodeError {
     ImuOff,
 }
 
+/// The checks a fixed layout starts with: some bytes, the expected report id, enough of them.
+pub(crate) fn check_report(
+    report: &[u8],
+    id: u8,
+    need: usize,
+    kind: ControllerKind,
+) -> Result<(), DecodeError> {
+    let Some(&first) = report.first() else {
+        return Err(DecodeError::Empty);
+    };
+    if first != id {
+        return Err(DecodeError::UnknownReport { id: first, kind });
+    }
+    if report.len() < need {
+        return Err(DecodeError::Short {
+            id,
+            len: report.len(),
+            need,
+        });
+    }
+    Ok(())
+}
+
 /// Little-endian `i16` at `at`.
 #[inline]
 pub(crate) fn le_i16(b: &[u8], at: usize) -> i16 {

@@ -3,7 +3,6 @@
 //! for byte, with the device's rate, quantisation, noise and bias.
 
 use std::collections::VecDeque;
-use web_time::Instant;
 
 use glam::DVec3;
 
@@ -12,6 +11,7 @@ use crate::controllers::rng::Rng;
 use crate::controllers::sony::{self, emulate::SonyUnit};
 use crate::controllers::switch::{self, emulate::SwitchUnit};
 use crate::controllers::transport::{Transport, TransportError};
+use crate::controllers::wiimote::emulator::Pacing;
 use crate::controllers::wiimote::{EmulatorClock, EmulatorControls};
 use crate::controllers::{ControllerKind, Link};
 
@@ -136,13 +136,11 @@ pub struct EmulatedPad {
     bias_dps: DVec3,
     now_us: u64,
     next_report_us: u64,
-    epoch: Instant,
-    clock_origin: u64,
+    pacing: Pacing,
     full_mode: bool,
     imu_on: bool,
     queue: VecDeque<Vec<u8>>,
     seq: u8,
-    scratch: Vec<u8>,
     output: Option<sony::SonyOutput>,
     refused_outputs: u32,
 }
@@ -164,7 +162,6 @@ impl EmulatedPad {
         };
         let sigma = config.sensors.gyro_turn_on_bias_dps;
         let bias_dps = DVec3::new(rng.normal(), rng.normal(), rng.normal()) * sigma;
-        let clock_origin = config.clock.as_ref().map_or(0, |c| c.now_us());
         // Sony pads stream at once over USB; over Bluetooth they stream the reduced report
         // until the calibration is read. Switch controllers wait for their mode.
         let full_mode = !switch::is_switch(config.kind) && config.link == Link::Usb;
@@ -175,13 +172,11 @@ impl EmulatedPad {
             bias_dps,
             now_us: 0,
             next_report_us: (config.sensors.report_interval_s * 1e6) as u64,
-            epoch: Instant::now(),
-            clock_origin,
+            pacing: Pacing::new(config.clock.clone(), config.realtime),
             full_mode,
             imu_on: false,
             queue: VecDeque::new(),
             seq: 0,
-            scratch: Vec::with_capacity(80),
             output: None,
             refused_outputs: 0,
             config,
@@ -214,18 +209,6 @@ impl EmulatedPad {
         self.bias_dps
     }
 
-    fn wait_until(&self, t_us: u64) {
-        if let Some(clock) = &self.config.clock {
-            clock.wait_until(self.clock_origin + t_us);
-        } else if self.config.realtime {
-            let target = std::time::Duration::from_micros(t_us);
-            let now = self.epoch.elapsed();
-            if target > now {
-                std::thread::sleep(target - now);
-            }
-        }
-    }
-
     /// Body-frame rate (deg/s) and specific force (g) the sensors read at `t`, errors
     /// included.
     fn sense(&mut self, m: &dyn Motion, t: f64) -> (DVec3, DVec3) {
@@ -253,7 +236,7 @@ impl EmulatedPad {
         self.bias_dps += DVec3::new(self.rng.normal(), self.rng.normal(), self.rng.normal()) * walk;
         self.seq = self.seq.wrapping_add(1);
         let count = |v: f64| v.round().clamp(i16::MIN as f64, i16::MAX as f64) as i16;
-        let mut out = std::mem::take(&mut self.scratch);
+        let mut out = Vec::with_capacity(80);
         match &self.unit {
             Unit::Sony(unit) => {
                 if !self.full_mode {
@@ -318,8 +301,7 @@ impl EmulatedPad {
                 }
             }
         }
-        self.queue.push_back(out.clone());
-        self.scratch = out;
+        self.queue.push_back(out);
     }
 
     fn answer_switch(&mut self, report: &[u8]) {
@@ -382,12 +364,12 @@ impl Transport for EmulatedPad {
         if self.queue.is_empty() {
             let deadline = self.now_us + timeout_ms as u64 * 1000;
             if self.next_report_us > deadline {
-                self.wait_until(deadline);
+                self.pacing.wait_until(deadline);
                 self.now_us = deadline;
                 return Ok(0);
             }
             let t = self.next_report_us;
-            self.wait_until(t);
+            self.pacing.wait_until(t);
             self.now_us = t;
             self.next_report_us += (self.config.sensors.report_interval_s * 1e6).round() as u64;
             self.report(t as f64 * 1e-6);

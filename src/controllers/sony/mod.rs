@@ -23,7 +23,7 @@ use glam::DVec3;
 
 use super::crc::crc32_seeded;
 use super::motion::GRAVITY;
-use super::report::{le_i16, le_u32};
+use super::report::{check_report, le_i16, le_u32};
 use super::{Battery, ControllerKind, DecodeError, Link, MotionSample, PadButtons, PadReport};
 
 /// CRC seed (the Bluetooth HID header) of input reports.
@@ -133,19 +133,7 @@ impl SonyCalibration {
     /// a factor of two of the datasheet's falls back to it ([`Self::fallback_axes`]).
     pub fn parse(kind: ControllerKind, link: Link, report: &[u8]) -> Result<Self, DecodeError> {
         let (id, len) = calibration_report(kind, link);
-        let Some(&first) = report.first() else {
-            return Err(DecodeError::Empty);
-        };
-        if first != id {
-            return Err(DecodeError::UnknownReport { id: first, kind });
-        }
-        if report.len() < len {
-            return Err(DecodeError::Short {
-                id,
-                len: report.len(),
-                need: len,
-            });
-        }
+        check_report(report, id, len, kind)?;
         if link == Link::Bluetooth {
             let stored = le_u32(report, len - 4);
             if crc32_seeded(CRC_SEED_FEATURE, &report[..len - 4]) != stored {

@@ -5,7 +5,7 @@
 
 use super::{CRC_SEED_OUTPUT, is_dualsense};
 use crate::controllers::crc::crc32_seeded;
-use crate::controllers::report::le_u32;
+use crate::controllers::report::{check_report, le_u32};
 use crate::controllers::{ControllerKind, DecodeError, Link};
 
 /// What an output report sets.
@@ -100,19 +100,7 @@ pub fn parse_output(
     report: &[u8],
 ) -> Result<SonyOutput, DecodeError> {
     let (id, base, len) = layout(kind, link);
-    let Some(&first) = report.first() else {
-        return Err(DecodeError::Empty);
-    };
-    if first != id {
-        return Err(DecodeError::UnknownReport { id: first, kind });
-    }
-    if report.len() < len {
-        return Err(DecodeError::Short {
-            id,
-            len: report.len(),
-            need: len,
-        });
-    }
+    check_report(report, id, len, kind)?;
     if link == Link::Bluetooth
         && crc32_seeded(CRC_SEED_OUTPUT, &report[..len - 4]) != le_u32(report, len - 4)
     {

@@ -23,7 +23,7 @@ pub(crate) mod emulate;
 use glam::DVec3;
 
 use super::motion::GRAVITY;
-use super::report::le_i16;
+use super::report::{check_report, le_i16};
 use super::{Battery, ControllerKind, DecodeError, Link, MotionSample, PadButtons, PadReport};
 
 /// Full input report (buttons, sticks, three IMU samples).
@@ -311,22 +311,7 @@ pub struct SubcommandReply {
 
 /// Parses report 0x21.
 pub fn parse_reply(report: &[u8]) -> Result<SubcommandReply, DecodeError> {
-    let Some(&id) = report.first() else {
-        return Err(DecodeError::Empty);
-    };
-    if id != REPLY_REPORT {
-        return Err(DecodeError::UnknownReport {
-            id,
-            kind: ControllerKind::SwitchPro,
-        });
-    }
-    if report.len() < 15 {
-        return Err(DecodeError::Short {
-            id,
-            len: report.len(),
-            need: 15,
-        });
-    }
+    check_report(report, REPLY_REPORT, 15, ControllerKind::SwitchPro)?;
     Ok(SubcommandReply {
         id: report[14],
         ack: report[13] & 0x80 != 0,

@@ -24,7 +24,7 @@
 
 pub mod diagnosis;
 pub mod drift;
-mod emulator;
+pub(crate) mod emulator;
 pub mod ir;
 mod manager;
 pub mod protocol;

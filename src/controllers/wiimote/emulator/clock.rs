@@ -68,3 +68,48 @@ impl PartialEq for EmulatorClock {
         Arc::ptr_eq(&self.0, &other.0)
     }
 }
+
+/// How an emulator's own time meets the world's: by an [`EmulatorClock`] (from the moment the
+/// emulator opened), by the wall clock (`realtime`), or not at all (as fast as it is read).
+/// Shared by every emulator, Wii Remote or pad.
+#[derive(Clone)]
+pub(crate) struct Pacing {
+    clock: Option<EmulatorClock>,
+    origin_us: u64,
+    realtime: bool,
+    epoch: web_time::Instant,
+}
+
+impl Pacing {
+    /// Pacing from now.
+    pub(crate) fn new(clock: Option<EmulatorClock>, realtime: bool) -> Self {
+        Self {
+            origin_us: clock.as_ref().map_or(0, EmulatorClock::now_us),
+            clock,
+            realtime,
+            epoch: web_time::Instant::now(),
+        }
+    }
+
+    /// Blocks until the emulator's time `t_us` has come (at once when unpaced).
+    pub(crate) fn wait_until(&self, t_us: u64) {
+        if let Some(clock) = &self.clock {
+            clock.wait_until(self.origin_us + t_us);
+        } else if self.realtime {
+            let target = std::time::Duration::from_micros(t_us);
+            let now = self.epoch.elapsed();
+            if target > now {
+                std::thread::sleep(target - now);
+            }
+        }
+    }
+
+    /// The emulator's time the world has reached, µs (`None` when unpaced).
+    pub(crate) fn now_us(&self) -> Option<u64> {
+        match &self.clock {
+            Some(clock) => Some(clock.now_us().saturating_sub(self.origin_us)),
+            None if self.realtime => Some(self.epoch.elapsed().as_micros() as u64),
+            None => None,
+        }
+    }
+}

@@ -13,7 +13,6 @@
 //! [`Motion`]: crate::controllers::wiimote::Motion
 
 use std::collections::VecDeque;
-use web_time::Instant;
 
 use glam::{DQuat, DVec3};
 
@@ -30,6 +29,7 @@ mod reports;
 mod sensors;
 
 pub use clock::EmulatorClock;
+pub(crate) use clock::Pacing;
 pub use config::{EmulatedBar, EmulatorConfig, SensorModel, Variant};
 pub use controls::EmulatorControls;
 
@@ -40,9 +40,8 @@ pub struct EmulatedRemote {
     generation: u64,
     rng: Rng,
     unit: Unit,
-    epoch: Instant,
-    /// The pacing clock's time when this remote was opened.
-    clock_origin: u64,
+    /// How its time meets the world's.
+    pacing: Pacing,
     now_us: u64,
     next_tick_us: u64,
     tick: u64,
@@ -98,8 +97,7 @@ impl EmulatedRemote {
             generation,
             rng,
             unit,
-            epoch: Instant::now(),
-            clock_origin: config.clock.as_ref().map_or(0, EmulatorClock::now_us),
+            pacing: Pacing::new(config.clock.clone(), config.realtime),
             now_us: 0,
             next_tick_us: 0,
             tick: 0,
@@ -281,15 +279,7 @@ impl EmulatedRemote {
     }
 
     fn wait_until(&self, t_us: u64) {
-        if let Some(clock) = &self.config.clock {
-            clock.wait_until(self.clock_origin + t_us);
-        } else if self.config.realtime {
-            let target = std::time::Duration::from_micros(t_us);
-            let now = self.epoch.elapsed();
-            if target > now {
-                std::thread::sleep(target - now);
-            }
-        }
+        self.pacing.wait_until(t_us);
     }
 }
 
@@ -298,11 +288,8 @@ impl Transport for EmulatedRemote {
         if !self.controls.connected() {
             return Err(TransportError::Disconnected);
         }
-        if let Some(clock) = &self.config.clock {
-            let now = clock.now_us().saturating_sub(self.clock_origin);
+        if let Some(now) = self.pacing.now_us() {
             self.now_us = self.now_us.max(now);
-        } else if self.config.realtime {
-            self.now_us = self.now_us.max(self.epoch.elapsed().as_micros() as u64);
         }
         self.advance_state();
         self.handle_output(report);

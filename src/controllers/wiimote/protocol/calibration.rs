@@ -132,10 +132,10 @@ impl MotionPlusCalibration {
 
     /// CRC-32 (IEEE) over bytes 0x00..0x0D and 0x10..0x1D.
     pub fn crc(bytes: &[u8]) -> u32 {
-        let mut c = Crc32::new();
-        c.update(&bytes[0..14]);
-        c.update(&bytes[16..30]);
-        c.finish()
+        crate::controllers::crc::Crc32::new()
+            .update(&bytes[0..14])
+            .update(&bytes[16..30])
+            .finish()
     }
 
     /// Encodes with a valid CRC.

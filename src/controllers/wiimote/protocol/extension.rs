@@ -1,35 +1,4 @@
-//! Extension identification and the checksum of calibration blocks (`PROTOCOL.md` §8).
-
-/// Bitwise IEEE CRC-32 (zlib polynomial), enough for 28-byte blocks.
-#[derive(Debug, Clone, Copy)]
-pub struct Crc32(u32);
-
-impl Default for Crc32 {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
-impl Crc32 {
-    /// Starts a CRC.
-    pub fn new() -> Self {
-        Self(0xFFFF_FFFF)
-    }
-    /// Feeds bytes.
-    pub fn update(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.0 ^= b as u32;
-            for _ in 0..8 {
-                let mask = (self.0 & 1).wrapping_neg();
-                self.0 = (self.0 >> 1) ^ (0xEDB8_8320 & mask);
-            }
-        }
-    }
-    /// The final value.
-    pub fn finish(self) -> u32 {
-        !self.0
-    }
-}
+//! Extension identification (`PROTOCOL.md` §8).
 
 /// Extension identifier (6 bytes at 0xA400FA).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
