@@ -67,18 +67,21 @@ fn under(ground: &dyn Ground, p: DVec3, size: f64) -> Option<GroundPlane> {
 
 /// The drag, with or without balance; `handle` dragged 30 % of the size along +X and a little
 /// down over 30 frames of 3 warm iterations, contacts tracked every frame, after a frame that
-/// stands the character on the ground; every skin vertex kept above `floor`.
+/// stands the character on the ground; every skin vertex near the ground kept above it.
 fn drag(
     model: &Arc<SkinnedModel>,
     pose: &SkeletonPose,
     handle: &[u32],
-    (ground, floor): (&dyn Ground, Option<GroundPlane>),
+    ground: &dyn Ground,
     balance: bool,
 ) -> Run {
     let size = model.topology().bounding_diagonal();
     let down = DVec3::NEG_Y;
     let feet = lowest_joints(model, pose, down, 0.04 * size);
     let mut tracker = ContactTracker::new(model, pose, &feet, down);
+    // Every skin vertex within 30 % of the size of the ground under it at the start of a solve
+    // is kept above it (10 % let a paw that started further up pass through within one solve).
+    let sampling = FloorSampling::for_size(size, 0.3, down);
     let rest = model.skin_welded(pose);
     let pivot = centroid(&rest, handle);
     let mut run = Run {
@@ -126,10 +129,7 @@ fn drag(
         let constraints = PoseConstraints {
             handles: vec![drag_to(reach)],
             contacts: tracker.active(),
-            floor: floor.map(|plane| Floor {
-                plane,
-                band: 0.3 * size,
-            }),
+            floor: Some(Floor::cast(&model.skin_welded(now), ground, &sampling).0),
             balance: (balance && !support.is_empty()).then(|| Balance {
                 margin: 0.01 * size,
                 ..Balance::over(support.clone())
@@ -166,12 +166,16 @@ fn drag(
             })
             .collect();
         if let Some(before) = &previous {
-            for (a, b) in before.iter().zip(&now_planted) {
+            for ((a, b), c) in before.iter().zip(&now_planted).zip(&tracker.contacts) {
                 if let (Some(a), Some(b)) = (a, b) {
+                    let n = c.ground.normal;
                     let slide = a
                         .iter()
                         .zip(b)
-                        .map(|(p, q)| p.distance(*q))
+                        .map(|(p, q)| {
+                            let d = *q - *p;
+                            (d - n * d.dot(n)).length()
+                        })
                         .fold(0.0, f64::max);
                     run.slide_max = run.slide_max.max(slide / size);
                 }
@@ -238,13 +242,8 @@ pub fn run(
     let feet_centre =
         feet.iter().map(|&j| globals[j].translation).sum::<DVec3>() / feet.len().max(1) as f64;
     let ground = ground_for(kind, &rest, feet_centre, size);
-    // Every skin vertex kept above the ground under the body's centre (the slope, or the
-    // step under it); those within 30 % of the size of it at the start of a solve are its
-    // active set (10 % let a paw that started further up pass through within one solve).
-    let centre = rest.iter().sum::<DVec3>() / rest.len().max(1) as f64;
-    let floor = under(ground.as_ref(), centre, size);
-    let with = drag(model, pose, handle, (ground.as_ref(), floor), balance);
-    let without = drag(model, pose, handle, (ground.as_ref(), floor), false);
+    let with = drag(model, pose, handle, ground.as_ref(), balance);
+    let without = drag(model, pose, handle, ground.as_ref(), false);
     let mut ms = with.ms.clone();
     ms.sort_by(f64::total_cmp);
     let mut errors = with.sole_errors_deg.clone();

@@ -15,9 +15,9 @@
 //!   hard: on a slope steeper than the ankle turns, the sole meets the ground with its edge).
 //!   The game releases a contact ([`Contact::release`]) when the pose lifts it past a release
 //!   height ([`Contact::lifted`]) or when it wants.
-//! * A [`Floor`] keeps *every* skin vertex above a plane: the vertices within its band of the
-//!   plane in the pose a solve starts from become free contacts of that solve (an active set
-//!   renewed every solve: a character dragged down into the floor does not sink).
+//! * A [`super::Floor`] keeps *every* skin vertex near the ground above it: the vertices near
+//!   the ground in the pose a solve starts from become one-sided terms of that solve (an
+//!   active set renewed every solve: a character dragged down into the floor does not sink).
 
 use glam::DVec3;
 
@@ -105,6 +105,11 @@ pub struct Contact {
     /// The joint's axis, in its bind-pose frame, that a planted contact turns to the
     /// ground's normal (a foot's up; `None`: no turn).
     pub up: Option<DVec3>,
+    /// How far above the ground the planted points still are (world units): a patch planted
+    /// above the ground (a foot over a lower step) is held where it touched down and lowered
+    /// onto the ground by [`Contact::descend`], so the body is not yanked down in one solve
+    /// (the other planted patches would slide under the pull).
+    pub landing: f64,
 }
 
 impl Contact {
@@ -117,6 +122,7 @@ impl Contact {
             ground,
             planted: None,
             up: Some(DVec3::Y),
+            landing: 0.0,
         }
     }
 
@@ -127,6 +133,17 @@ impl Contact {
     /// lowest vertex touches. Each vertex is held there: the sole lies on the ground where it
     /// touched, curved or flat, and does not slide.
     pub fn plant(&mut self, positions: &[DVec3], current_up: Option<DVec3>) {
+        self.lay(positions, current_up, false);
+    }
+
+    /// Plants the contact as [`Contact::plant`] does, but a patch that is above the ground is
+    /// held at its height for now ([`Contact::landing`]; lower it with [`Contact::descend`]):
+    /// a foot coming down on a lower step while the others stand.
+    pub fn plant_landing(&mut self, positions: &[DVec3], current_up: Option<DVec3>) {
+        self.lay(positions, current_up, true);
+    }
+
+    fn lay(&mut self, positions: &[DVec3], current_up: Option<DVec3>, landing: bool) {
         let turn = current_up
             .and_then(|u| u.try_normalize())
             .map_or(glam::DQuat::IDENTITY, |u| {
@@ -147,13 +164,38 @@ impl Contact {
             .iter()
             .map(|p| self.ground.height(*p))
             .fold(f64::INFINITY, f64::min);
-        let lift = self.ground.normal * -lowest;
+        self.landing = if landing {
+            positions
+                .iter()
+                .map(|p| self.ground.height(*p))
+                .fold(f64::INFINITY, f64::min)
+                .max(0.0)
+        } else {
+            0.0
+        };
+        let lift = self.ground.normal * (self.landing - lowest);
         self.planted = Some(laid.into_iter().map(|p| p + lift).collect());
+    }
+
+    /// Lowers a planted patch that is still landing by at most `step` (world units) towards
+    /// the ground; returns the height left.
+    pub fn descend(&mut self, step: f64) -> f64 {
+        let drop = self.landing.min(step.max(0.0));
+        if let Some(planted) = &mut self.planted
+            && drop > 0.0
+        {
+            for p in planted.iter_mut() {
+                *p -= self.ground.normal * drop;
+            }
+            self.landing -= drop;
+        }
+        self.landing
     }
 
     /// Releases a planted contact (it may then only not go below the ground).
     pub fn release(&mut self) {
         self.planted = None;
+        self.landing = 0.0;
     }
 
     /// Whether the patch (`positions`, as for [`Contact::plant`]) is entirely more than
@@ -165,6 +207,7 @@ impl Contact {
     /// Whether the numbers can be used (indices are checked by the solver).
     pub(crate) fn is_valid(&self) -> bool {
         self.ground.point.is_finite()
+            && self.landing.is_finite()
             && self.ground.normal.is_finite()
             && (self.ground.normal.length() - 1.0).abs() < 1e-6
             && self
@@ -175,16 +218,6 @@ impl Contact {
                 .up
                 .is_none_or(|u| u.is_finite() && u.length_squared() > 1e-18)
     }
-}
-
-/// Every skin vertex kept above a plane (see the module docs).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Floor {
-    /// The floor.
-    pub plane: GroundPlane,
-    /// Vertices within this height of the floor (or below it) in the pose a solve starts from
-    /// are kept above it in that solve, world units: more than a frame's motion.
-    pub band: f64,
 }
 
 #[cfg(test)]
@@ -223,6 +256,19 @@ mod tests {
         let planted = c.planted.clone().unwrap();
         assert!(planted[0].distance(DVec3::new(0.0, 1.3, 0.0)) < 1e-12);
         assert!(planted[1].distance(DVec3::new(1.0, 1.0, 0.0)) < 1e-12);
+        assert_eq!(c.landing, 0.0);
+        // Planted 0.25 above the ground: held there, then lowered 0.1 at a time onto it.
+        c.plant_landing(
+            &[DVec3::new(0.0, 1.25, 0.0), DVec3::new(1.0, 1.25, 0.0)],
+            None,
+        );
+        assert!((c.landing - 0.25).abs() < 1e-12);
+        assert!((c.planted.as_ref().unwrap()[1].y - 1.25).abs() < 1e-12);
+        assert!((c.descend(0.1) - 0.15).abs() < 1e-12);
+        assert!((c.planted.as_ref().unwrap()[1].y - 1.15).abs() < 1e-12);
+        c.descend(0.1);
+        assert_eq!(c.descend(0.1), 0.0);
+        assert!((c.planted.as_ref().unwrap()[0].y - 1.0).abs() < 1e-12);
         // Turned flat: a patch tilted by 30° about z comes down level, touching at its lowest.
         let tilt = glam::DQuat::from_rotation_z(0.5);
         let patch = [DVec3::new(-0.1, 1.5, 0.0), DVec3::new(0.1, 1.5, 0.0)].map(|p| tilt * p);

@@ -312,6 +312,12 @@ pub struct ContactTracker {
     /// Each patch's centroid where the character carries it, in the pose the tracker was made
     /// for (character space).
     pub home: Vec<DVec3>,
+    /// A patch planted above the ground after the first update is lowered onto it by at most
+    /// this much per update ([`Contact::landing`], world units); the first stance is laid on
+    /// the ground at once.
+    pub landing_step: f64,
+    /// Updates so far.
+    pub updates: u64,
 }
 
 impl ContactTracker {
@@ -319,7 +325,8 @@ impl ContactTracker {
     /// the model's size: a patch within 8 % of the ground is planted (laid on it: a foot over a
     /// lower step or downhill comes down to it, as foot placement does), one lifted more than
     /// 12 % is released, one the character has walked 15 % away from is released to be planted
-    /// again under it; casts reach 50 %.
+    /// again under it; casts reach 50 %; a patch planted above the ground comes down 0.5 % of
+    /// the size per update.
     pub fn new(model: &SkinnedModel, pose: &SkeletonPose, joints: &[usize], down: DVec3) -> Self {
         let down = down.try_normalize().unwrap_or(DVec3::NEG_Y);
         let size = model.topology().bounding_diagonal();
@@ -354,6 +361,8 @@ impl ContactTracker {
             plant_height: 0.08 * size,
             release_height: 0.12 * size,
             reach: 0.5 * size,
+            landing_step: 0.005 * size,
+            updates: 0,
         }
     }
 
@@ -368,6 +377,8 @@ impl ContactTracker {
         let skinned = model.skin_welded(pose);
         let globals = model.skeleton().global_transforms(pose);
         let mut events = Vec::with_capacity(self.contacts.len());
+        let first = self.updates == 0;
+        self.updates += 1;
         for ((c, grounded), home) in self
             .contacts
             .iter_mut()
@@ -416,6 +427,10 @@ impl ContactTracker {
                                 c.release();
                                 ContactEvent::Released
                             }
+                            Some(_) => {
+                                c.descend(self.landing_step);
+                                ContactEvent::Unchanged
+                            }
                             // A patch a step released plants again once the body has
                             // carried it back within half a stride (no plant where it trails).
                             None if lowest <= self.plant_height
@@ -424,7 +439,11 @@ impl ContactTracker {
                                 let up = c.up.map(|u| {
                                     (globals[c.joint].matrix3 * u).normalize_or(-self.down)
                                 });
-                                c.plant(&patch, up);
+                                if first {
+                                    c.plant(&patch, up);
+                                } else {
+                                    c.plant_landing(&patch, up);
+                                }
                                 ContactEvent::Planted
                             }
                             _ => ContactEvent::Unchanged,

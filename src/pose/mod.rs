@@ -44,6 +44,7 @@ pub mod clip;
 pub mod contacts;
 pub mod effectors;
 mod file;
+pub mod floor;
 pub mod gltf_clip;
 pub mod ground;
 pub mod humanoid;
@@ -62,11 +63,12 @@ pub use balance::{Balance, SupportPolygon, centre_of_mass, vertex_masses};
 pub use blend::{BlendMode, additive_layer_for, blend_joint, blend_pose};
 pub use capsules::{BoneCapsule, fit_bone_capsules};
 pub use clip::{ClipError, KEY_TIME_EPSILON, KeyInterpolation, PoseClip, PoseKey};
-pub use contacts::{Contact, Floor, GroundPlane};
+pub use contacts::{Contact, GroundPlane};
 pub use effectors::{
     CentroidEffector, Effector, EffectorGoal, ReferenceStiffness, StiffnessWeighting,
 };
 pub use file::{PoseFile, PoseFileError};
+pub use floor::{Floor, FloorCastStats, FloorSampling};
 pub use gltf_clip::{read_gltf_clip, write_gltf_clip, write_gltf_pose_clip};
 pub use ground::{ContactEvent, ContactTracker, Ground, TriangleGround, lowest_joints, sole_patch};
 pub use humanoid::{HumanoidRole, Side, humanoid_role};

@@ -120,8 +120,10 @@ impl PoseConstraints {
             }
         }
         if let Some(f) = &mut out.floor {
-            ground(&mut f.plane);
-            f.band *= to.matrix3.x_axis.length();
+            f.planes_mut().for_each(ground);
+            if let crate::pose::Floor::Plane { band, .. } = f {
+                *band *= to.matrix3.x_axis.length();
+            }
         }
         out
     }

@@ -205,7 +205,7 @@ fn a_planted_foot_holds_under_a_pull_and_lifts_when_released() {
 fn a_body_dragged_into_the_floor_stops_at_it() {
     let s = scene();
     // The band `PoseGround` uses (30 % of the size).
-    let floor = Floor {
+    let floor = Floor::Plane {
         plane: s.flat_ground(),
         band: 0.3 * s.size,
     };
@@ -219,7 +219,7 @@ fn a_body_dragged_into_the_floor_stops_at_it() {
                     goal: EffectorGoal::Position(hips - DVec3::Y * 0.1 * frame as f64),
                     weight: 1.0,
                 }],
-                floor,
+                floor: floor.clone(),
                 ..Default::default()
             };
             let start = match &last {
@@ -275,13 +275,23 @@ fn bad_contacts_are_typed_errors() {
         solve(vec![out_of_range], None),
         Err(PoseError::JointOutOfRange { .. })
     ));
-    let bad_floor = Floor {
+    let bad_floor = Floor::Plane {
         plane: ground,
         band: -1.0,
     };
     assert!(matches!(
         solve(vec![], Some(bad_floor)),
         Err(PoseError::InvalidContact(_))
+    ));
+    let mut bad_plane = ground;
+    bad_plane.normal = DVec3::new(f64::NAN, 1.0, 0.0);
+    assert!(matches!(
+        solve(vec![], Some(Floor::Under(vec![(0, bad_plane)]))),
+        Err(PoseError::InvalidContact(_))
+    ));
+    assert!(matches!(
+        solve(vec![], Some(Floor::Under(vec![(u32::MAX, ground)]))),
+        Err(PoseError::VertexOutOfRange { .. })
     ));
     // A ground above the hips: the body is pushed up out of it as far as the pinned foot
     // lets it, and the pose stays finite.
@@ -311,6 +321,12 @@ fn on_a_slope_too_steep_for_the_ankle_the_limit_holds_and_the_edge_touches() {
         .unwrap()
         .set(
             LEFT_ANKLE - 2,
+            JointLimit::cone_deg((6.0, 6.0), (-5.0, 5.0)),
+        )
+        .unwrap()
+        // The hip too: a free hip rolls the whole leg until the sole lies on the slope.
+        .set(
+            LEFT_ANKLE - 3,
             JointLimit::cone_deg((6.0, 6.0), (-5.0, 5.0)),
         )
         .unwrap();

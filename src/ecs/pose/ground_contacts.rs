@@ -6,13 +6,13 @@ use glam::{DAffine3, DVec3};
 use super::{PoseBalance, PoseGround, PosedSkeleton};
 use crate::ecs::SceneGround;
 use crate::pose::{
-    Balance, ContactTracker, Floor, GroundPlane, PoseConstraints, SkeletonPose, SupportPolygon,
-    lowest_joints,
+    Balance, ContactTracker, Floor, FloorSampling, GroundPlane, PoseConstraints, SkeletonPose,
+    SupportPolygon, lowest_joints,
 };
 
 /// Adds to `constraints` (character space) the character's ground contacts — found on the
 /// first call, cast on `ground` (world space) from the patches as `pose` carries them, planted
-/// and released — the floor under its root and, with `balance`, the centre of mass over the
+/// and released — the floor under its skin and, with `balance`, the centre of mass over the
 /// planted patches. Returns the contacts planted now, those planted by this call and the
 /// support polygon's corners (character space).
 pub(super) fn stand_on(
@@ -50,15 +50,9 @@ pub(super) fn stand_on(
         .filter(|e| **e == crate::pose::ContactEvent::Planted)
         .count() as u32;
     constraints.contacts = tracker.active();
-    let globals = model.skeleton().global_transforms(pose);
-    if let Some(root) = globals.first()
-        && let Some(plane) = cast(root.translation - down * size, down, 10.0 * size)
-    {
-        constraints.floor = Some(Floor {
-            plane,
-            band: f64::from(settings.floor_band) * size,
-        });
-    }
+    // Every skin vertex near the ground under it kept above it (a plane per vertex: terrain).
+    let sampling = FloorSampling::for_size(size, f64::from(settings.floor_band), down);
+    constraints.floor = Some(Floor::cast(&model.skin_welded(pose), &cast, &sampling).0);
     let support = tracker.support();
     let corners = support
         .iter()

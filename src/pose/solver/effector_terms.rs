@@ -85,8 +85,8 @@ pub(crate) struct ExtraInputs<'a> {
     pub balance: Option<(&'a Balance, &'a [f64])>,
     /// Ground contacts.
     pub contacts: &'a [Contact],
-    /// The floor and the vertices kept above it in this solve.
-    pub floor: Option<(GroundPlane, &'a [u32])>,
+    /// The vertices kept above the floor in this solve, each with its plane of the ground.
+    pub floor: &'a [(u32, GroundPlane)],
     pub effectors: &'a [Effector],
     pub centroids: &'a [CentroidEffector],
     pub stiffness: Option<&'a ReferenceStiffness>,

@@ -36,8 +36,9 @@ use penalties::{SetSums, set_target};
 
 use super::PoseError;
 use super::balance::Balance;
-use super::contacts::{Contact, Floor};
+use super::contacts::Contact;
 use super::effectors::{CentroidEffector, Effector, ReferenceStiffness};
+use super::floor::Floor;
 use super::limits::JointLimits;
 use super::model::SkinnedModel;
 use super::skeleton::SkeletonPose;
@@ -85,7 +86,7 @@ pub struct PoseConstraints {
     /// Skin patches on the ground, free or planted ([`super::contacts`]); they may change
     /// freely between solves.
     pub contacts: Vec<Contact>,
-    /// Every skin vertex kept above this plane ([`super::contacts::Floor`]).
+    /// Every skin vertex near the ground kept above it ([`super::floor`]).
     pub floor: Option<Floor>,
     /// The pose whose shape the ARAP energy keeps (`None`: the bind pose). With it, the
     /// energy is tilted so this pose is at rest: a solve with nothing pulling leaves it as it

@@ -3,6 +3,8 @@
 //! with the effector, stiffness and hinge terms (`gauss_newton.rs`, `effector_terms.rs`,
 //! `hinges.rs`), and takes one damped step that lowers the energy (`step.rs`).
 
+use std::borrow::Cow;
+
 use web_time::Instant;
 
 use glam::{DAffine3, DQuat};
@@ -15,7 +17,7 @@ use super::{
     PoseConstraints, PoseSolution, PoseSolveOptions, PoseSolveStats, PoseSolver, PoseStart,
 };
 use crate::deform::RigidTransform;
-use crate::pose::{PoseError, Skeleton, SkeletonPose};
+use crate::pose::{Floor, GroundPlane, PoseError, Skeleton, SkeletonPose};
 
 /// Levenberg–Marquardt damping of a cold start (relative to the Hessian's diagonal).
 const INITIAL_DAMPING: f64 = 1e-4;
@@ -265,24 +267,24 @@ impl PoseSolver {
         let balance = constraints.balance.as_ref().filter(|b| b.weight > 0.0);
         let masses = balance.map(|b| b.masses.as_deref().unwrap_or(self.model.area_masses()));
         // The floor's active set: the vertices near or below it where this solve starts.
-        let floor_vertices: Vec<u32> = constraints.floor.as_ref().map_or(Vec::new(), |f| {
-            self.model
+        let floor: Cow<[(u32, GroundPlane)]> = match &constraints.floor {
+            None => Cow::Borrowed(&[]),
+            Some(Floor::Plane { plane, band }) => self
+                .model
                 .skin_welded(start)
                 .iter()
                 .enumerate()
-                .filter(|(_, p)| f.plane.height(**p) < f.band)
-                .map(|(v, _)| v as u32)
-                .collect()
-        });
+                .filter(|(_, p)| plane.height(**p) < *band)
+                .map(|(v, _)| (v as u32, *plane))
+                .collect(),
+            Some(Floor::Under(under)) => Cow::Borrowed(under),
+        };
         ExtraTerms::new(
             skeleton,
             &ExtraInputs {
                 balance: balance.zip(masses),
                 contacts: &constraints.contacts,
-                floor: constraints
-                    .floor
-                    .as_ref()
-                    .map(|f| (f.plane, &floor_vertices[..])),
+                floor: &floor,
                 effectors: &constraints.effectors,
                 centroids: &constraints.centroid_effectors,
                 stiffness: constraints.stiffness.as_ref(),

@@ -6,13 +6,19 @@ use glam::{DMat3, DVec3};
 
 use super::{ExtraInputs, ExtraTerms, Term, centroid_of, joint_sums, outer, strength};
 use crate::pose::balance::SupportPolygon;
-use crate::pose::{PoseConstraints, PoseError};
+use crate::pose::{Floor, PoseConstraints, PoseError};
 
 /// Balance at weight 1 against a position effector at weight 1: the body leans out only where
 /// an effector is a hundred times stronger.
-const BALANCE_STRENGTH: f64 = 100.0;
-/// A contact's hold and non-penetration against a position effector at weight 1.
+const BALANCE_STRENGTH: f64 = 1000.0;
+/// A planted contact's hold against a position effector at weight 1.
 const CONTACT_STRENGTH: f64 = 100.0;
+/// Non-penetration against a planted contact's hold: ten times stiffer, so where the hold and
+/// the ground disagree (a curved sole laid on a slope, a patch whose skin bends) the ground
+/// wins and the hold gives.
+const ABOVE_OVER_HOLD: f64 = 10.0;
+/// A planted sole's turn to the ground's normal against a position effector at weight 1.
+const SOLE_TURN: f64 = 3.0;
 /// The contact skin, as a share of the model's size ([`ExtraTerms::skin`]).
 const CONTACT_SKIN: f64 = 1e-3;
 
@@ -52,16 +58,20 @@ pub(crate) fn validate_ground(
             ));
         }
     }
-    if let Some(f) = &constraints.floor
-        && !(f.plane.point.is_finite()
-            && f.plane.normal.is_finite()
-            && (f.plane.normal.length() - 1.0).abs() < 1e-6
-            && f.band.is_finite()
-            && f.band >= 0.0)
-    {
-        return Err(PoseError::InvalidContact(
-            "the floor's plane or band is not usable",
-        ));
+    if let Some(f) = &constraints.floor {
+        if !f.is_valid() {
+            return Err(PoseError::InvalidContact(
+                "the floor's plane or band is not usable",
+            ));
+        }
+        if let Floor::Under(under) = f
+            && let Some(&(v, _)) = under.iter().find(|(v, _)| *v as usize >= vertex_count)
+        {
+            return Err(PoseError::VertexOutOfRange {
+                vertex: v,
+                vertex_count,
+            });
+        }
     }
     Ok(())
 }
@@ -72,13 +82,14 @@ pub(super) fn push_terms(terms: &mut Vec<Term>, joints: usize, input: &ExtraInpu
     // Contacts: every patch vertex above its ground; a planted one held where it touched,
     // its joint's up turned to the ground's normal.
     let hold = CONTACT_STRENGTH * lw;
+    let above = ABOVE_OVER_HOLD * hold;
     let one = |v: u32| joint_sums(joints, input, std::iter::once((v, 1.0)));
     for c in input.contacts {
         for (k, &v) in c.patch.iter().enumerate() {
             terms.push(Term::Above {
                 sums: one(v),
                 plane: c.ground,
-                weight: hold,
+                weight: above,
             });
             if let Some(at) = c.planted.as_ref().and_then(|p| p.get(k)) {
                 terms.push(Term::Centroid {
@@ -95,18 +106,16 @@ pub(super) fn push_terms(terms: &mut Vec<Term>, joints: usize, input: &ExtraInpu
                 axis: up.normalize(),
                 target: origin + c.ground.normal * (1e3 * input.length_scale),
                 up: None,
-                weight: lw,
+                weight: SOLE_TURN * lw,
             });
         }
     }
-    if let Some((plane, vertices)) = input.floor {
-        for &v in vertices {
-            terms.push(Term::Above {
-                sums: one(v),
-                plane,
-                weight: hold,
-            });
-        }
+    for &(v, plane) in input.floor {
+        terms.push(Term::Above {
+            sums: one(v),
+            plane,
+            weight: above,
+        });
     }
     if let Some((b, masses)) = input.balance {
         let total: f64 = masses.iter().sum();
