@@ -134,12 +134,15 @@ fn main() {
     // Bevy resolves a relative asset folder against the executable's; make it absolute.
     let dir = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
     let mut app = headless_app(&dir, args.springs);
-    let (scene, clip) = load_scene(&mut app, &file.to_string_lossy());
+    // On the terrain the characters walk: the file's "Walk" clip when it has one.
+    let prefer = args.terrain.then_some("Walk");
+    let (scene, clip) = load_scene(&mut app, &file.to_string_lossy(), prefer);
     if args.playing && clip.is_none() {
         eprintln!("--playing: {} has no animation", path.display());
         std::process::exit(2);
     }
-    let clip = clip.filter(|_| args.playing);
+    let clip = clip.filter(|_| args.playing || args.terrain);
+    let clip_playing = clip.is_some();
     let side = (args.characters as f32).sqrt().ceil() as usize;
     let mut field = args
         .terrain
@@ -152,7 +155,12 @@ fn main() {
             }
             let mut fox = app.world_mut().spawn((
                 WorldAssetRoot(scene.clone()),
-                Transform::from_translation(at),
+                // On the terrain they face +X, the way they walk (the Fox faces +Z).
+                Transform::from_translation(at).with_rotation(if field.is_some() {
+                    Quat::from_rotation_y(std::f32::consts::FRAC_PI_2)
+                } else {
+                    Quat::IDENTITY
+                }),
                 Poseable {
                     max_iterations: args.iterations,
                     ..default()
@@ -243,10 +251,8 @@ fn main() {
         {
             solve_ms.add(status.solve_ms);
         }
-        if let Some(field) = field.as_mut()
-            && frame % 20 == 0
-        {
-            field.sample(&app, &roots);
+        if let Some(field) = field.as_mut() {
+            field.sample(&app, &roots, frame % 5 == 0);
         }
     }
     let rss_growth_kb_per_frame = match (rss_from, resident_kb()) {
@@ -268,7 +274,7 @@ fn main() {
             "ms_per_solve": solve_ms.quantile(0.5),
             "frames": frames.len(),
             "models_built": app.world().resource::<PoseModels>().built(),
-            "playing": args.playing,
+            "playing": args.playing || (args.terrain && clip_playing),
             "peak_rss_mb": peak_resident_kb().map(|kb| kb as f64 / 1024.0),
             "rss_growth_kb_per_frame": rss_growth_kb_per_frame,
     });
@@ -343,7 +349,12 @@ fn peak_resident_kb() -> Option<u64> {
 
 /// Loads the whole file (no materials: nothing is drawn) and returns its first scene and its
 /// first clip, if it has one.
-fn load_scene(app: &mut App, file: &str) -> (Handle<WorldAsset>, Option<Handle<AnimationClip>>) {
+/// Loads `file`'s first scene and its clip named `prefer` (or its first clip).
+fn load_scene(
+    app: &mut App,
+    file: &str,
+    prefer: Option<&str>,
+) -> (Handle<WorldAsset>, Option<Handle<AnimationClip>>) {
     let gltf = headless_gltf::load_gltf_without_materials(app, file);
     let start = Instant::now();
     loop {
@@ -354,7 +365,10 @@ fn load_scene(app: &mut App, file: &str) -> (Handle<WorldAsset>, Option<Handle<A
             .get(&gltf)
         {
             let scene = loaded.scenes[0].clone();
-            let clip = loaded.animations.first().cloned();
+            let clip = prefer
+                .and_then(|name| loaded.named_animations.get(name))
+                .or(loaded.animations.first())
+                .cloned();
             app.insert_resource(KeepLoaded(gltf));
             return (scene, clip);
         }

@@ -2,7 +2,7 @@
 //! it, and what is measured of their contacts.
 
 use bevy::prelude::*;
-use bevy_wii_deform::pose::{Ground as CastDown, TriangleGround};
+use bevy_wii_deform::pose::{Ground as CastDown, SupportPolygon, TriangleGround, centre_of_mass};
 use bevy_wii_deform::prelude::*;
 use glam::{DVec2, DVec3};
 
@@ -20,6 +20,17 @@ pub struct Field {
     ground: std::sync::Arc<TriangleGround>,
     penetration_max: f64,
     plants_at_start: Option<u64>,
+    /// Planted soles' up (carried by the joint) against their ground's normal, degrees.
+    sole_errors_deg: Vec<f64>,
+    /// Largest per-frame slide of a planted patch across its ground / size.
+    slide_max: f64,
+    /// (character, frame) pairs with the centre of mass over the planted patches, and all.
+    supported: u64,
+    pairs: u64,
+    /// Pairs with nothing planted (counted unsupported).
+    unsupported_no_support: u64,
+    /// Each character's planted patches last frame (world space).
+    previous: std::collections::HashMap<Entity, Vec<Option<Vec<DVec3>>>>,
 }
 
 /// Spawns the terrain under a `side` × `side` field (150 apart), long enough for `frames` of
@@ -43,6 +54,12 @@ pub fn spawn(app: &mut App, side: usize, frames: usize) -> Field {
         ground: std::sync::Arc::new(TriangleGround::new(positions, triangles, DVec3::NEG_Y)),
         penetration_max: 0.0,
         plants_at_start: None,
+        sole_errors_deg: Vec::new(),
+        slide_max: 0.0,
+        supported: 0,
+        pairs: 0,
+        unsupported_no_support: 0,
+        previous: Default::default(),
     };
     app.insert_resource(field.clone())
         .add_systems(Update, walk_on.before(PoseSystems::Request));
@@ -57,22 +74,80 @@ impl Field {
             .map_or(0.0, |hit| hit.point.y as f32)
     }
 
-    /// Records the deepest skinned vertex below the terrain now (and the plants of the first
-    /// stance, at the first sample).
-    pub fn sample(&mut self, app: &App, roots: &[Entity]) {
+    /// Measures this frame: the planted soles' turn to the ground, their slide since the last
+    /// frame, the centre of mass against the support polygon, and (with `skin`) the deepest
+    /// skinned vertex below the terrain; the plants of the first stance at the first call.
+    pub fn sample(&mut self, app: &App, roots: &[Entity], skin: bool) {
         if self.plants_at_start.is_none() {
             self.plants_at_start = Some(plants(app, roots));
         }
         for &root in roots {
-            let Some(posed) = app.world().get::<PosedSkeleton>(root) else {
+            let (Some(posed), Some(status)) = (
+                app.world().get::<PosedSkeleton>(root),
+                app.world().get::<PoseStatus>(root),
+            ) else {
                 continue;
             };
-            let size = posed.model.topology().bounding_diagonal();
-            for p in posed.to_world(posed.model.skin_render(&posed.pose)) {
-                if let Some(hit) = self.ground.cast_down(p + DVec3::Y * 1e3, DVec3::NEG_Y, 2e3) {
-                    let depth = (hit.point.y - p.y) / size;
-                    self.penetration_max = self.penetration_max.max(depth);
+            // The pose on screen: the walk clip with the pose's layer added.
+            let pose = posed.shown_pose(|j| app.world().get::<Transform>(j).copied());
+            let scale = posed.placement.matrix3.x_axis.length();
+            let size = posed.model.topology().bounding_diagonal() * scale;
+            if skin {
+                for p in posed.to_world(posed.model.skin_render(&pose)) {
+                    if let Some(hit) = self.ground.cast_down(p + DVec3::Y * 1e3, DVec3::NEG_Y, 2e3)
+                    {
+                        let depth = (hit.point.y - p.y) / size;
+                        self.penetration_max = self.penetration_max.max(depth);
+                    }
                 }
+            }
+            let welded = posed.to_world(posed.model.skin_welded(&pose));
+            let globals = posed.model.skeleton().global_transforms(&pose);
+            let mut now = Vec::with_capacity(status.contacts.len());
+            for c in &status.contacts {
+                if !c.planted {
+                    now.push(None);
+                    continue;
+                }
+                let normal = c.ground_normal.as_dvec3();
+                if let Some(up) = c.up {
+                    let up = posed.placement.matrix3 * (globals[c.joint].matrix3 * up.as_dvec3());
+                    let up = up.normalize_or(DVec3::Y);
+                    self.sole_errors_deg
+                        .push(up.angle_between(normal).to_degrees());
+                }
+                now.push(Some(
+                    c.patch
+                        .iter()
+                        .map(|&v| welded[v as usize])
+                        .collect::<Vec<_>>(),
+                ));
+            }
+            if let Some(before) = self.previous.get(&root) {
+                for ((a, b), c) in before.iter().zip(&now).zip(&status.contacts) {
+                    if let (Some(a), Some(b)) = (a, b) {
+                        let n = c.ground_normal.as_dvec3();
+                        for (p, q) in a.iter().zip(b) {
+                            let d = *q - *p;
+                            let slide = (d - n * d.dot(n)).length() / size;
+                            self.slide_max = self.slide_max.max(slide);
+                        }
+                    }
+                }
+            }
+            self.previous.insert(root, now);
+            self.pairs += 1;
+            let corners: Vec<DVec3> = status
+                .support_polygon
+                .iter()
+                .map(|c| c.as_dvec3())
+                .collect();
+            if corners.is_empty() {
+                self.unsupported_no_support += 1;
+            } else if let Some(com) = centre_of_mass(&posed.model, &pose, None) {
+                let com = posed.placement.transform_point3(com);
+                let polygon = SupportPolygon::new(&corners, DVec3::NEG_Y);
+                self.supported += u64::from(polygon.signed_distance(com) >= 0.0);
             }
         }
     }
@@ -88,9 +163,30 @@ impl Field {
             .filter_map(|&r| app.world().get::<PoseStatus>(r))
             .map(|s| s.contacts_planted)
             .sum();
+        let mut errors = self.sole_errors_deg.clone();
+        errors.sort_by(f64::total_cmp);
+        let p95 = errors
+            .get(((errors.len().max(1) - 1) as f64 * 0.95).round() as usize)
+            .copied();
+        let pairs = self.pairs.max(1) as f64;
         let mut out = serde_json::Map::new();
         out.insert("terrain".into(), true.into());
         out.insert("penetration_max".into(), self.penetration_max.into());
+        out.insert("sole_normal_error_deg_p95".into(), p95.into());
+        out.insert(
+            "soles_at_limit_share".into(),
+            (errors.iter().filter(|e| **e > 3.0).count() as f64 / errors.len().max(1) as f64)
+                .into(),
+        );
+        out.insert("planted_slide_max".into(), self.slide_max.into());
+        out.insert(
+            "com_supported_share".into(),
+            (self.supported as f64 / pairs).into(),
+        );
+        out.insert(
+            "no_support_share".into(),
+            (self.unsupported_no_support as f64 / pairs).into(),
+        );
         out.insert(
             "planted_per_character".into(),
             (planted as f64 / roots.len().max(1) as f64).into(),

@@ -46,10 +46,11 @@ pub use input::{
 #[allow(deprecated)]
 pub use pose::GrabAnchor;
 pub use pose::{
-    CharacterSkin, HandlePositionOnly, JointMask, PinnedJoints, PoseAnchor, PoseBalance, PoseBlend,
-    PoseBlendMode, PoseEffector, PoseEffectorKind, PoseFailed, PoseGround, PoseInFrame,
-    PoseJointHandle, PoseLimits, PoseModels, PosePlugin, PoseSolved, PoseStatus, PoseStiffness,
-    PoseSystems, PoseTimeline, Poseable, PoseableError, PosedSkeleton, SymmetricEditing,
+    CharacterSkin, GroundContactState, HandlePositionOnly, JointMask, PinnedJoints, PoseAnchor,
+    PoseBalance, PoseBlend, PoseBlendMode, PoseEffector, PoseEffectorKind, PoseFailed, PoseGround,
+    PoseInFrame, PoseJointHandle, PoseLimits, PoseModels, PosePlugin, PoseSolved, PoseStatus,
+    PoseStiffness, PoseSystems, PoseTimeline, Poseable, PoseableError, PosedSkeleton,
+    SymmetricEditing,
 };
 pub use scene::{MissingSceneAssets, SceneAssetsMissing, SceneRootPlugin};
 pub use springs::{SpringBones, SpringPlugin, SpringSource, SpringStatus, SpringSystems};

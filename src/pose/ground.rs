@@ -307,7 +307,8 @@ pub struct ContactTracker {
     /// How far above the patch a cast starts, and how far below it it reaches.
     pub reach: f64,
     /// A planted patch whose centroid is this far (across gravity) from where the character
-    /// carries it ([`ContactTracker::home`]) is released: the character walked on (world units).
+    /// carries it ([`ContactTracker::home`]), or from where the pose a solve starts from puts
+    /// it (an animation's step), is released: the character walked on (world units).
     pub stride: f64,
     /// Each patch's centroid where the character carries it, in the pose the tracker was made
     /// for (character space).
@@ -385,21 +386,25 @@ impl ContactTracker {
             .zip(&mut self.grounded)
             .zip(&self.home)
         {
-            // Walked on: a planted patch left behind is released (and re-planted below).
-            if let Some(planted) = &c.planted {
-                let centre = planted.iter().sum::<DVec3>() / planted.len().max(1) as f64;
-                if horizontal(centre - *home, self.down) > self.stride {
-                    c.release();
-                    events.push(ContactEvent::Stepped);
-                    continue;
-                }
-            }
             let patch: Vec<DVec3> = c.patch.iter().map(|&v| skinned[v as usize]).collect();
             if patch.is_empty() {
                 events.push(ContactEvent::NoGround);
                 continue;
             }
             let centre = patch.iter().sum::<DVec3>() / patch.len() as f64;
+            // Walked on: a planted patch left behind — by the character's motion (from where
+            // it carries the patch at rest) or by the animation the solve starts from (from
+            // where the clip puts the paw) — is released, to be planted again under it.
+            if let Some(planted) = &c.planted {
+                let held = planted.iter().sum::<DVec3>() / planted.len().max(1) as f64;
+                if horizontal(held - *home, self.down) > self.stride
+                    || horizontal(held - centre, self.down) > self.stride
+                {
+                    c.release();
+                    events.push(ContactEvent::Stepped);
+                    continue;
+                }
+            }
             let from = centre - self.down * self.reach;
             let event = match ground.cast_down(from, self.down, 2.0 * self.reach) {
                 None => {

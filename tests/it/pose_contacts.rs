@@ -3,6 +3,7 @@
 
 use std::sync::Arc;
 
+use bevy_wii_deform::deform::centroid;
 use bevy_wii_deform::pose::effectors::joint_positions;
 use bevy_wii_deform::pose::synth_rig::{SyntheticRig, mannequin_rig};
 use bevy_wii_deform::pose::*;
@@ -241,6 +242,85 @@ fn a_body_dragged_into_the_floor_stops_at_it() {
     );
     let held = deepest(Some(floor));
     assert!(held > -1e-3 * s.size, "a vertex is {held} below the floor");
+}
+
+/// Issue 42: a floor sampled from the ground under each vertex (`Floor::cast`) holds a body
+/// dragged down onto steps — the left foot over a block 5 % of the height up, starting sunk in
+/// it — while one plane under the root (the lower level) leaves the left foot in the block.
+#[test]
+fn a_floor_cast_on_steps_holds_the_foot_over_the_higher_step() {
+    let s = scene();
+    let rest = s.skinned(&s.rig.rest);
+    let rise = 0.05 * s.size;
+    // The lower level at the feet, a block rising `rise` under everything at x > 0 (the left
+    // foot's side).
+    let (w, y0) = (10.0 * s.size, s.lowest);
+    let p = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
+    let steps = TriangleGround::new(
+        vec![
+            p(-w, y0, -w),
+            p(0.0, y0, -w),
+            p(0.0, y0, w),
+            p(-w, y0, w),
+            p(0.0, y0 + rise, -w),
+            p(w, y0 + rise, -w),
+            p(w, y0 + rise, w),
+            p(0.0, y0 + rise, w),
+        ],
+        vec![[0, 2, 1], [0, 3, 2], [4, 6, 5], [4, 7, 6]],
+        DVec3::NEG_Y,
+    );
+    let left_x = centroid(&rest, &s.sole).x;
+    assert!(left_x > 0.02 * s.size, "the left foot is over the block");
+    let hips = joint_positions(&s.rig.skeleton, &s.rig.rest)[HIPS];
+    let sampling = FloorSampling::for_size(s.size, 0.3, DVec3::NEG_Y);
+    // The rest pose stands on the lower level (the left foot in the block); drag the hips down.
+    let deepest = |cast: bool| {
+        let mut last: Option<PoseSolution> = None;
+        for frame in 1..=12 {
+            let now = last.as_ref().map_or(&s.rig.rest, |l| &l.pose);
+            let floor = if cast {
+                Floor::cast(&s.skinned(now), &steps, &sampling).0
+            } else {
+                Floor::Plane {
+                    plane: s.flat_ground(),
+                    band: 0.3 * s.size,
+                }
+            };
+            let constraints = PoseConstraints {
+                effectors: vec![Effector {
+                    joint: HIPS,
+                    goal: EffectorGoal::Position(hips - DVec3::Y * 0.1 * frame as f64),
+                    weight: 1.0,
+                }],
+                floor: Some(floor),
+                ..Default::default()
+            };
+            let start = match &last {
+                Some(l) => PoseStart::Warm(l),
+                None => PoseStart::Pose(&s.rig.rest),
+            };
+            last = Some(s.solve(&constraints, start, 20).unwrap());
+        }
+        let pose = last.unwrap().pose;
+        s.skinned(&pose)
+            .iter()
+            .filter_map(|p| {
+                let hit = steps.cast_down(*p + DVec3::Y * s.size, DVec3::NEG_Y, 3.0 * s.size)?;
+                Some(hit.height(*p))
+            })
+            .fold(f64::INFINITY, f64::min)
+    };
+    let one_plane = deepest(false);
+    assert!(
+        one_plane < -0.02 * s.size,
+        "one plane under the root lets the foot into the block: {one_plane}"
+    );
+    let cast = deepest(true);
+    assert!(
+        cast > -1e-3 * s.size,
+        "a vertex is {cast} below the step under it"
+    );
 }
 
 /// Bad contacts are typed errors; a contact whose ground is far above does not produce NaN.

@@ -3,7 +3,7 @@
 
 use glam::{DAffine3, DVec3};
 
-use super::{PoseBalance, PoseGround, PosedSkeleton};
+use super::{GroundContactState, PoseBalance, PoseGround, PosedSkeleton};
 use crate::ecs::SceneGround;
 use crate::pose::{
     Balance, ContactTracker, Floor, FloorSampling, GroundPlane, PoseConstraints, SkeletonPose,
@@ -13,8 +13,7 @@ use crate::pose::{
 /// Adds to `constraints` (character space) the character's ground contacts — found on the
 /// first call, cast on `ground` (world space) from the patches as `pose` carries them, planted
 /// and released — the floor under its skin and, with `balance`, the centre of mass over the
-/// planted patches. Returns the contacts planted now, those planted by this call and the
-/// support polygon's corners (character space).
+/// planted patches.
 pub(super) fn stand_on(
     constraints: &mut PoseConstraints,
     (tracker, posed, pose): (
@@ -25,7 +24,7 @@ pub(super) fn stand_on(
     settings: &PoseGround,
     balance: Option<&PoseBalance>,
     ground: &SceneGround,
-) -> (u32, u32, Vec<DVec3>) {
+) -> Standing {
     let to_world = posed.placement;
     let to_character = to_world.inverse();
     let down = (to_character.matrix3 * DVec3::NEG_Y).normalize_or(DVec3::NEG_Y);
@@ -76,7 +75,39 @@ pub(super) fn stand_on(
         .iter()
         .filter(|c| c.planted.is_some())
         .count() as u32;
-    (planted, planted_now, corners)
+    let contacts = tracker
+        .contacts
+        .iter()
+        .zip(&tracker.grounded)
+        .map(|(c, grounded)| GroundContactState {
+            joint: c.joint,
+            patch: c.patch.clone(),
+            planted: c.planted.is_some(),
+            grounded: *grounded,
+            ground_normal: (to_world.matrix3 * c.ground.normal)
+                .normalize_or(DVec3::Y)
+                .as_vec3(),
+            up: c.up.map(|u| u.as_vec3()),
+        })
+        .collect();
+    Standing {
+        planted,
+        planted_now,
+        corners,
+        contacts,
+    }
+}
+
+/// What [`stand_on`] found.
+pub(super) struct Standing {
+    /// Contacts planted now.
+    pub planted: u32,
+    /// Contacts planted by this call.
+    pub planted_now: u32,
+    /// The support polygon's corners (character space).
+    pub corners: Vec<DVec3>,
+    /// Every contact's state.
+    pub contacts: Vec<GroundContactState>,
 }
 
 /// Re-expresses the contacts' grounds and planted points after the character moved: `moved`

@@ -53,7 +53,9 @@ use bevy::prelude::*;
 
 use glam::{DAffine3, DVec3};
 
-use crate::pose::{JointLimits, LimitError, PoseError, PoseFile, SkeletonPose, SkinnedModel};
+use crate::pose::{
+    JointLimits, JointTransform, LimitError, PoseError, PoseFile, SkeletonPose, SkinnedModel,
+};
 
 pub use blend::{JointMask, PoseBlend, PoseBlendMode};
 pub use plugin::{PosePlugin, PoseSystems};
@@ -415,6 +417,26 @@ pub struct PoseStatus {
     /// With [`PoseGround`]: the support polygon of the planted contacts (world space, at the
     /// height of their lowest point; empty when nothing is planted), to draw.
     pub support_polygon: Vec<Vec3>,
+    /// With [`PoseGround`]: every contact as the last request left it.
+    pub contacts: Vec<GroundContactState>,
+}
+
+/// One ground contact of a character standing by [`PoseGround`], as the last request left it
+/// (in [`PoseStatus::contacts`]).
+#[derive(Debug, Clone, PartialEq, Reflect)]
+pub struct GroundContactState {
+    /// The joint that carries the patch (a foot).
+    pub joint: usize,
+    /// The patch's vertices (indices of the model's welded vertices).
+    pub patch: Vec<u32>,
+    /// Whether the patch is planted (held where it touched).
+    pub planted: bool,
+    /// Whether the last cast found ground under it.
+    pub grounded: bool,
+    /// The ground's normal under it (world space).
+    pub ground_normal: Vec3,
+    /// The joint's axis, in its bind-pose frame, that a planted contact turns to the normal.
+    pub up: Option<Vec3>,
 }
 
 /// Why a character could not be made poseable or posed (in [`PoseFailed`] and
@@ -527,7 +549,9 @@ pub struct PosedSkeleton {
     pub joints: Vec<Entity>,
     /// The skinned primitive entities and the first (combined) render vertex of each.
     pub primitives: Vec<(Entity, u32)>,
-    /// The pose written to the joints (local transforms).
+    /// The pose written to the joints (local transforms); under an additive
+    /// [`PoseBlend`] the layer added to the animation ([`PosedSkeleton::shown_pose`] reads
+    /// what is on screen).
     pub pose: SkeletonPose,
     /// Where the character stands: world ← character space, the [`Poseable`] entity's
     /// `GlobalTransform` (kept current by the plugin). The model is in character space, so
@@ -551,6 +575,24 @@ impl PosedSkeleton {
     /// World positions of the model's welded vertices in the current pose.
     pub fn skin_welded_world(&self) -> Vec<DVec3> {
         self.to_world(self.model.skin_welded(&self.pose))
+    }
+
+    /// The pose on screen: each joint's local transform as `local` reads it now (the held
+    /// pose, whatever a playing clip left on the joints, or a clip plus an additive layer —
+    /// [`PosedSkeleton::pose`] then holds the layer), the held one where it has none or an
+    /// unusable one.
+    pub fn shown_pose(&self, local: impl Fn(Entity) -> Option<Transform>) -> SkeletonPose {
+        SkeletonPose {
+            local: self
+                .joints
+                .iter()
+                .zip(&self.pose.local)
+                .map(|(&j, held)| {
+                    let now = local(j).map(|t| convert::joint_transform(&t));
+                    now.filter(JointTransform::is_valid).unwrap_or(*held)
+                })
+                .collect(),
+        }
     }
 
     /// Character-space points of the model moved into the world ([`PosedSkeleton::placement`]).

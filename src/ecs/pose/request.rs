@@ -9,7 +9,7 @@ use super::blend::BlendMemory;
 use super::constraints::{
     SetKey, core_effector, joint_handle, rebase, resolve_limits, vertex_handles,
 };
-use super::convert::{affine, joint_transform};
+use super::convert::affine;
 use super::solve::SolveJob;
 use super::state::{CharacterSpace, LastSolve, PoseDrivers, PoseSolves, fail};
 use super::symmetry::Symmetry;
@@ -20,7 +20,7 @@ use super::{
 };
 use crate::ecs::{DeformHandle, SceneGround};
 use crate::pose::placement::similarity;
-use crate::pose::{Effector, JointTransform, PoseConstraints, ReferenceStiffness, SkeletonPose};
+use crate::pose::{Effector, PoseConstraints, ReferenceStiffness, SkeletonPose};
 
 /// A character grabbed with no anchor (compared in place every frame, never allocated).
 static NO_ANCHOR: PoseAnchor = PoseAnchor {
@@ -200,17 +200,7 @@ impl<'a> Drivers<'a> {
 /// What is on screen: the joints as they are now (the held pose, whatever a playing or paused
 /// clip left on them, or the clip plus an additive layer).
 fn on_screen(posed: &PosedSkeleton, joints: &JointTransforms) -> SkeletonPose {
-    SkeletonPose {
-        local: posed
-            .joints
-            .iter()
-            .zip(&posed.pose.local)
-            .map(|(&j, held)| {
-                let now = joints.get(j).map(joint_transform).ok();
-                now.filter(JointTransform::is_valid).unwrap_or(*held)
-            })
-            .collect(),
-    }
+    posed.shown_pose(|j| joints.get(j).ok().copied())
 }
 
 /// Starts a new set of drivers: the reference pose is what is on screen (an override blend's
@@ -358,14 +348,16 @@ fn constraints_of(
         let pose = start.as_ref().unwrap_or(&posed.pose);
         let balance = extras.balance.filter(|b| b.enabled);
         let place = (&mut state.contacts, posed, pose);
-        let (planted, plants, corners) =
+        let standing =
             super::ground_contacts::stand_on(&mut constraints, place, settings, balance, ground);
-        status.contacts_planted = planted;
-        status.plants += u64::from(plants);
-        status.support_polygon = corners
+        status.contacts_planted = standing.planted;
+        status.plants += u64::from(standing.planted_now);
+        status.support_polygon = standing
+            .corners
             .iter()
             .map(|c| posed.placement.transform_point3(*c).as_vec3())
             .collect();
+        status.contacts = standing.contacts;
     }
     Ok((constraints, start))
 }

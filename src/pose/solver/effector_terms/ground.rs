@@ -10,7 +10,7 @@ use crate::pose::{Floor, PoseConstraints, PoseError};
 
 /// Balance at weight 1 against a position effector at weight 1: the body leans out only where
 /// an effector is a hundred times stronger.
-const BALANCE_STRENGTH: f64 = 1000.0;
+const BALANCE_STRENGTH: f64 = 100.0;
 /// A planted contact's hold against a position effector at weight 1.
 const CONTACT_STRENGTH: f64 = 100.0;
 /// Non-penetration against a planted contact's hold: ten times stiffer, so where the hold and
