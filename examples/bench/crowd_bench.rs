@@ -24,11 +24,18 @@
 //!
 //! `--terrain` (`walking_field.rs`): the characters stand on the crowd example's hilly,
 //! terraced terrain mesh (`Ground`; hills up to 30°, steps 10 units, about a third of the Fox's
-//! leg) with `PoseGround` and `PoseBalance` instead of foot effectors, and walk across it (40
-//! units/s, the root kept on the ground under it by a cast), so their paws are left behind and
-//! planted again. Adds `penetration_max` (deepest skinned vertex below the terrain / size,
-//! sampled every 20 frames), `planted_per_character` (mean planted contacts at the end) and
-//! `replants` (plants after the first stance, all characters).
+//! leg) with `PoseGround` and `PoseBalance` instead of foot effectors, play the file's "Walk"
+//! clip (its first clip without one) under an additive pose layer, face +X and walk along it
+//! (40 units/s, the root kept on the ground under it by a cast), so their paws plant, lift
+//! and plant again. Adds, measured on the pose on screen every frame: `penetration_max`
+//! (deepest skinned vertex below the terrain / size, every 5th frame),
+//! `sole_normal_error_deg_p95` (planted soles' bind-pose up, carried by the joint, against the
+//! ground's normal), `soles_at_limit_share` (planted soles more than 3° off),
+//! `planted_slide_max` (largest motion of a planted patch's vertex across its ground from one
+//! frame to the next / size), `com_supported_share` ((character, frame) pairs with the centre
+//! of mass over the planted patches), `no_support_share` (pairs with nothing planted, counted
+//! unsupported), `planted_per_character` (at the end) and `replants` (plants after the first
+//! stance, all characters).
 
 #[path = "../common/cli.rs"]
 mod cli;
