@@ -216,7 +216,7 @@ fn main() {
         setup.elapsed().as_secs_f64()
     );
     if let Some(clip) = clip {
-        play_clip_on_every_player(&mut app, clip);
+        play_clip_on_every_player(&mut app, clip, field.is_some());
         for &root in &roots {
             app.world_mut()
                 .entity_mut(root)
@@ -439,9 +439,10 @@ fn stop_clock(mut clock: ResMut<SolverClock>) {
     }
 }
 
-/// Every animation player plays `clip` on repeat, each from its own phase at its own speed
-/// (as the crowd example does).
-fn play_clip_on_every_player(app: &mut App, clip: Handle<AnimationClip>) {
+/// Every animation player plays `clip` on repeat, each from its own phase (as the crowd
+/// example does), at its own speed (0.8–1.2) or, with
+/// `same_speed` (walkers moved at one speed), at the clip's.
+fn play_clip_on_every_player(app: &mut App, clip: Handle<AnimationClip>, same_speed: bool) {
     let (graph, node) = AnimationGraph::from_clip(clip);
     let graph = app
         .world_mut()
@@ -462,7 +463,11 @@ fn play_clip_on_every_player(app: &mut App, clip: Handle<AnimationClip>) {
             .play(node)
             .repeat()
             .seek_to((k * 0.731).fract() * 3.0)
-            .set_speed(0.8 + 0.4 * (k * 0.377).fract());
+            .set_speed(if same_speed {
+                1.0
+            } else {
+                0.8 + 0.4 * (k * 0.377).fract()
+            });
     }
 }
 

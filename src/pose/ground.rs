@@ -15,6 +15,7 @@
 use glam::{DVec2, DVec3};
 
 use super::contacts::{Contact, GroundPlane};
+use super::gait::GaitPhases;
 use super::model::SkinnedModel;
 use super::skeleton::SkeletonPose;
 
@@ -319,10 +320,13 @@ pub struct ContactTracker {
     pub landing_step: f64,
     /// Updates so far.
     pub updates: u64,
+    /// When an animation has a foot down or up ([`ContactTracker::update_guided`]).
+    pub gait: GaitPhases,
 }
 
 impl ContactTracker {
-    /// Tracks `joints` of `model` (their sole patches in `pose`), with heights as fractions of
+    /// Tracks `joints` of `model` (their sole patches in `pose`, their up the way up is in
+    /// each joint's frame in the bind pose: [`Contact::up`]), with heights as fractions of
     /// the model's size: a patch within 8 % of the ground is planted (laid on it: a foot over a
     /// lower step or downhill comes down to it, as foot placement does), one lifted more than
     /// 12 % is released, one the character has walked 15 % away from is released to be planted
@@ -331,18 +335,29 @@ impl ContactTracker {
     pub fn new(model: &SkinnedModel, pose: &SkeletonPose, joints: &[usize], down: DVec3) -> Self {
         let down = down.try_normalize().unwrap_or(DVec3::NEG_Y);
         let size = model.topology().bounding_diagonal();
+        let globals = model
+            .skeleton()
+            .global_transforms(&model.skeleton().bind_pose());
         let contacts = joints
             .iter()
             .map(|&j| {
                 let patch = sole_patch(model, pose, j, down, 0.02 * size);
-                Contact::new(
+                let mut contact = Contact::new(
                     j,
                     patch,
                     GroundPlane {
                         point: DVec3::ZERO,
                         normal: -down,
                     },
-                )
+                );
+                // The foot's up: the way up is in the joint's own frame in the bind pose (a
+                // joint's axes follow its bone, seldom the world's up).
+                contact.up = globals
+                    .get(j)
+                    .filter(|g| g.matrix3.determinant().abs() > 1e-12)
+                    .and_then(|g| (g.matrix3.inverse() * -down).try_normalize())
+                    .or(contact.up);
+                contact
             })
             .collect::<Vec<_>>();
         let skinned = model.skin_welded(pose);
@@ -364,6 +379,7 @@ impl ContactTracker {
             reach: 0.5 * size,
             landing_step: 0.005 * size,
             updates: 0,
+            gait: GaitPhases::new(&skinned, down, size),
         }
     }
 
@@ -375,17 +391,39 @@ impl ContactTracker {
         pose: &SkeletonPose,
         ground: &dyn Ground,
     ) -> Vec<ContactEvent> {
+        self.update_guided(model, pose, None, ground)
+    }
+
+    /// [`ContactTracker::update`] for a pose added to an animation (`animation`: the clip's
+    /// pose under the layer): a planted patch the clip lifts is released, a free one plants
+    /// only while the clip has it down ([`super::gait`]); where it plants is still decided on
+    /// the ground, from `pose`.
+    pub fn update_guided(
+        &mut self,
+        model: &SkinnedModel,
+        pose: &SkeletonPose,
+        animation: Option<&SkeletonPose>,
+        ground: &dyn Ground,
+    ) -> Vec<ContactEvent> {
+        let phases = animation.and_then(|a| {
+            let patches: Vec<&[u32]> = self.contacts.iter().map(|c| &c.patch[..]).collect();
+            self.gait.heights(model, a, &patches, self.down)
+        });
+
         let skinned = model.skin_welded(pose);
         let globals = model.skeleton().global_transforms(pose);
         let mut events = Vec::with_capacity(self.contacts.len());
         let first = self.updates == 0;
         self.updates += 1;
-        for ((c, grounded), home) in self
+        for (k, ((c, grounded), home)) in self
             .contacts
             .iter_mut()
             .zip(&mut self.grounded)
             .zip(&self.home)
+            .enumerate()
         {
+            // The clip's phase for this patch: lifted, down, or between (no guide: down).
+            let clip_height = phases.as_ref().map_or(0.0, |h| h[k]);
             let patch: Vec<DVec3> = c.patch.iter().map(|&v| skinned[v as usize]).collect();
             if patch.is_empty() {
                 events.push(ContactEvent::NoGround);
@@ -397,9 +435,10 @@ impl ContactTracker {
             // where the clip puts the paw) — is released, to be planted again under it.
             if let Some(planted) = &c.planted {
                 let held = planted.iter().sum::<DVec3>() / planted.len().max(1) as f64;
-                if horizontal(held - *home, self.down) > self.stride
-                    || horizontal(held - centre, self.down) > self.stride
-                {
+                // (With a clip the clip's lift ends a stance; the rest pose says nothing.)
+                let trailing =
+                    phases.is_none() && horizontal(held - *home, self.down) > self.stride;
+                if trailing || horizontal(held - centre, self.down) > self.stride {
                     c.release();
                     events.push(ContactEvent::Stepped);
                     continue;
@@ -428,7 +467,10 @@ impl ContactTracker {
                             .map(|p| c.ground.height(*p))
                             .fold(f64::INFINITY, f64::min);
                         match &c.planted {
-                            Some(_) if c.lifted(&patch, self.release_height) => {
+                            Some(_)
+                                if c.lifted(&patch, self.release_height)
+                                    || clip_height > self.gait.lift =>
+                            {
                                 c.release();
                                 ContactEvent::Released
                             }
@@ -436,10 +478,14 @@ impl ContactTracker {
                                 c.descend(self.landing_step);
                                 ContactEvent::Unchanged
                             }
-                            // A patch a step released plants again once the body has
-                            // carried it back within half a stride (no plant where it trails).
+                            // Without a clip, a patch a step released plants again once
+                            // the body has carried it back within half a stride (no plant
+                            // where it trails); with one, when the clip puts it down.
                             None if lowest <= self.plant_height
-                                && horizontal(centre - *home, self.down) <= 0.5 * self.stride =>
+                                && clip_height <= self.gait.touch
+                                && (phases.is_some()
+                                    || horizontal(centre - *home, self.down)
+                                        <= 0.5 * self.stride) =>
                             {
                                 let up = c.up.map(|u| {
                                     (globals[c.joint].matrix3 * u).normalize_or(-self.down)

@@ -45,6 +45,7 @@ pub mod contacts;
 pub mod effectors;
 mod file;
 pub mod floor;
+pub mod gait;
 pub mod gltf_clip;
 pub mod ground;
 pub mod humanoid;
@@ -69,6 +70,7 @@ pub use effectors::{
 };
 pub use file::{PoseFile, PoseFileError};
 pub use floor::{Floor, FloorCastStats, FloorSampling};
+pub use gait::GaitPhases;
 pub use gltf_clip::{read_gltf_clip, write_gltf_clip, write_gltf_pose_clip};
 pub use ground::{ContactEvent, ContactTracker, Ground, TriangleGround, lowest_joints, sole_patch};
 pub use humanoid::{HumanoidRole, Side, humanoid_role};

@@ -181,11 +181,34 @@ impl BlendMemory {
             .resize(current.len(), Transform::from_scale(Vec3::NAN));
         self.moved = false;
         for (j, now) in current.iter().enumerate() {
-            let Some(now) = *now else { continue };
-            if now != self.written[j] && now != self.animated[j] {
-                self.animated[j] = now;
+            let animated = self.animated_now(j, *now);
+            if animated != self.animated[j] {
+                self.animated[j] = animated;
                 self.moved = true;
             }
+        }
+    }
+
+    /// This frame's animated pose as [`BlendMemory::read_animation`] would read it from the
+    /// joints' current transforms, without remembering it (an in-frame solve reads it before
+    /// the blend does).
+    pub(super) fn peek_animation(&self, current: &[Option<Transform>]) -> SkeletonPose {
+        SkeletonPose {
+            local: current
+                .iter()
+                .enumerate()
+                .map(|(j, now)| joint_transform(&self.animated_now(j, *now)))
+                .collect(),
+        }
+    }
+
+    /// Joint `j`'s animated transform given its current one: the current one, unless it is
+    /// what the blend wrote (the animation did not touch the joint) or missing.
+    fn animated_now(&self, j: usize, now: Option<Transform>) -> Transform {
+        let kept = self.animated.get(j).copied().unwrap_or(Transform::IDENTITY);
+        match now {
+            Some(now) if Some(&now) != self.written.get(j) => now,
+            _ => kept,
         }
     }
 
@@ -202,10 +225,11 @@ impl BlendMemory {
     }
 }
 
-/// The additive layer that shows `full` over the animation the blend last read.
+/// The additive layer that shows `full` over `animated` (the animation the blend last read,
+/// or this frame's for a solve inside the frame).
 pub(super) fn additive_layer(
     posed: &PosedSkeleton,
-    memory: &BlendMemory,
+    (memory, animated): (&BlendMemory, &SkeletonPose),
     blend: &PoseBlend,
     full: &SkeletonPose,
 ) -> SkeletonPose {
@@ -214,7 +238,6 @@ pub(super) fn additive_layer(
         .reference
         .clone()
         .unwrap_or_else(|| blend.reference_pose(skeleton));
-    let animated = memory.animated_pose();
     let local = full
         .local
         .iter()

@@ -12,14 +12,15 @@ use crate::pose::{
 
 /// Adds to `constraints` (character space) the character's ground contacts — found on the
 /// first call, cast on `ground` (world space) from the patches as `pose` carries them, planted
-/// and released — the floor under its skin and, with `balance`, the centre of mass over the
+/// and released (when `clip`, the animation under an additive layer, puts a foot down or lifts
+/// it) — the floor under its skin and, with `balance`, the centre of mass over the
 /// planted patches.
 pub(super) fn stand_on(
     constraints: &mut PoseConstraints,
-    (tracker, posed, pose): (
+    (tracker, posed, (pose, clip)): (
         &mut Option<(ContactTracker, DAffine3)>,
         &PosedSkeleton,
-        &SkeletonPose,
+        (&SkeletonPose, Option<&SkeletonPose>),
     ),
     settings: &PoseGround,
     balance: Option<&PoseBalance>,
@@ -43,7 +44,7 @@ pub(super) fn stand_on(
         follow_the_world(tracker, &(to_character * *placed_at));
         *placed_at = to_world;
     }
-    let events = tracker.update(model, pose, &cast);
+    let events = tracker.update_guided(model, pose, clip, &cast);
     let planted_now = events
         .iter()
         .filter(|e| **e == crate::pose::ContactEvent::Planted)
@@ -83,6 +84,12 @@ pub(super) fn stand_on(
             joint: c.joint,
             patch: c.patch.clone(),
             planted: c.planted.is_some(),
+            held: c
+                .planted
+                .iter()
+                .flatten()
+                .map(|p| to_world.transform_point3(*p).as_vec3())
+                .collect(),
             grounded: *grounded,
             ground_normal: (to_world.matrix3 * c.ground.normal)
                 .normalize_or(DVec3::Y)

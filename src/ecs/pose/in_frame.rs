@@ -9,8 +9,11 @@ use super::blend::BlendMemory;
 use super::constraints::core_effector;
 use super::solve::{SolveJob, SolveResult, store_landed};
 use super::state::{LastSolve, PoseDrivers, PoseSolves};
-use super::{PoseBlend, PoseFailed, PoseInFrame, PoseSolved, PoseStatus, Poseable, PosedSkeleton};
-use crate::pose::EffectorGoal;
+use super::{
+    PoseBlend, PoseBlendMode, PoseFailed, PoseInFrame, PoseSolved, PoseStatus, Poseable,
+    PosedSkeleton,
+};
+use crate::pose::{EffectorGoal, SkeletonPose, blend_pose};
 
 /// What an in-frame solve reads and writes of a character.
 type InFrameCharacter = (
@@ -43,6 +46,9 @@ pub(super) fn solve_in_frame(
             let solves = solves.bypass_change_detection();
             let last = last.bypass_change_detection();
             refresh_goals(drivers, solves, &posed, &locals);
+            let animated = blend
+                .filter(|b| b.mode == PoseBlendMode::Additive)
+                .and_then(|b| start_from_this_frame(solves, &posed, (b, memory), &locals));
             let Some(outcome) = solve_pending(solves, drivers, last, &posed, settings) else {
                 return;
             };
@@ -50,7 +56,8 @@ pub(super) fn solve_in_frame(
                 Ok(landed) => {
                     let ms = landed.ms;
                     let more = solves.pending.is_some();
-                    store_landed(&mut posed, last, &mut status, (blend, memory), landed, more);
+                    let blending = (blend, memory, animated);
+                    store_landed(&mut posed, last, &mut status, blending, landed, more);
                     Ok(ms)
                 }
                 Err(error) => {
@@ -78,6 +85,49 @@ pub(super) fn solve_in_frame(
             None => {}
         }
     }
+}
+
+/// An additive layer solved inside the frame starts from this frame's animation with the
+/// layer so far added — what the blend would show without a solve — and keeps this frame's
+/// animation as its shape and stiffness reference; returns that animation (the new layer is
+/// taken over it, so the blend shows the solved pose itself: planted feet stay planted). The
+/// request was made in `Update`, from the frame before's animation. `None`: nothing pending.
+fn start_from_this_frame(
+    solves: &mut PoseSolves,
+    posed: &PosedSkeleton,
+    (blend, memory): (&PoseBlend, &BlendMemory),
+    locals: &Locals,
+) -> Option<SkeletonPose> {
+    let pending = solves.pending.as_mut()?;
+    let current: Vec<Option<Transform>> = posed
+        .joints
+        .iter()
+        .map(|&j| locals.get(j).ok().map(|(t, _)| *t))
+        .collect();
+    let animated = memory.peek_animation(&current);
+    if animated.local.len() != posed.pose.local.len() {
+        return None;
+    }
+    let skeleton = posed.model.skeleton();
+    let reference = memory
+        .reference
+        .clone()
+        .unwrap_or_else(|| blend.reference_pose(skeleton));
+    solves.start = Some(blend_pose(
+        &animated,
+        &posed.pose,
+        &reference,
+        blend.mode.into(),
+        f64::from(blend.weight),
+        memory.mask.as_deref(),
+    ));
+    if pending.shape_rest.is_some() {
+        pending.shape_rest = Some(animated.clone());
+    }
+    if let Some(stiffness) = &mut pending.stiffness {
+        stiffness.pose = animated.clone();
+    }
+    Some(animated)
 }
 
 /// `entity`'s world transform composed from the local transforms up its hierarchy as they

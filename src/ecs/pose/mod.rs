@@ -431,6 +431,8 @@ pub struct GroundContactState {
     pub patch: Vec<u32>,
     /// Whether the patch is planted (held where it touched).
     pub planted: bool,
+    /// While planted: where each patch vertex is held (world space, in patch order).
+    pub held: Vec<Vec3>,
     /// Whether the last cast found ground under it.
     pub grounded: bool,
     /// The ground's normal under it (world space).

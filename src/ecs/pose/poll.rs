@@ -58,7 +58,8 @@ pub(super) fn poll_pose_solves(
                 }
                 let ms = landed.ms;
                 let more = solves.pending.is_some();
-                store_landed(&mut posed, last, &mut status, (blend, memory), landed, more);
+                let blending = (blend, memory, None);
+                store_landed(&mut posed, last, &mut status, blending, landed, more);
                 solved.write(PoseSolved {
                     entity,
                     iterations: status.iterations,

@@ -347,7 +347,9 @@ fn constraints_of(
     if let (Some(settings), Some(ground)) = (extras.ground, ground) {
         let pose = start.as_ref().unwrap_or(&posed.pose);
         let balance = extras.balance.filter(|b| b.enabled);
-        let place = (&mut state.contacts, posed, pose);
+        // Under an additive layer the clip decides when a foot is down (`pose::gait`).
+        let clip = constraints.shape_rest.clone();
+        let place = (&mut state.contacts, posed, (pose, clip.as_ref()));
         let standing =
             super::ground_contacts::stand_on(&mut constraints, place, settings, balance, ground);
         status.contacts_planted = standing.planted;

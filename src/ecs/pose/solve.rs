@@ -128,13 +128,14 @@ impl SolveJob {
 }
 
 /// Stores a landed solve: the status, the pose (as the layer over the animation under an
-/// additive blend), and the solver and solution the next solve warm-starts from. `more`: a
-/// solve is still pending (the status stays `Solving`).
+/// additive blend: over `animated`, this frame's animation for a solve inside the frame, else
+/// the one the blend last read), and the solver and solution the next solve warm-starts from.
+/// `more`: a solve is still pending (the status stays `Solving`).
 pub(super) fn store_landed(
     posed: &mut PosedSkeleton,
     last: &mut LastSolve,
     status: &mut PoseStatus,
-    (blend, memory): (Option<&PoseBlend>, &BlendMemory),
+    (blend, memory, animated): (Option<&PoseBlend>, &BlendMemory, Option<SkeletonPose>),
     landed: Landed,
     more: bool,
 ) {
@@ -160,7 +161,8 @@ pub(super) fn store_landed(
     };
     let pose = match blend {
         Some(b) if b.mode == PoseBlendMode::Additive => {
-            additive_layer(posed, memory, b, &solution.pose)
+            let animated = animated.unwrap_or_else(|| memory.animated_pose());
+            additive_layer(posed, (memory, &animated), b, &solution.pose)
         }
         _ => solution.pose.clone(),
     };
