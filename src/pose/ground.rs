@@ -326,7 +326,7 @@ pub struct ContactTracker {
 
 impl ContactTracker {
     /// Tracks `joints` of `model` (their sole patches in `pose`, their up the way up is in
-    /// each joint's frame in the bind pose: [`Contact::up`]), with heights as fractions of
+    /// each joint's frame in `pose`: [`Contact::up`]), with heights as fractions of
     /// the model's size: a patch within 8 % of the ground is planted (laid on it: a foot over a
     /// lower step or downhill comes down to it, as foot placement does), one lifted more than
     /// 12 % is released, one the character has walked 15 % away from is released to be planted
@@ -350,8 +350,9 @@ impl ContactTracker {
                         normal: -down,
                     },
                 );
-                // The foot's up: the way up is in the joint's own frame in the bind pose (a
-                // joint's axes follow its bone, seldom the world's up).
+                // The foot's up: the way up is in the joint's own frame in the pose the
+                // character stands in (a joint's axes follow its bone, seldom the world's up;
+                // a converter's bind pose may lie on its back).
                 contact.up = globals
                     .get(j)
                     .filter(|g| g.matrix3.determinant().abs() > 1e-12)

@@ -17,11 +17,7 @@ use crate::pose::{
 /// planted patches.
 pub(super) fn stand_on(
     constraints: &mut PoseConstraints,
-    (tracker, posed, (pose, clip)): (
-        &mut Option<(ContactTracker, DAffine3)>,
-        &PosedSkeleton,
-        (&SkeletonPose, Option<&SkeletonPose>),
-    ),
+    (tracker, posed, (pose, clip)): Standee<'_>,
     settings: &PoseGround,
     balance: Option<&PoseBalance>,
     ground: &SceneGround,
@@ -104,6 +100,14 @@ pub(super) fn stand_on(
         contacts,
     }
 }
+
+/// A character to stand: its tracker (made on the first call, with the placement it was
+/// updated for), its skeleton, and the pose a solve starts from with the clip under it.
+pub(super) type Standee<'a> = (
+    &'a mut Option<(ContactTracker, DAffine3)>,
+    &'a PosedSkeleton,
+    (&'a SkeletonPose, Option<&'a SkeletonPose>),
+);
 
 /// What [`stand_on`] found.
 pub(super) struct Standing {
