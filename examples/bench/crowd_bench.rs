@@ -9,9 +9,11 @@
 //! character and frame, `assets/models/Fox.glb`. Headless (no renderer). Without
 //! `--playing` no animation plays; with it every character plays the file's first clip (each
 //! at its own phase and speed) and the pose is an additive layer over it (`PoseBlend::additive`,
-//! `PoseStiffness(0.3)`: the solve starts from and is held towards the animation of the frame). The solver time of a frame is the wall time of `PoseSystems::Apply` in
-//! `PostUpdate` (every in-frame solve of the frame, in parallel on the compute pool, and the
-//! write to the joints). The last stdout line is one JSON object: `characters`,
+//! `PoseStiffness(0.3)`: the solve starts from and is held towards the animation of the
+//! frame). The solver time of a frame is the wall time of `PoseSystems::Request` in `Update`
+//! (the requests: with `PoseGround` the ground's casts, the contacts and the floor) plus that
+//! of `PoseSystems::Apply` in `PostUpdate` (every in-frame solve of the frame, in parallel on
+//! the compute pool, and the write to the joints). The last stdout line is one JSON object: `characters`,
 //! `effectors_per_character`, `solver_ms_per_frame_median`, `solver_ms_per_frame_p95`,
 //! `ms_per_solve` (median wall time of one character's solve), `frames`, `models_built` (the
 //! characters share one model per asset: 1), `playing`, `peak_rss_mb` (the process's peak
@@ -111,12 +113,17 @@ fn args() -> Args {
     args
 }
 
-/// When this frame's `PoseSystems::Apply` started, and the measured durations, ms.
+/// When this frame's `PoseSystems::Request` and `Apply` started, and the measured durations,
+/// ms.
 #[derive(Resource, Default)]
 struct SolverClock {
     started: Option<Instant>,
     frames_ms: Vec<f64>,
     measuring: bool,
+    /// This frame's `PoseSystems::Request` (the requests, and the ground's casts, contacts and
+    /// floor with `PoseGround`), added to the frame's solver time.
+    request_started: Option<Instant>,
+    request_ms: f64,
 }
 
 /// A foot target: the effector entity, where it rests, and its phase.
@@ -420,7 +427,16 @@ fn headless_app(dir: &std::path::Path, springs: bool) -> App {
                     .before(TransformSystems::Propagate),
             ),
         )
-        .add_systems(Update, bob_targets.before(PoseSystems::Request));
+        .add_systems(
+            Update,
+            (
+                bob_targets.before(PoseSystems::Request),
+                start_request_clock
+                    .after(bob_targets)
+                    .before(PoseSystems::Request),
+                stop_request_clock.after(PoseSystems::Request),
+            ),
+        );
     if springs {
         tail_springs::add(&mut app);
     }
@@ -435,7 +451,19 @@ fn start_clock(mut clock: ResMut<SolverClock>) {
 
 fn stop_clock(mut clock: ResMut<SolverClock>) {
     if let (true, Some(t0)) = (clock.measuring, clock.started) {
-        clock.frames_ms.push(t0.elapsed().as_secs_f64() * 1e3);
+        let ms = t0.elapsed().as_secs_f64() * 1e3 + clock.request_ms;
+        clock.frames_ms.push(ms);
+    }
+    clock.request_ms = 0.0;
+}
+
+fn start_request_clock(mut clock: ResMut<SolverClock>) {
+    clock.request_started = Some(Instant::now());
+}
+
+fn stop_request_clock(mut clock: ResMut<SolverClock>) {
+    if let Some(t0) = clock.request_started.take() {
+        clock.request_ms = t0.elapsed().as_secs_f64() * 1e3;
     }
 }
 

@@ -157,16 +157,18 @@ impl Ground for TriangleGround {
             return None;
         }
         // The grid is across this ground's gravity; another direction tests every triangle.
-        let candidates: Box<dyn Iterator<Item = u32>> = if down.dot(self.down) > 1.0 - 1e-9 {
+        let cell: Option<&[u32]> = if down.dot(self.down) > 1.0 - 1e-9 {
             let c = self.cell_of(from)?;
-            Box::new(
-                self.cells[self.starts[c] as usize..self.starts[c + 1] as usize]
-                    .iter()
-                    .copied(),
-            )
+            Some(&self.cells[self.starts[c] as usize..self.starts[c + 1] as usize])
         } else {
-            Box::new(0..self.triangles.len() as u32)
+            None
         };
+        let all = 0..if cell.is_some() {
+            0
+        } else {
+            self.triangles.len() as u32
+        };
+        let candidates = cell.into_iter().flatten().copied().chain(all);
         let mut best: Option<(f64, GroundPlane)> = None;
         for k in candidates {
             let [a, b, c] = self.triangles[k as usize].map(|v| self.positions[v as usize]);
