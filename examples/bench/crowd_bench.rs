@@ -15,6 +15,7 @@
 //! of `PoseSystems::Apply` in `PostUpdate` (every in-frame solve of the frame, in parallel on
 //! the compute pool, and the write to the joints). The last stdout line is one JSON object: `characters`,
 //! `effectors_per_character`, `solver_ms_per_frame_median`, `solver_ms_per_frame_p95`,
+//! `request_ms_per_frame_median` (the `Request` share, on the main thread),
 //! `ms_per_solve` (median wall time of one character's solve), `frames`, `models_built` (the
 //! characters share one model per asset: 1), `playing`, `peak_rss_mb` (the process's peak
 //! resident memory) and `rss_growth_kb_per_frame` (resident memory from frame 500 — or half
@@ -124,6 +125,8 @@ struct SolverClock {
     /// floor with `PoseGround`), added to the frame's solver time.
     request_started: Option<Instant>,
     request_ms: f64,
+    /// `PoseSystems::Request`'s share of each measured frame (main thread).
+    request_frames_ms: Vec<f64>,
 }
 
 /// A foot target: the effector entity, where it rests, and its phase.
@@ -279,12 +282,20 @@ fn main() {
     let spring_report = args.springs.then(|| tail_springs::report(&mut app, &roots));
     let mut frames = std::mem::take(&mut app.world_mut().resource_mut::<SolverClock>().frames_ms);
     frames.sort_by(f64::total_cmp);
+    let mut requests = std::mem::take(
+        &mut app
+            .world_mut()
+            .resource_mut::<SolverClock>()
+            .request_frames_ms,
+    );
+    requests.sort_by(f64::total_cmp);
     let pick = |v: &[f64], p: f64| v[((v.len() - 1) as f64 * p).round() as usize];
     let mut report = serde_json::json!({
             "characters": roots.len(),
             "effectors_per_character": effectors as f64 / roots.len() as f64,
             "solver_ms_per_frame_median": pick(&frames, 0.5),
             "solver_ms_per_frame_p95": pick(&frames, 0.95),
+            "request_ms_per_frame_median": pick(&requests, 0.5),
             "ms_per_solve": solve_ms.quantile(0.5),
             "frames": frames.len(),
             "models_built": app.world().resource::<PoseModels>().built(),
@@ -453,6 +464,8 @@ fn stop_clock(mut clock: ResMut<SolverClock>) {
     if let (true, Some(t0)) = (clock.measuring, clock.started) {
         let ms = t0.elapsed().as_secs_f64() * 1e3 + clock.request_ms;
         clock.frames_ms.push(ms);
+        let request = clock.request_ms;
+        clock.request_frames_ms.push(request);
     }
     clock.request_ms = 0.0;
 }

@@ -3,7 +3,7 @@
 
 use glam::{DAffine3, DVec3};
 
-use super::{GroundContactState, PoseBalance, PoseGround, PosedSkeleton};
+use super::{GroundContactState, PoseBalance, PoseGround, PoseStatus, PosedSkeleton};
 use crate::ecs::SceneGround;
 use crate::pose::{
     Balance, ContactTracker, Floor, FloorSampling, GroundPlane, PoseConstraints, SkeletonPose,
@@ -12,16 +12,19 @@ use crate::pose::{
 
 /// Adds to `constraints` (character space) the character's ground contacts — found on the
 /// first call, cast on `ground` (world space) from the patches as `pose` carries them, planted
-/// and released (when `clip`, the animation under an additive layer, puts a foot down or lifts
-/// it) — the floor under its skin and, with `balance`, the centre of mass over the
+/// and released (when the animation under an additive layer, `constraints.shape_rest`, puts a
+/// foot down or lifts it) — the floor under its skin and, with `balance`, the centre of mass over the
 /// planted patches.
 pub(super) fn stand_on(
     constraints: &mut PoseConstraints,
-    (tracker, posed, (pose, clip)): Standee<'_>,
-    settings: &PoseGround,
-    balance: Option<&PoseBalance>,
+    (tracker, posed, pose): Standee<'_>,
+    (settings, balance): (&PoseGround, Option<&PoseBalance>),
     ground: &SceneGround,
 ) -> Standing {
+    // Under an additive layer the clip decides when a foot is down (`pose::gait`).
+    let clip = constraints.shape_rest.clone();
+    let clip = clip.as_ref();
+    constraints.balance = None;
     let to_world = posed.placement;
     let to_character = to_world.inverse();
     let down = (to_character.matrix3 * DVec3::NEG_Y).normalize_or(DVec3::NEG_Y);
@@ -102,11 +105,11 @@ pub(super) fn stand_on(
 }
 
 /// A character to stand: its tracker (made on the first call, with the placement it was
-/// updated for), its skeleton, and the pose a solve starts from with the clip under it.
+/// updated for), its skeleton, and the pose a solve starts from.
 pub(super) type Standee<'a> = (
     &'a mut Option<(ContactTracker, DAffine3)>,
     &'a PosedSkeleton,
-    (&'a SkeletonPose, Option<&'a SkeletonPose>),
+    &'a SkeletonPose,
 );
 
 /// What [`stand_on`] found.
@@ -119,6 +122,20 @@ pub(super) struct Standing {
     pub corners: Vec<DVec3>,
     /// Every contact's state.
     pub contacts: Vec<GroundContactState>,
+}
+
+impl Standing {
+    /// Writes what was found to the character's status (the polygon in world space).
+    pub(super) fn report(self, status: &mut PoseStatus, posed: &PosedSkeleton) {
+        status.contacts_planted = self.planted;
+        status.plants += u64::from(self.planted_now);
+        status.support_polygon = self
+            .corners
+            .iter()
+            .map(|c| posed.placement.transform_point3(*c).as_vec3())
+            .collect();
+        status.contacts = self.contacts;
+    }
 }
 
 /// Re-expresses the contacts' grounds and planted points after the character moved: `moved`

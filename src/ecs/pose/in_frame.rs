@@ -7,12 +7,14 @@ use bevy::prelude::*;
 
 use super::blend::BlendMemory;
 use super::constraints::core_effector;
+use super::ground_contacts::{Standing, stand_on};
 use super::solve::{SolveJob, SolveResult, store_landed};
 use super::state::{LastSolve, PoseDrivers, PoseSolves};
 use super::{
-    PoseBlend, PoseBlendMode, PoseFailed, PoseInFrame, PoseSolved, PoseStatus, Poseable,
-    PosedSkeleton,
+    PoseBalance, PoseBlend, PoseBlendMode, PoseFailed, PoseGround, PoseInFrame, PoseSolved,
+    PoseStatus, Poseable, PosedSkeleton,
 };
+use crate::ecs::SceneGround;
 use crate::pose::{EffectorGoal, SkeletonPose, blend_pose};
 
 /// What an in-frame solve reads and writes of a character.
@@ -21,13 +23,17 @@ type InFrameCharacter = (
     (&'static Poseable, &'static PoseInFrame),
     &'static mut PosedSkeleton,
     (
-        &'static PoseDrivers,
+        &'static mut PoseDrivers,
         &'static mut PoseSolves,
         &'static mut LastSolve,
         &'static BlendMemory,
     ),
     &'static mut PoseStatus,
-    Option<&'static PoseBlend>,
+    (
+        Option<&'static PoseBlend>,
+        Option<&'static PoseGround>,
+        Option<&'static PoseBalance>,
+    ),
 );
 
 /// The local transforms and parents of every entity: effector targets are composed from them
@@ -38,17 +44,29 @@ type Locals<'w, 's> = Query<'w, 's, (&'static Transform, Option<&'static ChildOf
 pub(super) fn solve_in_frame(
     mut characters: Query<InFrameCharacter>,
     locals: Locals,
+    ground: Option<Res<SceneGround>>,
     mut solved: MessageWriter<PoseSolved>,
     mut failed: MessageWriter<PoseFailed>,
 ) {
+    let ground = ground.as_deref();
     characters.par_iter_mut().for_each(
-        |(_, settings, mut posed, (drivers, mut solves, mut last, memory), mut status, blend)| {
+        |(_, settings, mut posed, parts, mut status, (blend, standing, balance))| {
+            let (mut drivers, mut solves, mut last, memory) = parts;
+            let drivers = drivers.bypass_change_detection();
             let solves = solves.bypass_change_detection();
             let last = last.bypass_change_detection();
             refresh_goals(drivers, solves, &posed, &locals);
             let animated = blend
                 .filter(|b| b.mode == PoseBlendMode::Additive)
                 .and_then(|b| start_from_this_frame(solves, &posed, (b, memory), &locals));
+            if let (Some(settings), Some(ground)) = (standing, ground) {
+                let balance = balance.filter(|b| b.enabled);
+                if let Some(found) =
+                    stand_here(solves, drivers, &posed, (settings, balance), ground)
+                {
+                    found.report(status.bypass_change_detection(), &posed);
+                }
+            }
             let Some(outcome) = solve_pending(solves, drivers, last, &posed, settings) else {
                 return;
             };
@@ -128,6 +146,22 @@ fn start_from_this_frame(
         stiffness.pose = animated.clone();
     }
     Some(animated)
+}
+
+/// Stands a character on the ground in the frame: its contacts, floor and balance, cast from
+/// the pose its solve starts from (this frame's animation under an additive layer), added to
+/// the pending constraints. `None`: nothing pending.
+fn stand_here(
+    solves: &mut PoseSolves,
+    drivers: &mut PoseDrivers,
+    posed: &PosedSkeleton,
+    settings: (&PoseGround, Option<&PoseBalance>),
+    ground: &SceneGround,
+) -> Option<Standing> {
+    let pending = solves.pending.as_mut()?;
+    let pose = solves.start.as_ref().unwrap_or(&posed.pose);
+    let standee = (&mut drivers.contacts, posed, pose);
+    Some(stand_on(pending, standee, settings, ground))
 }
 
 /// `entity`'s world transform composed from the local transforms up its hierarchy as they

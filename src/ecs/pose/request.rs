@@ -347,19 +347,14 @@ fn constraints_of(
     if let (Some(settings), Some(ground)) = (extras.ground, ground) {
         let pose = start.as_ref().unwrap_or(&posed.pose);
         let balance = extras.balance.filter(|b| b.enabled);
-        // Under an additive layer the clip decides when a foot is down (`pose::gait`).
-        let clip = constraints.shape_rest.clone();
-        let place = (&mut state.contacts, posed, (pose, clip.as_ref()));
-        let standing =
-            super::ground_contacts::stand_on(&mut constraints, place, settings, balance, ground);
-        status.contacts_planted = standing.planted;
-        status.plants += u64::from(standing.planted_now);
-        status.support_polygon = standing
-            .corners
-            .iter()
-            .map(|c| posed.placement.transform_point3(*c).as_vec3())
-            .collect();
-        status.contacts = standing.contacts;
+        let standee = (&mut state.contacts, posed, pose);
+        let standing = super::ground_contacts::stand_on(
+            &mut constraints,
+            standee,
+            (settings, balance),
+            ground,
+        );
+        standing.report(status, posed);
     }
     Ok((constraints, start))
 }
@@ -435,8 +430,11 @@ pub(super) fn request_pose_solves(
             continue;
         }
         let driver_state = drivers_state.bypass_change_detection();
+        // An in-frame character stands in `PostUpdate`, on this frame's animation, in
+        // parallel with the others (`in_frame.rs`).
+        let stand_here = if in_frame { None } else { ground.as_deref() };
         let built = constraints_of(
-            (driver_state, memory, ground.as_deref()),
+            (driver_state, memory, stand_here),
             &posed,
             &drivers,
             (pinned, anchor),
