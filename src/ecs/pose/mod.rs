@@ -43,6 +43,7 @@ mod poll;
 mod prepare;
 mod request;
 mod solve;
+mod standing;
 mod state;
 mod symmetry;
 mod timeline;
@@ -59,6 +60,7 @@ use crate::pose::{
 
 pub use blend::{JointMask, PoseBlend, PoseBlendMode};
 pub use plugin::{PosePlugin, PoseSystems};
+pub use standing::{GroundContactState, PoseBalance, PoseGround};
 pub use timeline::PoseTimeline;
 
 /// Makes a rigged character poseable. Put it on the glTF scene root (`WorldAssetRoot`), any
@@ -303,55 +305,6 @@ pub enum PoseLimits {
 #[reflect(Component)]
 pub struct PoseStiffness(pub f32);
 
-/// Stands a character on the scene's ground ([`crate::ecs::SceneGround`], from [`crate::ecs::Ground`]
-/// meshes or the game's own): its lowest joints (feet, paws, a prop's base) become contacts —
-/// cast down every solve, planted when they touch, released when the pose lifts them — and
-/// every skin vertex near the ground under it is kept above it, so a grab pushing the
-/// character down stops at the ground ([`crate::pose::contacts`]).
-#[derive(Component, Debug, Clone, Copy, PartialEq, Reflect)]
-#[reflect(Component, Default)]
-pub struct PoseGround {
-    /// Joints whose skin reaches within this share of the character's size of its lowest
-    /// vertex are its feet (found once, in the pose it stands in).
-    pub feet_tolerance: f32,
-    /// Skin vertices within this share of the size above the ground under the character's
-    /// root are kept above it in each solve.
-    pub floor_band: f32,
-}
-
-impl Default for PoseGround {
-    fn default() -> Self {
-        Self {
-            feet_tolerance: 0.03,
-            floor_band: 0.3,
-        }
-    }
-}
-
-/// Keeps a character's centre of mass over its planted feet ([`crate::pose::balance`]); needs
-/// [`PoseGround`] (the planted contacts make the support polygon).
-#[derive(Component, Debug, Clone, Copy, PartialEq, Reflect)]
-#[reflect(Component, Default)]
-pub struct PoseBalance {
-    /// Balance on or off.
-    pub enabled: bool,
-    /// How far inside the support polygon the centre of mass stays, as a share of the
-    /// character's size.
-    pub margin: f32,
-    /// Weight in [0, 1] (1: a hundred times a position effector's pull).
-    pub weight: f32,
-}
-
-impl Default for PoseBalance {
-    fn default() -> Self {
-        Self {
-            enabled: true,
-            margin: 0.01,
-            weight: 1.0,
-        }
-    }
-}
-
 /// Symmetric editing: every [`PoseEffector`] on a joint with a left/right partner (paired by
 /// name, [`crate::pose::mirror`]) drives the partner too, with its goal mirrored across the
 /// character's symmetry plane; every grab (a [`crate::ecs::DeformHandle`] on the character,
@@ -419,26 +372,6 @@ pub struct PoseStatus {
     pub support_polygon: Vec<Vec3>,
     /// With [`PoseGround`]: every contact as the last request left it.
     pub contacts: Vec<GroundContactState>,
-}
-
-/// One ground contact of a character standing by [`PoseGround`], as the last request left it
-/// (in [`PoseStatus::contacts`]).
-#[derive(Debug, Clone, PartialEq, Reflect)]
-pub struct GroundContactState {
-    /// The joint that carries the patch (a foot).
-    pub joint: usize,
-    /// The patch's vertices (indices of the model's welded vertices).
-    pub patch: Vec<u32>,
-    /// Whether the patch is planted (held where it touched).
-    pub planted: bool,
-    /// While planted: where each patch vertex is held (world space, in patch order).
-    pub held: Vec<Vec3>,
-    /// Whether the last cast found ground under it.
-    pub grounded: bool,
-    /// The ground's normal under it (world space).
-    pub ground_normal: Vec3,
-    /// The joint's axis, in its bind-pose frame, that a planted contact turns to the normal.
-    pub up: Option<Vec3>,
 }
 
 /// Why a character could not be made poseable or posed (in [`PoseFailed`] and

@@ -47,7 +47,7 @@ pub enum WiimoteSource {
     /// Real remotes over hidapi.
     Hardware,
     /// Emulated controllers (tests, demos, users without hardware), one per config: Wii
-    /// Remotes ([`EmulatorConfig`]) or gyro pads
+    /// Remotes ([`EmulatorConfig`](crate::controllers::wiimote::emulator::EmulatorConfig)) or gyro pads
     /// ([`PadEmulatorConfig`](crate::controllers::pads::PadEmulatorConfig)), each `.into()`.
     Emulator(Vec<EmulatedController>),
 }
