@@ -238,28 +238,11 @@ impl CoarseGrid {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pose::TriangleGround;
-
-    /// Two levels: y = 0 for x < 0, y = 0.3 beyond.
-    fn steps() -> TriangleGround {
-        let p = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
-        let positions = vec![
-            p(-3.0, 0.0, -3.0),
-            p(0.0, 0.0, -3.0),
-            p(0.0, 0.0, 3.0),
-            p(-3.0, 0.0, 3.0),
-            p(0.0, 0.3, -3.0),
-            p(3.0, 0.3, -3.0),
-            p(3.0, 0.3, 3.0),
-            p(0.0, 0.3, 3.0),
-        ];
-        let triangles = vec![[0, 2, 1], [0, 3, 2], [4, 6, 5], [4, 7, 6]];
-        TriangleGround::new(positions, triangles, DVec3::NEG_Y)
-    }
 
     #[test]
     fn each_vertex_near_the_ground_gets_the_level_under_it_and_far_ones_are_left_out() {
-        let ground = steps();
+        // y = 0 for x < 0, 0.3 beyond.
+        let ground = crate::pose::ground::two_levels(0.0, 3.0);
         let sampling = FloorSampling {
             down: DVec3::NEG_Y,
             band: 0.5,

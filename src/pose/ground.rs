@@ -394,17 +394,19 @@ impl ContactTracker {
         pose: &SkeletonPose,
         ground: &dyn Ground,
     ) -> Vec<ContactEvent> {
-        self.update_guided(model, pose, None, ground)
+        let skinned = model.skin_welded(pose);
+        self.update_guided(model, (pose, &skinned), None, ground)
     }
 
     /// [`ContactTracker::update`] for a pose added to an animation (`animation`: the clip's
     /// pose under the layer): a planted patch the clip lifts is released, a free one plants
     /// only while the clip has it down ([`super::gait`]); where it plants is still decided on
-    /// the ground, from `pose`.
+    /// the ground, from `pose` (`skinned`: its welded skin, `model.skin_welded(pose)`, which
+    /// the caller usually has for the floor too).
     pub fn update_guided(
         &mut self,
         model: &SkinnedModel,
-        pose: &SkeletonPose,
+        (pose, skinned): (&SkeletonPose, &[DVec3]),
         animation: Option<&SkeletonPose>,
         ground: &dyn Ground,
     ) -> Vec<ContactEvent> {
@@ -412,8 +414,6 @@ impl ContactTracker {
             let patches: Vec<&[u32]> = self.contacts.iter().map(|c| &c.patch[..]).collect();
             self.gait.heights(model, a, &patches, self.down)
         });
-
-        let skinned = model.skin_welded(pose);
         let globals = model.skeleton().global_transforms(pose);
         let mut events = Vec::with_capacity(self.contacts.len());
         let first = self.updates == 0;
@@ -531,30 +531,33 @@ impl ContactTracker {
     }
 }
 
+/// Two levels, for tests: y = 0 for x < `edge`, y = 0.3 beyond, as two quads reaching `half`
+/// either side of the edge and of z = 0.
+#[cfg(test)]
+pub(crate) fn two_levels(edge: f64, half: f64) -> TriangleGround {
+    let p = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
+    let (a, b) = (edge - half, edge + half);
+    let positions = vec![
+        p(a, 0.0, -half),
+        p(edge, 0.0, -half),
+        p(edge, 0.0, half),
+        p(a, 0.0, half),
+        p(edge, 0.3, -half),
+        p(b, 0.3, -half),
+        p(b, 0.3, half),
+        p(edge, 0.3, half),
+    ];
+    let triangles = vec![[0, 2, 1], [0, 3, 2], [4, 6, 5], [4, 7, 6]];
+    TriangleGround::new(positions, triangles, DVec3::NEG_Y)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// Two steps: y = 0 for x < 1, y = 0.3 beyond, as two quads.
-    fn steps() -> TriangleGround {
-        let p = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
-        let positions = vec![
-            p(-2.0, 0.0, -2.0),
-            p(1.0, 0.0, -2.0),
-            p(1.0, 0.0, 2.0),
-            p(-2.0, 0.0, 2.0),
-            p(1.0, 0.3, -2.0),
-            p(4.0, 0.3, -2.0),
-            p(4.0, 0.3, 2.0),
-            p(1.0, 0.3, 2.0),
-        ];
-        let triangles = vec![[0, 2, 1], [0, 3, 2], [4, 6, 5], [4, 7, 6]];
-        TriangleGround::new(positions, triangles, DVec3::NEG_Y)
-    }
-
     #[test]
     fn casts_down_find_the_step_under_them_and_miss_beyond_the_ground() {
-        let g = steps();
+        let g = two_levels(1.0, 3.0);
         let hit = g
             .cast_down(DVec3::new(0.0, 2.0, 0.5), DVec3::NEG_Y, 5.0)
             .unwrap();

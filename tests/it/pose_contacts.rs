@@ -73,6 +73,31 @@ impl Scene {
         (slope, contact)
     }
 
+    /// The hips pulled down 0.1 a frame for 12 frames (20 iterations each, warm), with the
+    /// floor `floor` gives for the pose each frame starts from; the last pose.
+    fn drag_hips_down(&self, floor: impl Fn(&SkeletonPose) -> Option<Floor>) -> SkeletonPose {
+        let hips = joint_positions(&self.rig.skeleton, &self.rig.rest)[HIPS];
+        let mut last: Option<PoseSolution> = None;
+        for frame in 1..=12 {
+            let now = last.as_ref().map_or(&self.rig.rest, |l| &l.pose);
+            let constraints = PoseConstraints {
+                effectors: vec![Effector {
+                    joint: HIPS,
+                    goal: EffectorGoal::Position(hips - DVec3::Y * 0.1 * frame as f64),
+                    weight: 1.0,
+                }],
+                floor: floor(now),
+                ..Default::default()
+            };
+            let start = match &last {
+                Some(l) => PoseStart::Warm(l),
+                None => PoseStart::Pose(&self.rig.rest),
+            };
+            last = Some(self.solve(&constraints, start, 20).unwrap());
+        }
+        last.unwrap().pose
+    }
+
     fn flat_ground(&self) -> GroundPlane {
         GroundPlane::new(DVec3::Y * self.lowest, DVec3::Y).unwrap()
     }
@@ -210,26 +235,8 @@ fn a_body_dragged_into_the_floor_stops_at_it() {
         plane: s.flat_ground(),
         band: 0.3 * s.size,
     };
-    let hips = joint_positions(&s.rig.skeleton, &s.rig.rest)[HIPS];
     let deepest = |floor: Option<Floor>| {
-        let mut last: Option<PoseSolution> = None;
-        for frame in 1..=12 {
-            let constraints = PoseConstraints {
-                effectors: vec![Effector {
-                    joint: HIPS,
-                    goal: EffectorGoal::Position(hips - DVec3::Y * 0.1 * frame as f64),
-                    weight: 1.0,
-                }],
-                floor: floor.clone(),
-                ..Default::default()
-            };
-            let start = match &last {
-                Some(l) => PoseStart::Warm(l),
-                None => PoseStart::Pose(&s.rig.rest),
-            };
-            last = Some(s.solve(&constraints, start, 20).unwrap());
-        }
-        let pose = last.unwrap().pose;
+        let pose = s.drag_hips_down(|_| floor.clone());
         s.skinned(&pose)
             .iter()
             .map(|p| p.y - s.lowest)
@@ -272,37 +279,19 @@ fn a_floor_cast_on_steps_holds_the_foot_over_the_higher_step() {
     );
     let left_x = centroid(&rest, &s.sole).x;
     assert!(left_x > 0.02 * s.size, "the left foot is over the block");
-    let hips = joint_positions(&s.rig.skeleton, &s.rig.rest)[HIPS];
     let sampling = FloorSampling::for_size(s.size, 0.3, DVec3::NEG_Y);
     // The rest pose stands on the lower level (the left foot in the block); drag the hips down.
     let deepest = |cast: bool| {
-        let mut last: Option<PoseSolution> = None;
-        for frame in 1..=12 {
-            let now = last.as_ref().map_or(&s.rig.rest, |l| &l.pose);
-            let floor = if cast {
+        let pose = s.drag_hips_down(|now| {
+            Some(if cast {
                 Floor::cast(&s.skinned(now), &steps, &sampling).0
             } else {
                 Floor::Plane {
                     plane: s.flat_ground(),
                     band: 0.3 * s.size,
                 }
-            };
-            let constraints = PoseConstraints {
-                effectors: vec![Effector {
-                    joint: HIPS,
-                    goal: EffectorGoal::Position(hips - DVec3::Y * 0.1 * frame as f64),
-                    weight: 1.0,
-                }],
-                floor: Some(floor),
-                ..Default::default()
-            };
-            let start = match &last {
-                Some(l) => PoseStart::Warm(l),
-                None => PoseStart::Pose(&s.rig.rest),
-            };
-            last = Some(s.solve(&constraints, start, 20).unwrap());
-        }
-        let pose = last.unwrap().pose;
+            })
+        });
         s.skinned(&pose)
             .iter()
             .filter_map(|p| {

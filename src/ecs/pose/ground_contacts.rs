@@ -21,10 +21,6 @@ pub(super) fn stand_on(
     (settings, balance): (&PoseGround, Option<&PoseBalance>),
     ground: &SceneGround,
 ) -> Standing {
-    // Under an additive layer the clip decides when a foot is down (`pose::gait`).
-    let clip = constraints.shape_rest.clone();
-    let clip = clip.as_ref();
-    constraints.balance = None;
     let to_world = posed.placement;
     let to_character = to_world.inverse();
     let down = (to_character.matrix3 * DVec3::NEG_Y).normalize_or(DVec3::NEG_Y);
@@ -43,7 +39,11 @@ pub(super) fn stand_on(
         follow_the_world(tracker, &(to_character * *placed_at));
         *placed_at = to_world;
     }
-    let events = tracker.update_guided(model, pose, clip, &cast);
+    // One skin for the contacts and the floor. Under an additive layer the clip decides when
+    // a foot is down (`pose::gait`).
+    let skinned = model.skin_welded(pose);
+    let clip = constraints.shape_rest.as_ref();
+    let events = tracker.update_guided(model, (pose, &skinned), clip, &cast);
     let planted_now = events
         .iter()
         .filter(|e| **e == crate::pose::ContactEvent::Planted)
@@ -51,7 +51,7 @@ pub(super) fn stand_on(
     constraints.contacts = tracker.active();
     // Every skin vertex near the ground under it kept above it (a plane per vertex: terrain).
     let sampling = FloorSampling::for_size(size, f64::from(settings.floor_band), down);
-    constraints.floor = Some(Floor::cast(&model.skin_welded(pose), &cast, &sampling).0);
+    constraints.floor = Some(Floor::cast(&skinned, &cast, &sampling).0);
     let support = tracker.support();
     let corners = support
         .iter()
@@ -69,6 +69,8 @@ pub(super) fn stand_on(
             weight: f64::from(b.weight.clamp(0.0, 1.0)),
             masses: None,
         });
+    } else {
+        constraints.balance = None;
     }
     let planted = tracker
         .contacts
