@@ -19,6 +19,8 @@ const SPEED: f32 = 40.0;
 pub struct Field {
     ground: std::sync::Arc<TriangleGround>,
     penetration_max: f64,
+    /// Each sampled (character, frame) pair's deepest vertex / size.
+    depths: Vec<f64>,
     plants_at_start: Option<u64>,
     /// Planted soles' up (carried by the joint) against their ground's normal, degrees.
     sole_errors_deg: Vec<f64>,
@@ -53,6 +55,7 @@ pub fn spawn(app: &mut App, side: usize, frames: usize) -> Field {
     let field = Field {
         ground: std::sync::Arc::new(TriangleGround::new(positions, triangles, DVec3::NEG_Y)),
         penetration_max: 0.0,
+        depths: Vec::new(),
         plants_at_start: None,
         sole_errors_deg: Vec::new(),
         slide_max: 0.0,
@@ -93,13 +96,16 @@ impl Field {
             let scale = posed.placement.matrix3.x_axis.length();
             let size = posed.model.topology().bounding_diagonal() * scale;
             if skin {
+                // The deepest vertex of this character this frame.
+                let mut deepest = 0.0f64;
                 for p in posed.to_world(posed.model.skin_render(&pose)) {
                     if let Some(hit) = self.ground.cast_down(p + DVec3::Y * 1e3, DVec3::NEG_Y, 2e3)
                     {
-                        let depth = (hit.point.y - p.y) / size;
-                        self.penetration_max = self.penetration_max.max(depth);
+                        deepest = deepest.max((hit.point.y - p.y) / size);
                     }
                 }
+                self.penetration_max = self.penetration_max.max(deepest);
+                self.depths.push(deepest);
             }
             let welded = posed.to_world(posed.model.skin_welded(&pose));
             let globals = posed.model.skeleton().global_transforms(&pose);
@@ -172,6 +178,12 @@ impl Field {
         let mut out = serde_json::Map::new();
         out.insert("terrain".into(), true.into());
         out.insert("penetration_max".into(), self.penetration_max.into());
+        let mut depths = self.depths.clone();
+        depths.sort_by(f64::total_cmp);
+        for (key, q) in [("penetration_p90", 0.9), ("penetration_p99", 0.99)] {
+            let at = ((depths.len().max(1) - 1) as f64 * q).round() as usize;
+            out.insert(key.into(), depths.get(at).copied().into());
+        }
         out.insert("sole_normal_error_deg_p95".into(), p95.into());
         out.insert(
             "soles_at_limit_share".into(),

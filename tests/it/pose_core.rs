@@ -299,6 +299,57 @@ fn a_warm_start_continues_where_the_last_solve_stopped() {
     assert_eq!(cancelled.pose, first.pose);
 }
 
+/// Issue 42: a warm start does not inherit the damping the last solve ended with. A solve
+/// whose steps were rejected again and again (a foot planting, the floor's kinks) ends with a
+/// large damping; carried into the next frame's solve, it throttled every step (a walking
+/// crowd's 3-iteration solves moved about 1 % of the Gauss–Newton step). Here the targets move
+/// after such a solve: the next 3 iterations get as far as from a solve that ended calmly.
+#[test]
+fn a_warm_start_does_not_inherit_a_stalled_damping() {
+    let rig = bar_rig(3, 12, 40);
+    let model = model_of(&rig);
+    let truth = known_pose(&rig);
+    let m = rig.skeleton.skinning_matrices(&truth);
+    let mut constraints = bar_constraints(&rig, &model);
+    let solver = PoseSolver::new(
+        model.clone(),
+        &constraints,
+        &rig.rest,
+        PoseSolverSettings::default(),
+    )
+    .unwrap();
+    let three = PoseSolveOptions {
+        max_iterations: 3,
+        tolerance: 0.0,
+    };
+    let calm = solver
+        .solve(&constraints, &three, PoseStart::Pose(&rig.rest), &|| false)
+        .unwrap();
+    let mut stalled = calm.clone();
+    stalled.damping = 1e6;
+    constraints.handles[0].transform = motion_of(&m[1]);
+    constraints.handles[1].transform = motion_of(&m[2]);
+    let after = |last: &PoseSolution| {
+        let solved = solver
+            .solve(&constraints, &three, PoseStart::Warm(last), &|| false)
+            .unwrap();
+        (
+            solved.stats.energies[0],
+            *solved.stats.energies.last().unwrap(),
+        )
+    };
+    let (start, from_calm) = after(&calm);
+    let (_, from_stalled) = after(&stalled);
+    assert!(
+        from_calm < 0.5 * start,
+        "the targets moved: {start} → {from_calm}"
+    );
+    assert!(
+        from_stalled <= from_calm * 1.01,
+        "after a stalled solve: {from_stalled}, after a calm one: {from_calm}"
+    );
+}
+
 #[test]
 fn degenerate_skins_get_typed_errors_or_the_documented_normalisation() {
     let rig = bar_rig(2, 8, 10);

@@ -7,19 +7,21 @@ use bevy::prelude::*;
 
 use super::blend::BlendMemory;
 use super::constraints::core_effector;
+use super::convert::{affine, composed_global};
 use super::ground_contacts::{Standing, stand_on};
 use super::solve::{SolveJob, SolveResult, store_landed};
-use super::state::{LastSolve, PoseDrivers, PoseSolves};
+use super::state::{CharacterSpace, LastSolve, PoseDrivers, PoseSolves};
 use super::{
     PoseBalance, PoseBlend, PoseBlendMode, PoseFailed, PoseGround, PoseInFrame, PoseSolved,
     PoseStatus, Poseable, PosedSkeleton,
 };
 use crate::ecs::SceneGround;
+use crate::pose::placement::similarity;
 use crate::pose::{EffectorGoal, SkeletonPose, blend_pose};
 
 /// What an in-frame solve reads and writes of a character.
 type InFrameCharacter = (
-    Entity,
+    (Entity, Has<CharacterSpace>),
     (&'static Poseable, &'static PoseInFrame),
     &'static mut PosedSkeleton,
     (
@@ -50,8 +52,12 @@ pub(super) fn solve_in_frame(
 ) {
     let ground = ground.as_deref();
     characters.par_iter_mut().for_each(
-        |(_, settings, mut posed, parts, mut status, (blend, standing, balance))| {
+        |((entity, character_space), settings, mut posed, parts, mut status, extras)| {
+            let (blend, standing, balance) = extras;
             let (mut drivers, mut solves, mut last, memory) = parts;
+            if character_space && solves.pending.is_some() {
+                place_where_it_is_now(posed.bypass_change_detection(), entity, &locals);
+            }
             let drivers = drivers.bypass_change_detection();
             let solves = solves.bypass_change_detection();
             let last = last.bypass_change_detection();
@@ -85,7 +91,7 @@ pub(super) fn solve_in_frame(
             });
         },
     );
-    for (entity, _, _, (_, mut solves, ..), status, _) in &mut characters {
+    for ((entity, _), _, _, (_, mut solves, ..), status, _) in &mut characters {
         match solves.bypass_change_detection().in_frame_outcome.take() {
             Some(Ok(ms)) => {
                 solved.write(PoseSolved {
@@ -164,25 +170,22 @@ fn stand_here(
     Some(stand_on(pending, standee, settings, ground))
 }
 
-/// `entity`'s world transform composed from the local transforms up its hierarchy as they
-/// are now (after animation: `GlobalTransform` is last frame's until propagation runs);
-/// `None` when an ancestor has no `Transform` or the chain is implausibly deep.
-fn current_global(entity: Entity, locals: &Locals) -> Option<GlobalTransform> {
-    // Composed from the entity upwards (each parent's local transform applied on the left),
-    // without collecting the chain: this runs for every effector every frame.
-    let mut global = bevy::math::Affine3A::IDENTITY;
-    let mut at = Some(entity);
-    let mut depth = 0;
-    while let Some(e) = at {
-        let (transform, parent) = locals.get(e).ok()?;
-        global = transform.compute_affine() * global;
-        at = parent.map(ChildOf::parent);
-        depth += 1;
-        if depth > 512 {
-            return None;
-        }
+/// Puts a character-space model about to be solved where its entity is now (moved after the
+/// request, by animation or a late system): a solve placed elsewhere would stand on the
+/// ground, and hold its planted feet, that far from where it is drawn. With nothing to solve
+/// the placement waits for the next request, which sees the move.
+fn place_where_it_is_now(posed: &mut PosedSkeleton, entity: Entity, locals: &Locals) {
+    if let Some(now) = current_global(entity, locals).and_then(|g| similarity(&affine(&g))) {
+        posed.placement = now;
     }
-    Some(GlobalTransform::from(global))
+}
+
+/// `entity`'s world transform as its hierarchy's local transforms are now.
+fn current_global(entity: Entity, locals: &Locals) -> Option<GlobalTransform> {
+    composed_global(entity, |e| {
+        let (t, parent) = locals.get(e).ok()?;
+        Some((*t, parent.map(ChildOf::parent)))
+    })
 }
 
 /// Reads the effectors' goals again from their entities as they are now (after this frame's

@@ -9,7 +9,7 @@ use super::blend::BlendMemory;
 use super::constraints::{
     SetKey, core_effector, joint_handle, rebase, resolve_limits, vertex_handles,
 };
-use super::convert::affine;
+use super::convert::{affine, composed_global};
 use super::solve::SolveJob;
 use super::state::{CharacterSpace, LastSolve, PoseDrivers, PoseSolves, fail};
 use super::symmetry::Symmetry;
@@ -359,10 +359,23 @@ fn constraints_of(
     Ok((constraints, start))
 }
 
-/// Keeps [`PosedSkeleton::placement`] on the character's `GlobalTransform` (a model in
-/// character space only); true when it moved, so that world-space drivers are solved again.
-fn follow_placement(posed: &mut Mut<PosedSkeleton>, extras: &CharacterSettingsItem) -> bool {
-    let (true, Some(global)) = (extras.character_space, extras.global) else {
+/// Keeps [`PosedSkeleton::placement`] on where the character is now (a model in character
+/// space only): its transform composed up its hierarchy — moved earlier in this `Update` (a
+/// character controller), its `GlobalTransform` is still last frame's — else its
+/// `GlobalTransform`. True when it moved, so that world-space drivers are solved again.
+fn follow_placement(
+    (posed, entity): (&mut Mut<PosedSkeleton>, Entity),
+    extras: &CharacterSettingsItem,
+    (joints, parents): (&JointTransforms, &Query<&ChildOf>),
+) -> bool {
+    if !extras.character_space {
+        return false;
+    }
+    let now = composed_global(entity, |e| {
+        let t = joints.get(e).ok()?;
+        Some((*t, parents.get(e).ok().map(ChildOf::parent)))
+    });
+    let Some(global) = now.as_ref().or(extras.global) else {
         return false;
     };
     let Some(now) = similarity(&affine(global)) else {
@@ -380,7 +393,7 @@ pub(super) fn request_pose_solves(
     mut characters: Query<RequestingCharacter>,
     mut handles: VertexHandles,
     mut joint_handles: JointHandles,
-    joints: JointTransforms,
+    (joints, parents): (JointTransforms, Query<&ChildOf>),
     (position_only, effectors): (Query<(), With<HandlePositionOnly>>, Effectors),
     mut failed: MessageWriter<PoseFailed>,
     ground: Option<Res<SceneGround>>,
@@ -389,7 +402,7 @@ pub(super) fn request_pose_solves(
         &mut characters
     {
         let (mut drivers_state, mut solves, mut last, memory) = parts;
-        let placed = follow_placement(&mut posed, &extras);
+        let placed = follow_placement((&mut posed, entity), &extras, (&joints, &parents));
         let mut drivers = Drivers::of(
             entity,
             &mut handles,

@@ -51,10 +51,16 @@ impl PoseSolver {
         };
         let extras = self.extra_terms(constraints, start);
         let limits = constraints.limits.as_deref();
+        // A warm start keeps the cluster rotations but not the damping the last solve ended
+        // with: raised by that solve's landscape (a foot planting, the floor), carried over it
+        // throttled every step of the next (a walking crowd's 3-iteration solves moved ~1 % of
+        // the Gauss–Newton step, and swinging paws went through the ground).
         let (mut rotations, mut damping, mut exact) = match warm {
-            Some(w) if w.cluster_rotations.len() == clusters => {
-                (w.cluster_rotations.clone(), w.damping, false)
-            }
+            Some(w) if w.cluster_rotations.len() == clusters => (
+                w.cluster_rotations.clone(),
+                w.damping.min(INITIAL_DAMPING),
+                false,
+            ),
             _ => (vec![DQuat::IDENTITY; clusters], INITIAL_DAMPING, true),
         };
         let (mut b_pen, mut c_pen) = self.penalty_terms(constraints);
@@ -135,6 +141,7 @@ impl PoseSolver {
                 h: &h,
                 g: &g,
                 f0,
+                no_progress: options.tolerance * f0.abs() * 0.1,
                 pattern: &pattern,
             };
             let accepted = self.damped_step(

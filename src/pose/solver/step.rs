@@ -24,6 +24,10 @@ pub(super) struct DampedSystem<'a> {
     pub(super) h: &'a [f64],
     pub(super) g: &'a [f64],
     pub(super) f0: f64,
+    /// A predicted decrease of the energy below this is no progress: the solve has converged
+    /// (a step is not tried; without this a solve at its minimum, where the one-sided terms'
+    /// kinks make every step rise, would raise the damping through all its trials).
+    pub(super) no_progress: f64,
     /// Where `h`'s Cholesky factor has non-zero blocks.
     pub(super) pattern: &'a BlockPattern,
 }
@@ -43,6 +47,9 @@ impl PoseSolver {
     ) -> Option<(Posed, f64)> {
         for _ in 0..12 {
             let step = solve_damped(system.h, system.g, *damping, system.pattern);
+            if system.predicted_decrease(&step) < system.no_progress {
+                return None;
+            }
             for (k, length) in [1.0, 0.5].into_iter().enumerate() {
                 let mut candidate = match spare.take() {
                     Some(mut buffers) => {
@@ -80,6 +87,27 @@ impl PoseSolver {
             *damping *= 4.0;
         }
         None
+    }
+}
+
+impl DampedSystem<'_> {
+    /// The decrease of the energy the system's quadratic model predicts for `step`:
+    /// `−(g·x + ½ xᵀ H x)`.
+    fn predicted_decrease(&self, step: &[DVec3]) -> f64 {
+        let x: Vec<f64> = step.iter().flat_map(|v| v.to_array()).collect();
+        let n = x.len();
+        if n != self.g.len() || self.h.len() != n * n {
+            return f64::INFINITY;
+        }
+        let mut quadratic = 0.0;
+        for (i, xi) in x.iter().enumerate() {
+            if *xi != 0.0 {
+                let row = &self.h[i * n..(i + 1) * n];
+                quadratic += xi * row.iter().zip(&x).map(|(a, b)| a * b).sum::<f64>();
+            }
+        }
+        let linear: f64 = self.g.iter().zip(&x).map(|(a, b)| a * b).sum();
+        -(linear + 0.5 * quadratic)
     }
 }
 
