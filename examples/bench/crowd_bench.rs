@@ -35,8 +35,9 @@
 //! `penetration_p99` (of each sampled character and frame's deepest vertex),
 //! `sole_normal_error_deg_p95` (planted soles' bind-pose up, carried by the joint, against the
 //! ground's normal), `soles_at_limit_share` (planted soles more than 3° off),
-//! `planted_slide_max` (largest motion of a planted patch's vertex across its ground from one
-//! frame to the next / size), `com_supported_share` ((character, frame) pairs with the centre
+//! `planted_slide_max` and `planted_slide_p99` (largest motion of a planted patch's vertex
+//! across its ground from one frame to the next / size, while held at the same points: a
+//! patch released and planted again within a frame is a new plant), `com_supported_share` ((character, frame) pairs with the centre
 //! of mass over the planted patches), `no_support_share` (pairs with nothing planted, counted
 //! unsupported), `planted_per_character` (at the end) and `replants` (plants after the first
 //! stance, all characters).

@@ -21,6 +21,8 @@ pub struct Field {
     penetration_max: f64,
     /// Each sampled (character, frame) pair's deepest vertex / size.
     depths: Vec<f64>,
+    /// Each planted patch's slide in each frame / size.
+    slides: Vec<f64>,
     plants_at_start: Option<u64>,
     /// Planted soles' up (carried by the joint) against their ground's normal, degrees.
     sole_errors_deg: Vec<f64>,
@@ -32,7 +34,7 @@ pub struct Field {
     /// Pairs with nothing planted (counted unsupported).
     unsupported_no_support: u64,
     /// Each character's planted patches last frame (world space).
-    previous: std::collections::HashMap<Entity, Vec<Option<Vec<DVec3>>>>,
+    previous: std::collections::HashMap<Entity, Vec<Option<Planted>>>,
 }
 
 /// Spawns the terrain under a `side` × `side` field (150 apart), long enough for `frames` of
@@ -56,6 +58,7 @@ pub fn spawn(app: &mut App, side: usize, frames: usize) -> Field {
         ground: std::sync::Arc::new(TriangleGround::new(positions, triangles, DVec3::NEG_Y)),
         penetration_max: 0.0,
         depths: Vec::new(),
+        slides: Vec::new(),
         plants_at_start: None,
         sole_errors_deg: Vec::new(),
         slide_max: 0.0,
@@ -122,23 +125,37 @@ impl Field {
                     self.sole_errors_deg
                         .push(up.angle_between(normal).to_degrees());
                 }
-                now.push(Some(
-                    c.patch
-                        .iter()
-                        .map(|&v| welded[v as usize])
-                        .collect::<Vec<_>>(),
-                ));
+                now.push(Some(Planted {
+                    drawn: c.patch.iter().map(|&v| welded[v as usize]).collect(),
+                    held: c.held.iter().map(|h| h.as_dvec3()).collect(),
+                }));
             }
             if let Some(before) = self.previous.get(&root) {
                 for ((a, b), c) in before.iter().zip(&now).zip(&status.contacts) {
-                    if let (Some(a), Some(b)) = (a, b) {
-                        let n = c.ground_normal.as_dvec3();
-                        for (p, q) in a.iter().zip(b) {
-                            let d = *q - *p;
-                            let slide = (d - n * d.dot(n)).length() / size;
-                            self.slide_max = self.slide_max.max(slide);
-                        }
+                    let (Some(a), Some(b)) = (a, b) else {
+                        continue;
+                    };
+                    let n = c.ground_normal.as_dvec3();
+                    let across = |d: DVec3| (d - n * d.dot(n)).length() / size;
+                    // The same plant in both frames: held where it was (a landing patch comes
+                    // down along the normal). A patch released and planted again elsewhere
+                    // within the frame is a new plant, not a slide.
+                    let same_plant = a.held.len() == b.held.len()
+                        && a.held
+                            .iter()
+                            .zip(&b.held)
+                            .all(|(p, q)| across(*q - *p) < 1e-4);
+                    if !same_plant {
+                        continue;
                     }
+                    let slide = a
+                        .drawn
+                        .iter()
+                        .zip(&b.drawn)
+                        .map(|(p, q)| across(*q - *p))
+                        .fold(0.0f64, f64::max);
+                    self.slides.push(slide);
+                    self.slide_max = self.slide_max.max(slide);
                 }
             }
             self.previous.insert(root, now);
@@ -169,21 +186,25 @@ impl Field {
             .filter_map(|&r| app.world().get::<PoseStatus>(r))
             .map(|s| s.contacts_planted)
             .sum();
-        let mut errors = self.sole_errors_deg.clone();
-        errors.sort_by(f64::total_cmp);
-        let p95 = errors
-            .get(((errors.len().max(1) - 1) as f64 * 0.95).round() as usize)
-            .copied();
+        let sorted = |v: &[f64]| {
+            let mut v = v.to_vec();
+            v.sort_by(f64::total_cmp);
+            v
+        };
+        let quantile = |v: &[f64], q: f64| {
+            v.get(((v.len().max(1) - 1) as f64 * q).round() as usize)
+                .copied()
+        };
+        let errors = sorted(&self.sole_errors_deg);
+        let p95 = quantile(&errors, 0.95);
         let pairs = self.pairs.max(1) as f64;
         let mut out = serde_json::Map::new();
         out.insert("terrain".into(), true.into());
         out.insert("penetration_max".into(), self.penetration_max.into());
-        let mut depths = self.depths.clone();
-        depths.sort_by(f64::total_cmp);
-        for (key, q) in [("penetration_p90", 0.9), ("penetration_p99", 0.99)] {
-            let at = ((depths.len().max(1) - 1) as f64 * q).round() as usize;
-            out.insert(key.into(), depths.get(at).copied().into());
-        }
+        let (depths, slides) = (sorted(&self.depths), sorted(&self.slides));
+        out.insert("penetration_p90".into(), quantile(&depths, 0.9).into());
+        out.insert("penetration_p99".into(), quantile(&depths, 0.99).into());
+        out.insert("planted_slide_p99".into(), quantile(&slides, 0.99).into());
         out.insert("sole_normal_error_deg_p95".into(), p95.into());
         out.insert(
             "soles_at_limit_share".into(),
@@ -209,6 +230,13 @@ impl Field {
         );
         out
     }
+}
+
+/// A planted patch in one frame (world space): where it is drawn and where it is held.
+#[derive(Clone)]
+struct Planted {
+    drawn: Vec<DVec3>,
+    held: Vec<DVec3>,
 }
 
 /// Contacts planted so far, all characters.
