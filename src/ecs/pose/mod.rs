@@ -488,8 +488,10 @@ pub struct PosedSkeleton {
     /// [`PoseBlend`] the layer added to the animation ([`PosedSkeleton::shown_pose`] reads
     /// what is on screen).
     pub pose: SkeletonPose,
-    /// Where the character stands: world ← character space, the [`Poseable`] entity's
-    /// `GlobalTransform` (kept current by the plugin). The model is in character space, so
+    /// Where the character stands: world ← character space, the [`Poseable`] entity's world
+    /// transform as it is now (kept current by the plugin: composed from the local transforms
+    /// when a solve is asked and again before an in-frame solve, so a character moved this
+    /// frame is not solved where it was). The model is in character space, so
     /// every instance of one asset shares it ([`PoseModels`]); a character placed with a
     /// non-uniform scale has its model in world space and this identity.
     pub placement: DAffine3,

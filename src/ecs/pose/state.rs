@@ -46,7 +46,7 @@ pub(super) struct ModelBuild {
 
 /// Marks a character whose model is in character space (placed by a similarity, shared by
 /// every instance of its asset): its [`PosedSkeleton::placement`](super::PosedSkeleton) follows
-/// its `GlobalTransform`.
+/// its world transform.
 #[derive(Component, Debug, Clone, Copy, Default)]
 pub(super) struct CharacterSpace;
 
