@@ -315,74 +315,73 @@ impl SkinnedModel {
         let rest = self.topology.positions();
         let n = self.topology.vertex_count();
         let hom = |i: usize| self.bind[i].extend(1.0);
-        let (q, k, c0, degree) = (0..n)
-            .into_par_iter()
-            .fold(
-                || {
-                    (
-                        vec![0.0; dim * dim],
-                        vec![0.0; clusters * dim * 3],
-                        0.0,
-                        0.0,
-                    )
-                },
-                |(mut q, mut k, mut c0, mut degree), i| {
-                    let range = offsets[i] as usize..offsets[i + 1] as usize;
-                    let vi = hom(i);
-                    // r_i = d_i M_i − Σ_j w_ij M_j, as joint → 4-vector.
-                    let mut r: Vec<(u32, DVec4)> = Vec::with_capacity(16);
-                    let mut add = |j: u32, v: DVec4| match r.iter_mut().find(|e| e.0 == j) {
-                        Some(e) => e.1 += v,
-                        None => r.push((j, v)),
-                    };
-                    let d: f64 = w[range.clone()].iter().sum();
-                    degree += d;
-                    for &(a, wa) in self.influences[i].iter().filter(|e| e.1 != 0.0) {
-                        add(a, vi * (d * wa));
+        // Partial sums over fixed chunks of vertices, in parallel, then added in chunk order:
+        // the same sums on every run and any thread count (a work-stealing reduction adds in
+        // whatever order the threads finish, and a balance held at the edge of its polygon
+        // flipped between runs on the last bits).
+        const CHUNK: usize = 2048;
+        let partial = |chunk: usize| {
+            let (mut q, mut k, mut c0, mut degree) = (
+                vec![0.0; dim * dim],
+                vec![0.0; clusters * dim * 3],
+                0.0,
+                0.0,
+            );
+            for i in chunk * CHUNK..((chunk + 1) * CHUNK).min(n) {
+                let range = offsets[i] as usize..offsets[i + 1] as usize;
+                let vi = hom(i);
+                // r_i = d_i M_i − Σ_j w_ij M_j, as joint → 4-vector.
+                let mut r: Vec<(u32, DVec4)> = Vec::with_capacity(16);
+                let mut add = |j: u32, v: DVec4| match r.iter_mut().find(|e| e.0 == j) {
+                    Some(e) => e.1 += v,
+                    None => r.push((j, v)),
+                };
+                let d: f64 = w[range.clone()].iter().sum();
+                degree += d;
+                for &(a, wa) in self.influences[i].iter().filter(|e| e.1 != 0.0) {
+                    add(a, vi * (d * wa));
+                }
+                let kc = &mut k[self.cluster_of[i] as usize * dim * 3..][..dim * 3];
+                let mut s = DVec3::ZERO;
+                for e in range {
+                    let j = nbrs[e] as usize;
+                    let vj = hom(j);
+                    let eij = rest[i] - rest[j];
+                    s += eij * w[e];
+                    c0 += w[e] * eij.length_squared();
+                    for &(b, wb) in self.influences[j].iter().filter(|e| e.1 != 0.0) {
+                        add(b, vj * (-w[e] * wb));
+                        add_outer4x3(kc, b as usize, vj * (-w[e] * wb), eij);
                     }
-                    let kc = &mut k[self.cluster_of[i] as usize * dim * 3..][..dim * 3];
-                    let mut s = DVec3::ZERO;
-                    for e in range {
-                        let j = nbrs[e] as usize;
-                        let vj = hom(j);
-                        let eij = rest[i] - rest[j];
-                        s += eij * w[e];
-                        c0 += w[e] * eij.length_squared();
-                        for &(b, wb) in self.influences[j].iter().filter(|e| e.1 != 0.0) {
-                            add(b, vj * (-w[e] * wb));
-                            add_outer4x3(kc, b as usize, vj * (-w[e] * wb), eij);
-                        }
-                    }
-                    for &(a, wa) in self.influences[i].iter().filter(|e| e.1 != 0.0) {
-                        add_outer4x3(kc, a as usize, vi * wa, s);
-                        let left = vi * (2.0 * wa);
-                        for &(b, rb) in &r {
-                            let base = (4 * a as usize) * dim + 4 * b as usize;
-                            for p in 0..4 {
-                                for c in 0..4 {
-                                    q[base + p * dim + c] += left[p] * rb[c];
-                                }
+                }
+                for &(a, wa) in self.influences[i].iter().filter(|e| e.1 != 0.0) {
+                    add_outer4x3(kc, a as usize, vi * wa, s);
+                    let left = vi * (2.0 * wa);
+                    for &(b, rb) in &r {
+                        let base = (4 * a as usize) * dim + 4 * b as usize;
+                        for p in 0..4 {
+                            for c in 0..4 {
+                                q[base + p * dim + c] += left[p] * rb[c];
                             }
                         }
                     }
-                    (q, k, c0, degree)
-                },
-            )
-            .reduce(
-                || {
-                    (
-                        vec![0.0; dim * dim],
-                        vec![0.0; clusters * dim * 3],
-                        0.0,
-                        0.0,
-                    )
-                },
-                |mut a, b| {
-                    a.0.iter_mut().zip(&b.0).for_each(|(x, y)| *x += y);
-                    a.1.iter_mut().zip(&b.1).for_each(|(x, y)| *x += y);
-                    (a.0, a.1, a.2 + b.2, a.3 + b.3)
-                },
-            );
+                }
+            }
+            (q, k, c0, degree)
+        };
+        let chunks: Vec<_> = (0..n.div_ceil(CHUNK))
+            .into_par_iter()
+            .map(partial)
+            .collect();
+        let mut q = vec![0.0; dim * dim];
+        let mut k = vec![0.0; clusters * dim * 3];
+        let (mut c0, mut degree) = (0.0, 0.0);
+        for (pq, pk, pc, pd) in chunks {
+            q.iter_mut().zip(&pq).for_each(|(x, y)| *x += y);
+            k.iter_mut().zip(&pk).for_each(|(x, y)| *x += y);
+            c0 += pc;
+            degree += pd;
+        }
         self.q = q;
         self.k = k;
         self.c0 = c0;
