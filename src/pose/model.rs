@@ -318,8 +318,9 @@ impl SkinnedModel {
         // Partial sums over fixed chunks of vertices, in parallel, then added in chunk order:
         // the same sums on every run and any thread count (a work-stealing reduction adds in
         // whatever order the threads finish, and a balance held at the edge of its polygon
-        // flipped between runs on the last bits).
-        const CHUNK: usize = 2048;
+        // flipped between runs on the last bits). At most 16 chunks of at least 2 048
+        // vertices: the partial sums (J² and clusters × J numbers each) are all held at once.
+        let chunk_len = n.div_ceil(16).max(2048);
         let partial = |chunk: usize| {
             let (mut q, mut k, mut c0, mut degree) = (
                 vec![0.0; dim * dim],
@@ -327,7 +328,7 @@ impl SkinnedModel {
                 0.0,
                 0.0,
             );
-            for i in chunk * CHUNK..((chunk + 1) * CHUNK).min(n) {
+            for i in chunk * chunk_len..((chunk + 1) * chunk_len).min(n) {
                 let range = offsets[i] as usize..offsets[i + 1] as usize;
                 let vi = hom(i);
                 // r_i = d_i M_i − Σ_j w_ij M_j, as joint → 4-vector.
@@ -369,7 +370,7 @@ impl SkinnedModel {
             }
             (q, k, c0, degree)
         };
-        let chunks: Vec<_> = (0..n.div_ceil(CHUNK))
+        let chunks: Vec<_> = (0..n.div_ceil(chunk_len))
             .into_par_iter()
             .map(partial)
             .collect();
