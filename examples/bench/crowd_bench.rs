@@ -197,7 +197,6 @@ fn main() {
                     PoseBalance::default(),
                     // A paw a step releases swings back under the body.
                     PoseStiffness(0.3),
-                    walking_field::Walker,
                 ));
             }
             fox.id()
@@ -227,6 +226,15 @@ fn main() {
         roots.len(),
         setup.elapsed().as_secs_f64()
     );
+    if field.is_some() {
+        // Walking from here on, every character from the same frame: how many updates the
+        // loading took (it varies from run to run) does not move them.
+        for &root in &roots {
+            app.world_mut()
+                .entity_mut(root)
+                .insert(walking_field::Walker);
+        }
+    }
     if let Some(clip) = clip {
         play_clip_on_every_player(&mut app, clip, field.is_some());
         for &root in &roots {
