@@ -58,14 +58,22 @@ impl GaitPhases {
         if animation.local.len() != model.skeleton().len() {
             return None;
         }
-        let skinned = model.skin_welded(animation);
+        // Only the patches' vertices are skinned (a few dozen of the mesh), in one pass.
+        let count = model.bind_positions().len();
+        let vertices: Vec<u32> = patches
+            .iter()
+            .flat_map(|patch| patch.iter().copied())
+            .filter(|&v| (v as usize) < count)
+            .collect();
+        let mut skinned = model.skin_vertices(animation, &vertices).into_iter();
         Some(
             patches
                 .iter()
                 .map(|patch| {
                     patch
                         .iter()
-                        .filter_map(|&v| skinned.get(v as usize))
+                        .filter(|&&v| (v as usize) < count)
+                        .filter_map(|_| skinned.next())
                         .map(|p| -p.dot(down) - self.floor)
                         .fold(f64::INFINITY, f64::min)
                 })

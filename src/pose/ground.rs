@@ -157,18 +157,14 @@ impl Ground for TriangleGround {
             return None;
         }
         // The grid is across this ground's gravity; another direction tests every triangle.
-        let cell: Option<&[u32]> = if down.dot(self.down) > 1.0 - 1e-9 {
+        let (cell, all): (&[u32], u32) = if down.dot(self.down) > 1.0 - 1e-9 {
             let c = self.cell_of(from)?;
-            Some(&self.cells[self.starts[c] as usize..self.starts[c + 1] as usize])
+            let cell = &self.cells[self.starts[c] as usize..self.starts[c + 1] as usize];
+            (cell, 0)
         } else {
-            None
+            (&[], self.triangles.len() as u32)
         };
-        let all = 0..if cell.is_some() {
-            0
-        } else {
-            self.triangles.len() as u32
-        };
-        let candidates = cell.into_iter().flatten().copied().chain(all);
+        let candidates = cell.iter().copied().chain(0..all);
         let mut best: Option<(f64, GroundPlane)> = None;
         for k in candidates {
             let [a, b, c] = self.triangles[k as usize].map(|v| self.positions[v as usize]);

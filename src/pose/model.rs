@@ -282,13 +282,19 @@ impl SkinnedModel {
         if welded.is_empty() {
             return DVec3::ZERO;
         }
+        self.skin_vertices(pose, welded).iter().sum::<DVec3>() / welded.len() as f64
+    }
+
+    /// Skinned positions of the welded vertices `welded` in `pose`, in that order (only those
+    /// vertices are skinned: the same numbers [`SkinnedModel::skin_welded`] gives them).
+    pub fn skin_vertices(&self, pose: &SkeletonPose, welded: &[u32]) -> Vec<DVec3> {
         let m = self.skeleton.skinning_matrices(pose);
         let bind: Vec<DVec3> = welded.iter().map(|&v| self.bind[v as usize]).collect();
         let influences: Vec<VertexInfluences> = welded
             .iter()
             .map(|&v| self.influences[v as usize])
             .collect();
-        skin_positions(&m, &bind, &influences).iter().sum::<DVec3>() / welded.len() as f64
+        skin_positions(&m, &bind, &influences)
     }
 
     /// Skinned positions of the render vertices in `pose` (what the GPU draws; ray-cast these

@@ -39,6 +39,27 @@ fn bar_constraints(rig: &SyntheticRig, model: &SkinnedModel) -> PoseConstraints 
     }
 }
 
+/// The bar rig's model and a solver for its two handles ([`bar_constraints`], at rest).
+fn bar_solver(rig: &SyntheticRig) -> (std::sync::Arc<SkinnedModel>, PoseSolver, PoseConstraints) {
+    let model = model_of(rig);
+    let constraints = bar_constraints(rig, &model);
+    let solver = PoseSolver::new(
+        model.clone(),
+        &constraints,
+        &rig.rest,
+        PoseSolverSettings::default(),
+    )
+    .unwrap();
+    (model, solver, constraints)
+}
+
+/// Moves the bar's two handles to where `pose` carries their joints.
+fn reach(constraints: &mut PoseConstraints, rig: &SyntheticRig, pose: &SkeletonPose) {
+    let m = rig.skeleton.skinning_matrices(pose);
+    constraints.handles[0].transform = motion_of(&m[1]);
+    constraints.handles[1].transform = motion_of(&m[2]);
+}
+
 fn angle_deg(a: DQuat, b: DQuat) -> f64 {
     a.angle_between(b).to_degrees()
 }
@@ -110,19 +131,9 @@ fn two_bone_skinning_matches_a_hand_computation() {
 #[test]
 fn a_forward_kinematics_pose_is_recovered_from_its_handle_targets() {
     let rig = bar_rig(3, 16, 60);
-    let model = model_of(&rig);
+    let (model, solver, mut constraints) = bar_solver(&rig);
     let truth = known_pose(&rig);
-    let m = rig.skeleton.skinning_matrices(&truth);
-    let mut constraints = bar_constraints(&rig, &model);
-    let solver = PoseSolver::new(
-        model.clone(),
-        &constraints,
-        &rig.rest,
-        PoseSolverSettings::default(),
-    )
-    .unwrap();
-    constraints.handles[0].transform = motion_of(&m[1]);
-    constraints.handles[1].transform = motion_of(&m[2]);
+    reach(&mut constraints, &rig, &truth);
     let options = PoseSolveOptions {
         max_iterations: 60,
         tolerance: 1e-12,
@@ -266,19 +277,8 @@ fn pinned_joints_stay_and_a_joint_handle_reaches_its_target() {
 #[test]
 fn a_warm_start_continues_where_the_last_solve_stopped() {
     let rig = bar_rig(3, 12, 40);
-    let model = model_of(&rig);
-    let truth = known_pose(&rig);
-    let m = rig.skeleton.skinning_matrices(&truth);
-    let mut constraints = bar_constraints(&rig, &model);
-    let solver = PoseSolver::new(
-        model.clone(),
-        &constraints,
-        &rig.rest,
-        PoseSolverSettings::default(),
-    )
-    .unwrap();
-    constraints.handles[0].transform = motion_of(&m[1]);
-    constraints.handles[1].transform = motion_of(&m[2]);
+    let (_, solver, mut constraints) = bar_solver(&rig);
+    reach(&mut constraints, &rig, &known_pose(&rig));
     let three = PoseSolveOptions {
         max_iterations: 3,
         tolerance: 0.0,
@@ -307,17 +307,7 @@ fn a_warm_start_continues_where_the_last_solve_stopped() {
 #[test]
 fn a_warm_start_does_not_inherit_a_stalled_damping() {
     let rig = bar_rig(3, 12, 40);
-    let model = model_of(&rig);
-    let truth = known_pose(&rig);
-    let m = rig.skeleton.skinning_matrices(&truth);
-    let mut constraints = bar_constraints(&rig, &model);
-    let solver = PoseSolver::new(
-        model.clone(),
-        &constraints,
-        &rig.rest,
-        PoseSolverSettings::default(),
-    )
-    .unwrap();
+    let (_, solver, mut constraints) = bar_solver(&rig);
     let three = PoseSolveOptions {
         max_iterations: 3,
         tolerance: 0.0,
@@ -327,8 +317,7 @@ fn a_warm_start_does_not_inherit_a_stalled_damping() {
         .unwrap();
     let mut stalled = calm.clone();
     stalled.damping = 1e6;
-    constraints.handles[0].transform = motion_of(&m[1]);
-    constraints.handles[1].transform = motion_of(&m[2]);
+    reach(&mut constraints, &rig, &known_pose(&rig));
     let after = |last: &PoseSolution| {
         let solved = solver
             .solve(&constraints, &three, PoseStart::Warm(last), &|| false)

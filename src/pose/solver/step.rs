@@ -50,7 +50,7 @@ impl PoseSolver {
         let mut raise = 4.0;
         for _ in 0..12 {
             let step = solve_damped(system.h, system.g, *damping, system.pattern);
-            if system.predicted_decrease(&step) < system.no_progress {
+            if system.no_progress > 0.0 && system.predicted_decrease(&step) < system.no_progress {
                 return None;
             }
             for (k, length) in [1.0, 0.5].into_iter().enumerate() {
@@ -98,19 +98,17 @@ impl DampedSystem<'_> {
     /// The decrease of the energy the system's quadratic model predicts for `step`:
     /// `−(g·x + ½ xᵀ H x)`.
     fn predicted_decrease(&self, step: &[DVec3]) -> f64 {
-        let x: Vec<f64> = step.iter().flat_map(|v| v.to_array()).collect();
-        let n = x.len();
+        let n = step.len() * 3;
         if n != self.g.len() || self.h.len() != n * n {
             return f64::INFINITY;
         }
+        let x = |i: usize| step[i / 3][i % 3];
         let mut quadratic = 0.0;
-        for (i, xi) in x.iter().enumerate() {
-            if *xi != 0.0 {
-                let row = &self.h[i * n..(i + 1) * n];
-                quadratic += xi * row.iter().zip(&x).map(|(a, b)| a * b).sum::<f64>();
-            }
+        for i in (0..n).filter(|&i| x(i) != 0.0) {
+            let row = &self.h[i * n..(i + 1) * n];
+            quadratic += x(i) * row.iter().enumerate().map(|(j, a)| a * x(j)).sum::<f64>();
         }
-        let linear: f64 = self.g.iter().zip(&x).map(|(a, b)| a * b).sum();
+        let linear: f64 = self.g.iter().enumerate().map(|(i, a)| a * x(i)).sum();
         -(linear + 0.5 * quadratic)
     }
 }
