@@ -19,6 +19,13 @@
 //! the same damped Gauss–Newton steps as the effectors and the joint limits, so the body
 //! counterbalances — the hips and the other limbs move — and an effector pulling the body over
 //! gives only as much as balance needs.
+//!
+//! **Walking.** A walk balances itself dynamically: a trot stands on two paws between its
+//! steps, the centre of mass beside the line between them. Held statically over those two
+//! paws, the body would fight its clip (and the paws slide). [`Balance::lean`] lets the centre
+//! of mass out of the polygon by as much as the clip carries it out (the character plugin sets
+//! it from the clip under an additive layer): balance then keeps what the clip does on flat
+//! ground, and corrects what the terrain and the pose add.
 
 use glam::{DVec2, DVec3};
 
@@ -35,7 +42,11 @@ pub struct Balance {
     /// How far inside the polygon the centre of mass must stay, world units (ignored when the
     /// support is a point or a segment).
     pub margin: f64,
-    /// Weight in [0, 1], as effectors': 0 is no balance; 1 holds the centre of mass a hundred
+    /// How far the centre of mass may lean out of the polygon past the margin, world units
+    /// (≥ 0; 0 for static balance): balance asks for `margin − lean` inside. A walk's two-paw
+    /// phases (see the module docs).
+    pub lean: f64,
+    /// Weight in [0, 1], as effectors': 0 is no balance; 1 holds the centre of mass a thousand
     /// times as firmly as a position effector of weight 1 holds its joint.
     pub weight: f64,
     /// Mass per welded vertex (`None`: area per vertex, [`SkinnedModel::area_masses`]).
@@ -50,13 +61,21 @@ impl Balance {
             support,
             gravity: DVec3::NEG_Y,
             margin: 0.0,
+            lean: 0.0,
             weight: 1.0,
             masses: None,
         }
     }
 
+    /// How far inside the polygon balance asks the centre of mass to be: the margin less the
+    /// lean (negative: outside by at most that much).
+    pub fn required_inside(&self) -> f64 {
+        self.margin - self.lean
+    }
+
     /// Whether the numbers can be used: finite support points (at least one), a finite
-    /// non-zero gravity, a finite non-negative margin, masses finite and non-negative.
+    /// non-zero gravity, a finite non-negative margin and lean, masses finite and
+    /// non-negative.
     pub(crate) fn is_valid(&self, vertex_count: usize) -> bool {
         !self.support.is_empty()
             && self.support.iter().all(|p| p.is_finite())
@@ -64,6 +83,8 @@ impl Balance {
             && self.gravity.length_squared() > 0.0
             && self.margin.is_finite()
             && self.margin >= 0.0
+            && self.lean.is_finite()
+            && self.lean >= 0.0
             && self.masses.as_ref().is_none_or(|m| {
                 m.len() == vertex_count && m.iter().all(|x| x.is_finite() && *x >= 0.0)
             })

@@ -19,6 +19,10 @@ use super::gait::GaitPhases;
 use super::model::SkinnedModel;
 use super::skeleton::SkeletonPose;
 
+/// A sole's thickness, as a share of the model's size (its bounding diagonal): a foot's patch
+/// is its skin within this of its lowest vertex ([`sole_patch`] as the tracker uses it).
+const SOLE_THICKNESS: f64 = 0.02;
+
 /// A surface a ray cast along gravity can hit.
 pub trait Ground {
     /// The first surface below `from` along `down` (unit), within `max` (world units), as the
@@ -218,6 +222,12 @@ fn ray_triangle(o: DVec3, dir: DVec3, a: DVec3, b: DVec3, c: DVec3) -> Option<f6
 /// The joints a character stands on in `pose`: those whose most-weighted vertices reach within
 /// `tolerance` (world units) of the lowest skinned vertex along `down` (feet, paws, the base
 /// of a one-joint prop), lowest first.
+///
+/// A joint above another chosen joint of its own leg whose skin stays more than a sole's
+/// thickness (2 % of the model's size) higher is the leg over a foot — a
+/// quadruped's raised hock, a shin — not a foot, and is left out: planted, it would be laid
+/// on the ground it does not reach, against the foot under it. A heel and its toes (a biped's
+/// foot and toe joints), both down, are both kept.
 pub fn lowest_joints(
     model: &SkinnedModel,
     pose: &SkeletonPose,
@@ -233,11 +243,35 @@ pub fn lowest_joints(
         }
     }
     let lowest = deepest.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    let mut joints: Vec<usize> = (0..deepest.len())
+    let joints: Vec<usize> = (0..deepest.len())
         .filter(|&j| deepest[j] > f64::NEG_INFINITY && deepest[j] >= lowest - tolerance)
         .collect();
-    joints.sort_by(|a, b| deepest[*b].total_cmp(&deepest[*a]));
-    joints
+    let thickness = SOLE_THICKNESS * model.topology().bounding_diagonal();
+    let skeleton = model.skeleton();
+    let over_a_lower_foot = |j: usize| {
+        joints.iter().any(|&d| {
+            d != j && descends_from(skeleton, d, j) && deepest[d] > deepest[j] + thickness
+        })
+    };
+    let mut feet: Vec<usize> = joints
+        .iter()
+        .copied()
+        .filter(|&j| !over_a_lower_foot(j))
+        .collect();
+    feet.sort_by(|a, b| deepest[*b].total_cmp(&deepest[*a]));
+    feet
+}
+
+/// Whether `joint` is `ancestor` or below it in the skeleton.
+fn descends_from(skeleton: &super::Skeleton, joint: usize, ancestor: usize) -> bool {
+    let mut at = Some(joint);
+    while let Some(j) = at {
+        if j == ancestor {
+            return true;
+        }
+        at = skeleton.joints().get(j).and_then(|joint| joint.parent);
+    }
+    false
 }
 
 /// The skin patch under `joint` in `pose`: its most-weighted vertices within `thickness` (world
@@ -339,7 +373,7 @@ impl ContactTracker {
         let contacts = joints
             .iter()
             .map(|&j| {
-                let patch = sole_patch(model, pose, j, down, 0.02 * size);
+                let patch = sole_patch(model, pose, j, down, SOLE_THICKNESS * size);
                 let mut contact = Contact::new(
                     j,
                     patch,

@@ -125,6 +125,37 @@ fn a_pulled_hand_is_counterbalanced_by_the_hips() {
     );
 }
 
+/// Issue 42, a walk's two-paw phases: `Balance::lean` lets the centre of mass out of the
+/// polygon by as much as asked, and no further. The hand pulled 30 % of the height leaves the
+/// centre of mass `d` outside without balance; leaning half of that, balance holds it half-way
+/// (out past its margin, so the lean is not ignored, and not as far as the pull alone takes
+/// it, so balance still acts).
+#[test]
+fn a_lean_lets_the_centre_of_mass_out_as_far_as_asked() {
+    let rig = mannequin_rig(30);
+    let model = model_of(&rig);
+    let support = soles(&model);
+    let polygon = SupportPolygon::new(&support, DVec3::NEG_Y);
+    let margin = 0.01 * height(&model);
+    let free = pulled(&rig, &model, 0.3, None);
+    let out = polygon.signed_distance(centre_of_mass(&model, &free, None).unwrap());
+    assert!(out < -0.03 * height(&model), "the pull topples it: {out}");
+    let allowed = 0.5 * out;
+    let leaning = Balance {
+        margin,
+        lean: margin - allowed,
+        ..Balance::over(support.clone())
+    };
+    assert!((leaning.required_inside() - allowed).abs() < 1e-12);
+    let held = pulled(&rig, &model, 0.3, Some(leaning));
+    let at = polygon.signed_distance(centre_of_mass(&model, &held, None).unwrap());
+    let tolerance = 0.1 * allowed.abs();
+    assert!(
+        (at - allowed).abs() < tolerance,
+        "held at {at:.4}, {allowed:.4} allowed (without balance {out:.4})"
+    );
+}
+
 /// Bad balance input is a typed error, never a panic or a NaN pose; one support point and
 /// points on a line are balanced over that point or segment.
 #[test]
@@ -154,6 +185,14 @@ fn balance_input_is_checked_and_degenerate_supports_work() {
         },
         Balance {
             margin: -1.0,
+            ..Balance::over(vec![DVec3::ZERO])
+        },
+        Balance {
+            lean: -0.1,
+            ..Balance::over(vec![DVec3::ZERO])
+        },
+        Balance {
+            lean: f64::NAN,
             ..Balance::over(vec![DVec3::ZERO])
         },
         Balance {

@@ -616,3 +616,55 @@ fn a_patch_left_behind_by_a_walk_is_stepped_and_planted_again() {
         );
     }
 }
+
+/// The names of the joints [`lowest_joints`] finds within `tolerance` of the size.
+fn feet_named(
+    model: &SkinnedModel,
+    pose: &SkeletonPose,
+    down: DVec3,
+    tolerance: f64,
+) -> Vec<String> {
+    let size = model.topology().bounding_diagonal();
+    let mut names: Vec<String> = lowest_joints(model, pose, down, tolerance * size)
+        .into_iter()
+        .map(|j| model.skeleton().joints()[j].name.clone())
+        .collect();
+    names.sort();
+    names
+}
+
+/// Issue 42: the joints a character stands on are its feet, not the legs above them. The
+/// Fox's hocks (`b_*Foot01`) stand 3–4 % of its size above the paws under them; counted as
+/// feet, they were laid on the ground they do not reach and held there against the paws (a
+/// hold 3.8 % of the size off, and a support polygon widened by points in the air). A
+/// biped's heel and toes (its `Foot` and `ToeBase` joints), both down, stay two feet each.
+#[test]
+fn the_feet_found_are_paws_and_soles_not_the_hocks_above_them() {
+    let humanoid = bevy_wii_deform::pose::synth_rig::humanoid_rig(30);
+    let model = model_of(&humanoid);
+    let feet = feet_named(&model, &humanoid.rest, DVec3::NEG_Y, 0.04);
+    assert_eq!(
+        feet,
+        ["LeftFoot", "LeftToeBase", "RightFoot", "RightToeBase"],
+        "a biped's heels and toes"
+    );
+    let Some(dir) = crate::common::shared::shared_asset("models") else {
+        return;
+    };
+    let (app, root) = crate::common::fox_app(&dir, bevy_wii_deform::ecs::PosePlugin);
+    let posed = app
+        .world()
+        .get::<bevy_wii_deform::ecs::PosedSkeleton>(root)
+        .expect("the Fox is posed");
+    let down = (posed.placement.matrix3.inverse() * DVec3::NEG_Y).normalize();
+    let paws = [
+        "b_LeftFoot02_018",
+        "b_LeftHand_011",
+        "b_RightFoot02_022",
+        "b_RightHand_08",
+    ];
+    for tolerance in [0.03, 0.04, 0.05] {
+        let feet = feet_named(&posed.model, &posed.pose, down, tolerance);
+        assert_eq!(feet, paws, "the Fox's feet within {tolerance} of its size");
+    }
+}

@@ -7,7 +7,7 @@ use super::{GroundContactState, PoseBalance, PoseGround, PoseStatus, PosedSkelet
 use crate::ecs::SceneGround;
 use crate::pose::{
     Balance, ContactTracker, Floor, FloorSampling, GroundPlane, PoseConstraints, SkeletonPose,
-    SupportPolygon, lowest_joints,
+    SupportPolygon, centre_of_mass, lowest_joints,
 };
 
 /// Adds to `constraints` (character space) the character's ground contacts — found on the
@@ -62,10 +62,12 @@ pub(super) fn stand_on(
     if let Some(b) = balance
         && !support.is_empty()
     {
+        let margin = f64::from(b.margin.max(0.0)) * size;
         constraints.balance = Some(Balance {
+            lean: clip.map_or(0.0, |clip| clip_lean(model, clip, &support, down, margin)),
             support,
             gravity: down,
-            margin: f64::from(b.margin.max(0.0)) * size,
+            margin,
             weight: f64::from(b.weight.clamp(0.0, 1.0)),
             masses: None,
         });
@@ -138,6 +140,22 @@ impl Standing {
             .collect();
         status.contacts = self.contacts;
     }
+}
+
+/// How far out of `margin` inside the support the clip under an additive layer carries the
+/// centre of mass (0 when it keeps it inside): the lean balance allows a walk
+/// ([`Balance::lean`]).
+fn clip_lean(
+    model: &crate::pose::SkinnedModel,
+    clip: &SkeletonPose,
+    support: &[DVec3],
+    down: DVec3,
+    margin: f64,
+) -> f64 {
+    centre_of_mass(model, clip, None)
+        .map(|com| SupportPolygon::new(support, down).signed_distance(com))
+        .filter(|inside| inside.is_finite())
+        .map_or(0.0, |inside| (margin - inside).max(0.0))
 }
 
 /// Re-expresses the contacts' grounds and planted points after the character moved: `moved`

@@ -40,7 +40,7 @@ pub struct PoseBalance {
     /// How far inside the support polygon the centre of mass stays, as a share of the
     /// character's size.
     pub margin: f32,
-    /// Weight in [0, 1] (1: a hundred times a position effector's pull).
+    /// Weight in [0, 1] (1: a thousand times a position effector's pull).
     pub weight: f32,
 }
 

@@ -9,8 +9,9 @@ use crate::pose::balance::SupportPolygon;
 use crate::pose::{Floor, PoseConstraints, PoseError};
 
 /// Balance at weight 1 against a position effector at weight 1: the body leans out only where
-/// an effector is a hundred times stronger.
-const BALANCE_STRENGTH: f64 = 100.0;
+/// an effector is a thousand times stronger. (At a hundred, a Fox standing across a 25° slope
+/// stayed 2.7 % of its size out of its polygon: the penalty's give was the whole lean.)
+const BALANCE_STRENGTH: f64 = 1000.0;
 /// A planted contact's hold against a position effector at weight 1.
 const CONTACT_STRENGTH: f64 = 100.0;
 /// Non-penetration against a planted contact's hold: ten times stiffer, so where the hold and
@@ -127,7 +128,7 @@ pub(super) fn push_terms(terms: &mut Vec<Term>, joints: usize, input: &ExtraInpu
             terms.push(Term::Balance {
                 sums: joint_sums(joints, input, per_vertex),
                 polygon: SupportPolygon::new(&b.support, b.gravity),
-                margin: b.margin,
+                margin: b.required_inside(),
                 weight: BALANCE_STRENGTH * lw * strength(b.weight),
             });
         }
