@@ -18,7 +18,10 @@
 //! allowed region, times a weight well above an effector's, once it leaves it. It is part of
 //! the same damped Gauss–Newton steps as the effectors and the joint limits, so the body
 //! counterbalances — the hips and the other limbs move — and an effector pulling the body over
-//! gives only as much as balance needs.
+//! gives only as much as balance needs. A penalty leaves the centre of mass out of its region
+//! by as much as the body pushes against it; a warm solve asks the next for that much more
+//! ([`super::PoseSolution::balance_boost`]), so over a few frames the margin is met without a
+//! still stiffer term (which three iterations a frame would not converge).
 //!
 //! **Walking.** A walk balances itself dynamically: a trot stands on two paws between its
 //! steps, the centre of mass beside the line between them. Held statically over those two
@@ -71,6 +74,16 @@ impl Balance {
     /// lean (negative: outside by at most that much).
     pub fn required_inside(&self) -> f64 {
         self.margin - self.lean
+    }
+
+    /// A hash of the support points and gravity: equal for the same support.
+    pub(crate) fn support_key(&self) -> u64 {
+        use std::hash::{Hash, Hasher};
+        let mut hasher = std::hash::DefaultHasher::new();
+        for p in self.support.iter().chain([&self.gravity]) {
+            p.to_array().map(f64::to_bits).hash(&mut hasher);
+        }
+        hasher.finish()
     }
 
     /// Whether the numbers can be used: finite support points (at least one), a finite

@@ -156,6 +156,75 @@ fn a_lean_lets_the_centre_of_mass_out_as_far_as_asked() {
     );
 }
 
+/// Issue 42: a penalty gives. A pull strong enough to leave the centre of mass short of its
+/// margin after one solve is met over a few warm solves (`PoseSolution::balance_boost`, a
+/// multiplier carried from solve to solve); over other support points the boost starts again.
+#[test]
+fn warm_solves_bring_the_centre_of_mass_to_its_margin() {
+    let rig = mannequin_rig(30);
+    let model = model_of(&rig);
+    let support = soles(&model);
+    let polygon = SupportPolygon::new(&support, DVec3::NEG_Y);
+    let h = height(&model);
+    let margin = 0.02 * h;
+    let wrist = joint_positions(&rig.skeleton, &rig.rest)[LEFT_WRIST];
+    let constraints = |support: Vec<DVec3>| PoseConstraints {
+        fixed_joints: ANKLES.to_vec(),
+        effectors: vec![Effector {
+            joint: LEFT_WRIST,
+            goal: EffectorGoal::Position(wrist + DVec3::X * 0.6 * h),
+            weight: 1.0,
+        }],
+        balance: Some(Balance {
+            margin,
+            ..Balance::over(support)
+        }),
+        ..Default::default()
+    };
+    let pulled = constraints(support.clone());
+    let inside =
+        |s: &PoseSolution| polygon.signed_distance(centre_of_mass(&model, &s.pose, None).unwrap());
+    let mut solution =
+        solve_pose(&model, &rig.rest, &pulled, 30, PoseStart::Pose(&rig.rest)).unwrap();
+    let first = inside(&solution);
+    assert!(
+        first < margin - 2e-3 * h,
+        "one solve falls short of the margin: {first:.4} of {margin:.4}"
+    );
+    assert!(solution.balance_boost > 0.0);
+    // Half a second of frames at 60 Hz.
+    for _ in 0..30 {
+        solution = solve_pose(&model, &rig.rest, &pulled, 30, PoseStart::Warm(&solution)).unwrap();
+    }
+    let last = inside(&solution);
+    assert!(
+        (last - margin).abs() < 1e-3 * h,
+        "warm solves meet the margin: {first:.4} → {last:.4} of {margin:.4}"
+    );
+    // A boost carries over to the same support only: a large one pushes the centre of mass
+    // further in over the same feet, and is ignored over feet that moved.
+    let stale = PoseSolution {
+        balance_boost: 0.03 * h,
+        ..solution.clone()
+    };
+    let same = solve_pose(&model, &rig.rest, &pulled, 30, PoseStart::Warm(&stale)).unwrap();
+    let mut moved = support.clone();
+    moved[0].x += 1e-3;
+    let other = solve_pose(
+        &model,
+        &rig.rest,
+        &constraints(moved),
+        30,
+        PoseStart::Warm(&stale),
+    )
+    .unwrap();
+    let (same, other) = (inside(&same), inside(&other));
+    assert!(
+        same > margin + 0.01 * h && other < margin + 0.005 * h,
+        "a boost over the same feet {same:.4}, over others {other:.4} (margin {margin:.4})"
+    );
+}
+
 /// Bad balance input is a typed error, never a panic or a NaN pose; one support point and
 /// points on a line are balanced over that point or segment.
 #[test]

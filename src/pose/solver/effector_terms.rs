@@ -83,6 +83,9 @@ pub(crate) struct ExtraTerms<'a> {
 pub(crate) struct ExtraInputs<'a> {
     /// Balance with its mass per welded vertex.
     pub balance: Option<(&'a Balance, &'a [f64])>,
+    /// How much further inside its polygon than it asks balance asks for the centre of mass
+    /// this solve ([`super::PoseSolution::balance_boost`], world units).
+    pub balance_boost: f64,
     /// Ground contacts.
     pub contacts: &'a [Contact],
     /// The vertices kept above the floor in this solve, each with its plane of the ground.

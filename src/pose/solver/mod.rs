@@ -180,6 +180,19 @@ pub struct PoseSolution {
     pub cluster_rotations: Vec<DQuat>,
     /// The Levenberg–Marquardt damping the solve ended with (warm-start data).
     pub damping: f64,
+    /// How much further inside the support polygon than [`Balance::required_inside`] the next
+    /// warm solve asks for the centre of mass (world units, warm-start data; 0 without
+    /// balance). A penalty leaves the centre of mass out of its region by as much as the body
+    /// pushes against it; each solve moves the boost by how far it ended short of (or past)
+    /// what balance asks, so over a few frames that is met without a stiffer term (a
+    /// multiplier of the method of augmented Lagrangians). It is learned for one support: a
+    /// solve over other support points (a foot planted or lifted, a walk) starts again from 0.
+    ///
+    /// [`Balance::required_inside`]: crate::pose::Balance::required_inside
+    pub balance_boost: f64,
+    /// Which support (points and gravity, hashed) [`PoseSolution::balance_boost`] was learned
+    /// over (warm-start data; 0 without balance).
+    pub balance_support: u64,
     /// With a [`PoseConstraints::shape_rest`]: each cluster's best-fit rotation at that rest
     /// pose (warm-start data for the next solve's tilt, whose rest moves little from frame
     /// to frame); empty without one.

@@ -21,6 +21,9 @@ use crate::pose::{Floor, GroundPlane, PoseError, Skeleton, SkeletonPose};
 
 /// Levenberg–Marquardt damping of a cold start (relative to the Hessian's diagonal).
 const INITIAL_DAMPING: f64 = 1e-4;
+/// The largest [`PoseSolution::balance_boost`], as a share of the model's size: a support the
+/// body cannot get over does not wind the boost up without end.
+const MAX_BALANCE_BOOST: f64 = 0.1;
 
 /// A pose with what the energy and its derivatives read of it.
 pub(super) struct Posed {
@@ -49,7 +52,11 @@ impl PoseSolver {
             PoseStart::Warm(s) => (&s.pose, Some(s)),
             PoseStart::Near { pose, last } => (pose, Some(last)),
         };
-        let extras = self.extra_terms(constraints, start);
+        let support = constraints.balance.as_ref().map_or(0, |b| b.support_key());
+        let boost = warm
+            .filter(|w| w.balance_support == support)
+            .map_or(0.0, |w| w.balance_boost);
+        let extras = self.extra_terms(constraints, start, boost);
         let limits = constraints.limits.as_deref();
         // A warm start keeps the cluster rotations but not the damping the last solve ended
         // with: raised by that solve's landscape (a foot planting, the floor), carried over it
@@ -170,6 +177,7 @@ impl PoseSolver {
             }
         }
         scratch.keep();
+        let balance_boost = self.next_balance_boost(constraints, &extras, &current, boost);
         let pose = current.pose;
         if !pose.local.iter().all(|t| t.is_valid()) {
             return Err(PoseError::NonFiniteResult);
@@ -179,9 +187,31 @@ impl PoseSolver {
             pose,
             cluster_rotations: rotations,
             damping,
+            balance_boost,
+            balance_support: support,
             shape_rest_rotations,
             stats,
         })
+    }
+
+    /// The balance boost for the next warm solve: this one's, moved by how far the centre of
+    /// mass ended past what balance asks (down) or short of it (up), within
+    /// [0, [`MAX_BALANCE_BOOST`] × size].
+    fn next_balance_boost(
+        &self,
+        constraints: &PoseConstraints,
+        extras: &ExtraTerms,
+        solved: &Posed,
+        boost: f64,
+    ) -> f64 {
+        let balance = constraints.balance.as_ref().filter(|b| b.weight > 0.0);
+        match (balance, extras.balance_inside(&solved.skin)) {
+            (Some(b), Some(inside)) if inside.is_finite() && boost.is_finite() => {
+                (boost + b.required_inside() - inside)
+                    .clamp(0.0, MAX_BALANCE_BOOST * self.length_scale)
+            }
+            _ => 0.0,
+        }
     }
 
     /// A solve of `constraints` from `start` is possible: the same constraint sets, finite
@@ -263,11 +293,13 @@ impl PoseSolver {
     }
 
     /// The effector and stiffness terms of `constraints`, with targets blended from the
-    /// reference pose this solver was built for.
+    /// reference pose this solver was built for (balance asking `balance_boost` further
+    /// inside).
     fn extra_terms<'a>(
         &'a self,
         constraints: &'a PoseConstraints,
         start: &SkeletonPose,
+        balance_boost: f64,
     ) -> ExtraTerms<'a> {
         let skeleton = self.model.skeleton();
         let reference_skinning = skinning(&self.reference_globals, skeleton);
@@ -290,6 +322,7 @@ impl PoseSolver {
             skeleton,
             &ExtraInputs {
                 balance: balance.zip(masses),
+                balance_boost,
                 contacts: &constraints.contacts,
                 floor: &floor,
                 effectors: &constraints.effectors,

@@ -128,7 +128,7 @@ pub(super) fn push_terms(terms: &mut Vec<Term>, joints: usize, input: &ExtraInpu
             terms.push(Term::Balance {
                 sums: joint_sums(joints, input, per_vertex),
                 polygon: SupportPolygon::new(&b.support, b.gravity),
-                margin: b.required_inside(),
+                margin: b.required_inside() + input.balance_boost,
                 weight: BALANCE_STRENGTH * lw * strength(b.weight),
             });
         }
@@ -141,6 +141,18 @@ impl ExtraTerms<'_> {
     /// the surface and a pushed vertex comes to rest on the surface, not under it.
     fn skin(&self) -> f64 {
         CONTACT_SKIN * self.length_scale
+    }
+
+    /// How far inside its support polygon (of three corners or more) the centre of mass is
+    /// in the pose of `skinning`, world units, negative outside; `None` without balance or
+    /// over a point or a segment.
+    pub(crate) fn balance_inside(&self, skinning: &[glam::DAffine3]) -> Option<f64> {
+        self.terms.iter().find_map(|term| match term {
+            Term::Balance { sums, polygon, .. } if polygon.corners().len() >= 3 => {
+                Some(polygon.signed_distance(centroid_of(sums, skinning)))
+            }
+            _ => None,
+        })
     }
 
     /// The residual of a one-sided term (zero while it holds): a vertex's depth under its
