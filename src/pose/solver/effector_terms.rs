@@ -559,6 +559,26 @@ fn joint_sums(
         .collect()
 }
 
+/// [`joint_sums`] of one vertex at weight 1 (its influences, each joint once), without the
+/// dense per-joint pass: one-vertex terms (a contact's or the floor's) are hundreds a solve.
+fn vertex_sums(input: &ExtraInputs<'_>, v: u32) -> Vec<(usize, DVec4)> {
+    let b = input.bind[v as usize];
+    let mut sums: Vec<(usize, DVec4)> = Vec::with_capacity(input.influences[v as usize].len());
+    for &(j, w) in &input.influences[v as usize] {
+        if w == 0.0 {
+            continue;
+        }
+        let m = DVec4::new(b.x, b.y, b.z, 1.0) * w;
+        match sums.iter_mut().find(|(k, _)| *k == j as usize) {
+            Some((_, sum)) => *sum += m,
+            None => sums.push((j as usize, m)),
+        }
+    }
+    sums.retain(|(_, m)| *m != DVec4::ZERO);
+    sums.sort_unstable_by_key(|(j, _)| *j);
+    sums
+}
+
 /// `Σ_j S_j m_j` (homogeneous weighted sums).
 fn centroid_of(sums: &[(usize, DVec4)], skinning: &[DAffine3]) -> DVec3 {
     sums.iter().map(|&(j, m)| apply(&skinning[j], m)).sum()

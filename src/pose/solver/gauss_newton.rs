@@ -342,7 +342,7 @@ impl TwistBlock {
 /// translations of any scale are damped alike) by a block-sparse Cholesky factorization
 /// ([`BlockCholesky`]), returned as per-parameter 3-vectors; raises the damping until the
 /// matrix factors. All zeros if it never does.
-pub(super) fn solve_damped(h: &[f64], g: &[f64], mu: f64, pattern: &BlockPattern) -> Vec<DVec3> {
+pub(super) fn solve_damped(h: &[f64], g: &[f64], mu: f64, pattern: &BlockPattern) -> DampedStep {
     let n = g.len();
     let scale = (0..n)
         .map(|i| h[i * n + i])
@@ -355,15 +355,31 @@ pub(super) fn solve_damped(h: &[f64], g: &[f64], mu: f64, pattern: &BlockPattern
             let mut x: Vec<f64> = g.iter().map(|v| -v).collect();
             factor.solve_in_place(&mut x);
             if x.iter().all(|v| v.is_finite()) {
-                return x
-                    .chunks_exact(3)
-                    .map(|c| DVec3::new(c[0], c[1], c[2]))
-                    .collect();
+                // (H + D) x = −g, so xᵀHx = −g·x − xᵀDx: the model's decrease in O(n).
+                let gx: f64 = g.iter().zip(&x).map(|(a, b)| a * b).sum();
+                let dxx: f64 = shift.iter().zip(&x).map(|(d, v)| d * v * v).sum();
+                return DampedStep {
+                    step: x
+                        .chunks_exact(3)
+                        .map(|c| DVec3::new(c[0], c[1], c[2]))
+                        .collect(),
+                    predicted_decrease: 0.5 * (dxx - gx),
+                };
             }
         }
         mu = mu.max(1e-9) * 100.0;
     }
-    vec![DVec3::ZERO; n / 3]
+    DampedStep {
+        step: vec![DVec3::ZERO; n / 3],
+        predicted_decrease: 0.0,
+    }
+}
+
+/// A damped Gauss–Newton step and the decrease of the energy its quadratic model predicts,
+/// `−(g·x + ½ xᵀHx)`.
+pub(super) struct DampedStep {
+    pub(super) step: Vec<DVec3>,
+    pub(super) predicted_decrease: f64,
 }
 
 #[cfg(test)]

@@ -5,7 +5,7 @@
 use glam::{DAffine3, DQuat, DVec3};
 
 use super::effector_terms::ExtraTerms;
-use super::gauss_newton::{BlockPattern, solve_damped};
+use super::gauss_newton::{BlockPattern, DampedStep, solve_damped};
 use super::params::Param;
 use super::solve::Posed;
 use super::{PoseSolveStats, PoseSolver};
@@ -49,8 +49,11 @@ impl PoseSolver {
         // its minimum, where every step rises, gives up in a few trials, not a dozen.
         let mut raise = 4.0;
         for _ in 0..12 {
-            let step = solve_damped(system.h, system.g, *damping, system.pattern);
-            if system.no_progress > 0.0 && system.predicted_decrease(&step) < system.no_progress {
+            let DampedStep {
+                step,
+                predicted_decrease,
+            } = solve_damped(system.h, system.g, *damping, system.pattern);
+            if system.no_progress > 0.0 && predicted_decrease < system.no_progress {
                 return None;
             }
             for (k, length) in [1.0, 0.5].into_iter().enumerate() {
@@ -91,25 +94,6 @@ impl PoseSolver {
             raise *= 2.0;
         }
         None
-    }
-}
-
-impl DampedSystem<'_> {
-    /// The decrease of the energy the system's quadratic model predicts for `step`:
-    /// `−(g·x + ½ xᵀ H x)`.
-    fn predicted_decrease(&self, step: &[DVec3]) -> f64 {
-        let n = step.len() * 3;
-        if n != self.g.len() || self.h.len() != n * n {
-            return f64::INFINITY;
-        }
-        let x = |i: usize| step[i / 3][i % 3];
-        let mut quadratic = 0.0;
-        for i in (0..n).filter(|&i| x(i) != 0.0) {
-            let row = &self.h[i * n..(i + 1) * n];
-            quadratic += x(i) * row.iter().enumerate().map(|(j, a)| a * x(j)).sum::<f64>();
-        }
-        let linear: f64 = self.g.iter().enumerate().map(|(i, a)| a * x(i)).sum();
-        -(linear + 0.5 * quadratic)
     }
 }
 

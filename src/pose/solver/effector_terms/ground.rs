@@ -4,7 +4,7 @@
 
 use glam::{DMat3, DVec3};
 
-use super::{ExtraInputs, ExtraTerms, Term, centroid_of, joint_sums, outer, strength};
+use super::{ExtraInputs, ExtraTerms, Term, centroid_of, joint_sums, outer, strength, vertex_sums};
 use crate::pose::balance::SupportPolygon;
 use crate::pose::{Floor, PoseConstraints, PoseError};
 
@@ -84,7 +84,7 @@ pub(super) fn push_terms(terms: &mut Vec<Term>, joints: usize, input: &ExtraInpu
     // its joint's up turned to the ground's normal.
     let hold = CONTACT_STRENGTH * lw;
     let above = ABOVE_OVER_HOLD * hold;
-    let one = |v: u32| joint_sums(joints, input, std::iter::once((v, 1.0)));
+    let one = |v: u32| vertex_sums(input, v);
     for c in input.contacts {
         for (k, &v) in c.patch.iter().enumerate() {
             terms.push(Term::Above {
