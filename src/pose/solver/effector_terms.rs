@@ -83,8 +83,8 @@ pub(crate) struct ExtraTerms<'a> {
 pub(crate) struct ExtraInputs<'a> {
     /// Balance with its mass per welded vertex.
     pub balance: Option<(&'a Balance, &'a [f64])>,
-    /// How much further inside its polygon than it asks balance asks for the centre of mass
-    /// this solve ([`super::PoseSolution::balance_boost`], world units).
+    /// How much further inside its polygon than [`Balance::required_inside`] the centre of
+    /// mass is asked to be this solve ([`super::PoseSolution::balance_boost`], world units).
     pub balance_boost: f64,
     /// Ground contacts.
     pub contacts: &'a [Contact],

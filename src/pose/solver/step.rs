@@ -11,6 +11,14 @@ use super::solve::Posed;
 use super::{PoseSolveStats, PoseSolver};
 use crate::pose::{JointLimits, JointTransform, SkeletonPose};
 
+/// A rejected step is shortened to where it first takes a vertex through the ground only when
+/// that is at least this share of it (a vertex already at the ground would make it a crawl:
+/// then half, and more damping).
+const SHORTEST_TO_CONTACT: f64 = 0.1;
+/// How much of the way to that first contact the shortened step goes: the heights are
+/// interpolated linearly along a rotation, so stop a little short of the ground.
+const BEFORE_CONTACT: f64 = 0.9;
+
 /// What an iteration's energy is made of besides the pose: the linear term of the rotation
 /// fit and penalties, its constant, and the effector, limit and stiffness terms.
 pub(super) struct Objective<'a> {
@@ -56,7 +64,11 @@ impl PoseSolver {
             if system.no_progress > 0.0 && predicted_decrease < system.no_progress {
                 return None;
             }
-            for (k, length) in [1.0, 0.5].into_iter().enumerate() {
+            // The full step, then a shorter one: most of the way to the first vertex that the
+            // full step took through the ground (the one-sided terms are not in the model
+            // until they act, so a step that plunges a vertex in rises), else half of it.
+            let mut length = 1.0;
+            for k in 0..2 {
                 let mut candidate = match spare.take() {
                     Some(mut buffers) => {
                         retract_into(
@@ -87,6 +99,11 @@ impl PoseSolver {
                     };
                     return Some((candidate, f));
                 }
+                length = objective
+                    .extras
+                    .first_contact(&current.skin, &candidate.skin)
+                    .filter(|t| (SHORTEST_TO_CONTACT..1.0).contains(t))
+                    .map_or(0.5, |t| BEFORE_CONTACT * t * length);
                 *spare = Some(candidate);
                 stats.rejected_steps += 1;
             }

@@ -155,6 +155,32 @@ impl ExtraTerms<'_> {
         })
     }
 
+    /// The share of the way from the pose of `from` to that of `to` (both skinning transforms)
+    /// at which the first vertex above its ground's skin at `from` reaches it, by the heights
+    /// at both ends (linear in between); `None` when none goes under.
+    pub(crate) fn first_contact(
+        &self,
+        from: &[glam::DAffine3],
+        to: &[glam::DAffine3],
+    ) -> Option<f64> {
+        let skin = self.skin();
+        self.terms
+            .iter()
+            .filter_map(|term| match term {
+                Term::Above { sums, plane, .. } => {
+                    // Most vertices end above: their start is not needed.
+                    let after = plane.height(centroid_of(sums, to)) - skin;
+                    if after >= 0.0 {
+                        return None;
+                    }
+                    let before = plane.height(centroid_of(sums, from)) - skin;
+                    (before > 0.0).then(|| before / (before - after))
+                }
+                _ => None,
+            })
+            .min_by(f64::total_cmp)
+    }
+
     /// The residual of a one-sided term (zero while it holds): a vertex's depth under its
     /// ground's skin along the normal, or the centre of mass's way out of its allowed region.
     pub(super) fn one_sided_residual(&self, term: &Term, skinning: &[glam::DAffine3]) -> DVec3 {
@@ -191,5 +217,57 @@ pub(super) fn across(term: &Term, r: DVec3) -> Option<DMat3> {
             Some(outer(n, n))
         }
         _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::{DAffine3, DVec3};
+
+    use super::super::{ExtraInputs, ExtraTerms};
+    use crate::pose::{GroundPlane, Joint, Skeleton};
+
+    /// A step that takes a vertex 1 above the floor to 2 below it first touches the floor's
+    /// skin a third of the way; one that keeps every vertex above touches nothing; a vertex
+    /// that starts below does not count (it is already in the model).
+    #[test]
+    fn a_step_first_touches_the_floor_where_its_lowest_vertex_crosses_it() {
+        let skeleton = Skeleton::new(vec![Joint {
+            name: "bar".into(),
+            parent: None,
+            parent_frame: DAffine3::IDENTITY,
+            inverse_bind: DAffine3::IDENTITY,
+        }])
+        .unwrap();
+        let floor = GroundPlane::new(DVec3::ZERO, DVec3::Y).unwrap();
+        let bind = [DVec3::new(0.0, 1.0, 0.0), DVec3::new(2.0, -0.5, 0.0)];
+        let one = [(0u32, 1.0), (0, 0.0), (0, 0.0), (0, 0.0)];
+        let terms = ExtraTerms::new(
+            &skeleton,
+            &ExtraInputs {
+                balance: None,
+                balance_boost: 0.0,
+                contacts: &[],
+                floor: &[(0, floor), (1, floor)],
+                effectors: &[],
+                centroids: &[],
+                stiffness: None,
+                reference_globals: &[DAffine3::IDENTITY],
+                reference_skinning: &[DAffine3::IDENTITY],
+                influences: &[one, one],
+                relative_inertia: &[1.0],
+                bind: &bind,
+                joint_weight: 1.0,
+                vertex_weight: 1.0,
+                length_scale: 1.0,
+            },
+        );
+        let from = [DAffine3::IDENTITY];
+        let down = [DAffine3::from_translation(DVec3::new(0.0, -3.0, 0.0))];
+        let skin = super::CONTACT_SKIN;
+        let t = terms.first_contact(&from, &down).unwrap();
+        assert!((t - (1.0 - skin) / 3.0).abs() < 1e-12, "{t}");
+        let up = [DAffine3::from_translation(DVec3::new(0.0, 0.5, 0.0))];
+        assert_eq!(terms.first_contact(&from, &up), None);
     }
 }
