@@ -284,12 +284,14 @@ impl<'a> ExtraTerms<'a> {
     }
 
     /// Calls `each` with every term's weight and residual (stacked 3-vectors, at most four)
-    /// at `globals` / `skinning`, in term order; no allocation but the rotation cache.
+    /// at `globals` / `skinning`, in term order, and for a vertex kept above the ground its
+    /// height above the ground's skin (`None` for other terms); no allocation but the
+    /// rotation cache.
     fn for_each_residual(
         &self,
         globals: &[DAffine3],
         skinning: &[DAffine3],
-        mut each: impl FnMut(&Term, f64, &Rows<DVec3>),
+        mut each: impl FnMut(&Term, f64, &Rows<DVec3>, Option<f64>),
     ) {
         let l = self.length_scale;
         // Each joint's world rotation once (a stiffness term reads its joint's and its
@@ -334,7 +336,21 @@ impl<'a> ExtraTerms<'a> {
                     target,
                     weight,
                 } => (*weight, Rows::of(&[centroid_of(sums, skinning) - *target])),
-                Term::Above { weight, .. } | Term::Balance { weight, .. } => (
+                Term::Above {
+                    sums,
+                    plane,
+                    weight,
+                } => {
+                    let gap = self.gap_above(sums, plane, skinning);
+                    each(
+                        term,
+                        *weight,
+                        &Rows::of(&[plane.normal * gap.min(0.0)]),
+                        Some(gap),
+                    );
+                    continue;
+                }
+                Term::Balance { weight, .. } => (
                     *weight,
                     Rows::of(&[self.one_sided_residual(term, skinning)]),
                 ),
@@ -357,15 +373,23 @@ impl<'a> ExtraTerms<'a> {
                     (*weight, out)
                 }
             };
-            each(term, weight, &rows);
+            each(term, weight, &rows, None);
         }
     }
 
-    /// `Σ w ‖r‖²`.
-    pub(crate) fn energy(&self, globals: &[DAffine3], skinning: &[DAffine3]) -> f64 {
+    /// `Σ w ‖r‖²`; `gaps` gets each vertex's height above its ground's skin, in term order
+    /// (what [`ExtraTerms::first_contact`] compares between two poses).
+    pub(crate) fn energy(
+        &self,
+        globals: &[DAffine3],
+        skinning: &[DAffine3],
+        gaps: &mut Vec<f64>,
+    ) -> f64 {
+        gaps.clear();
         let mut sum = 0.0;
-        self.for_each_residual(globals, skinning, |_, w, r| {
+        self.for_each_residual(globals, skinning, |_, w, r, gap| {
             sum += w * r.iter().map(|v| v.length_squared()).sum::<f64>();
+            gaps.extend(gap);
         });
         sum
     }
@@ -499,7 +523,7 @@ impl<'a> ExtraTerms<'a> {
         let np = params.len() * 3;
         // One list of a term's Jacobian blocks, reused term after term.
         let mut blocks: Vec<(usize, Rows<DMat3>)> = Vec::with_capacity(params.len());
-        self.for_each_residual(globals, skinning, |term, w, r| {
+        self.for_each_residual(globals, skinning, |term, w, r, _| {
             // A one-sided term that holds (a vertex above its ground, the centre of mass inside
             // its polygon) adds neither gradient nor curvature: skip its Jacobian.
             if matches!(term, Term::Above { .. } | Term::Balance { .. })

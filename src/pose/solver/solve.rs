@@ -33,6 +33,9 @@ pub(super) struct Posed {
     /// The stacked skinning matrices `X` and `Q X`.
     pub(super) x: Vec<f64>,
     pub(super) qx: Vec<f64>,
+    /// Each vertex kept above the ground: its height above the ground's skin, as the last
+    /// energy of this pose found it ([`ExtraTerms::energy`]).
+    pub(super) gaps: Vec<f64>,
 }
 
 impl PoseSolver {
@@ -117,7 +120,7 @@ impl PoseSolver {
                 constant: self.model.c0 + c_pen,
                 extras: &extras,
             };
-            let f0 = self.energy(&current, &objective);
+            let f0 = self.energy(&mut current, &objective);
             if it == 0 {
                 stats.initial_energy = f0 / c0;
                 last = f0;
@@ -266,6 +269,7 @@ impl PoseSolver {
             skin: Vec::new(),
             x: Vec::new(),
             qx: Vec::new(),
+            gaps: Vec::new(),
         }
     }
 
@@ -286,10 +290,12 @@ impl PoseSolver {
         self.q_times_into(&posed.x, &mut posed.qx);
     }
 
-    /// The energy of a posed skeleton.
-    pub(super) fn energy(&self, posed: &Posed, objective: &Objective) -> f64 {
+    /// The energy of a posed skeleton (its vertices' heights above the ground noted in it).
+    pub(super) fn energy(&self, posed: &mut Posed, objective: &Objective) -> f64 {
         self.objective(&posed.x, &posed.qx, objective.b, objective.constant)
-            + objective.extras.energy(&posed.globals, &posed.skin)
+            + objective
+                .extras
+                .energy(&posed.globals, &posed.skin, &mut posed.gaps)
     }
 
     /// The effector and stiffness terms of `constraints`, with targets blended from the

@@ -90,7 +90,7 @@ impl PoseSolver {
                     limits.project(&mut candidate.pose);
                 }
                 self.refresh(&mut candidate);
-                let f = self.energy(&candidate, objective);
+                let f = self.energy(&mut candidate, objective);
                 if f.is_finite() && f <= system.f0 {
                     *damping = if k == 0 {
                         (*damping / 2.0).max(1e-9)
@@ -99,9 +99,7 @@ impl PoseSolver {
                     };
                     return Some((candidate, f));
                 }
-                length = objective
-                    .extras
-                    .first_contact(&current.skin, &candidate.skin)
+                length = ExtraTerms::first_contact(&current.gaps, &candidate.gaps)
                     .filter(|t| (SHORTEST_TO_CONTACT..1.0).contains(t))
                     .map_or(0.5, |t| BEFORE_CONTACT * t * length);
                 *spare = Some(candidate);

@@ -6,7 +6,7 @@ use glam::{DMat3, DVec3};
 
 use super::{ExtraInputs, ExtraTerms, Term, centroid_of, joint_sums, outer, strength, vertex_sums};
 use crate::pose::balance::SupportPolygon;
-use crate::pose::{Floor, PoseConstraints, PoseError};
+use crate::pose::{Floor, GroundPlane, PoseConstraints, PoseError};
 
 /// Balance at weight 1 against a position effector at weight 1: the body leans out only where
 /// an effector is a thousand times stronger. (At a hundred, a Fox standing across a 25° slope
@@ -155,30 +155,25 @@ impl ExtraTerms<'_> {
         })
     }
 
-    /// The share of the way from the pose of `from` to that of `to` (both skinning transforms)
-    /// at which the first vertex above its ground's skin at `from` reaches it, by the heights
-    /// at both ends (linear in between); `None` when none goes under.
-    pub(crate) fn first_contact(
-        &self,
-        from: &[glam::DAffine3],
-        to: &[glam::DAffine3],
-    ) -> Option<f64> {
-        let skin = self.skin();
-        self.terms
-            .iter()
-            .filter_map(|term| match term {
-                Term::Above { sums, plane, .. } => {
-                    // Most vertices end above: their start is not needed.
-                    let after = plane.height(centroid_of(sums, to)) - skin;
-                    if after >= 0.0 {
-                        return None;
-                    }
-                    let before = plane.height(centroid_of(sums, from)) - skin;
-                    (before > 0.0).then(|| before / (before - after))
-                }
-                _ => None,
-            })
+    /// The share of the way between two poses at which the first vertex above its ground's
+    /// skin in the first reaches it, by its heights at both ends (`from` and `to`: the `gaps`
+    /// of [`ExtraTerms::energy`] at each, linear in between); `None` when none goes under.
+    pub(crate) fn first_contact(from: &[f64], to: &[f64]) -> Option<f64> {
+        from.iter()
+            .zip(to)
+            .filter(|&(&before, &after)| before > 0.0 && after < 0.0)
+            .map(|(before, after)| before / (before - after))
             .min_by(f64::total_cmp)
+    }
+
+    /// A vertex's height above its ground's skin (negative: in it).
+    pub(super) fn gap_above(
+        &self,
+        sums: &[(usize, glam::DVec4)],
+        plane: &GroundPlane,
+        skinning: &[glam::DAffine3],
+    ) -> f64 {
+        plane.height(centroid_of(sums, skinning)) - self.skin()
     }
 
     /// The residual of a one-sided term (zero while it holds): a vertex's depth under its
@@ -186,8 +181,7 @@ impl ExtraTerms<'_> {
     pub(super) fn one_sided_residual(&self, term: &Term, skinning: &[glam::DAffine3]) -> DVec3 {
         match term {
             Term::Above { sums, plane, .. } => {
-                let depth = (plane.height(centroid_of(sums, skinning)) - self.skin()).min(0.0);
-                plane.normal * depth
+                plane.normal * self.gap_above(sums, plane, skinning).min(0.0)
             }
             Term::Balance {
                 sums,
@@ -262,12 +256,17 @@ mod tests {
                 length_scale: 1.0,
             },
         );
-        let from = [DAffine3::IDENTITY];
-        let down = [DAffine3::from_translation(DVec3::new(0.0, -3.0, 0.0))];
+        let gaps = |skinning: DAffine3| {
+            let mut gaps = Vec::new();
+            terms.energy(&[skinning], &[skinning], &mut gaps);
+            gaps
+        };
+        let from = gaps(DAffine3::IDENTITY);
+        let down = gaps(DAffine3::from_translation(DVec3::new(0.0, -3.0, 0.0)));
         let skin = super::CONTACT_SKIN;
-        let t = terms.first_contact(&from, &down).unwrap();
+        let t = ExtraTerms::first_contact(&from, &down).unwrap();
         assert!((t - (1.0 - skin) / 3.0).abs() < 1e-12, "{t}");
-        let up = [DAffine3::from_translation(DVec3::new(0.0, 0.5, 0.0))];
-        assert_eq!(terms.first_contact(&from, &up), None);
+        let up = gaps(DAffine3::from_translation(DVec3::new(0.0, 0.5, 0.0)));
+        assert_eq!(ExtraTerms::first_contact(&from, &up), None);
     }
 }
