@@ -543,6 +543,10 @@ impl PosedSkeleton {
     /// The joints within `within` × the character's size (its bounding diagonal) above its
     /// lowest joint in the held pose: what it stands on (a biped's feet; a quadruped's feet
     /// *and* front paws — the Fox's front paws are "Hand" joints, so names would not do).
+    ///
+    /// By joint origins, for pins ([`PinnedJoints`]): a leg joint just above a foot (the
+    /// Fox's hocks) is among them. The contacts of [`PoseGround`] use
+    /// [`crate::pose::lowest_joints`] instead, which reads the skin and leaves such a joint out.
     pub fn lowest_joints(&self, within: f64) -> Vec<Entity> {
         let heights: Vec<f64> = self
             .model
