@@ -249,9 +249,9 @@ pub fn lowest_joints(
     let thickness = SOLE_THICKNESS * model.topology().bounding_diagonal();
     let skeleton = model.skeleton();
     let over_a_lower_foot = |j: usize| {
-        joints.iter().any(|&d| {
-            d != j && descends_from(skeleton, d, j) && deepest[d] > deepest[j] + thickness
-        })
+        joints
+            .iter()
+            .any(|&d| d != j && skeleton.descends_from(d, j) && deepest[d] > deepest[j] + thickness)
     };
     let mut feet: Vec<usize> = joints
         .iter()
@@ -260,18 +260,6 @@ pub fn lowest_joints(
         .collect();
     feet.sort_by(|a, b| deepest[*b].total_cmp(&deepest[*a]));
     feet
-}
-
-/// Whether `joint` is `ancestor` or below it in the skeleton.
-fn descends_from(skeleton: &super::Skeleton, joint: usize, ancestor: usize) -> bool {
-    let mut at = Some(joint);
-    while let Some(j) = at {
-        if j == ancestor {
-            return true;
-        }
-        at = skeleton.joints().get(j).and_then(|joint| joint.parent);
-    }
-    false
 }
 
 /// The skin patch under `joint` in `pose`: its most-weighted vertices within `thickness` (world

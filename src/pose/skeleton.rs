@@ -245,6 +245,18 @@ impl Skeleton {
         rotation_of(&m.matrix3)
     }
 
+    /// Whether `joint` is `ancestor` or below it (a rotation of `ancestor` moves it).
+    pub(crate) fn descends_from(&self, joint: usize, ancestor: usize) -> bool {
+        let mut at = Some(joint);
+        while let Some(j) = at {
+            if j == ancestor {
+                return true;
+            }
+            at = self.joints.get(j).and_then(|joint| joint.parent);
+        }
+        false
+    }
+
     /// Linear part of the parent's transform (see [`Skeleton::parent_rotation`]).
     pub(crate) fn parent_linear(&self, globals: &[DAffine3], j: usize) -> DMat3 {
         self.joints[j]

@@ -35,15 +35,15 @@ fn height(model: &SkinnedModel) -> f64 {
 }
 
 /// Both feet pinned, the left hand pulled sideways by `reach` of the height (a position
-/// effector of weight 1), with or without balance; the solved pose.
-fn pulled(
+/// effector of weight 1), with or without balance.
+fn pull(
     rig: &SyntheticRig,
-    model: &Arc<SkinnedModel>,
+    model: &SkinnedModel,
     reach: f64,
     balance: Option<Balance>,
-) -> SkeletonPose {
+) -> PoseConstraints {
     let wrist = joint_positions(&rig.skeleton, &rig.rest)[LEFT_WRIST];
-    let constraints = PoseConstraints {
+    PoseConstraints {
         fixed_joints: ANKLES.to_vec(),
         effectors: vec![Effector {
             joint: LEFT_WRIST,
@@ -52,7 +52,17 @@ fn pulled(
         }],
         balance,
         ..Default::default()
-    };
+    }
+}
+
+/// The pose [`pull`] solves to from rest.
+fn pulled(
+    rig: &SyntheticRig,
+    model: &Arc<SkinnedModel>,
+    reach: f64,
+    balance: Option<Balance>,
+) -> SkeletonPose {
+    let constraints = pull(rig, model, reach, balance);
     solve_pose(
         model,
         &rig.rest,
@@ -167,25 +177,24 @@ fn warm_solves_bring_the_centre_of_mass_to_its_margin() {
     let polygon = SupportPolygon::new(&support, DVec3::NEG_Y);
     let h = height(&model);
     let margin = 0.02 * h;
-    let wrist = joint_positions(&rig.skeleton, &rig.rest)[LEFT_WRIST];
-    let constraints = |support: Vec<DVec3>| PoseConstraints {
-        fixed_joints: ANKLES.to_vec(),
-        effectors: vec![Effector {
-            joint: LEFT_WRIST,
-            goal: EffectorGoal::Position(wrist + DVec3::X * 0.6 * h),
-            weight: 1.0,
-        }],
-        balance: Some(Balance {
+    let constraints = |support: Vec<DVec3>| {
+        let balance = Balance {
             margin,
             ..Balance::over(support)
-        }),
-        ..Default::default()
+        };
+        pull(&rig, &model, 0.6, Some(balance))
     };
-    let pulled = constraints(support.clone());
+    let over_the_feet = constraints(support.clone());
     let inside =
         |s: &PoseSolution| polygon.signed_distance(centre_of_mass(&model, &s.pose, None).unwrap());
-    let mut solution =
-        solve_pose(&model, &rig.rest, &pulled, 30, PoseStart::Pose(&rig.rest)).unwrap();
+    let mut solution = solve_pose(
+        &model,
+        &rig.rest,
+        &over_the_feet,
+        30,
+        PoseStart::Pose(&rig.rest),
+    )
+    .unwrap();
     let first = inside(&solution);
     assert!(
         first < margin - 2e-3 * h,
@@ -194,7 +203,14 @@ fn warm_solves_bring_the_centre_of_mass_to_its_margin() {
     assert!(solution.balance_boost > 0.0);
     // Half a second of frames at 60 Hz.
     for _ in 0..30 {
-        solution = solve_pose(&model, &rig.rest, &pulled, 30, PoseStart::Warm(&solution)).unwrap();
+        solution = solve_pose(
+            &model,
+            &rig.rest,
+            &over_the_feet,
+            30,
+            PoseStart::Warm(&solution),
+        )
+        .unwrap();
     }
     let last = inside(&solution);
     assert!(
@@ -207,7 +223,14 @@ fn warm_solves_bring_the_centre_of_mass_to_its_margin() {
         balance_boost: 0.03 * h,
         ..solution.clone()
     };
-    let same = solve_pose(&model, &rig.rest, &pulled, 30, PoseStart::Warm(&stale)).unwrap();
+    let same = solve_pose(
+        &model,
+        &rig.rest,
+        &over_the_feet,
+        30,
+        PoseStart::Warm(&stale),
+    )
+    .unwrap();
     let mut moved = support.clone();
     moved[0].x += 1e-3;
     let other = solve_pose(

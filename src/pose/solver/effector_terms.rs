@@ -273,14 +273,7 @@ impl<'a> ExtraTerms<'a> {
 
     /// True when `a` is `j` or one of its ancestors.
     fn moves(&self, a: usize, j: usize) -> bool {
-        let mut k = Some(j);
-        while let Some(c) = k {
-            if c == a {
-                return true;
-            }
-            k = self.skeleton.joints()[c].parent;
-        }
-        false
+        self.skeleton.descends_from(j, a)
     }
 
     /// Calls `each` with every term's weight and residual (stacked 3-vectors, at most four)
@@ -299,6 +292,7 @@ impl<'a> ExtraTerms<'a> {
         let mut cache: Vec<Option<DMat3>> = vec![None; globals.len()];
         let mut rotation = |j: usize| *cache[j].get_or_insert_with(|| Self::rotation(globals, j));
         for term in &self.terms {
+            let mut gap = None;
             let (weight, rows) = match term {
                 Term::Position {
                     joint,
@@ -341,14 +335,9 @@ impl<'a> ExtraTerms<'a> {
                     plane,
                     weight,
                 } => {
-                    let gap = self.gap_above(sums, plane, skinning);
-                    each(
-                        term,
-                        *weight,
-                        &Rows::of(&[plane.normal * gap.min(0.0)]),
-                        Some(gap),
-                    );
-                    continue;
+                    let height = self.gap_above(sums, plane, skinning);
+                    gap = Some(height);
+                    (*weight, Rows::of(&[plane.normal * height.min(0.0)]))
                 }
                 Term::Balance { weight, .. } => (
                     *weight,
@@ -373,7 +362,7 @@ impl<'a> ExtraTerms<'a> {
                     (*weight, out)
                 }
             };
-            each(term, weight, &rows, None);
+            each(term, weight, &rows, gap);
         }
     }
 
