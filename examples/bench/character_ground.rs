@@ -150,6 +150,12 @@ fn drag(
         let solved = solver
             .solve(&constraints, &options, start, &|| false)
             .expect("a solve");
+        if std::env::var("GROUND_DEBUG").is_ok() {
+            eprintln!(
+                "frame {frame} balance {balance}: {} rejected steps, energies {:?}",
+                solved.stats.rejected_steps, solved.stats.energies
+            );
+        }
         if frame > 0 {
             run.ms.push(t.elapsed().as_secs_f64() * 1e3);
             measure(&mut run, model, &solved.pose, &tracker, ground);
@@ -178,6 +184,9 @@ fn drag(
                         })
                         .fold(0.0, f64::max);
                     run.slide_max = run.slide_max.max(slide / size);
+                    if std::env::var("GROUND_DEBUG").is_ok() {
+                        eprintln!("  slide {:.5}", slide / size);
+                    }
                 }
             }
         }

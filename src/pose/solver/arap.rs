@@ -5,6 +5,7 @@
 use glam::{DMat3, DQuat, DVec3};
 
 use super::PoseSolver;
+use super::holds::QBlocks;
 use crate::deform::{best_rotation_exact, fit_rotation_warm};
 use crate::pose::model::mat3_from_rows;
 
@@ -71,27 +72,6 @@ impl PoseSolver {
         }
     }
 
-    /// `Q X` using the block structure.
-    /// (`out` is resized; its allocation is reused.)
-    pub(super) fn q_times_into(&self, x: &[f64], out: &mut Vec<f64>) {
-        out.clear();
-        out.resize(x.len(), 0.0);
-        for &(k, l, ref q_kl) in &self.q_blocks {
-            let xl = &x[12 * l..][..12];
-            let out_k = &mut out[12 * k..][..12];
-            for c in 0..4 {
-                let column = q_kl.col(c);
-                let xr = &xl[3 * c..][..3];
-                for r in 0..4 {
-                    let qv = column[r];
-                    out_k[3 * r] += qv * xr[0];
-                    out_k[3 * r + 1] += qv * xr[1];
-                    out_k[3 * r + 2] += qv * xr[2];
-                }
-            }
-        }
-    }
-
     /// `tr(XᵀQX) − 2 tr(XᵀB) + constant`, with `qx = Q X`.
     pub(super) fn objective(&self, x: &[f64], qx: &[f64], b: &[f64], constant: f64) -> f64 {
         let mut f = constant;
@@ -99,5 +79,26 @@ impl PoseSolver {
             f += xv * qv - 2.0 * xv * bv;
         }
         f
+    }
+}
+
+/// `Q X` using the block structure.
+/// (`out` is resized; its allocation is reused.)
+pub(super) fn q_times_into(q_blocks: &QBlocks, x: &[f64], out: &mut Vec<f64>) {
+    out.clear();
+    out.resize(x.len(), 0.0);
+    for &(k, l, ref q_kl) in q_blocks {
+        let xl = &x[12 * l..][..12];
+        let out_k = &mut out[12 * k..][..12];
+        for c in 0..4 {
+            let column = q_kl.col(c);
+            let xr = &xl[3 * c..][..3];
+            for r in 0..4 {
+                let qv = column[r];
+                out_k[3 * r] += qv * xr[0];
+                out_k[3 * r + 1] += qv * xr[1];
+                out_k[3 * r + 2] += qv * xr[2];
+            }
+        }
     }
 }

@@ -16,7 +16,7 @@ use crate::pose::effectors::{
 };
 use crate::pose::skeleton::rotation_of;
 use crate::pose::{PoseError, Skeleton, VertexInfluences};
-pub(crate) use ground::validate_ground;
+pub(crate) use ground::{contact_hold_weight, validate_ground};
 
 /// An effector of weight 1 weighs this many joint pins.
 const EFFECTOR_STRENGTH: f64 = 100.0;
@@ -25,6 +25,10 @@ const EFFECTOR_STRENGTH: f64 = 100.0;
 fn strength(weight: f64) -> f64 {
     (4.0 * weight).clamp(0.0, 1.0)
 }
+
+/// A weighted sum of skinned points as per-joint sums `(joint, Σ m w (b, 1))`
+/// ([`centroid_of`]).
+type JointSums = [(usize, DVec4)];
 
 /// One residual block `r` (stacked 3-vectors) with its weight.
 enum Term {
@@ -72,10 +76,28 @@ enum Term {
     },
 }
 
+impl Term {
+    /// Calls `each` with every joint whose transform the term reads (a joint may repeat).
+    fn for_each_joint(&self, mut each: impl FnMut(usize)) {
+        match self {
+            Term::Position { joint, .. }
+            | Term::Orientation { joint, .. }
+            | Term::Aim { joint, .. }
+            | Term::Stiffness { joint, .. } => each(*joint),
+            Term::Centroid { sums, .. } | Term::Above { sums, .. } | Term::Balance { sums, .. } => {
+                sums.iter().for_each(|(j, _)| each(*j))
+            }
+        }
+    }
+}
+
 /// The extra terms of one solve, with the skeleton they refer to.
 pub(crate) struct ExtraTerms<'a> {
     skeleton: &'a Skeleton,
     terms: Vec<Term>,
+    /// Per joint, the solver's parameters that move it: a term's Jacobian has blocks for
+    /// those of its joints only.
+    joint_movers: &'a [Vec<u32>],
     length_scale: f64,
 }
 
@@ -168,7 +190,11 @@ pub(crate) fn validate(
 
 impl<'a> ExtraTerms<'a> {
     /// The weighted terms for these inputs (targets blended from the reference pose).
-    pub(crate) fn new(skeleton: &'a Skeleton, input: &ExtraInputs<'_>) -> Self {
+    /// (`joint_movers`: per joint, the solver's parameters that move it.)
+    pub(crate) fn new(
+        (skeleton, joint_movers): (&'a Skeleton, &'a [Vec<u32>]),
+        input: &ExtraInputs<'_>,
+    ) -> Self {
         let mut terms = Vec::new();
         // A hundred pinned joints' worth: a reachable goal is met to well under 1e-3 of the
         // model's size against the shape energy of the bends it takes.
@@ -248,8 +274,23 @@ impl<'a> ExtraTerms<'a> {
         Self {
             skeleton,
             terms,
+            joint_movers,
             length_scale: input.length_scale,
         }
+    }
+
+    /// Into `movers`, the parameters that move `term` (indices into the solver's, each once:
+    /// `seen` holds a stamp per parameter, `stamp` this term's).
+    fn movers_of(&self, term: &Term, (seen, stamp): (&mut [u32], u32), movers: &mut Vec<u32>) {
+        movers.clear();
+        term.for_each_joint(|j| {
+            for &p in &self.joint_movers[j] {
+                if seen[p as usize] != stamp {
+                    seen[p as usize] = stamp;
+                    movers.push(p);
+                }
+            }
+        });
     }
 
     /// Whether there is anything to add.
@@ -500,7 +541,9 @@ impl<'a> ExtraTerms<'a> {
     }
 
     /// Adds the Gauss–Newton terms `2 w JᵀJ` and `2 w Jᵀr` to the solver's system (`h` is
-    /// `3P × 3P` row-major, `g` `3P`).
+    /// `3P × 3P` row-major, `g` `3P`). A term has Jacobian blocks only for the parameters
+    /// that move it; a vertex under its ground is a single number along the ground's normal,
+    /// whose `JᵀJ` is an outer product of 3-vectors.
     pub(crate) fn add_system(
         &self,
         globals: &[DAffine3],
@@ -509,9 +552,17 @@ impl<'a> ExtraTerms<'a> {
         h: &mut [f64],
         g: &mut [f64],
     ) {
-        let np = params.len() * 3;
-        // One list of a term's Jacobian blocks, reused term after term.
+        let mut system = System {
+            n: params.len() * 3,
+            h,
+            g,
+        };
+        // A term's Jacobian blocks (or rows), reused term after term.
         let mut blocks: Vec<(usize, Rows<DMat3>)> = Vec::with_capacity(params.len());
+        let mut rows: Vec<(usize, DVec3)> = Vec::with_capacity(params.len());
+        let mut movers = Vec::with_capacity(params.len());
+        let mut seen = vec![0; params.len()];
+        let mut stamp = 0;
         self.for_each_residual(globals, skinning, |term, w, r, _| {
             // A one-sided term that holds (a vertex above its ground, the centre of mass inside
             // its polygon) adds neither gradient nor curvature: skip its Jacobian.
@@ -520,32 +571,90 @@ impl<'a> ExtraTerms<'a> {
             {
                 return;
             }
+            stamp += 1;
+            self.movers_of(term, (&mut seen, stamp), &mut movers);
+            if let Some((sums, along, depth)) = ground::along_the_normal(term, r) {
+                rows.clear();
+                rows.extend(movers.iter().filter_map(|&p| {
+                    let (a, rotation) = split(params[p as usize]);
+                    let origin = globals[a].translation;
+                    self.centroid_jacobian(sums, a, rotation, origin, skinning)
+                        .map(|b| (p as usize, b.transpose() * along))
+                }));
+                system.add_rows(&rows, 2.0 * w, depth);
+                return;
+            }
             blocks.clear();
-            blocks.extend(params.iter().enumerate().filter_map(|(p, &param)| {
-                self.jacobian((term, r), param, globals, skinning)
-                    .map(|j| (p, j))
+            blocks.extend(movers.iter().filter_map(|&p| {
+                self.jacobian((term, r), params[p as usize], globals, skinning)
+                    .map(|j| (p as usize, j))
             }));
-            for (pa, ja) in &blocks {
-                let mut ga = DVec3::ZERO;
-                for (jb, rv) in ja.iter().zip(r.iter()) {
-                    ga += jb.transpose() * *rv;
-                }
-                for k in 0..3 {
-                    g[pa * 3 + k] += 2.0 * w * ga[k];
-                }
-                for (pb, jbk) in &blocks {
-                    let mut m = DMat3::ZERO;
-                    for (x, y) in ja.iter().zip(jbk.iter()) {
-                        m += x.transpose() * *y;
-                    }
-                    for r in 0..3 {
-                        for c in 0..3 {
-                            h[(pa * 3 + r) * np + pb * 3 + c] += 2.0 * w * m.col(c)[r];
-                        }
-                    }
+            system.add_blocks(&blocks, 2.0 * w, r);
+        });
+    }
+}
+
+/// A parameter's joint, and whether it is a rotation (else a root's translation).
+fn split(param: Param) -> (usize, bool) {
+    match param {
+        Param::Rotation(a) => (a, true),
+        Param::Translation(a) => (a, false),
+    }
+}
+
+/// The Gauss–Newton system being summed into (`h`: `n × n` row-major).
+struct System<'s> {
+    n: usize,
+    h: &'s mut [f64],
+    g: &'s mut [f64],
+}
+
+impl System<'_> {
+    /// Adds `s` times the block at parameters `(a, b)`, and its transpose at `(b, a)`.
+    fn add_pair(&mut self, (a, b): (usize, usize), m: DMat3, s: f64) {
+        let n = self.n;
+        for r in 0..3 {
+            for c in 0..3 {
+                let v = s * m.col(c)[r];
+                self.h[(a * 3 + r) * n + b * 3 + c] += v;
+                if a != b {
+                    self.h[(b * 3 + c) * n + a * 3 + r] += v;
                 }
             }
-        });
+        }
+    }
+
+    /// `s JᵀJ` and `s Jᵀr` for a term's Jacobian `blocks` (per parameter) and residual `r`.
+    fn add_blocks(&mut self, blocks: &[(usize, Rows<DMat3>)], s: f64, r: &Rows<DVec3>) {
+        for (i, (pa, ja)) in blocks.iter().enumerate() {
+            let mut ga = DVec3::ZERO;
+            for (jb, rv) in ja.iter().zip(r.iter()) {
+                ga += jb.transpose() * *rv;
+            }
+            for k in 0..3 {
+                self.g[pa * 3 + k] += s * ga[k];
+            }
+            for (pb, jbk) in &blocks[i..] {
+                let mut m = DMat3::ZERO;
+                for (x, y) in ja.iter().zip(jbk.iter()) {
+                    m += x.transpose() * *y;
+                }
+                self.add_pair((*pa, *pb), m, s);
+            }
+        }
+    }
+
+    /// `s JᵀJ` and `s Jᵀr` for a single residual number `depth` with Jacobian `rows` (one
+    /// 3-vector per parameter).
+    fn add_rows(&mut self, rows: &[(usize, DVec3)], s: f64, depth: f64) {
+        for (i, &(pa, ua)) in rows.iter().enumerate() {
+            for k in 0..3 {
+                self.g[pa * 3 + k] += s * ua[k] * depth;
+            }
+            for &(pb, ub) in &rows[i..] {
+                self.add_pair((pa, pb), outer(ua, ub), s);
+            }
+        }
     }
 }
 

@@ -11,8 +11,10 @@ use super::block_cholesky::BlockCholesky;
 pub(super) use super::block_cholesky::BlockPattern;
 use super::block_cholesky::nonzero_lower_blocks;
 use super::effector_terms::skew;
+use super::holds::QBlocks;
 use super::params::Param;
 use super::solve::Posed;
+use super::step::Objective;
 
 impl PoseSolver {
     /// The Gauss–Newton model of the objective in the bone parameters (rotation increments,
@@ -20,7 +22,7 @@ impl PoseSolver {
     pub(super) fn gauss_newton_system(
         &self,
         posed: &Posed,
-        b: &[f64],
+        objective: &Objective,
         scratch: &mut HessianScratch,
     ) -> (Vec<f64>, Vec<f64>) {
         let joints = self.model.skeleton().len();
@@ -38,8 +40,8 @@ impl PoseSolver {
                 s
             })
             .collect();
-        let gsum = self.subtree_gradients(&posed.qx, b, &s_bar);
-        self.subtree_hessian_blocks(&s_bar, scratch);
+        let gsum = self.subtree_gradients(&posed.qx, objective.b, &s_bar);
+        self.subtree_hessian_blocks(objective.q_blocks, &s_bar, scratch);
         self.parameter_system(&gsum, scratch, &posed.globals)
     }
 
@@ -86,7 +88,12 @@ impl PoseSolver {
     /// subtrees: Z[a][b] = Σ_{k∈sub(a), l∈sub(b)} M_kl, into `scratch` as the sums of the
     /// `N_kl` (M is linear in N); only the blocks it flags non-zero are written: joints on
     /// branches that share no edge stay uncoupled.
-    fn subtree_hessian_blocks(&self, s_bar: &[[[f64; 4]; 4]], scratch: &mut HessianScratch) {
+    fn subtree_hessian_blocks(
+        &self,
+        q_blocks: &QBlocks,
+        s_bar: &[[[f64; 4]; 4]],
+        scratch: &mut HessianScratch,
+    ) {
         let skeleton = self.model.skeleton();
         let joints = skeleton.len();
         let s_mat: Vec<DMat4> = s_bar
@@ -96,7 +103,7 @@ impl PoseSolver {
         scratch.reset(joints);
         let HessianScratch { z, nonzero, .. } = scratch;
         // Q is symmetric: N_lk = N_klᵀ, so each pair is multiplied once.
-        for &(k, l, ref q_kl) in self.q_blocks.iter().filter(|(k, l, _)| k <= l) {
+        for &(k, l, ref q_kl) in q_blocks.iter().filter(|(k, l, _)| k <= l) {
             let n = s_mat[k] * *q_kl * s_mat[l].transpose();
             z[k * joints + l] = n;
             nonzero[k * joints + l] = true;

@@ -11,6 +11,7 @@
 //! | `block_cholesky.rs` | the block-sparse Cholesky factor over the joints |
 //! | energies: `arap.rs` | the shape energy: the cluster rotations' fit, `Q·X`, the objective |
 //! | `penalties.rs` | handles, fixed vertices, pinned joints and joint handles (quadratic penalties) |
+//! | `holds.rs` | planted contacts' holds, folded into a solve's `Q` (quadratic penalties) |
 //! | `effector_terms.rs` | effectors (position, orientation, aim, centroid), balance, ground contacts and reference stiffness |
 //! | `hinges.rs` | joint limits inside the step (hinges restrict it; cones and twist are projected in `step.rs`) |
 //! | `shape_rest.rs` | the shape-rest tilt (a given pose at rest) |
@@ -24,6 +25,7 @@ mod block_cholesky;
 mod effector_terms;
 mod gauss_newton;
 mod hinges;
+mod holds;
 mod params;
 mod penalties;
 mod setup;
@@ -31,7 +33,7 @@ mod shape_rest;
 mod solve;
 mod step;
 
-use params::{Param, parameters_for};
+use params::{Param, movers_of_joints, parameters_for};
 use penalties::{SetSums, set_target};
 
 use super::PoseError;
@@ -255,6 +257,8 @@ pub struct PoseSolver {
     q_blocks: Vec<(usize, usize, DMat4)>,
     /// The bone parameters solved for.
     params: Vec<Param>,
+    /// Per joint, the parameters (indices into `params`) that move it.
+    joint_movers: Vec<Vec<u32>>,
     handle_sums: Vec<SetSums>,
     fixed_b: Vec<f64>,
     fixed_c: f64,
@@ -326,11 +330,13 @@ impl PoseSolver {
         }
         let (block_nonzero, q_blocks) = nonzero_blocks(&q, joints);
         let params = parameters_for(skeleton, &block_nonzero);
+        let joint_movers = movers_of_joints(skeleton, &params);
         let (cluster_rows, cluster_row_start) = sparse_cluster_rows(&model);
         Ok(Self {
             cluster_rows,
             cluster_row_start,
             params,
+            joint_movers,
             model,
             constraints: constraints.clone(),
             q_blocks,

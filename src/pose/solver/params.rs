@@ -47,3 +47,15 @@ pub(super) fn parameters_for(skeleton: &Skeleton, block_nonzero: &[bool]) -> Vec
     );
     out
 }
+
+/// Per joint, the indices into `params` of the parameters that move it (its own and its
+/// ancestors'): the only ones a term on that joint has a Jacobian block for.
+pub(super) fn movers_of_joints(skeleton: &Skeleton, params: &[Param]) -> Vec<Vec<u32>> {
+    (0..skeleton.len())
+        .map(|j| {
+            (0..params.len() as u32)
+                .filter(|&p| skeleton.descends_from(j, params[p as usize].joint()))
+                .collect()
+        })
+        .collect()
+}

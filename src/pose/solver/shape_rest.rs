@@ -31,7 +31,7 @@ impl PoseSolver {
         rest: &SkeletonPose,
         guess: Option<&[DQuat]>,
     ) -> (Vec<f64>, f64, Vec<DQuat>) {
-        let posed = self.posed(rest.clone());
+        let posed = self.posed(rest.clone(), &self.q_blocks);
         // Up to 8 Newton steps from a guess: converged clusters stop after one; a guess far
         // from a cluster's fit (a layer turned a joint a lot) gets there.
         let (mut rotations, fit) = match guess {

@@ -10,8 +10,10 @@ use web_time::Instant;
 use glam::{DAffine3, DQuat};
 
 use super::arap::ClusterFit;
+use super::arap::q_times_into;
 use super::effector_terms::{ExtraInputs, ExtraTerms, validate, validate_ground};
 use super::gauss_newton::HessianScratch;
+use super::holds::QBlocks;
 use super::step::{DampedSystem, Objective};
 use super::{
     PoseConstraints, PoseSolution, PoseSolveOptions, PoseSolveStats, PoseSolver, PoseStart,
@@ -86,12 +88,13 @@ impl PoseSolver {
             }
             c_pen += constant;
         }
+        let q_blocks = self.with_holds(&constraints.contacts, &mut b_pen, &mut c_pen);
         let c0 = self.model.c0.max(1e-300);
         let mut pose = start.clone();
         if let Some(limits) = limits {
             limits.project(&mut pose);
         }
-        let mut current = self.posed(pose);
+        let mut current = self.posed(pose, &q_blocks);
         // The buffers of the last replaced or rejected trial pose, for the next trial.
         let mut spare: Option<Posed> = None;
         let mut stats = PoseSolveStats::default();
@@ -116,6 +119,7 @@ impl PoseSolver {
             b.copy_from_slice(&b_pen);
             self.add_rotation_terms(&rotations, &mut b);
             let objective = Objective {
+                q_blocks: &q_blocks,
                 b: &b,
                 constant: self.model.c0 + c_pen,
                 extras: &extras,
@@ -126,7 +130,7 @@ impl PoseSolver {
                 last = f0;
             }
             // Levenberg–Marquardt: damp the Gauss–Newton step until it lowers the energy.
-            let (mut h, mut g) = self.gauss_newton_system(&current, &b, &mut scratch);
+            let (mut h, mut g) = self.gauss_newton_system(&current, &objective, &mut scratch);
             if !extras.is_empty() {
                 extras.add_system(
                     &current.globals,
@@ -254,10 +258,11 @@ impl PoseSolver {
         Ok(())
     }
 
-    /// A pose with its global and skinning transforms and the stacked skinning matrix.
-    pub(super) fn posed(&self, pose: SkeletonPose) -> Posed {
+    /// A pose with its global and skinning transforms, the stacked skinning matrix `X` and
+    /// `Q X` (`q_blocks`: the solve's `Q`).
+    pub(super) fn posed(&self, pose: SkeletonPose, q_blocks: &QBlocks) -> Posed {
         let mut posed = self.posed_unrefreshed(pose);
-        self.refresh(&mut posed);
+        self.refresh(&mut posed, q_blocks);
         posed
     }
 
@@ -275,7 +280,7 @@ impl PoseSolver {
 
     /// Recomputes what `posed` derives from its pose, in its own buffers (a trial step reuses
     /// a rejected or replaced one's: no allocation per trial).
-    pub(super) fn refresh(&self, posed: &mut Posed) {
+    pub(super) fn refresh(&self, posed: &mut Posed, q_blocks: &QBlocks) {
         let skeleton = self.model.skeleton();
         skeleton.global_transforms_into(&posed.pose, &mut posed.globals);
         posed.skin.clear();
@@ -287,7 +292,7 @@ impl PoseSolver {
                 .map(|(g, j)| *g * j.inverse_bind),
         );
         self.model.stack_into(&posed.skin, &mut posed.x);
-        self.q_times_into(&posed.x, &mut posed.qx);
+        q_times_into(q_blocks, &posed.x, &mut posed.qx);
     }
 
     /// The energy of a posed skeleton (its vertices' heights above the ground noted in it).
@@ -325,7 +330,7 @@ impl PoseSolver {
             Some(Floor::Under(under)) => Cow::Borrowed(under),
         };
         ExtraTerms::new(
-            skeleton,
+            (skeleton, &self.joint_movers),
             &ExtraInputs {
                 balance: balance.zip(masses),
                 balance_boost,

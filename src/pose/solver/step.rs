@@ -6,6 +6,7 @@ use glam::{DAffine3, DQuat, DVec3};
 
 use super::effector_terms::ExtraTerms;
 use super::gauss_newton::{BlockPattern, DampedStep, solve_damped};
+use super::holds::QBlocks;
 use super::params::Param;
 use super::solve::Posed;
 use super::{PoseSolveStats, PoseSolver};
@@ -19,9 +20,13 @@ const SHORTEST_TO_CONTACT: f64 = 0.1;
 /// interpolated linearly along a rotation, so stop a little short of the ground.
 const BEFORE_CONTACT: f64 = 0.9;
 
-/// What an iteration's energy is made of besides the pose: the linear term of the rotation
-/// fit and penalties, its constant, and the effector, limit and stiffness terms.
+/// What an iteration's energy is made of besides the pose: its quadratic form, the linear
+/// term of the rotation fit and penalties, its constant, and the effector, limit and
+/// stiffness terms.
 pub(super) struct Objective<'a> {
+    /// The 4 × 4 blocks of this solve's `Q` (the shape energy's, the penalties' and the
+    /// planted contacts' holds).
+    pub(super) q_blocks: &'a QBlocks,
     pub(super) b: &'a [f64],
     pub(super) constant: f64,
     pub(super) extras: &'a ExtraTerms<'a>,
@@ -89,7 +94,7 @@ impl PoseSolver {
                 if let Some(limits) = limits {
                     limits.project(&mut candidate.pose);
                 }
-                self.refresh(&mut candidate);
+                self.refresh(&mut candidate, objective.q_blocks);
                 let f = self.energy(&mut candidate, objective);
                 if f.is_finite() && f <= system.f0 {
                     *damping = if k == 0 {

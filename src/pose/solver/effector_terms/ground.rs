@@ -1,10 +1,14 @@
 //! The ground's terms of a pose solve: contacts (patch vertices kept above their ground, a
-//! planted patch held where it was laid, its joint's up turned to the ground's normal), the
-//! floor, and balance — built from [`PoseConstraints`], one-sided where they are inequalities.
+//! planted contact's joint's up turned to the ground's normal; the weight of its holds, which
+//! `holds.rs` folds into the solve's `Q`), the floor, and balance — built from
+//! [`PoseConstraints`], one-sided where they are inequalities.
 
 use glam::{DMat3, DVec3};
 
-use super::{ExtraInputs, ExtraTerms, Term, centroid_of, joint_sums, outer, strength, vertex_sums};
+use super::{
+    EFFECTOR_STRENGTH, ExtraInputs, ExtraTerms, JointSums, Term, centroid_of, joint_sums, outer,
+    strength, vertex_sums,
+};
 use crate::pose::balance::SupportPolygon;
 use crate::pose::{Floor, GroundPlane, PoseConstraints, PoseError};
 
@@ -77,28 +81,28 @@ pub(crate) fn validate_ground(
     Ok(())
 }
 
+/// A planted contact's hold on each of its patch vertices (`joint_weight`: a pinned joint's
+/// weight): [`CONTACT_STRENGTH`] position effectors at weight 1.
+pub(crate) fn contact_hold_weight(joint_weight: f64) -> f64 {
+    CONTACT_STRENGTH * EFFECTOR_STRENGTH * joint_weight
+}
+
 /// Appends the contacts', the floor's and balance's terms of `input` (`lw`: a position
 /// effector's weight at weight 1).
 pub(super) fn push_terms(terms: &mut Vec<Term>, joints: usize, input: &ExtraInputs<'_>, lw: f64) {
     // Contacts: every patch vertex above its ground; a planted one held where it touched,
     // its joint's up turned to the ground's normal.
-    let hold = CONTACT_STRENGTH * lw;
-    let above = ABOVE_OVER_HOLD * hold;
+    let above = ABOVE_OVER_HOLD * CONTACT_STRENGTH * lw;
     let one = |v: u32| vertex_sums(input, v);
+    // (The holds themselves are quadratic in the skinning matrices: `holds.rs` adds them to
+    // the solve's `Q`.)
     for c in input.contacts {
-        for (k, &v) in c.patch.iter().enumerate() {
+        for &v in &c.patch {
             terms.push(Term::Above {
                 sums: one(v),
                 plane: c.ground,
                 weight: above,
             });
-            if let Some(at) = c.planted.as_ref().and_then(|p| p.get(k)) {
-                terms.push(Term::Centroid {
-                    sums: one(v),
-                    target: *at,
-                    weight: hold,
-                });
-            }
         }
         if let (Some(_), Some(up)) = (&c.planted, c.up) {
             let origin = input.reference_globals[c.joint].translation;
@@ -214,6 +218,24 @@ pub(super) fn across(term: &Term, r: DVec3) -> Option<DMat3> {
     }
 }
 
+/// An active non-penetration term: its vertex's skinning sums, its ground's normal and its
+/// residual's length along it (`r = normal · depth`). Its Jacobian is projected on the normal
+/// (`J = n nᵀ B` for the vertex's change `B`), so `JᵀJ` and `Jᵀr` need only `Bᵀ n`. `None`
+/// for other terms and a vertex above its ground. (Balance is left to the general blocks: it is
+/// one term, and on its polygon's corners its direction turns.)
+pub(super) fn along_the_normal<'t>(
+    term: &'t Term,
+    r: &super::Rows<DVec3>,
+) -> Option<(&'t JointSums, DVec3, f64)> {
+    let r = *r.iter().next()?;
+    match term {
+        Term::Above { sums, plane, .. } if r != DVec3::ZERO => {
+            Some((sums, plane.normal, r.dot(plane.normal)))
+        }
+        _ => None,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use glam::{DAffine3, DVec3};
@@ -236,8 +258,9 @@ mod tests {
         let floor = GroundPlane::new(DVec3::ZERO, DVec3::Y).unwrap();
         let bind = [DVec3::new(0.0, 1.0, 0.0), DVec3::new(2.0, -0.5, 0.0)];
         let one = [(0u32, 1.0), (0, 0.0), (0, 0.0), (0, 0.0)];
+        let movers = [vec![0]];
         let terms = ExtraTerms::new(
-            &skeleton,
+            (&skeleton, &movers),
             &ExtraInputs {
                 balance: None,
                 balance_boost: 0.0,
