@@ -152,8 +152,10 @@ fn drag(
             .expect("a solve");
         if std::env::var("GROUND_DEBUG").is_ok() {
             eprintln!(
-                "frame {frame} balance {balance}: {} rejected steps, energies {:?}",
-                solved.stats.rejected_steps, solved.stats.energies
+                "frame {frame} balance {balance}: boost {:.5}, {} rejected steps, energies {:?}",
+                solved.balance_boost / size,
+                solved.stats.rejected_steps,
+                solved.stats.energies
             );
         }
         if frame > 0 {

@@ -54,8 +54,8 @@ impl<F: Fn(DVec3, DVec3, f64) -> Option<GroundPlane>> Ground for F {
 /// whose shadow overlaps its cell (terrain, stairs, a bent plank baked into a mesh).
 #[derive(Debug, Clone)]
 pub struct TriangleGround {
-    positions: Vec<DVec3>,
-    triangles: Vec<[u32; 3]>,
+    /// Each triangle's corners (inline: a cast reads one entry per candidate, not four).
+    corners: Vec<[DVec3; 3]>,
     down: DVec3,
     axes: (DVec3, DVec3),
     origin: DVec2,
@@ -125,6 +125,10 @@ impl TriangleGround {
                 }
             }
         }
+        let corners = triangles
+            .iter()
+            .map(|t| t.map(|v| positions[v as usize]))
+            .collect();
         let mut starts = Vec::with_capacity(per_cell.len() + 1);
         let mut cells = Vec::new();
         starts.push(0);
@@ -133,8 +137,7 @@ impl TriangleGround {
             starts.push(cells.len() as u32);
         }
         Self {
-            positions,
-            triangles,
+            corners,
             down,
             axes,
             origin: lo,
@@ -166,12 +169,12 @@ impl Ground for TriangleGround {
             let cell = &self.cells[self.starts[c] as usize..self.starts[c + 1] as usize];
             (cell, 0)
         } else {
-            (&[], self.triangles.len() as u32)
+            (&[], self.corners.len() as u32)
         };
         let candidates = cell.iter().copied().chain(0..all);
         let mut best: Option<(f64, GroundPlane)> = None;
         for k in candidates {
-            let [a, b, c] = self.triangles[k as usize].map(|v| self.positions[v as usize]);
+            let [a, b, c] = self.corners[k as usize];
             if let Some(t) = ray_triangle(from, down, a, b, c)
                 && t <= max
                 && best.as_ref().is_none_or(|(bt, _)| t < *bt)

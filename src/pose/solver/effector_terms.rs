@@ -62,7 +62,7 @@ enum Term {
     },
     /// A skinned vertex (`sums`) not below `plane`; one-sided.
     Above {
-        sums: Vec<(usize, DVec4)>,
+        sums: VertexSums,
         plane: GroundPlane,
         weight: f64,
     },
@@ -84,9 +84,10 @@ impl Term {
             | Term::Orientation { joint, .. }
             | Term::Aim { joint, .. }
             | Term::Stiffness { joint, .. } => each(*joint),
-            Term::Centroid { sums, .. } | Term::Above { sums, .. } | Term::Balance { sums, .. } => {
+            Term::Centroid { sums, .. } | Term::Balance { sums, .. } => {
                 sums.iter().for_each(|(j, _)| each(*j))
             }
+            Term::Above { sums, .. } => sums.iter().for_each(|(j, _)| each(*j)),
         }
     }
 }
@@ -449,6 +450,12 @@ impl<'a> ExtraTerms<'a> {
         };
         // d(direction) for a direction turned with the subtree.
         let direction = |d: DVec3| if rotation { -skew(d) } else { DMat3::ZERO };
+        // A one-sided term's point, its change projected across its boundary.
+        let one_sided = |sums: &JointSums| {
+            let across = ground::across(term, *residual.iter().next()?)?;
+            self.centroid_jacobian(sums, a, rotation, origin, skinning)
+                .map(|b| Rows::of(&[across * b]))
+        };
         match term {
             Term::Position { joint, .. } => self
                 .moves(a, *joint)
@@ -483,11 +490,8 @@ impl<'a> ExtraTerms<'a> {
             Term::Centroid { sums, .. } => self
                 .centroid_jacobian(sums, a, rotation, origin, skinning)
                 .map(|b| Rows::of(&[b])),
-            Term::Above { sums, .. } | Term::Balance { sums, .. } => {
-                let across = ground::across(term, *residual.iter().next()?)?;
-                self.centroid_jacobian(sums, a, rotation, origin, skinning)
-                    .map(|b| Rows::of(&[across * b]))
-            }
+            Term::Above { sums, .. } => one_sided(sums),
+            Term::Balance { sums, .. } => one_sided(sums),
             Term::Stiffness {
                 joint,
                 root_translation,
@@ -682,23 +686,56 @@ fn joint_sums(
 }
 
 /// [`joint_sums`] of one vertex at weight 1 (its influences, each joint once), without the
-/// dense per-joint pass: one-vertex terms (a contact's or the floor's) are hundreds a solve.
-fn vertex_sums(input: &ExtraInputs<'_>, v: u32) -> Vec<(usize, DVec4)> {
+/// dense per-joint pass and on the stack: one-vertex terms (a contact's or the floor's) are
+/// hundreds a solve.
+fn vertex_sums(input: &ExtraInputs<'_>, v: u32) -> VertexSums {
     let b = input.bind[v as usize];
-    let mut sums: Vec<(usize, DVec4)> = Vec::with_capacity(input.influences[v as usize].len());
+    let mut sums = VertexSums {
+        entries: [(0, DVec4::ZERO); 4],
+        len: 0,
+    };
     for &(j, w) in &input.influences[v as usize] {
         if w == 0.0 {
             continue;
         }
         let m = DVec4::new(b.x, b.y, b.z, 1.0) * w;
-        match sums.iter_mut().find(|(k, _)| *k == j as usize) {
+        let len = sums.len;
+        match sums.entries[..len]
+            .iter_mut()
+            .find(|(k, _)| *k == j as usize)
+        {
             Some((_, sum)) => *sum += m,
-            None => sums.push((j as usize, m)),
+            None => {
+                sums.entries[len] = (j as usize, m);
+                sums.len += 1;
+            }
         }
     }
-    sums.retain(|(_, m)| *m != DVec4::ZERO);
-    sums.sort_unstable_by_key(|(j, _)| *j);
+    let mut kept = 0;
+    for k in 0..sums.len {
+        if sums.entries[k].1 != DVec4::ZERO {
+            sums.entries[kept] = sums.entries[k];
+            kept += 1;
+        }
+    }
+    sums.len = kept;
+    sums.entries[..kept].sort_unstable_by_key(|(j, _)| *j);
     sums
+}
+
+/// One vertex's [`JointSums`] (at most four joints), kept in its term.
+#[derive(Clone, Copy)]
+struct VertexSums {
+    entries: [(usize, DVec4); 4],
+    len: usize,
+}
+
+impl std::ops::Deref for VertexSums {
+    type Target = JointSums;
+
+    fn deref(&self) -> &JointSums {
+        &self.entries[..self.len]
+    }
 }
 
 /// `Σ_j S_j m_j` (homogeneous weighted sums).
