@@ -11,6 +11,7 @@ use crate::pose::balance::{Balance, SupportPolygon};
 use crate::pose::contacts::{Contact, GroundPlane};
 
 mod ground;
+mod system;
 use crate::pose::effectors::{
     CentroidEffector, Effector, EffectorGoal, ReferenceStiffness, StiffnessWeighting,
 };
@@ -280,20 +281,6 @@ impl<'a> ExtraTerms<'a> {
         }
     }
 
-    /// Into `movers`, the parameters that move `term` (indices into the solver's, each once:
-    /// `seen` holds a stamp per parameter, `stamp` this term's).
-    fn movers_of(&self, term: &Term, (seen, stamp): (&mut [u32], u32), movers: &mut Vec<u32>) {
-        movers.clear();
-        term.for_each_joint(|j| {
-            for &p in &self.joint_movers[j] {
-                if seen[p as usize] != stamp {
-                    seen[p as usize] = stamp;
-                    movers.push(p);
-                }
-            }
-        });
-    }
-
     /// Whether there is anything to add.
     pub(crate) fn is_empty(&self) -> bool {
         self.terms.is_empty()
@@ -542,123 +529,6 @@ impl<'a> ExtraTerms<'a> {
                 DMat3::IDENTITY * mass
             }
         })
-    }
-
-    /// Adds the Gauss–Newton terms `2 w JᵀJ` and `2 w Jᵀr` to the solver's system (`h` is
-    /// `3P × 3P` row-major, `g` `3P`). A term has Jacobian blocks only for the parameters
-    /// that move it; a vertex under its ground is a single number along the ground's normal,
-    /// whose `JᵀJ` is an outer product of 3-vectors.
-    pub(crate) fn add_system(
-        &self,
-        globals: &[DAffine3],
-        skinning: &[DAffine3],
-        params: &[Param],
-        h: &mut [f64],
-        g: &mut [f64],
-    ) {
-        let mut system = System {
-            n: params.len() * 3,
-            h,
-            g,
-        };
-        // A term's Jacobian blocks (or rows), reused term after term.
-        let mut blocks: Vec<(usize, Rows<DMat3>)> = Vec::with_capacity(params.len());
-        let mut rows: Vec<(usize, DVec3)> = Vec::with_capacity(params.len());
-        let mut movers = Vec::with_capacity(params.len());
-        let mut seen = vec![0; params.len()];
-        let mut stamp = 0;
-        self.for_each_residual(globals, skinning, |term, w, r, _| {
-            // A one-sided term that holds (a vertex above its ground, the centre of mass inside
-            // its polygon) adds neither gradient nor curvature: skip its Jacobian.
-            if matches!(term, Term::Above { .. } | Term::Balance { .. })
-                && r.iter().all(|v| *v == DVec3::ZERO)
-            {
-                return;
-            }
-            stamp += 1;
-            self.movers_of(term, (&mut seen, stamp), &mut movers);
-            if let Some((sums, along, depth)) = ground::along_the_normal(term, r) {
-                rows.clear();
-                rows.extend(movers.iter().filter_map(|&p| {
-                    let (a, rotation) = split(params[p as usize]);
-                    let origin = globals[a].translation;
-                    self.centroid_jacobian(sums, a, rotation, origin, skinning)
-                        .map(|b| (p as usize, b.transpose() * along))
-                }));
-                system.add_rows(&rows, 2.0 * w, depth);
-                return;
-            }
-            blocks.clear();
-            blocks.extend(movers.iter().filter_map(|&p| {
-                self.jacobian((term, r), params[p as usize], globals, skinning)
-                    .map(|j| (p as usize, j))
-            }));
-            system.add_blocks(&blocks, 2.0 * w, r);
-        });
-    }
-}
-
-/// A parameter's joint, and whether it is a rotation (else a root's translation).
-fn split(param: Param) -> (usize, bool) {
-    match param {
-        Param::Rotation(a) => (a, true),
-        Param::Translation(a) => (a, false),
-    }
-}
-
-/// The Gauss–Newton system being summed into (`h`: `n × n` row-major).
-struct System<'s> {
-    n: usize,
-    h: &'s mut [f64],
-    g: &'s mut [f64],
-}
-
-impl System<'_> {
-    /// Adds `s` times the block at parameters `(a, b)`, and its transpose at `(b, a)`.
-    fn add_pair(&mut self, (a, b): (usize, usize), m: DMat3, s: f64) {
-        let n = self.n;
-        for r in 0..3 {
-            for c in 0..3 {
-                let v = s * m.col(c)[r];
-                self.h[(a * 3 + r) * n + b * 3 + c] += v;
-                if a != b {
-                    self.h[(b * 3 + c) * n + a * 3 + r] += v;
-                }
-            }
-        }
-    }
-
-    /// `s JᵀJ` and `s Jᵀr` for a term's Jacobian `blocks` (per parameter) and residual `r`.
-    fn add_blocks(&mut self, blocks: &[(usize, Rows<DMat3>)], s: f64, r: &Rows<DVec3>) {
-        for (i, (pa, ja)) in blocks.iter().enumerate() {
-            let mut ga = DVec3::ZERO;
-            for (jb, rv) in ja.iter().zip(r.iter()) {
-                ga += jb.transpose() * *rv;
-            }
-            for k in 0..3 {
-                self.g[pa * 3 + k] += s * ga[k];
-            }
-            for (pb, jbk) in &blocks[i..] {
-                let mut m = DMat3::ZERO;
-                for (x, y) in ja.iter().zip(jbk.iter()) {
-                    m += x.transpose() * *y;
-                }
-                self.add_pair((*pa, *pb), m, s);
-            }
-        }
-    }
-
-    /// `s JᵀJ` and `s Jᵀr` for a single residual number `depth` with Jacobian `rows` (one
-    /// 3-vector per parameter).
-    fn add_rows(&mut self, rows: &[(usize, DVec3)], s: f64, depth: f64) {
-        for (i, &(pa, ua)) in rows.iter().enumerate() {
-            for k in 0..3 {
-                self.g[pa * 3 + k] += s * ua[k] * depth;
-            }
-            for &(pb, ub) in &rows[i..] {
-                self.add_pair((pa, pb), outer(ua, ub), s);
-            }
-        }
     }
 }
 
