@@ -61,11 +61,16 @@ enum Term {
         root_translation: Option<DVec3>,
         weight: f64,
     },
-    /// A skinned vertex (`sums`) not below `plane`; one-sided.
+    /// A skinned vertex (`sums`) not below `plane`; one-sided. `start_gap`: its height above
+    /// the ground's skin in the pose the solve starts from; `reach`: per joint of `sums`, its
+    /// bind position's distance from the joint's (how far the joint's turn can move it, per
+    /// unit of turn).
     Above {
         sums: VertexSums,
         plane: GroundPlane,
         weight: f64,
+        start_gap: f64,
+        reach: [f64; 4],
     },
     /// The centre of mass (`sums`: mass-weighted, normalised) at least `margin` inside the
     /// support polygon; one-sided.
@@ -97,6 +102,11 @@ impl Term {
 pub(crate) struct ExtraTerms<'a> {
     skeleton: &'a Skeleton,
     terms: Vec<Term>,
+    /// The skinning matrices of the pose the solve starts from (where the vertices kept
+    /// above the ground had their `start_gap`).
+    start_skinning: Vec<DAffine3>,
+    /// Each joint's position in the bind pose.
+    bind_origins: Vec<DVec3>,
     /// Per joint, the solver's parameters that move it: a term's Jacobian has blocks for
     /// those of its joints only.
     joint_movers: &'a [Vec<u32>],
@@ -119,6 +129,8 @@ pub(crate) struct ExtraInputs<'a> {
     pub stiffness: Option<&'a ReferenceStiffness>,
     pub reference_globals: &'a [DAffine3],
     pub reference_skinning: &'a [DAffine3],
+    /// The skinning matrices of the pose the solve starts from.
+    pub start_skinning: &'a [DAffine3],
     pub influences: &'a [VertexInfluences],
     pub relative_inertia: &'a [f64],
     pub bind: &'a [DVec3],
@@ -273,9 +285,17 @@ impl<'a> ExtraTerms<'a> {
                 });
             }
         }
+        let bind_origins: Vec<DVec3> = skeleton
+            .joints()
+            .iter()
+            .map(|j| j.inverse_bind.inverse().translation)
+            .collect();
+        ground::fill_reach(&mut terms, &bind_origins);
         Self {
             skeleton,
             terms,
+            start_skinning: input.start_skinning.to_vec(),
+            bind_origins,
             joint_movers,
             length_scale: input.length_scale,
         }
@@ -320,6 +340,9 @@ impl<'a> ExtraTerms<'a> {
         // parent's, which is the next term's joint).
         let mut cache: Vec<Option<DMat3>> = vec![None; globals.len()];
         let mut rotation = |j: usize| *cache[j].get_or_insert_with(|| Self::rotation(globals, j));
+        // How far each skinning matrix moved since the start: a vertex certainly well above
+        // its ground is not skinned.
+        let drift = self.drift(skinning);
         for term in &self.terms {
             let mut gap = None;
             let (weight, rows) = match term {
@@ -363,8 +386,12 @@ impl<'a> ExtraTerms<'a> {
                     sums,
                     plane,
                     weight,
+                    start_gap,
+                    reach,
                 } => {
-                    let height = self.gap_above(sums, plane, skinning);
+                    let height = self
+                        .certainly_above(sums, (*start_gap, reach), &drift)
+                        .unwrap_or_else(|| self.gap_above(sums, plane, skinning));
                     gap = Some(height);
                     (*weight, Rows::of(&[plane.normal * height.min(0.0)]))
                 }

@@ -314,6 +314,7 @@ impl PoseSolver {
     ) -> ExtraTerms<'a> {
         let skeleton = self.model.skeleton();
         let reference_skinning = skinning(&self.reference_globals, skeleton);
+        let start_skinning = skinning(&skeleton.global_transforms(start), skeleton);
         let balance = constraints.balance.as_ref().filter(|b| b.weight > 0.0);
         let masses = balance.map(|b| b.masses.as_deref().unwrap_or(self.model.area_masses()));
         // The floor's active set: the vertices near or below it where this solve starts.
@@ -341,6 +342,7 @@ impl PoseSolver {
                 stiffness: constraints.stiffness.as_ref(),
                 reference_globals: &self.reference_globals,
                 reference_skinning: &reference_skinning,
+                start_skinning: &start_skinning,
                 influences: self.model.influences(),
                 relative_inertia: self.model.relative_inertia(),
                 bind: self.model.bind_positions(),

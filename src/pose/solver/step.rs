@@ -104,7 +104,9 @@ impl PoseSolver {
                     };
                     return Some((candidate, f));
                 }
-                length = ExtraTerms::first_contact(&current.gaps, &candidate.gaps)
+                length = objective
+                    .extras
+                    .first_contact(&current.gaps, &candidate.gaps, &current.skin)
                     .filter(|t| (SHORTEST_TO_CONTACT..1.0).contains(t))
                     .map_or(0.5, |t| BEFORE_CONTACT * t * length);
                 *spare = Some(candidate);

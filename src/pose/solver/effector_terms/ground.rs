@@ -99,16 +99,22 @@ pub(super) fn push_terms(terms: &mut Vec<Term>, joints: usize, input: &ExtraInpu
     // Contacts: every patch vertex above its ground; a planted one held where it touched,
     // its joint's up turned to the ground's normal.
     let above = ABOVE_OVER_HOLD * CONTACT_STRENGTH * lw;
-    let one = |v: u32| vertex_sums(input, v);
+    let skin = CONTACT_SKIN * input.length_scale;
+    let above_term = |v: u32, plane: GroundPlane| {
+        let sums = vertex_sums(input, v);
+        Term::Above {
+            start_gap: plane.height(centroid_of(&sums, input.start_skinning)) - skin,
+            reach: [f64::INFINITY; 4],
+            sums,
+            plane,
+            weight: above,
+        }
+    };
     // (The holds themselves are quadratic in the skinning matrices: `holds.rs` adds them to
     // the solve's `Q`.)
     for c in input.contacts {
         for &v in &c.patch {
-            terms.push(Term::Above {
-                sums: one(v),
-                plane: c.ground,
-                weight: above,
-            });
+            terms.push(above_term(v, c.ground));
         }
         if let (Some(_), Some(up)) = (&c.planted, c.up) {
             let origin = input.reference_globals[c.joint].translation;
@@ -122,11 +128,7 @@ pub(super) fn push_terms(terms: &mut Vec<Term>, joints: usize, input: &ExtraInpu
         }
     }
     for &(v, plane) in input.floor {
-        terms.push(Term::Above {
-            sums: one(v),
-            plane,
-            weight: above,
-        });
+        terms.push(above_term(v, plane));
     }
     if let Some((b, masses)) = input.balance {
         let total: f64 = masses.iter().sum();
@@ -168,11 +170,27 @@ impl ExtraTerms<'_> {
     /// The share of the way between two poses at which the first vertex above its ground's
     /// skin in the first reaches it, by its heights at both ends (`from` and `to`: the `gaps`
     /// of [`ExtraTerms::energy`] at each, linear in between); `None` when none goes under.
-    pub(crate) fn first_contact(from: &[f64], to: &[f64]) -> Option<f64> {
+    /// A height far above the ground may be a lower bound in `gaps`: a vertex that goes under
+    /// has its height in the first pose (`from_skinning`) computed.
+    pub(crate) fn first_contact(
+        &self,
+        from: &[f64],
+        to: &[f64],
+        from_skinning: &[glam::DAffine3],
+    ) -> Option<f64> {
+        let above = self.terms.iter().filter_map(|t| match t {
+            Term::Above { sums, plane, .. } => Some((sums, plane)),
+            _ => None,
+        });
         from.iter()
             .zip(to)
-            .filter(|&(&before, &after)| before > 0.0 && after < 0.0)
-            .map(|(before, after)| before / (before - after))
+            .zip(above)
+            .filter(|&((&before, &after), _)| before > 0.0 && after < 0.0)
+            .map(|((_, after), (sums, plane))| {
+                let before = self.gap_above(sums, plane, from_skinning);
+                before / (before - after)
+            })
+            .filter(|t| t.is_finite() && *t > 0.0)
             .min_by(f64::total_cmp)
     }
 
@@ -201,6 +219,51 @@ impl ExtraTerms<'_> {
             }
             _ => None,
         }
+    }
+
+    /// Per joint, how far its skinning matrix is from the start's: the Frobenius norm of the
+    /// linear part's change and how far it moved the joint's bind position (empty without
+    /// vertices kept above the ground).
+    pub(super) fn drift(&self, skinning: &[glam::DAffine3]) -> Vec<(f64, f64)> {
+        if !self.terms.iter().any(|t| matches!(t, Term::Above { .. })) {
+            return Vec::new();
+        }
+        skinning
+            .iter()
+            .zip(&self.start_skinning)
+            .zip(&self.bind_origins)
+            .map(|((s, s0), &origin)| {
+                let d = s.matrix3 - s0.matrix3;
+                let linear = d.x_axis.length_squared()
+                    + d.y_axis.length_squared()
+                    + d.z_axis.length_squared();
+                let moved = d * origin + (s.translation - s0.translation);
+                (linear.sqrt(), moved.length())
+            })
+            .collect()
+    }
+
+    /// A lower bound of a vertex's height above its ground's skin, from its height at the
+    /// start and how far its joints' skinning matrices `drift`ed since (a vertex moves at
+    /// most `Σ_j w_j (‖ΔA_j‖ |b − c_j| + |Δo_j|)`, `c_j` the joint's bind position, `Δo_j`
+    /// how far it moved), when that bound is above [`NEAR_CONTACT`]; `None` when the vertex
+    /// may be near or in its ground (then it is skinned).
+    pub(super) fn certainly_above(
+        &self,
+        sums: &JointSums,
+        (start_gap, reach): (f64, &[f64; 4]),
+        drift: &[(f64, f64)],
+    ) -> Option<f64> {
+        let moved: f64 = sums
+            .iter()
+            .zip(reach)
+            .map(|(&(j, m), reach)| {
+                let (turn, origin) = drift.get(j).copied().unwrap_or((f64::INFINITY, 0.0));
+                m.w.abs() * (turn * reach + origin)
+            })
+            .sum();
+        let lower = start_gap - moved;
+        (lower > NEAR_CONTACT * self.length_scale).then_some(lower)
     }
 
     /// A vertex's height above its ground's skin (negative: in it).
@@ -248,6 +311,22 @@ pub(super) fn across(term: &Term, r: DVec3) -> Option<DMat3> {
             Some(outer(n, n))
         }
         _ => None,
+    }
+}
+
+/// Fills each vertex-above term's `reach`: per joint of its sums, the distance of the vertex's
+/// bind position from the joint's (`origins`).
+pub(super) fn fill_reach(terms: &mut [Term], origins: &[DVec3]) {
+    for term in terms {
+        if let Term::Above { sums, reach, .. } = term {
+            for (r, &(j, m)) in reach.iter_mut().zip(sums.iter()) {
+                *r = if m.w != 0.0 {
+                    (m.truncate() / m.w - origins[j]).length()
+                } else {
+                    0.0
+                };
+            }
+        }
     }
 }
 
@@ -310,6 +389,7 @@ mod tests {
                 stiffness: None,
                 reference_globals: &[DAffine3::IDENTITY],
                 reference_skinning: &[DAffine3::IDENTITY],
+                start_skinning: &[DAffine3::IDENTITY],
                 influences: &vec![one; bind.len()],
                 relative_inertia: &[1.0],
                 bind,
@@ -338,10 +418,13 @@ mod tests {
         let from = gaps(DAffine3::IDENTITY);
         let down = gaps(DAffine3::from_translation(DVec3::new(0.0, -3.0, 0.0)));
         let skin = super::CONTACT_SKIN;
-        let t = ExtraTerms::first_contact(&from, &down).unwrap();
+        let t = terms
+            .first_contact(&from, &down, &[DAffine3::IDENTITY])
+            .unwrap();
         assert!((t - (1.0 - skin) / 3.0).abs() < 1e-12, "{t}");
         let up = gaps(DAffine3::from_translation(DVec3::new(0.0, 0.5, 0.0)));
-        assert_eq!(ExtraTerms::first_contact(&from, &up), None);
+        let at_start = [DAffine3::IDENTITY];
+        assert_eq!(terms.first_contact(&from, &up, &at_start), None);
     }
 
     /// A vertex just above the floor adds the floor's normal curvature at a thousandth of its
@@ -372,5 +455,60 @@ mod tests {
         assert!(g.iter().all(|v| *v == 0.0), "{g:?}");
         let (h, g) = system(2.0);
         assert!(h.iter().chain(&g).all(|v| *v == 0.0), "{h:?} {g:?}");
+    }
+
+    /// The lower bound that spares skinning a vertex far above its ground is one: under any
+    /// turn and shift of the bar it is at most the vertex's height, and a small motion
+    /// leaves the far vertices bounded (not skinned) and the near one skinned.
+    #[test]
+    fn a_vertex_far_above_is_bounded_below_its_height() {
+        let skeleton = bar();
+        let floor = GroundPlane::new(DVec3::new(0.0, -0.5, 0.0), DVec3::Y).unwrap();
+        let bind: Vec<DVec3> = (0..12)
+            .map(|k| {
+                DVec3::new(
+                    0.3 * (k % 4) as f64 - 0.4,
+                    0.25 * (k / 4) as f64 - 0.49,
+                    0.1,
+                )
+            })
+            .collect();
+        let movers = [vec![0]];
+        let terms = floor_terms(&skeleton, &movers, &bind, floor);
+        let bounded = |motion: DAffine3| {
+            let drift = terms.drift(&[motion]);
+            let mut out = Vec::new();
+            for term in &terms.terms {
+                if let super::Term::Above {
+                    sums,
+                    plane,
+                    start_gap,
+                    reach,
+                    ..
+                } = term
+                {
+                    let exact = terms.gap_above(sums, plane, &[motion]);
+                    let bound = terms.certainly_above(sums, (*start_gap, reach), &drift);
+                    out.push((bound, exact));
+                }
+            }
+            out
+        };
+        for k in 0..20 {
+            let t = k as f64 * 0.37;
+            let motion = DAffine3::from_rotation_translation(
+                glam::DQuat::from_euler(glam::EulerRot::XYZ, 0.3 * t.sin(), t.cos(), 0.2 * t),
+                DVec3::new(0.1 * t.cos(), -0.05 * t, 0.02),
+            );
+            for (bound, exact) in bounded(motion) {
+                assert!(
+                    bound.is_none_or(|b| b <= exact + 1e-12),
+                    "{bound:?} > {exact}"
+                );
+            }
+        }
+        let small = bounded(DAffine3::from_translation(DVec3::new(0.0, -0.02, 0.0)));
+        assert!(small[0].0.is_none(), "the vertex near the floor is skinned");
+        assert!(small[4..].iter().all(|(b, _)| b.is_some()), "{small:?}");
     }
 }
