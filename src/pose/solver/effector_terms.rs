@@ -423,7 +423,8 @@ impl<'a> ExtraTerms<'a> {
     }
 
     /// `Σ w ‖r‖²`; `gaps` gets each vertex's height above its ground's skin, in term order
-    /// (what [`ExtraTerms::first_contact`] compares between two poses).
+    /// (what [`ExtraTerms::first_contact`] compares between two poses) — for a vertex
+    /// certainly well above it, a lower bound ([`ExtraTerms::certainly_above`]).
     pub(crate) fn energy(
         &self,
         globals: &[DAffine3],

@@ -9,8 +9,7 @@ use web_time::Instant;
 
 use glam::{DAffine3, DQuat};
 
-use super::arap::ClusterFit;
-use super::arap::q_times_into;
+use super::arap::{ClusterFit, q_times_into};
 use super::effector_terms::{ExtraInputs, ExtraTerms, validate, validate_ground};
 use super::gauss_newton::HessianScratch;
 use super::holds::QBlocks;
