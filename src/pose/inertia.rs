@@ -22,10 +22,7 @@ pub(crate) fn relative_inertia(
     influences: &[VertexInfluences],
 ) -> Vec<f64> {
     let joints = skeleton.joints();
-    let origins: Vec<DVec3> = joints
-        .iter()
-        .map(|j| j.inverse_bind.inverse().translation)
-        .collect();
+    let origins = skeleton.bind_origins();
     let mut inertia = vec![0.0; joints.len()];
     for (p, skin) in bind.iter().zip(influences) {
         for &(joint, w) in skin.iter().filter(|(_, w)| *w > 0.0) {

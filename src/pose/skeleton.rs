@@ -245,6 +245,14 @@ impl Skeleton {
         rotation_of(&m.matrix3)
     }
 
+    /// Each joint's position in the bind pose (where its inverse bind matrix takes the origin).
+    pub(crate) fn bind_origins(&self) -> Vec<DVec3> {
+        self.joints
+            .iter()
+            .map(|j| j.inverse_bind.inverse().translation)
+            .collect()
+    }
+
     /// Whether `joint` is `ancestor` or below it (a rotation of `ancestor` moves it).
     pub(crate) fn descends_from(&self, joint: usize, ancestor: usize) -> bool {
         let mut at = Some(joint);

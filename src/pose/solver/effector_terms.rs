@@ -106,7 +106,7 @@ pub(crate) struct ExtraTerms<'a> {
     /// above the ground had their `start_gap`).
     start_skinning: Vec<DAffine3>,
     /// Each joint's position in the bind pose.
-    bind_origins: Vec<DVec3>,
+    bind_origins: &'a [DVec3],
     /// Per joint, the solver's parameters that move it: a term's Jacobian has blocks for
     /// those of its joints only.
     joint_movers: &'a [Vec<u32>],
@@ -204,9 +204,10 @@ pub(crate) fn validate(
 
 impl<'a> ExtraTerms<'a> {
     /// The weighted terms for these inputs (targets blended from the reference pose).
-    /// (`joint_movers`: per joint, the solver's parameters that move it.)
+    /// (`joint_movers`: per joint, the solver's parameters that move it; `bind_origins`: each
+    /// joint's position in the bind pose.)
     pub(crate) fn new(
-        (skeleton, joint_movers): (&'a Skeleton, &'a [Vec<u32>]),
+        (skeleton, joint_movers, bind_origins): (&'a Skeleton, &'a [Vec<u32>], &'a [DVec3]),
         input: &ExtraInputs<'_>,
     ) -> Self {
         let mut terms = Vec::new();
@@ -262,7 +263,7 @@ impl<'a> ExtraTerms<'a> {
                 weight: lw * strength(c.weight),
             });
         }
-        ground::push_terms(&mut terms, skeleton.len(), input, lw);
+        ground::push_terms(&mut terms, (skeleton.len(), bind_origins), input, lw);
         if let Some(s) = input.stiffness {
             let scale = |j: usize| match s.weighting {
                 StiffnessWeighting::Uniform => 1.0,
@@ -285,12 +286,6 @@ impl<'a> ExtraTerms<'a> {
                 });
             }
         }
-        let bind_origins: Vec<DVec3> = skeleton
-            .joints()
-            .iter()
-            .map(|j| j.inverse_bind.inverse().translation)
-            .collect();
-        ground::fill_reach(&mut terms, &bind_origins);
         Self {
             skeleton,
             terms,
@@ -395,10 +390,9 @@ impl<'a> ExtraTerms<'a> {
                     gap = Some(height);
                     (*weight, Rows::of(&[plane.normal * height.min(0.0)]))
                 }
-                Term::Balance { weight, .. } => (
-                    *weight,
-                    Rows::of(&[self.one_sided_residual(term, skinning)]),
-                ),
+                Term::Balance { weight, .. } => {
+                    (*weight, Rows::of(&[self.balance_residual(term, skinning)]))
+                }
                 Term::Stiffness {
                     joint,
                     reference,

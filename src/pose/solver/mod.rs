@@ -259,6 +259,8 @@ pub struct PoseSolver {
     params: Vec<Param>,
     /// Per joint, the parameters (indices into `params`) that move it.
     joint_movers: Vec<Vec<u32>>,
+    /// Each joint's position in the bind pose.
+    bind_origins: Vec<DVec3>,
     handle_sums: Vec<SetSums>,
     fixed_b: Vec<f64>,
     fixed_c: f64,
@@ -331,12 +333,14 @@ impl PoseSolver {
         let (block_nonzero, q_blocks) = nonzero_blocks(&q, joints);
         let params = parameters_for(skeleton, &block_nonzero);
         let joint_movers = movers_of_joints(skeleton, &params);
+        let bind_origins = skeleton.bind_origins();
         let (cluster_rows, cluster_row_start) = sparse_cluster_rows(&model);
         Ok(Self {
             cluster_rows,
             cluster_row_start,
             params,
             joint_movers,
+            bind_origins,
             model,
             constraints: constraints.clone(),
             q_blocks,

@@ -330,7 +330,7 @@ impl PoseSolver {
             Some(Floor::Under(under)) => Cow::Borrowed(under),
         };
         ExtraTerms::new(
-            (skeleton, &self.joint_movers),
+            (skeleton, &self.joint_movers, &self.bind_origins),
             &ExtraInputs {
                 balance: balance.zip(masses),
                 balance_boost,

@@ -95,16 +95,27 @@ pub(crate) fn contact_hold_weight(joint_weight: f64) -> f64 {
 
 /// Appends the contacts', the floor's and balance's terms of `input` (`lw`: a position
 /// effector's weight at weight 1).
-pub(super) fn push_terms(terms: &mut Vec<Term>, joints: usize, input: &ExtraInputs<'_>, lw: f64) {
+/// (`bind_origins`: each joint's position in the bind pose.)
+pub(super) fn push_terms(
+    terms: &mut Vec<Term>,
+    (joints, bind_origins): (usize, &[DVec3]),
+    input: &ExtraInputs<'_>,
+    lw: f64,
+) {
     // Contacts: every patch vertex above its ground; a planted one held where it touched,
     // its joint's up turned to the ground's normal.
     let above = ABOVE_OVER_HOLD * CONTACT_STRENGTH * lw;
     let skin = CONTACT_SKIN * input.length_scale;
     let above_term = |v: u32, plane: GroundPlane| {
         let sums = vertex_sums(input, v);
+        // Per joint of the sums, how far the vertex's bind position is from the joint's.
+        let mut reach = [0.0; 4];
+        for (r, &(j, _)) in reach.iter_mut().zip(sums.iter()) {
+            *r = input.bind[v as usize].distance(bind_origins[j]);
+        }
         Term::Above {
             start_gap: plane.height(centroid_of(&sums, input.start_skinning)) - skin,
-            reach: [f64::INFINITY; 4],
+            reach,
             sums,
             plane,
             weight: above,
@@ -231,7 +242,7 @@ impl ExtraTerms<'_> {
         skinning
             .iter()
             .zip(&self.start_skinning)
-            .zip(&self.bind_origins)
+            .zip(self.bind_origins)
             .map(|((s, s0), &origin)| {
                 let d = s.matrix3 - s0.matrix3;
                 let linear = d.x_axis.length_squared()
@@ -276,13 +287,11 @@ impl ExtraTerms<'_> {
         plane.height(centroid_of(sums, skinning)) - self.skin()
     }
 
-    /// The residual of a one-sided term (zero while it holds): a vertex's depth under its
-    /// ground's skin along the normal, or the centre of mass's way out of its allowed region.
-    pub(super) fn one_sided_residual(&self, term: &Term, skinning: &[glam::DAffine3]) -> DVec3 {
+    /// The residual of a balance term (zero while it holds): the centre of mass's way out of
+    /// its allowed region. (A vertex's is its depth along its ground's normal, from its gap:
+    /// [`ExtraTerms::energy`].)
+    pub(super) fn balance_residual(&self, term: &Term, skinning: &[glam::DAffine3]) -> DVec3 {
         match term {
-            Term::Above { sums, plane, .. } => {
-                plane.normal * self.gap_above(sums, plane, skinning).min(0.0)
-            }
             Term::Balance {
                 sums,
                 polygon,
@@ -311,22 +320,6 @@ pub(super) fn across(term: &Term, r: DVec3) -> Option<DMat3> {
             Some(outer(n, n))
         }
         _ => None,
-    }
-}
-
-/// Fills each vertex-above term's `reach`: per joint of its sums, the distance of the vertex's
-/// bind position from the joint's (`origins`).
-pub(super) fn fill_reach(terms: &mut [Term], origins: &[DVec3]) {
-    for term in terms {
-        if let Term::Above { sums, reach, .. } = term {
-            for (r, &(j, m)) in reach.iter_mut().zip(sums.iter()) {
-                *r = if m.w != 0.0 {
-                    (m.truncate() / m.w - origins[j]).length()
-                } else {
-                    0.0
-                };
-            }
-        }
     }
 }
 
@@ -378,7 +371,7 @@ mod tests {
         let one = [(0u32, 1.0), (0, 0.0), (0, 0.0), (0, 0.0)];
         let under: Vec<(u32, GroundPlane)> = (0..bind.len() as u32).map(|v| (v, floor)).collect();
         ExtraTerms::new(
-            (skeleton, movers),
+            (skeleton, movers, &[DVec3::ZERO]),
             &ExtraInputs {
                 balance: None,
                 balance_boost: 0.0,
