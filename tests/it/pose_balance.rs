@@ -24,6 +24,15 @@ fn soles(model: &SkinnedModel) -> Vec<DVec3> {
         .collect()
 }
 
+/// The mannequin standing on its soles: its rig and model, the soles and their polygon.
+fn stance() -> (SyntheticRig, Arc<SkinnedModel>, Vec<DVec3>, SupportPolygon) {
+    let rig = mannequin_rig(30);
+    let model = model_of(&rig);
+    let support = soles(&model);
+    let polygon = SupportPolygon::new(&support, DVec3::NEG_Y);
+    (rig, model, support, polygon)
+}
+
 fn height(model: &SkinnedModel) -> f64 {
     let bind = model.bind_positions();
     let (lo, hi) = bind
@@ -79,10 +88,7 @@ fn pulled(
 /// way; without, the same pull puts it outside (so the test can tell them apart).
 #[test]
 fn a_pulled_hand_is_counterbalanced_by_the_hips() {
-    let rig = mannequin_rig(30);
-    let model = model_of(&rig);
-    let support = soles(&model);
-    let polygon = SupportPolygon::new(&support, DVec3::NEG_Y);
+    let (rig, model, support, polygon) = stance();
     assert!(polygon.corners().len() >= 3, "two feet make a polygon");
     let margin = 0.01 * height(&model);
     let rest_com = centre_of_mass(&model, &rig.rest, None).unwrap();
@@ -142,10 +148,7 @@ fn a_pulled_hand_is_counterbalanced_by_the_hips() {
 /// it, so balance still acts).
 #[test]
 fn a_lean_lets_the_centre_of_mass_out_as_far_as_asked() {
-    let rig = mannequin_rig(30);
-    let model = model_of(&rig);
-    let support = soles(&model);
-    let polygon = SupportPolygon::new(&support, DVec3::NEG_Y);
+    let (rig, model, support, polygon) = stance();
     let margin = 0.01 * height(&model);
     let free = pulled(&rig, &model, 0.3, None);
     let out = polygon.signed_distance(centre_of_mass(&model, &free, None).unwrap());
@@ -171,10 +174,7 @@ fn a_lean_lets_the_centre_of_mass_out_as_far_as_asked() {
 /// multiplier carried from solve to solve); over other support points the boost starts again.
 #[test]
 fn warm_solves_bring_the_centre_of_mass_to_its_margin() {
-    let rig = mannequin_rig(30);
-    let model = model_of(&rig);
-    let support = soles(&model);
-    let polygon = SupportPolygon::new(&support, DVec3::NEG_Y);
+    let (rig, model, support, polygon) = stance();
     let h = height(&model);
     let margin = 0.02 * h;
     let constraints = |support: Vec<DVec3>| {
