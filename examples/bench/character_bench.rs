@@ -525,6 +525,7 @@ fn drag(
     let three = PoseSolveOptions {
         max_iterations: 3,
         tolerance: 0.0,
+        ground_iterations: 0,
     };
     let mut last: Option<PoseSolution> = None;
     let mut solve_ms = Vec::with_capacity(frames);
@@ -559,6 +560,7 @@ fn converge(
             &PoseSolveOptions {
                 max_iterations: 300,
                 tolerance: 1e-12,
+                ground_iterations: 0,
             },
             PoseStart::Warm(last),
             &|| false,

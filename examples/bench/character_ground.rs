@@ -10,6 +10,16 @@ use bevy_wii_deform::deform::{Handle, RigidTransform, centroid};
 use bevy_wii_deform::pose::*;
 use glam::{DQuat, DVec3};
 
+/// Iterations a drag frame's solve may add while skin is through the ground (the default
+/// of `PoseSolveOptions` and `Poseable`); `GROUND_ITERATIONS=0` in the environment: none, as
+/// before they existed.
+static GROUND_ITERATIONS: std::sync::LazyLock<u32> = std::sync::LazyLock::new(|| {
+    std::env::var("GROUND_ITERATIONS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(PoseSolveOptions::default().ground_iterations)
+});
+
 /// Which ground.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum GroundKind {
@@ -141,6 +151,7 @@ fn drag(
         let options = PoseSolveOptions {
             max_iterations: if frame == 0 { 40 } else { 3 },
             tolerance: 0.0,
+            ground_iterations: *GROUND_ITERATIONS,
         };
         let start = match &last {
             Some(l) => PoseStart::Warm(l),

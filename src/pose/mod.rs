@@ -83,7 +83,7 @@ pub use skeleton::{
 };
 pub use solver::{
     JointHandle, PoseConstraints, PoseSolution, PoseSolveOptions, PoseSolveStats, PoseSolver,
-    PoseSolverSettings, PoseStart,
+    PoseSolverSettings, PoseStart, THROUGH_THE_GROUND,
 };
 pub use springs::{
     SpringChain, SpringCollider, SpringColliderShape, SpringError, SpringJoint, SpringRig,

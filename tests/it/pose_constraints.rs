@@ -28,6 +28,7 @@ fn solve(
     let options = PoseSolveOptions {
         max_iterations: iterations,
         tolerance: 0.0,
+        ground_iterations: 0,
     };
     solver
         .solve(constraints, &options, PoseStart::Pose(&rig.rest), &|| false)
@@ -638,6 +639,7 @@ fn a_shape_rest_pose_stays_put_and_effectors_bend_from_it() {
         let options = PoseSolveOptions {
             max_iterations: 30,
             tolerance: 0.0,
+            ground_iterations: 0,
         };
         PoseSolver::new(
             model.clone(),
@@ -729,6 +731,7 @@ fn a_solve_seeded_by_last_frames_solution_tilts_the_shape_like_a_cold_one() {
     let options = PoseSolveOptions {
         max_iterations: 40,
         tolerance: 0.0,
+        ground_iterations: 0,
     };
     for pulled in [false, true] {
         let solver = PoseSolver::new(

@@ -137,6 +137,7 @@ fn a_forward_kinematics_pose_is_recovered_from_its_handle_targets() {
     let options = PoseSolveOptions {
         max_iterations: 60,
         tolerance: 1e-12,
+        ground_iterations: 0,
     };
     let solved = solver
         .solve(&constraints, &options, PoseStart::Pose(&rig.rest), &|| {
@@ -252,6 +253,7 @@ fn pinned_joints_stay_and_a_joint_handle_reaches_its_target() {
     let options = PoseSolveOptions {
         max_iterations: 40,
         tolerance: 1e-12,
+        ground_iterations: 0,
     };
     let solved = solver
         .solve(&constraints, &options, PoseStart::Pose(&rig.rest), &|| {
@@ -282,6 +284,7 @@ fn a_warm_start_continues_where_the_last_solve_stopped() {
     let three = PoseSolveOptions {
         max_iterations: 3,
         tolerance: 0.0,
+        ground_iterations: 0,
     };
     let first = solver
         .solve(&constraints, &three, PoseStart::Pose(&rig.rest), &|| false)
@@ -311,6 +314,7 @@ fn a_warm_start_does_not_inherit_a_stalled_damping() {
     let three = PoseSolveOptions {
         max_iterations: 3,
         tolerance: 0.0,
+        ground_iterations: 0,
     };
     let calm = solver
         .solve(&constraints, &three, PoseStart::Pose(&rig.rest), &|| false)
@@ -464,6 +468,7 @@ fn drag_joint(
     let options = PoseSolveOptions {
         max_iterations: iterations,
         tolerance: 1e-9,
+        ground_iterations: 0,
     };
     let solved = solver
         .solve(&constraints, &options, PoseStart::Pose(&rig.rest), &|| {

@@ -80,6 +80,9 @@ pub struct Poseable {
     pub max_iterations: u32,
     /// Relative energy decrease below which a solve stops early (and the pose is settled).
     pub tolerance: f32,
+    /// Further iterations a solve may take while the skin is still through the ground
+    /// ([`crate::pose::PoseSolveOptions::ground_iterations`]; with [`PoseGround`]).
+    pub ground_iterations: u32,
     /// Rotation clusters (k-means in weight space).
     pub clusters: u32,
     /// Write the pose to the joints every frame (overrides a playing clip), or only when it
@@ -92,6 +95,7 @@ impl Default for Poseable {
         Self {
             max_iterations: 4,
             tolerance: 1e-5,
+            ground_iterations: 3,
             clusters: 100,
             hold_pose: true,
         }
@@ -109,6 +113,7 @@ impl Poseable {
         crate::pose::PoseSolveOptions {
             max_iterations: iterations.max(1),
             tolerance: self.tolerance.max(0.0) as f64,
+            ground_iterations: self.ground_iterations,
         }
     }
 }

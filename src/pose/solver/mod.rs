@@ -137,13 +137,24 @@ pub struct PoseSolveOptions {
     pub max_iterations: u32,
     /// Stop when the relative energy decrease of one iteration falls below this (0 = never).
     pub tolerance: f64,
+    /// Iterations past `max_iterations` a solve may take while a vertex kept above the
+    /// ground (a contact's patch, the floor) is still through it by more than
+    /// [`THROUGH_THE_GROUND`] of the model's size: a solve does not end with the skin in
+    /// the ground because its budget ran out (0: stop at `max_iterations` regardless). It
+    /// also stops there when an iteration improves by less than `tolerance`.
+    pub ground_iterations: u32,
 }
+
+/// How far (a share of the model's size) a vertex kept above the ground may still be through
+/// it when a solve stops at `max_iterations` ([`PoseSolveOptions::ground_iterations`]).
+pub const THROUGH_THE_GROUND: f64 = 1e-3;
 
 impl Default for PoseSolveOptions {
     fn default() -> Self {
         Self {
             max_iterations: 10,
             tolerance: 1e-6,
+            ground_iterations: 3,
         }
     }
 }

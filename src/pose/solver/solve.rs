@@ -16,6 +16,7 @@ use super::holds::QBlocks;
 use super::step::{DampedSystem, Objective};
 use super::{
     PoseConstraints, PoseSolution, PoseSolveOptions, PoseSolveStats, PoseSolver, PoseStart,
+    THROUGH_THE_GROUND,
 };
 use crate::deform::RigidTransform;
 use crate::pose::{Floor, GroundPlane, PoseError, Skeleton, SkeletonPose};
@@ -100,7 +101,15 @@ impl PoseSolver {
         let mut b = vec![0.0; b_pen.len()];
         let mut scratch = HessianScratch::take();
         let mut last = f64::NAN;
-        for it in 0..options.max_iterations {
+        // Past the budget only while the skin is through the ground.
+        let through = THROUGH_THE_GROUND * self.model.topology().bounding_diagonal();
+        for it in 0..options
+            .max_iterations
+            .saturating_add(options.ground_iterations)
+        {
+            if it >= options.max_iterations && !current.gaps.iter().any(|g| *g < -through) {
+                break;
+            }
             if cancel() {
                 stats.cancelled = true;
                 break;

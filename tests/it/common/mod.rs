@@ -96,6 +96,7 @@ pub fn solve_pose(
     let options = PoseSolveOptions {
         max_iterations: iterations,
         tolerance: 0.0,
+        ground_iterations: 0,
     };
     solver.solve(constraints, &options, start, &|| false)
 }
