@@ -75,15 +75,54 @@ fn under(ground: &dyn Ground, p: DVec3, size: f64) -> Option<GroundPlane> {
     ground.cast_down(p + DVec3::Y * 10.0 * size, DVec3::NEG_Y, 20.0 * size)
 }
 
-/// The drag, with or without balance; `handle` dragged 30 % of the size along +X and a little
-/// down over 30 frames of 3 warm iterations, contacts tracked every frame, after a frame that
+/// How far the handle is dragged, as shares of the size: the first that topples the
+/// character without balance (in either direction) is the drag measured.
+const REACHES: [f64; 3] = [0.3, 0.45, 0.6];
+
+/// The horizontal direction across the feet (joint positions `feet`): square to the line
+/// they spread along most — a biped's left to right, a quadruped's nose to tail — so that a
+/// drag along it leaves the support polygon where it is narrowest. +X for one foot or feet
+/// spread evenly every way; the sign puts it on the +X (else +Z) side.
+fn across_the_feet(feet: &[DVec3]) -> DVec3 {
+    let n = feet.len().max(1) as f64;
+    let mean = feet.iter().sum::<DVec3>() / n;
+    // The horizontal (x, z) covariance and its principal axis.
+    let (mut xx, mut xz, mut zz) = (0.0, 0.0, 0.0);
+    for p in feet {
+        let d = *p - mean;
+        xx += d.x * d.x;
+        xz += d.x * d.z;
+        zz += d.z * d.z;
+    }
+    let spread = ((xx - zz) * (xx - zz) + 4.0 * xz * xz).sqrt();
+    if feet.len() < 2 || spread <= 1e-9 * (xx + zz) {
+        return DVec3::X;
+    }
+    // The larger eigenvalue's eigenvector of [[xx, xz], [xz, zz]].
+    let along = if xz.abs() > 1e-12 * (xx + zz) {
+        DVec3::new(xz, 0.0, (zz - xx + spread) / 2.0)
+    } else if xx >= zz {
+        DVec3::X
+    } else {
+        DVec3::Z
+    };
+    let across = DVec3::Y.cross(along).normalize();
+    if across.x < -1e-9 || (across.x.abs() <= 1e-9 && across.z < 0.0) {
+        -across
+    } else {
+        across
+    }
+}
+
+/// The drag, with or without balance; `handle` dragged `reach` `along` a direction and a
+/// little down over 30 frames of 3 warm iterations, contacts tracked every frame, after a frame that
 /// stands the character on the ground; every skin vertex near the ground kept above it.
 fn drag(
     model: &Arc<SkinnedModel>,
     pose: &SkeletonPose,
     handle: &[u32],
     ground: &dyn Ground,
-    balance: bool,
+    (along, reach, balance): (DVec3, f64, bool),
 ) -> Run {
     let size = model.topology().bounding_diagonal();
     let down = DVec3::NEG_Y;
@@ -110,7 +149,7 @@ fn drag(
         vertices: handle.to_vec(),
         transform: RigidTransform::new(
             DQuat::IDENTITY,
-            DVec3::new(reach, -0.2 * reach, 0.0),
+            along * reach - DVec3::Y * 0.2 * reach,
             pivot,
         ),
     };
@@ -135,9 +174,9 @@ fn drag(
                 .count();
         }
         let support = tracker.support();
-        let reach = 0.3 * size * frame as f64 / 30.0;
+        let reached = reach * frame as f64 / 30.0;
         let constraints = PoseConstraints {
-            handles: vec![drag_to(reach)],
+            handles: vec![drag_to(reached)],
             contacts: tracker.active(),
             floor: Some(Floor::cast(&model.skin_welded(now), ground, &sampling).0),
             balance: (balance && !support.is_empty()).then(|| Balance {
@@ -264,8 +303,38 @@ pub fn run(
     let feet_centre =
         feet.iter().map(|&j| globals[j].translation).sum::<DVec3>() / feet.len().max(1) as f64;
     let ground = ground_for(kind, &rest, feet_centre, size);
-    let with = drag(model, pose, handle, ground.as_ref(), balance);
-    let without = drag(model, pose, handle, ground.as_ref(), false);
+    let feet_at: Vec<DVec3> = feet.iter().map(|&j| globals[j].translation).collect();
+    // The drag that topples the character without balance: across the feet, outwards from
+    // them through the handle, or back across them, the shortest reach first (a biped's
+    // T-posed hand pulled forward turns the torso and keeps the centre of mass over the feet;
+    // the mannequin on steps topples only backwards).
+    let outwards = (centroid(&rest, handle) - feet_centre) * DVec3::new(1.0, 0.0, 1.0);
+    let across = across_the_feet(&feet_at);
+    let directions = [
+        across,
+        outwards.try_normalize().unwrap_or(DVec3::X),
+        -across,
+    ];
+    let drags = REACHES
+        .iter()
+        .flat_map(|&r| directions.iter().map(move |&d| (d, r * size)));
+    let mut tried = None;
+    for (along, reach) in drags {
+        let without = drag(model, pose, handle, ground.as_ref(), (along, reach, false));
+        let topples = without.supported < without.with_support;
+        tried = Some((along, reach, without));
+        if topples {
+            break;
+        }
+    }
+    let (along, reach, without) = tried.expect("a drag");
+    let with = drag(
+        model,
+        pose,
+        handle,
+        ground.as_ref(),
+        (along, reach, balance),
+    );
     let mut ms = with.ms.clone();
     ms.sort_by(f64::total_cmp);
     let mut errors = with.sole_errors_deg.clone();
@@ -280,6 +349,8 @@ pub fn run(
         "ground": format!("{kind:?}").to_lowercase(),
         "balance": balance,
         "feet": feet.len(),
+        "drag_direction": [along.x, along.y, along.z],
+        "drag_reach": reach / size,
         "constrained_ms_per_solve": pick(&ms, 0.5),
         "penetration_max": with.penetration_max,
         "sole_normal_error_deg_p95": pick(&errors, 0.95),
