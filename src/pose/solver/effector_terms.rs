@@ -10,7 +10,9 @@ use super::params::Param;
 use crate::pose::balance::{Balance, SupportPolygon};
 use crate::pose::contacts::{Contact, GroundPlane};
 
+mod floor_groups;
 mod ground;
+mod sums;
 mod system;
 use crate::pose::effectors::{
     CentroidEffector, Effector, EffectorGoal, ReferenceStiffness, StiffnessWeighting,
@@ -18,6 +20,7 @@ use crate::pose::effectors::{
 use crate::pose::skeleton::rotation_of;
 use crate::pose::{PoseError, Skeleton, VertexInfluences};
 pub(crate) use ground::{contact_hold_weight, validate_ground};
+use sums::{VertexSums, apply, centroid_of, joint_sums, vertex_sums};
 
 /// An effector of weight 1 weighs this many joint pins.
 const EFFECTOR_STRENGTH: f64 = 100.0;
@@ -111,6 +114,8 @@ pub(crate) struct ExtraTerms<'a> {
     /// those of its joints only.
     joint_movers: &'a [Vec<u32>],
     length_scale: f64,
+    /// The floor's terms in groups with one bound each (`floor_groups.rs`).
+    floor_groups: floor_groups::FloorGroups,
 }
 
 /// The inputs a solve needs to build its extra terms.
@@ -263,7 +268,8 @@ impl<'a> ExtraTerms<'a> {
                 weight: lw * strength(c.weight),
             });
         }
-        ground::push_terms(&mut terms, (skeleton.len(), bind_origins), input, lw);
+        let floor = ground::push_terms(&mut terms, (skeleton.len(), bind_origins), input, lw);
+        let floor_groups = floor_groups::group_floor(&terms, floor, skeleton.len());
         if let Some(s) = input.stiffness {
             let scale = |j: usize| match s.weighting {
                 StiffnessWeighting::Uniform => 1.0,
@@ -293,6 +299,7 @@ impl<'a> ExtraTerms<'a> {
             bind_origins,
             joint_movers,
             length_scale: input.length_scale,
+            floor_groups,
         }
     }
 
@@ -322,13 +329,16 @@ impl<'a> ExtraTerms<'a> {
 
     /// Calls `each` with every term's weight and residual (stacked 3-vectors, at most four)
     /// at `globals` / `skinning`, in term order, and for a vertex kept above the ground its
-    /// height above the ground's skin (`None` for other terms); no allocation but the
-    /// rotation cache.
+    /// height above the ground's skin (`None` for other terms) — but `certain` with a lower
+    /// bound of that height for a floor vertex whose group is certainly well above its ground
+    /// (`floor_groups.rs`: its residual is zero); no allocation but the rotation cache and
+    /// the groups' bounds.
     fn for_each_residual(
         &self,
         globals: &[DAffine3],
         skinning: &[DAffine3],
         mut each: impl FnMut(&Term, f64, &Rows<DVec3>, Option<f64>),
+        mut certain: impl FnMut(f64),
     ) {
         let l = self.length_scale;
         // Each joint's world rotation once (a stiffness term reads its joint's and its
@@ -338,7 +348,13 @@ impl<'a> ExtraTerms<'a> {
         // How far each skinning matrix moved since the start: a vertex certainly well above
         // its ground is not skinned.
         let drift = self.drift(skinning);
-        for term in &self.terms {
+        // Floor groups certainly well above their ground: their vertices are not skinned.
+        let passing = self.floor_groups.passing(&drift, ground::NEAR_CONTACT * l);
+        for (i, term) in self.terms.iter().enumerate() {
+            if let Some(bound) = self.floor_groups.group_of(i).and_then(|g| passing[g]) {
+                certain(bound);
+                continue;
+            }
             let mut gap = None;
             let (weight, rows) = match term {
                 Term::Position {
@@ -427,10 +443,16 @@ impl<'a> ExtraTerms<'a> {
     ) -> f64 {
         gaps.clear();
         let mut sum = 0.0;
-        self.for_each_residual(globals, skinning, |_, w, r, gap| {
-            sum += w * r.iter().map(|v| v.length_squared()).sum::<f64>();
-            gaps.extend(gap);
-        });
+        let gaps = std::cell::RefCell::new(gaps);
+        self.for_each_residual(
+            globals,
+            skinning,
+            |_, w, r, gap| {
+                sum += w * r.iter().map(|v| v.length_squared()).sum::<f64>();
+                gaps.borrow_mut().extend(gap);
+            },
+            |bound| gaps.borrow_mut().push(bound),
+        );
         sum
     }
 
@@ -552,92 +574,6 @@ impl<'a> ExtraTerms<'a> {
             }
         })
     }
-}
-
-/// Per joint, `Σ_v m_v w_vj (b_v, 1)` over `(vertex, m_v)`: a weighted centroid of skinned
-/// vertices as `Σ_j S_j m_j` ([`centroid_of`]); joints with no share left out.
-fn joint_sums(
-    joints: usize,
-    input: &ExtraInputs<'_>,
-    vertices: impl Iterator<Item = (u32, f64)>,
-) -> Vec<(usize, DVec4)> {
-    let mut per_joint: Vec<DVec4> = vec![DVec4::ZERO; joints];
-    for (v, m) in vertices {
-        let b = input.bind[v as usize];
-        for &(j, w) in &input.influences[v as usize] {
-            if w != 0.0 {
-                per_joint[j as usize] += DVec4::new(b.x, b.y, b.z, 1.0) * (w * m);
-            }
-        }
-    }
-    per_joint
-        .into_iter()
-        .enumerate()
-        .filter(|(_, m)| *m != DVec4::ZERO)
-        .collect()
-}
-
-/// [`joint_sums`] of one vertex at weight 1 (its influences, each joint once), without the
-/// dense per-joint pass and on the stack: one-vertex terms (a contact's or the floor's) are
-/// hundreds a solve.
-fn vertex_sums(input: &ExtraInputs<'_>, v: u32) -> VertexSums {
-    let b = input.bind[v as usize];
-    let mut sums = VertexSums {
-        entries: [(0, DVec4::ZERO); 4],
-        len: 0,
-    };
-    for &(j, w) in &input.influences[v as usize] {
-        if w == 0.0 {
-            continue;
-        }
-        let m = DVec4::new(b.x, b.y, b.z, 1.0) * w;
-        let len = sums.len;
-        match sums.entries[..len]
-            .iter_mut()
-            .find(|(k, _)| *k == j as usize)
-        {
-            Some((_, sum)) => *sum += m,
-            None => {
-                sums.entries[len] = (j as usize, m);
-                sums.len += 1;
-            }
-        }
-    }
-    let mut kept = 0;
-    for k in 0..sums.len {
-        if sums.entries[k].1 != DVec4::ZERO {
-            sums.entries[kept] = sums.entries[k];
-            kept += 1;
-        }
-    }
-    sums.len = kept;
-    sums.entries[..kept].sort_unstable_by_key(|(j, _)| *j);
-    sums
-}
-
-/// One vertex's [`JointSums`] (at most four joints), kept in its term.
-#[derive(Clone, Copy)]
-struct VertexSums {
-    entries: [(usize, DVec4); 4],
-    len: usize,
-}
-
-impl std::ops::Deref for VertexSums {
-    type Target = JointSums;
-
-    fn deref(&self) -> &JointSums {
-        &self.entries[..self.len]
-    }
-}
-
-/// `Σ_j S_j m_j` (homogeneous weighted sums).
-fn centroid_of(sums: &[(usize, DVec4)], skinning: &[DAffine3]) -> DVec3 {
-    sums.iter().map(|&(j, m)| apply(&skinning[j], m)).sum()
-}
-
-/// An affine applied to a homogeneous point `(x, y, z, w)`.
-fn apply(a: &DAffine3, m: DVec4) -> DVec3 {
-    a.matrix3 * m.truncate() + a.translation * m.w
 }
 
 fn columns(m: &DMat3) -> Rows<DVec3> {

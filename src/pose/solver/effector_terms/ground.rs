@@ -28,7 +28,7 @@ const SOLE_TURN: f64 = 3.0;
 const CONTACT_SKIN: f64 = 1e-3;
 /// A vertex less than this share of the model's size above its ground's skin is near contact
 /// ([`ExtraTerms::near_contact`]).
-const NEAR_CONTACT: f64 = 5e-3;
+pub(super) const NEAR_CONTACT: f64 = 5e-3;
 /// A near-contact vertex's curvature in the step's model against its non-penetration weight:
 /// a position effector's worth (a thousandth of the ground's push).
 const NEAR_CURVATURE: f64 = 1e-3;
@@ -94,14 +94,14 @@ pub(crate) fn contact_hold_weight(joint_weight: f64) -> f64 {
 }
 
 /// Appends the contacts', the floor's and balance's terms of `input` (`lw`: a position
-/// effector's weight at weight 1).
+/// effector's weight at weight 1); returns where the floor's are.
 /// (`bind_origins`: each joint's position in the bind pose.)
 pub(super) fn push_terms(
     terms: &mut Vec<Term>,
     (joints, bind_origins): (usize, &[DVec3]),
     input: &ExtraInputs<'_>,
     lw: f64,
-) {
+) -> std::ops::Range<usize> {
     // Contacts: every patch vertex above its ground; a planted one held where it touched,
     // its joint's up turned to the ground's normal.
     let above = ABOVE_OVER_HOLD * CONTACT_STRENGTH * lw;
@@ -138,9 +138,11 @@ pub(super) fn push_terms(
             });
         }
     }
+    let floor_start = terms.len();
     for &(v, plane) in input.floor {
         terms.push(above_term(v, plane));
     }
+    let floor = floor_start..terms.len();
     if let Some((b, masses)) = input.balance {
         let total: f64 = masses.iter().sum();
         if total > 0.0 {
@@ -156,6 +158,7 @@ pub(super) fn push_terms(
             });
         }
     }
+    floor
 }
 
 impl ExtraTerms<'_> {

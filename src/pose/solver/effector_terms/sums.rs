@@ -1,0 +1,92 @@
+//! Weighted sums of skinned vertices as per-joint sums: a centroid (or one vertex) of the
+//! skin is `Σ_j S_j m_j` in the skinning matrices `S_j`, with `m_j` summed once per solve.
+
+use glam::{DAffine3, DVec3, DVec4};
+
+use super::{ExtraInputs, JointSums};
+
+/// Per joint, `Σ_v m_v w_vj (b_v, 1)` over `(vertex, m_v)`: a weighted centroid of skinned
+/// vertices as `Σ_j S_j m_j` ([`centroid_of`]); joints with no share left out.
+pub(super) fn joint_sums(
+    joints: usize,
+    input: &ExtraInputs<'_>,
+    vertices: impl Iterator<Item = (u32, f64)>,
+) -> Vec<(usize, DVec4)> {
+    let mut per_joint: Vec<DVec4> = vec![DVec4::ZERO; joints];
+    for (v, m) in vertices {
+        let b = input.bind[v as usize];
+        for &(j, w) in &input.influences[v as usize] {
+            if w != 0.0 {
+                per_joint[j as usize] += DVec4::new(b.x, b.y, b.z, 1.0) * (w * m);
+            }
+        }
+    }
+    per_joint
+        .into_iter()
+        .enumerate()
+        .filter(|(_, m)| *m != DVec4::ZERO)
+        .collect()
+}
+
+/// [`joint_sums`] of one vertex at weight 1 (its influences, each joint once), without the
+/// dense per-joint pass and on the stack: one-vertex terms (a contact's or the floor's) are
+/// hundreds a solve.
+pub(super) fn vertex_sums(input: &ExtraInputs<'_>, v: u32) -> VertexSums {
+    let b = input.bind[v as usize];
+    let mut sums = VertexSums {
+        entries: [(0, DVec4::ZERO); 4],
+        len: 0,
+    };
+    for &(j, w) in &input.influences[v as usize] {
+        if w == 0.0 {
+            continue;
+        }
+        let m = DVec4::new(b.x, b.y, b.z, 1.0) * w;
+        let len = sums.len;
+        match sums.entries[..len]
+            .iter_mut()
+            .find(|(k, _)| *k == j as usize)
+        {
+            Some((_, sum)) => *sum += m,
+            None => {
+                sums.entries[len] = (j as usize, m);
+                sums.len += 1;
+            }
+        }
+    }
+    let mut kept = 0;
+    for k in 0..sums.len {
+        if sums.entries[k].1 != DVec4::ZERO {
+            sums.entries[kept] = sums.entries[k];
+            kept += 1;
+        }
+    }
+    sums.len = kept;
+    sums.entries[..kept].sort_unstable_by_key(|(j, _)| *j);
+    sums
+}
+
+/// One vertex's [`JointSums`] (at most four joints), kept in its term.
+#[derive(Clone, Copy)]
+pub(super) struct VertexSums {
+    entries: [(usize, DVec4); 4],
+    len: usize,
+}
+
+impl std::ops::Deref for VertexSums {
+    type Target = JointSums;
+
+    fn deref(&self) -> &JointSums {
+        &self.entries[..self.len]
+    }
+}
+
+/// `Σ_j S_j m_j` (homogeneous weighted sums).
+pub(super) fn centroid_of(sums: &[(usize, DVec4)], skinning: &[DAffine3]) -> DVec3 {
+    sums.iter().map(|&(j, m)| apply(&skinning[j], m)).sum()
+}
+
+/// An affine applied to a homogeneous point `(x, y, z, w)`.
+pub(super) fn apply(a: &DAffine3, m: DVec4) -> DVec3 {
+    a.matrix3 * m.truncate() + a.translation * m.w
+}
