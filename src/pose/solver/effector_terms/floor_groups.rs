@@ -20,10 +20,13 @@ use super::Term;
 /// others, enough that the test is rare.
 const GROUP: usize = 16;
 
+/// A floor term in no group (not a vertex kept above the ground: none is made).
+const NO_GROUP: u32 = u32::MAX;
+
 /// The floor's terms in groups ([`group_floor`]).
 pub(super) struct FloorGroups {
     /// Where the floor's terms are among the solve's.
-    pub(super) terms: Range<usize>,
+    terms: Range<usize>,
     /// Each floor term's group.
     group_of: Vec<u32>,
     groups: Vec<FloorGroup>,
@@ -55,17 +58,24 @@ impl FloorGroups {
                         let (turn, origin) = drift.get(j).copied().unwrap_or((f64::INFINITY, 0.0));
                         turn * r + origin
                     })
-                    .fold(0.0f64, f64::max);
+                    // (A NaN motion stays NaN, and the group is then tested vertex by vertex.)
+                    .fold(
+                        0.0f64,
+                        |most, m| if m > most || m.is_nan() { m } else { most },
+                    );
                 let bound = g.min_start_gap - g.weight_sum * moved;
                 (bound > near).then_some(bound)
             })
             .collect()
     }
 
-    /// The group of term `i` (`None` outside the floor).
+    /// The group of term `i` (`None` outside the floor's groups).
     pub(super) fn group_of(&self, i: usize) -> Option<usize> {
         let k = i.checked_sub(self.terms.start)?;
-        self.group_of.get(k).map(|&g| g as usize)
+        self.group_of
+            .get(k)
+            .filter(|&&g| g != NO_GROUP)
+            .map(|&g| g as usize)
     }
 }
 
@@ -87,7 +97,7 @@ pub(super) fn group_floor(terms: &[Term], floor: Range<usize>, joints: usize) ->
             ..
         } = term
         else {
-            out.group_of.push(u32::MAX);
+            out.group_of.push(NO_GROUP);
             continue;
         };
         let top = sums
@@ -247,5 +257,12 @@ mod tests {
             failed += groups.iter().filter(|g| g.is_none()).count();
         }
         assert!(passed > 0 && failed > 0, "passed {passed}, failed {failed}");
+        // A joint whose motion is not a number passes none of the groups it carries.
+        let drift = vec![(0.0, 0.0), (f64::NAN, 0.0), (0.0, 0.0)];
+        let nan = terms.floor_groups.passing(&drift, f64::NEG_INFINITY);
+        for (g, group) in terms.floor_groups.groups.iter().enumerate() {
+            let carried = group.reach.iter().any(|(j, _)| *j == 1);
+            assert_eq!(nan[g].is_none(), carried, "group {g}");
+        }
     }
 }
