@@ -20,6 +20,7 @@ use crate::pose::effectors::{
 use crate::pose::skeleton::rotation_of;
 use crate::pose::{PoseError, Skeleton, VertexInfluences};
 pub(crate) use ground::{contact_hold_weight, validate_ground};
+pub(crate) use sums::mass_sums;
 use sums::{VertexSums, apply, centroid_of, joint_sums, vertex_sums};
 
 /// An effector of weight 1 weighs this many joint pins.
@@ -120,8 +121,8 @@ pub(crate) struct ExtraTerms<'a> {
 
 /// The inputs a solve needs to build its extra terms.
 pub(crate) struct ExtraInputs<'a> {
-    /// Balance with its mass per welded vertex.
-    pub balance: Option<(&'a Balance, &'a [f64])>,
+    /// Balance with its centre of mass as per-joint sums ([`mass_sums`]).
+    pub balance: Option<(&'a Balance, &'a [(usize, DVec4)])>,
     /// How much further inside its polygon than [`Balance::required_inside`] the centre of
     /// mass is asked to be this solve ([`super::PoseSolution::balance_boost`], world units).
     pub balance_boost: f64,
@@ -258,7 +259,7 @@ impl<'a> ExtraTerms<'a> {
             let n = c.vertices.len() as f64;
             let sums = joint_sums(
                 skeleton.len(),
-                input,
+                (input.bind, input.influences),
                 c.vertices.iter().map(|&v| (v, 1.0 / n)),
             );
             let at_reference = centroid_of(&sums, input.reference_skinning);
@@ -268,7 +269,7 @@ impl<'a> ExtraTerms<'a> {
                 weight: lw * strength(c.weight),
             });
         }
-        let floor = ground::push_terms(&mut terms, (skeleton.len(), bind_origins), input, lw);
+        let floor = ground::push_terms(&mut terms, bind_origins, input, lw);
         let floor_groups = floor_groups::group_floor(&terms, floor, skeleton.len());
         if let Some(s) = input.stiffness {
             let scale = |j: usize| match s.weighting {

@@ -272,6 +272,9 @@ pub struct PoseSolver {
     joint_movers: Vec<Vec<u32>>,
     /// Each joint's position in the bind pose.
     bind_origins: Vec<DVec3>,
+    /// The centre of mass of the skin at its area masses as per-joint sums, once balance is
+    /// asked for (the same every solve: a model's thousands of vertices summed once).
+    area_mass_sums: std::sync::OnceLock<Vec<(usize, DVec4)>>,
     handle_sums: Vec<SetSums>,
     fixed_b: Vec<f64>,
     fixed_c: f64,
@@ -352,6 +355,7 @@ impl PoseSolver {
             params,
             joint_movers,
             bind_origins,
+            area_mass_sums: std::sync::OnceLock::new(),
             model,
             constraints: constraints.clone(),
             q_blocks,

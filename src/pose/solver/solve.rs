@@ -7,10 +7,10 @@ use std::borrow::Cow;
 
 use web_time::Instant;
 
-use glam::{DAffine3, DQuat};
+use glam::{DAffine3, DQuat, DVec4};
 
 use super::arap::{ClusterFit, q_times_into};
-use super::effector_terms::{ExtraInputs, ExtraTerms, validate, validate_ground};
+use super::effector_terms::{ExtraInputs, ExtraTerms, mass_sums, validate, validate_ground};
 use super::gauss_newton::HessianScratch;
 use super::holds::QBlocks;
 use super::step::{DampedSystem, Objective};
@@ -324,7 +324,17 @@ impl PoseSolver {
         let reference_skinning = skinning(&self.reference_globals, skeleton);
         let start_skinning = skinning(&skeleton.global_transforms(start), skeleton);
         let balance = constraints.balance.as_ref().filter(|b| b.weight > 0.0);
-        let masses = balance.map(|b| b.masses.as_deref().unwrap_or(self.model.area_masses()));
+        // The centre of mass as per-joint sums: the area masses' kept, given masses' summed.
+        let skin = (self.model.bind_positions(), self.model.influences());
+        let joints = skeleton.len();
+        let mass_sums: Option<Cow<[(usize, DVec4)]>> = balance.map(|b| match b.masses.as_deref() {
+            Some(masses) => Cow::Owned(mass_sums(joints, skin, masses)),
+            None => Cow::Borrowed(
+                &self
+                    .area_mass_sums
+                    .get_or_init(|| mass_sums(joints, skin, self.model.area_masses()))[..],
+            ),
+        });
         // The floor's active set: the vertices near or below it where this solve starts.
         let floor: Cow<[(u32, GroundPlane)]> = match &constraints.floor {
             None => Cow::Borrowed(&[]),
@@ -341,7 +351,7 @@ impl PoseSolver {
         ExtraTerms::new(
             (skeleton, &self.joint_movers, &self.bind_origins),
             &ExtraInputs {
-                balance: balance.zip(masses),
+                balance: balance.zip(mass_sums.as_deref()),
                 balance_boost,
                 contacts: &constraints.contacts,
                 floor: &floor,

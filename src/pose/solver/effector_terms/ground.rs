@@ -6,8 +6,8 @@
 use glam::{DMat3, DVec3};
 
 use super::{
-    EFFECTOR_STRENGTH, ExtraInputs, ExtraTerms, JointSums, Term, centroid_of, joint_sums, outer,
-    strength, vertex_sums,
+    EFFECTOR_STRENGTH, ExtraInputs, ExtraTerms, JointSums, Term, centroid_of, outer, strength,
+    vertex_sums,
 };
 use crate::pose::balance::SupportPolygon;
 use crate::pose::{Floor, GroundPlane, PoseConstraints, PoseError};
@@ -98,7 +98,7 @@ pub(crate) fn contact_hold_weight(joint_weight: f64) -> f64 {
 /// (`bind_origins`: each joint's position in the bind pose.)
 pub(super) fn push_terms(
     terms: &mut Vec<Term>,
-    (joints, bind_origins): (usize, &[DVec3]),
+    bind_origins: &[DVec3],
     input: &ExtraInputs<'_>,
     lw: f64,
 ) -> std::ops::Range<usize> {
@@ -143,20 +143,15 @@ pub(super) fn push_terms(
         terms.push(above_term(v, plane));
     }
     let floor = floor_start..terms.len();
-    if let Some((b, masses)) = input.balance {
-        let total: f64 = masses.iter().sum();
-        if total > 0.0 {
-            let per_vertex = masses
-                .iter()
-                .enumerate()
-                .map(|(v, m)| (v as u32, m / total));
-            terms.push(Term::Balance {
-                sums: joint_sums(joints, input, per_vertex),
-                polygon: SupportPolygon::new(&b.support, b.gravity),
-                margin: b.required_inside() + input.balance_boost,
-                weight: BALANCE_STRENGTH * lw * strength(b.weight),
-            });
-        }
+    if let Some((b, sums)) = input.balance
+        && !sums.is_empty()
+    {
+        terms.push(Term::Balance {
+            sums: sums.to_vec(),
+            polygon: SupportPolygon::new(&b.support, b.gravity),
+            margin: b.required_inside() + input.balance_boost,
+            weight: BALANCE_STRENGTH * lw * strength(b.weight),
+        });
     }
     floor
 }

@@ -4,18 +4,19 @@
 use glam::{DAffine3, DVec3, DVec4};
 
 use super::{ExtraInputs, JointSums};
+use crate::pose::VertexInfluences;
 
 /// Per joint, `Σ_v m_v w_vj (b_v, 1)` over `(vertex, m_v)`: a weighted centroid of skinned
 /// vertices as `Σ_j S_j m_j` ([`centroid_of`]); joints with no share left out.
 pub(super) fn joint_sums(
     joints: usize,
-    input: &ExtraInputs<'_>,
+    (bind, influences): (&[DVec3], &[VertexInfluences]),
     vertices: impl Iterator<Item = (u32, f64)>,
 ) -> Vec<(usize, DVec4)> {
     let mut per_joint: Vec<DVec4> = vec![DVec4::ZERO; joints];
     for (v, m) in vertices {
-        let b = input.bind[v as usize];
-        for &(j, w) in &input.influences[v as usize] {
+        let b = bind[v as usize];
+        for &(j, w) in &influences[v as usize] {
             if w != 0.0 {
                 per_joint[j as usize] += DVec4::new(b.x, b.y, b.z, 1.0) * (w * m);
             }
@@ -26,6 +27,25 @@ pub(super) fn joint_sums(
         .enumerate()
         .filter(|(_, m)| *m != DVec4::ZERO)
         .collect()
+}
+
+/// The centre of mass of the skin as per-joint sums ([`joint_sums`] of each welded vertex at
+/// its share of `masses`); empty when the masses do not add up to anything. The same for
+/// every solve of a model with the same masses: the solver keeps the area masses' ones.
+pub(crate) fn mass_sums(
+    joints: usize,
+    skin: (&[DVec3], &[VertexInfluences]),
+    masses: &[f64],
+) -> Vec<(usize, DVec4)> {
+    let total: f64 = masses.iter().sum();
+    if !(total > 0.0 && total.is_finite()) {
+        return Vec::new();
+    }
+    let shares = masses
+        .iter()
+        .enumerate()
+        .map(|(v, m)| (v as u32, m / total));
+    joint_sums(joints, skin, shares)
 }
 
 /// [`joint_sums`] of one vertex at weight 1 (its influences, each joint once), without the
