@@ -177,3 +177,28 @@ fn a_pose_error_is_reflected_and_scenes_skip_it() {
     let loaded = target.world().get::<PoseStatus>(map[&character]).unwrap();
     assert_eq!(loaded.joints, 3);
 }
+
+/// A `Poseable` written before `ground_iterations` existed (the field missing from its RON)
+/// loads with the default (through `#[reflect(Default)]`), not an error or zero.
+#[test]
+fn a_poseable_saved_before_ground_iterations_loads_with_the_default() {
+    use bevy::reflect::FromReflect;
+    use bevy::reflect::serde::TypedReflectDeserializer;
+    use serde::de::DeserializeSeed;
+    let app = registry_app();
+    let registry = app.world().resource::<AppTypeRegistry>().read();
+    let registration = registry.get(std::any::TypeId::of::<Poseable>()).unwrap();
+    let old = "(max_iterations: 6, tolerance: 0.001, clusters: 40, hold_pose: false)";
+    let mut ron = ron::Deserializer::from_str(old).unwrap();
+    let value = TypedReflectDeserializer::new(registration, &registry)
+        .deserialize(&mut ron)
+        .expect("an old Poseable loads");
+    let loaded = Poseable::from_reflect(value.as_partial_reflect()).unwrap();
+    assert_eq!(loaded.max_iterations, 6);
+    assert_eq!(loaded.clusters, 40);
+    assert_eq!(
+        loaded.ground_iterations,
+        Poseable::default().ground_iterations
+    );
+    assert!(loaded.ground_iterations > 0);
+}

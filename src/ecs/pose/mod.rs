@@ -81,7 +81,8 @@ pub struct Poseable {
     /// Relative energy decrease below which a solve stops early (and the pose is settled).
     pub tolerance: f32,
     /// Further iterations a solve may take while the skin is still through the ground
-    /// ([`crate::pose::PoseSolveOptions::ground_iterations`]; with [`PoseGround`]).
+    /// ([`crate::pose::PoseSolveOptions::ground_iterations`]; with [`PoseGround`]). A scene
+    /// saved before it existed loads with the default (`#[reflect(Default)]`).
     pub ground_iterations: u32,
     /// Rotation clusters (k-means in weight space).
     pub clusters: u32,
@@ -95,7 +96,7 @@ impl Default for Poseable {
         Self {
             max_iterations: 4,
             tolerance: 1e-5,
-            ground_iterations: 3,
+            ground_iterations: crate::pose::PoseSolveOptions::default().ground_iterations,
             clusters: 100,
             hold_pose: true,
         }
