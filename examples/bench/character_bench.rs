@@ -38,8 +38,8 @@
 //!   25° slope or on steps by automatic contacts, its handle dragged over 30 frames of 3 warm
 //!   iterations (up to 3 more while skin is through the ground) by the first drag that topples
 //!   it without balance — across its feet, outwards through the handle or back across them,
-//!   30, 45 or 60 % of its size (`drag_direction`, `drag_reach`): `constrained_ms_per_solve` (median, contacts and
-//!   balance active), `penetration_max` (deepest skin vertex below the ground / size),
+//!   30, 45 or 60 % of its size (`drag_direction`, `drag_reach`): `constrained_ms_per_solve`
+//!   (median, contacts and balance active), `penetration_max` (deepest skin vertex below the ground / size),
 //!   `sole_normal_error_deg_p95` (planted joints' up against their ground's normal),
 //!   `soles_at_limit_share` (planted soles more than 3° off the normal), `planted_slide_max`
 //!   (/ size per frame), `com_supported_share`, `com_margin_min` (/ size), the same share

@@ -115,8 +115,9 @@ fn across_the_feet(feet: &[DVec3]) -> DVec3 {
 }
 
 /// The drag, with or without balance; `handle` dragged `reach` `along` a direction and a
-/// little down over 30 frames of 3 warm iterations, contacts tracked every frame, after a frame that
-/// stands the character on the ground; every skin vertex near the ground kept above it.
+/// little down over 30 frames of 3 warm iterations, contacts tracked every frame, after a
+/// frame that stands the character on the ground; every skin vertex near the ground kept
+/// above it.
 fn drag(
     model: &Arc<SkinnedModel>,
     pose: &SkeletonPose,

@@ -101,6 +101,23 @@ impl Scene {
     fn flat_ground(&self) -> GroundPlane {
         GroundPlane::new(DVec3::Y * self.lowest, DVec3::Y).unwrap()
     }
+
+    /// One plane under the body at its lowest point, with the band `PoseGround` uses (30 % of
+    /// the size).
+    fn flat_floor(&self) -> Floor {
+        Floor::Plane {
+            plane: self.flat_ground(),
+            band: 0.3 * self.size,
+        }
+    }
+
+    /// The lowest skinned vertex's height above the flat ground (negative: under it).
+    fn lowest_height(&self, pose: &SkeletonPose) -> f64 {
+        self.skinned(pose)
+            .iter()
+            .map(|p| p.y - self.lowest)
+            .fold(f64::INFINITY, f64::min)
+    }
 }
 
 /// The angle (degrees) between the ankle's bind-pose up, carried by the ankle, and `normal`.
@@ -230,18 +247,8 @@ fn a_planted_foot_holds_under_a_pull_and_lifts_when_released() {
 #[test]
 fn a_body_dragged_into_the_floor_stops_at_it() {
     let s = scene();
-    // The band `PoseGround` uses (30 % of the size).
-    let floor = Floor::Plane {
-        plane: s.flat_ground(),
-        band: 0.3 * s.size,
-    };
-    let deepest = |floor: Option<Floor>| {
-        let pose = s.drag_hips_down(|_| floor.clone());
-        s.skinned(&pose)
-            .iter()
-            .map(|p| p.y - s.lowest)
-            .fold(f64::INFINITY, f64::min)
-    };
+    let floor = s.flat_floor();
+    let deepest = |floor: Option<Floor>| s.lowest_height(&s.drag_hips_down(|_| floor.clone()));
     let sunk = deepest(None);
     assert!(
         sunk < -0.1 * s.size,
@@ -254,15 +261,13 @@ fn a_body_dragged_into_the_floor_stops_at_it() {
 /// Issue 42: a solve whose iteration budget runs out with the skin through the ground takes
 /// up to `ground_iterations` more, until no vertex is more than `THROUGH_THE_GROUND` of the
 /// size below it. The body's hips pulled down into a floor 40 % of its height further each
-/// frame (the first frame solved to convergence, then one warm iteration a frame): without them the skin ends frames in the floor (the
-/// test says so, so it can fail); with them no frame does, and most frames need none.
+/// frame (the first frame solved to convergence, then one warm iteration a frame): without
+/// them the skin ends frames in the floor (the test says so, so it can fail); with them no
+/// frame does, and most frames need none.
 #[test]
 fn a_solve_does_not_stop_with_the_skin_in_the_ground() {
     let s = scene();
-    let floor = Floor::Plane {
-        plane: s.flat_ground(),
-        band: 0.3 * s.size,
-    };
+    let floor = s.flat_floor();
     let hips = joint_positions(&s.rig.skeleton, &s.rig.rest)[HIPS];
     let pulled = |frame: usize| PoseConstraints {
         effectors: vec![Effector {
@@ -305,11 +310,7 @@ fn a_solve_does_not_stop_with_the_skin_in_the_ground() {
             let solved = solver
                 .solve(&pulled(frame), &options, start, &|| false)
                 .unwrap();
-            let deepest = s
-                .skinned(&solved.pose)
-                .iter()
-                .map(|p| (s.lowest - p.y) / s.size)
-                .fold(f64::NEG_INFINITY, f64::max);
+            let deepest = -s.lowest_height(&solved.pose) / s.size;
             if frame > 1 {
                 frames.push((deepest, solved.stats.iterations));
             }
@@ -327,7 +328,8 @@ fn a_solve_does_not_stop_with_the_skin_in_the_ground() {
     for (frame, &(deepest, iterations)) in settled.iter().enumerate() {
         assert!(
             deepest <= THROUGH_THE_GROUND,
-            "frame {frame}: a vertex is {deepest} of the size in the floor ({iterations} iterations)"
+            "frame {frame}: a vertex is {deepest} of the size in the floor \
+             ({iterations} iterations)"
         );
     }
     let extra = settled.iter().filter(|f| f.1 > 1).count();
@@ -372,10 +374,7 @@ fn a_floor_cast_on_steps_holds_the_foot_over_the_higher_step() {
             Some(if cast {
                 Floor::cast(&s.skinned(now), &steps, &sampling).0
             } else {
-                Floor::Plane {
-                    plane: s.flat_ground(),
-                    band: 0.3 * s.size,
-                }
+                s.flat_floor()
             })
         });
         s.skinned(&pose)

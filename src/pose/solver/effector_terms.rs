@@ -577,6 +577,38 @@ impl<'a> ExtraTerms<'a> {
     }
 }
 
+/// Test terms: only a floor — every vertex of `bind` (its skin `influences`) kept above its
+/// plane in `under`, the joints at rest (identity skinning), size 1.
+#[cfg(test)]
+fn floor_only<'a>(
+    (skeleton, movers, bind_origins): (&'a Skeleton, &'a [Vec<u32>], &'a [DVec3]),
+    (bind, influences): (&[DVec3], &[VertexInfluences]),
+    under: &[(u32, GroundPlane)],
+) -> ExtraTerms<'a> {
+    let rest = vec![DAffine3::IDENTITY; skeleton.len()];
+    ExtraTerms::new(
+        (skeleton, movers, bind_origins),
+        &ExtraInputs {
+            balance: None,
+            balance_boost: 0.0,
+            contacts: &[],
+            floor: under,
+            effectors: &[],
+            centroids: &[],
+            stiffness: None,
+            reference_globals: &rest,
+            reference_skinning: &rest,
+            start_skinning: &rest,
+            influences,
+            relative_inertia: &vec![1.0; skeleton.len()],
+            bind,
+            joint_weight: 1.0,
+            vertex_weight: 1.0,
+            length_scale: 1.0,
+        },
+    )
+}
+
 fn columns(m: &DMat3) -> Rows<DVec3> {
     Rows::of(&[m.x_axis, m.y_axis, m.z_axis])
 }

@@ -140,7 +140,7 @@ pub(super) fn group_floor(terms: &[Term], floor: Range<usize>, joints: usize) ->
 mod tests {
     use glam::{DAffine3, DQuat, DVec3};
 
-    use super::super::{ExtraInputs, ExtraTerms, Term};
+    use super::super::Term;
     use crate::pose::{GroundPlane, Joint, Skeleton, VertexInfluences};
 
     /// A chain of three joints up the y axis (bind origins at y = 0, 1, 2).
@@ -198,28 +198,8 @@ mod tests {
             .collect();
         let ground = GroundPlane::new(DVec3::Y * -0.3, DVec3::Y).unwrap();
         let under: Vec<(u32, GroundPlane)> = (0..bind.len() as u32).map(|v| (v, ground)).collect();
-        let rest = [DAffine3::IDENTITY; 3];
-        let terms = ExtraTerms::new(
-            (&skeleton, &movers, &origins),
-            &ExtraInputs {
-                balance: None,
-                balance_boost: 0.0,
-                contacts: &[],
-                floor: &under,
-                effectors: &[],
-                centroids: &[],
-                stiffness: None,
-                reference_globals: &rest,
-                reference_skinning: &rest,
-                start_skinning: &rest,
-                influences: &influences,
-                relative_inertia: &[1.0; 3],
-                bind: &bind,
-                joint_weight: 1.0,
-                vertex_weight: 1.0,
-                length_scale: 1.0,
-            },
-        );
+        let terms =
+            super::super::floor_only((&skeleton, &movers, &origins), (&bind, &influences), &under);
         let mut passed = 0;
         let mut failed = 0;
         for (turn, ankle) in [(0.01, 0.0), (0.05, -0.1), (-0.2, 0.3), (1.4, 1.2)] {

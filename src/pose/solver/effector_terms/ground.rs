@@ -344,7 +344,7 @@ mod tests {
     use glam::{DAffine3, DVec3};
 
     use super::super::super::params::Param;
-    use super::super::{EFFECTOR_STRENGTH, ExtraInputs, ExtraTerms};
+    use super::super::{EFFECTOR_STRENGTH, ExtraTerms};
     use crate::pose::{GroundPlane, Joint, Skeleton};
 
     /// A one-joint bar (its joint at the origin).
@@ -368,26 +368,10 @@ mod tests {
     ) -> ExtraTerms<'a> {
         let one = [(0u32, 1.0), (0, 0.0), (0, 0.0), (0, 0.0)];
         let under: Vec<(u32, GroundPlane)> = (0..bind.len() as u32).map(|v| (v, floor)).collect();
-        ExtraTerms::new(
+        super::super::floor_only(
             (skeleton, movers, &[DVec3::ZERO]),
-            &ExtraInputs {
-                balance: None,
-                balance_boost: 0.0,
-                contacts: &[],
-                floor: &under,
-                effectors: &[],
-                centroids: &[],
-                stiffness: None,
-                reference_globals: &[DAffine3::IDENTITY],
-                reference_skinning: &[DAffine3::IDENTITY],
-                start_skinning: &[DAffine3::IDENTITY],
-                influences: &vec![one; bind.len()],
-                relative_inertia: &[1.0],
-                bind,
-                joint_weight: 1.0,
-                vertex_weight: 1.0,
-                length_scale: 1.0,
-            },
+            (bind, &vec![one; bind.len()]),
+            &under,
         )
     }
 
