@@ -109,12 +109,15 @@ impl Floor {
             if !p.is_finite() {
                 continue;
             }
-            // The highest of the surrounding nodes' planes at this vertex.
-            let coarse = grid
-                .around(*p)
-                .filter_map(|k| nodes[k])
-                .min_by(|a, b| a.height(*p).total_cmp(&b.height(*p)));
-            let height = coarse.map_or(f64::NEG_INFINITY, |c| c.height(*p));
+            // The highest of the surrounding nodes' planes at this vertex (the first of equals).
+            let mut coarse: Option<GroundPlane> = None;
+            let mut height = f64::NEG_INFINITY;
+            for plane in grid.around(*p).filter_map(|k| nodes[k]) {
+                let h = plane.height(*p);
+                if coarse.is_none() || h.total_cmp(&height).is_lt() {
+                    (coarse, height) = (Some(plane), h);
+                }
+            }
             if coarse.is_some() && height >= sampling.band {
                 continue;
             }
@@ -242,7 +245,7 @@ mod tests {
     #[test]
     fn each_vertex_near_the_ground_gets_the_level_under_it_and_far_ones_are_left_out() {
         // y = 0 for x < 0, 0.3 beyond.
-        let ground = crate::pose::ground::two_levels(0.0, 3.0);
+        let ground = crate::pose::triangle_ground::two_levels(0.0, 3.0);
         let sampling = FloorSampling {
             down: DVec3::NEG_Y,
             band: 0.5,

@@ -12,12 +12,13 @@
 //!   height, and reports casts that hit nothing (the contact is free) or returned a non-finite
 //!   hit (ignored, the contact keeps its last ground).
 
-use glam::{DVec2, DVec3};
+use glam::DVec3;
 
 use super::contacts::{Contact, GroundPlane};
 use super::gait::GaitPhases;
 use super::model::SkinnedModel;
 use super::skeleton::SkeletonPose;
+pub use super::triangle_ground::TriangleGround;
 
 /// A sole's thickness, as a share of the model's size (its bounding diagonal): a foot's patch
 /// is its skin within this of its lowest vertex ([`sole_patch`] as the tracker uses it).
@@ -50,176 +51,9 @@ impl<F: Fn(DVec3, DVec3, f64) -> Option<GroundPlane>> Ground for F {
     }
 }
 
-/// A triangle mesh as ground, with a uniform grid across gravity: a cast tests the triangles
-/// whose shadow overlaps its cell (terrain, stairs, a bent plank baked into a mesh).
-#[derive(Debug, Clone)]
-pub struct TriangleGround {
-    /// Each triangle's corners (inline: a cast reads one entry per candidate, not four).
-    corners: Vec<[DVec3; 3]>,
-    down: DVec3,
-    axes: (DVec3, DVec3),
-    origin: DVec2,
-    cell: f64,
-    size: (usize, usize),
-    /// Triangle indices per cell, cell after cell (`starts` has one more entry than cells).
-    cells: Vec<u32>,
-    starts: Vec<u32>,
-}
-
-impl TriangleGround {
-    /// The ground made of `triangles` over `positions`, cast along `gravity`. Triangles with
-    /// an index out of range or a non-finite corner are left out.
-    pub fn new(positions: Vec<DVec3>, triangles: Vec<[u32; 3]>, gravity: DVec3) -> Self {
-        let down = gravity.try_normalize().unwrap_or(DVec3::NEG_Y);
-        let x = down.any_orthonormal_vector();
-        let axes = (x, down.cross(x));
-        let flat = |p: DVec3| DVec2::new(p.dot(axes.0), p.dot(axes.1));
-        let triangles: Vec<[u32; 3]> = triangles
-            .into_iter()
-            .filter(|t| {
-                t.iter()
-                    .all(|&v| positions.get(v as usize).is_some_and(|p| p.is_finite()))
-            })
-            .collect();
-        let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
-        for t in &triangles {
-            for &v in t {
-                let p = flat(positions[v as usize]);
-                lo = lo.min(p);
-                hi = hi.max(p);
-            }
-        }
-        if triangles.is_empty() {
-            lo = DVec2::ZERO;
-            hi = DVec2::ONE;
-        }
-        // About two triangles per cell.
-        let area = ((hi.x - lo.x) * (hi.y - lo.y)).max(1e-12);
-        let cell = (area / (triangles.len().max(1) as f64 / 2.0))
-            .sqrt()
-            .max(1e-9);
-        let size = (
-            (((hi.x - lo.x) / cell).ceil() as usize).clamp(1, 4096),
-            (((hi.y - lo.y) / cell).ceil() as usize).clamp(1, 4096),
-        );
-        let cell = ((hi.x - lo.x) / size.0 as f64)
-            .max((hi.y - lo.y) / size.1 as f64)
-            .max(1e-9);
-        let index = |p: DVec2| {
-            let c = ((p - lo) / cell).floor();
-            (
-                (c.x.max(0.0) as usize).min(size.0 - 1),
-                (c.y.max(0.0) as usize).min(size.1 - 1),
-            )
-        };
-        let mut per_cell: Vec<Vec<u32>> = vec![Vec::new(); size.0 * size.1];
-        for (k, t) in triangles.iter().enumerate() {
-            let pts = t.map(|v| flat(positions[v as usize]));
-            let (a, b) = (
-                index(pts[0].min(pts[1]).min(pts[2])),
-                index(pts[0].max(pts[1]).max(pts[2])),
-            );
-            for i in a.0..=b.0 {
-                for j in a.1..=b.1 {
-                    per_cell[j * size.0 + i].push(k as u32);
-                }
-            }
-        }
-        let corners = triangles
-            .iter()
-            .map(|t| t.map(|v| positions[v as usize]))
-            .collect();
-        let mut starts = Vec::with_capacity(per_cell.len() + 1);
-        let mut cells = Vec::new();
-        starts.push(0);
-        for c in per_cell {
-            cells.extend(c);
-            starts.push(cells.len() as u32);
-        }
-        Self {
-            corners,
-            down,
-            axes,
-            origin: lo,
-            cell,
-            size,
-            cells,
-            starts,
-        }
-    }
-
-    /// The grid cell under `p`, if it is over the ground's extent.
-    fn cell_of(&self, p: DVec3) -> Option<usize> {
-        let f = DVec2::new(p.dot(self.axes.0), p.dot(self.axes.1));
-        let c = ((f - self.origin) / self.cell).floor();
-        let (i, j) = (c.x, c.y);
-        (i >= 0.0 && j >= 0.0 && (i as usize) < self.size.0 && (j as usize) < self.size.1)
-            .then(|| j as usize * self.size.0 + i as usize)
-    }
-}
-
-impl Ground for TriangleGround {
-    fn cast_down(&self, from: DVec3, down: DVec3, max: f64) -> Option<GroundPlane> {
-        if !from.is_finite() {
-            return None;
-        }
-        // The grid is across this ground's gravity; another direction tests every triangle.
-        let (cell, all): (&[u32], u32) = if down.dot(self.down) > 1.0 - 1e-9 {
-            let c = self.cell_of(from)?;
-            let cell = &self.cells[self.starts[c] as usize..self.starts[c + 1] as usize];
-            (cell, 0)
-        } else {
-            (&[], self.corners.len() as u32)
-        };
-        let candidates = cell.iter().copied().chain(0..all);
-        let mut best: Option<(f64, GroundPlane)> = None;
-        for k in candidates {
-            let [a, b, c] = self.corners[k as usize];
-            if let Some(t) = ray_triangle(from, down, a, b, c)
-                && t <= max
-                && best.as_ref().is_none_or(|(bt, _)| t < *bt)
-            {
-                let n = (b - a).cross(c - a).normalize_or_zero();
-                let n = if n.dot(down) > 0.0 { -n } else { n };
-                best = Some((
-                    t,
-                    GroundPlane {
-                        point: from + down * t,
-                        normal: n,
-                    },
-                ));
-            }
-        }
-        best.map(|(_, hit)| hit)
-    }
-}
-
 /// The length of `v` across gravity (`down`, unit).
 fn horizontal(v: DVec3, down: DVec3) -> f64 {
     (v - down * v.dot(down)).length()
-}
-
-/// Möller–Trumbore: the distance along `dir` from `o` to triangle `abc`, if hit (either side).
-fn ray_triangle(o: DVec3, dir: DVec3, a: DVec3, b: DVec3, c: DVec3) -> Option<f64> {
-    let (e1, e2) = (b - a, c - a);
-    let p = dir.cross(e2);
-    let det = e1.dot(p);
-    if det.abs() < 1e-14 {
-        return None;
-    }
-    let inv = 1.0 / det;
-    let s = o - a;
-    let u = s.dot(p) * inv;
-    if !(-1e-12..=1.0 + 1e-12).contains(&u) {
-        return None;
-    }
-    let q = s.cross(e1);
-    let v = dir.dot(q) * inv;
-    if v < -1e-12 || u + v > 1.0 + 1e-12 {
-        return None;
-    }
-    let t = e2.dot(q) * inv;
-    (t >= 0.0).then_some(t)
 }
 
 /// The joints a character stands on in `pose`: those whose most-weighted vertices reach within
@@ -552,52 +386,9 @@ impl ContactTracker {
     }
 }
 
-/// Two levels, for tests: y = 0 for x < `edge`, y = 0.3 beyond, as two quads reaching `half`
-/// either side of the edge and of z = 0.
-#[cfg(test)]
-pub(crate) fn two_levels(edge: f64, half: f64) -> TriangleGround {
-    let p = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
-    let (a, b) = (edge - half, edge + half);
-    let positions = vec![
-        p(a, 0.0, -half),
-        p(edge, 0.0, -half),
-        p(edge, 0.0, half),
-        p(a, 0.0, half),
-        p(edge, 0.3, -half),
-        p(b, 0.3, -half),
-        p(b, 0.3, half),
-        p(edge, 0.3, half),
-    ];
-    let triangles = vec![[0, 2, 1], [0, 3, 2], [4, 6, 5], [4, 7, 6]];
-    TriangleGround::new(positions, triangles, DVec3::NEG_Y)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn casts_down_find_the_step_under_them_and_miss_beyond_the_ground() {
-        let g = two_levels(1.0, 3.0);
-        let hit = g
-            .cast_down(DVec3::new(0.0, 2.0, 0.5), DVec3::NEG_Y, 5.0)
-            .unwrap();
-        assert!(hit.point.distance(DVec3::new(0.0, 0.0, 0.5)) < 1e-12);
-        assert!(hit.normal.distance(DVec3::Y) < 1e-12);
-        let hit = g
-            .cast_down(DVec3::new(2.5, 2.0, -1.0), DVec3::NEG_Y, 5.0)
-            .unwrap();
-        assert!((hit.point.y - 0.3).abs() < 1e-12);
-        assert_eq!(
-            g.cast_down(DVec3::new(9.0, 2.0, 0.0), DVec3::NEG_Y, 5.0),
-            None
-        );
-        assert_eq!(
-            g.cast_down(DVec3::new(0.0, 2.0, 0.0), DVec3::NEG_Y, 1.0),
-            None
-        );
-        assert_eq!(g.cast_down(DVec3::NAN, DVec3::NEG_Y, 1.0), None);
-    }
 
     #[test]
     fn a_plane_and_a_closure_are_grounds() {

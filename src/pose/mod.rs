@@ -59,6 +59,7 @@ mod skeleton;
 mod solver;
 pub mod springs;
 pub mod synth_rig;
+mod triangle_ground;
 
 pub use balance::{Balance, SupportPolygon, centre_of_mass, vertex_masses};
 pub use blend::{BlendMode, additive_layer_for, blend_joint, blend_pose};
