@@ -65,7 +65,7 @@ impl PoseSolver {
             let DampedStep {
                 step,
                 predicted_decrease,
-            } = solve_damped(system.h, system.g, *damping, system.pattern);
+            } = solve_damped(system.h, system.g, *damping, system.pattern, &self.params);
             if system.no_progress > 0.0 && predicted_decrease < system.no_progress {
                 return None;
             }
