@@ -12,6 +12,7 @@ use crate::pose::contacts::{Contact, GroundPlane};
 
 mod floor_groups;
 mod ground;
+mod moments;
 mod sums;
 mod system;
 use crate::pose::effectors::{
@@ -326,6 +327,19 @@ impl<'a> ExtraTerms<'a> {
     /// True when `a` is `j` or one of its ancestors.
     fn moves(&self, a: usize, j: usize) -> bool {
         self.skeleton.descends_from(j, a)
+    }
+
+    /// The deepest joint that moves every joint of `sums` (their deepest common ancestor,
+    /// or their one joint); `None` for no joints or joints of different roots.
+    fn common_carrier(&self, sums: &JointSums) -> Option<usize> {
+        let mut joints = sums.iter().map(|(j, _)| *j);
+        let mut carrier = joints.next()?;
+        for j in joints {
+            while !self.moves(carrier, j) {
+                carrier = self.skeleton.joints()[carrier].parent?;
+            }
+        }
+        Some(carrier)
     }
 
     /// Calls `each` with every term's weight and residual (stacked 3-vectors, at most four)

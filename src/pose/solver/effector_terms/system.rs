@@ -4,7 +4,8 @@
 use glam::{DAffine3, DMat3, DVec3};
 
 use super::super::params::Param;
-use super::{ExtraTerms, Rows, Term, ground, outer};
+use super::moments::RankOneSums;
+use super::{ExtraTerms, Rows, Term, ground};
 
 impl ExtraTerms<'_> {
     /// Into `movers`, the parameters that move `term` (indices into the solver's, each once:
@@ -40,10 +41,10 @@ impl ExtraTerms<'_> {
         };
         // A term's Jacobian blocks (or rows), reused term after term.
         let mut blocks: Vec<(usize, Rows<DMat3>)> = Vec::with_capacity(params.len());
-        let mut rows: Vec<(usize, DVec3)> = Vec::with_capacity(params.len());
         let mut movers = Vec::with_capacity(params.len());
         let mut seen = vec![0; params.len()];
         let mut stamp = 0;
+        let mut rank_one = RankOneSums::new(self.skeleton.len(), params.len());
         let each = |term: &Term, w: f64, r: &Rows<DVec3>, gap: Option<f64>| {
             // A vertex just above its ground is in the step's model with curvature and no
             // pull ([`ExtraTerms::near_contact`]).
@@ -63,14 +64,13 @@ impl ExtraTerms<'_> {
                 .map(|(along, _)| along)
                 .or_else(|| ground::along_the_normal(term, r))
             {
-                rows.clear();
-                rows.extend(movers.iter().filter_map(|&p| {
-                    let (a, rotation) = split(params[p as usize]);
-                    let origin = globals[a].translation;
-                    self.centroid_jacobian(sums, a, rotation, origin, skinning)
-                        .map(|b| (p as usize, b.transpose() * along))
-                }));
-                system.add_rows(&rows, 2.0 * w, depth);
+                rank_one.add(
+                    self,
+                    &mut system,
+                    (sums, along, depth),
+                    (2.0 * w, &movers),
+                    (params, globals, skinning),
+                );
                 return;
             }
             blocks.clear();
@@ -82,11 +82,12 @@ impl ExtraTerms<'_> {
         };
         // (A group of vertices certainly above their ground adds nothing.)
         self.for_each_residual(globals, skinning, each, |_| {});
+        rank_one.finish(self, &mut system, (params, globals));
     }
 }
 
 /// A parameter's joint, and whether it is a rotation (else a root's translation).
-fn split(param: Param) -> (usize, bool) {
+pub(super) fn split(param: Param) -> (usize, bool) {
     match param {
         Param::Rotation(a) => (a, true),
         Param::Translation(a) => (a, false),
@@ -94,15 +95,15 @@ fn split(param: Param) -> (usize, bool) {
 }
 
 /// The Gauss–Newton system being summed into (`h`: `n × n` row-major).
-struct System<'s> {
+pub(super) struct System<'s> {
     n: usize,
     h: &'s mut [f64],
-    g: &'s mut [f64],
+    pub(super) g: &'s mut [f64],
 }
 
 impl System<'_> {
     /// Adds `s` times the block at parameters `(a, b)`, and its transpose at `(b, a)`.
-    fn add_pair(&mut self, (a, b): (usize, usize), m: DMat3, s: f64) {
+    pub(super) fn add_pair(&mut self, (a, b): (usize, usize), m: DMat3, s: f64) {
         let n = self.n;
         for r in 0..3 {
             for c in 0..3 {
@@ -131,19 +132,6 @@ impl System<'_> {
                     m += x.transpose() * *y;
                 }
                 self.add_pair((*pa, *pb), m, s);
-            }
-        }
-    }
-
-    /// `s JᵀJ` and `s Jᵀr` for a single residual number `depth` with Jacobian `rows` (one
-    /// 3-vector per parameter).
-    fn add_rows(&mut self, rows: &[(usize, DVec3)], s: f64, depth: f64) {
-        for (i, &(pa, ua)) in rows.iter().enumerate() {
-            for k in 0..3 {
-                self.g[pa * 3 + k] += s * ua[k] * depth;
-            }
-            for &(pb, ub) in &rows[i..] {
-                self.add_pair((pa, pb), outer(ua, ub), s);
             }
         }
     }

@@ -1,0 +1,339 @@
+//! The one-number terms (a vertex under or near its ground, along the ground's normal `n`)
+//! summed by their moments instead of pair by pair of parameters.
+//!
+//! A term's row for a parameter that moves every joint carrying its vertex — the joints'
+//! deepest common ancestor `L` and every joint above it, the root's translation — depends on
+//! the parameter only through the joint's origin `o`: with `x` the vertex's skinned position
+//! times its weights' sum `M`, a turn about `o` moves it by `(x − M o) × n = c − o × m`
+//! along `n` (`c = x × n`, `m = M n`), a root translation by `m`. Their Gauss–Newton block
+//! `Σ s u_a u_bᵀ` over every vertex carried whole by `L` is then
+//! `α_a α_b C_cc + α_a C_cm B_bᵀ + α_b B_a C_cmᵀ + B_a C_mm B_bᵀ` (a turn: `α = 1`,
+//! `B = −[o]×`; a translation: `α = 0`, `B = I`) in the moments `C_cc = Σ s c cᵀ`,
+//! `C_cm = Σ s c mᵀ`, `C_mm = Σ s m mᵀ` — summed once per vertex, expanded once per pair of
+//! parameters per `L` (a foot's), not once per pair per vertex. Only the parameters below `L`
+//! that move part of a vertex (a toe's share of a vertex the foot and the toe carry) are
+//! still paired term by term. The sums are the same as pair by pair, up to rounding.
+
+use glam::{DAffine3, DMat3, DVec3};
+
+use super::super::params::Param;
+use super::sums::apply;
+use super::system::{System, split};
+use super::{ExtraTerms, JointSums, outer, skew};
+
+/// The moments of the terms carried whole by one joint (see the module docs).
+#[derive(Debug, Clone, Copy)]
+struct Moments {
+    cc: DMat3,
+    cm: DMat3,
+    mm: DMat3,
+    /// `Σ s d c` and `Σ s d m` (`d`: the term's depth).
+    gc: DVec3,
+    gm: DVec3,
+    used: bool,
+}
+
+/// One-number terms being summed into a system (see the module docs).
+pub(super) struct RankOneSums {
+    /// Per joint, the moments of the terms it is the deepest common carrier of.
+    per_joint: Vec<Moments>,
+    /// Per parameter, the stamp of the last term it moves whole.
+    whole: Vec<u32>,
+    stamp: u32,
+    /// A term's rows for the parameters that move part of it, and for those that move it
+    /// whole (reused term after term).
+    partial_rows: Vec<(usize, DVec3)>,
+    whole_rows: Vec<(usize, DVec3)>,
+}
+
+/// A parameter's row coefficients: `u = α c + B m` (see the module docs).
+fn coefficients(param: Param, globals: &[DAffine3]) -> (f64, DMat3) {
+    match param {
+        Param::Rotation(a) => (1.0, -skew(globals[a].translation)),
+        Param::Translation(_) => (0.0, DMat3::IDENTITY),
+    }
+}
+
+impl Moments {
+    /// No terms (glam's default matrix is the identity, not zero).
+    const NONE: Self = Self {
+        cc: DMat3::ZERO,
+        cm: DMat3::ZERO,
+        mm: DMat3::ZERO,
+        gc: DVec3::ZERO,
+        gm: DVec3::ZERO,
+        used: false,
+    };
+}
+
+impl RankOneSums {
+    /// Empty sums for a skeleton of `joints` and `params` parameters.
+    pub(super) fn new(joints: usize, params: usize) -> Self {
+        Self {
+            per_joint: vec![Moments::NONE; joints],
+            whole: vec![0; params],
+            stamp: 0,
+            partial_rows: Vec::new(),
+            whole_rows: Vec::new(),
+        }
+    }
+
+    /// Adds `s uuᵀ` and `s d u` of the term whose vertex is `sums`, along `along` at depth
+    /// `d`, moved by `movers` (indices into `params`).
+    pub(super) fn add(
+        &mut self,
+        terms: &ExtraTerms,
+        system: &mut System,
+        (sums, along, depth): (&JointSums, DVec3, f64),
+        (s, movers): (f64, &[u32]),
+        (params, globals, skinning): (&[Param], &[DAffine3], &[DAffine3]),
+    ) {
+        self.stamp += 1;
+        let carrier = terms.common_carrier(sums);
+        if let Some(l) = carrier {
+            for &p in &terms.joint_movers[l] {
+                self.whole[p as usize] = self.stamp;
+            }
+        }
+        self.partial_rows.clear();
+        for &p in movers {
+            if self.whole[p as usize] == self.stamp {
+                continue;
+            }
+            let (a, rotation) = split(params[p as usize]);
+            let origin = globals[a].translation;
+            if let Some(b) = terms.centroid_jacobian(sums, a, rotation, origin, skinning) {
+                self.partial_rows.push((p as usize, b.transpose() * along));
+            }
+        }
+        self.whole_rows.clear();
+        if let Some(l) = carrier {
+            let (x, mass) = sums.iter().fold((DVec3::ZERO, 0.0), |(x, mass), (j, m)| {
+                (x + apply(&skinning[*j], *m), mass + m.w)
+            });
+            let (c, m) = (x.cross(along), along * mass);
+            let moments = &mut self.per_joint[l];
+            moments.cc += outer(c, c) * s;
+            moments.cm += outer(c, m) * s;
+            moments.mm += outer(m, m) * s;
+            moments.gc += c * (s * depth);
+            moments.gm += m * (s * depth);
+            moments.used = true;
+            if !self.partial_rows.is_empty() {
+                self.whole_rows
+                    .extend(terms.joint_movers[l].iter().map(|&p| {
+                        let (alpha, b) = coefficients(params[p as usize], globals);
+                        (p as usize, c * alpha + b * m)
+                    }));
+            }
+        }
+        for (i, &(pa, ua)) in self.partial_rows.iter().enumerate() {
+            for k in 0..3 {
+                system.g[pa * 3 + k] += s * ua[k] * depth;
+            }
+            for &(pb, ub) in self.partial_rows[i..].iter().chain(&self.whole_rows) {
+                system.add_pair((pa, pb), outer(ua, ub), s);
+            }
+        }
+    }
+
+    /// Adds the moments' blocks and gradients to `system`.
+    pub(super) fn finish(
+        &self,
+        terms: &ExtraTerms,
+        system: &mut System,
+        (params, globals): (&[Param], &[DAffine3]),
+    ) {
+        for (l, moments) in self.per_joint.iter().enumerate() {
+            if !moments.used {
+                continue;
+            }
+            let whole: Vec<(usize, f64, DMat3)> = terms.joint_movers[l]
+                .iter()
+                .map(|&p| {
+                    let (alpha, b) = coefficients(params[p as usize], globals);
+                    (p as usize, alpha, b)
+                })
+                .collect();
+            for (i, &(pa, alpha_a, b_a)) in whole.iter().enumerate() {
+                let g = moments.gc * alpha_a + b_a * moments.gm;
+                for k in 0..3 {
+                    system.g[pa * 3 + k] += g[k];
+                }
+                for &(pb, alpha_b, b_b) in &whole[i..] {
+                    let block = moments.cc * (alpha_a * alpha_b)
+                        + moments.cm * b_b.transpose() * alpha_a
+                        + b_a * moments.cm.transpose() * alpha_b
+                        + b_a * moments.mm * b_b.transpose();
+                    system.add_pair((pa, pb), block, 1.0);
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::{DAffine3, DQuat, DVec3};
+
+    use super::super::super::params::{Param, movers_of_joints};
+    use super::super::{ExtraTerms, floor_only, ground, outer};
+    use crate::pose::{GroundPlane, Joint, Skeleton, VertexInfluences};
+
+    /// A chain of four joints (0 → 1 → 2 → 3) with a branch (4) off joint 1, each half a unit
+    /// from its parent.
+    fn branching() -> Skeleton {
+        let parents = [None, Some(0), Some(1), Some(2), Some(1)];
+        let offsets = [
+            DVec3::ZERO,
+            DVec3::new(0.5, 0.0, 0.0),
+            DVec3::new(0.5, 0.1, 0.0),
+            DVec3::new(0.4, -0.1, 0.1),
+            DVec3::new(0.0, -0.5, 0.2),
+        ];
+        let mut globals = Vec::new();
+        let joints = parents
+            .iter()
+            .zip(offsets)
+            .enumerate()
+            .map(|(j, (parent, offset))| {
+                let frame = DAffine3::from_translation(offset);
+                let global = parent.map_or(frame, |p: usize| globals[p] * frame);
+                globals.push(global);
+                Joint {
+                    name: format!("j{j}"),
+                    parent: *parent,
+                    parent_frame: frame,
+                    inverse_bind: global.inverse(),
+                }
+            })
+            .collect();
+        Skeleton::new(joints).unwrap()
+    }
+
+    /// What the moments sum, term by term and pair by pair of parameters: each one-number
+    /// term's row for every parameter that moves it, from its Jacobian.
+    fn pairwise(
+        terms: &ExtraTerms,
+        params: &[Param],
+        (globals, skinning): (&[DAffine3], &[DAffine3]),
+    ) -> (Vec<f64>, Vec<f64>) {
+        let n = 3 * params.len();
+        let (mut h, mut g) = (vec![0.0; n * n], vec![0.0; n]);
+        terms.for_each_residual(
+            globals,
+            skinning,
+            |term, w, r, gap| {
+                let near = terms.near_contact(term, gap);
+                let w = near.map_or(w, |(_, scale)| w * scale);
+                let Some((sums, along, depth)) = near
+                    .map(|(along, _)| along)
+                    .or_else(|| ground::along_the_normal(term, r))
+                else {
+                    return;
+                };
+                let mut rows = Vec::new();
+                for (p, param) in params.iter().enumerate() {
+                    let (a, rotation) = match *param {
+                        Param::Rotation(a) => (a, true),
+                        Param::Translation(a) => (a, false),
+                    };
+                    let origin = globals[a].translation;
+                    if let Some(b) = terms.centroid_jacobian(sums, a, rotation, origin, skinning) {
+                        rows.push((p, b.transpose() * along));
+                    }
+                }
+                for &(pa, ua) in &rows {
+                    for k in 0..3 {
+                        g[pa * 3 + k] += 2.0 * w * ua[k] * depth;
+                    }
+                    for &(pb, ub) in &rows {
+                        let block = outer(ua, ub);
+                        for r in 0..3 {
+                            for c in 0..3 {
+                                h[(pa * 3 + r) * n + pb * 3 + c] += 2.0 * w * block.col(c)[r];
+                            }
+                        }
+                    }
+                }
+            },
+            |_| {},
+        );
+        (h, g)
+    }
+
+    /// Vertices carried by one joint, by a joint and its child, by two branches (their
+    /// common carrier above both), by the root and a tip, under and just above a tilted
+    /// floor, in a bent pose: the system summed by moments is the one summed pair by pair.
+    #[test]
+    fn the_moments_sum_what_the_pairs_sum() {
+        let skeleton = branching();
+        let mut params = vec![Param::Translation(0)];
+        params.extend((0..skeleton.len()).map(Param::Rotation));
+        let movers = movers_of_joints(&skeleton, &params);
+        let origins = skeleton.bind_origins();
+        let mixes: [&[(u32, f64)]; 6] = [
+            &[(3, 1.0)],
+            &[(2, 0.6), (3, 0.4)],
+            &[(3, 0.5), (4, 0.5)],
+            &[(0, 0.3), (3, 0.7)],
+            &[(4, 0.8), (1, 0.2)],
+            &[(1, 0.2), (2, 0.3), (4, 0.5)],
+        ];
+        let mut bind = Vec::new();
+        let mut influences: Vec<VertexInfluences> = Vec::new();
+        for k in 0..60 {
+            let t = k as f64;
+            bind.push(DVec3::new(
+                1.4 * (0.37 * t).sin().abs(),
+                -0.4 + 0.3 * (0.71 * t).cos(),
+                0.3 * (1.3 * t).sin(),
+            ));
+            let mut inf = [(0, 0.0); 4];
+            for (slot, &(j, w)) in inf.iter_mut().zip(mixes[k % mixes.len()]) {
+                *slot = (j, w);
+            }
+            influences.push(inf);
+        }
+        let floor =
+            GroundPlane::new(DVec3::new(0.0, -0.3, 0.0), DVec3::new(0.2, 1.0, -0.1)).unwrap();
+        let under: Vec<(u32, GroundPlane)> = (0..bind.len() as u32).map(|v| (v, floor)).collect();
+        let terms = floor_only((&skeleton, &movers, &origins), (&bind, &influences), &under);
+        // A bent pose: every joint turned a little, the root moved.
+        let mut globals = Vec::new();
+        for (j, joint) in skeleton.joints().iter().enumerate() {
+            let turn = DQuat::from_euler(
+                glam::EulerRot::XYZ,
+                0.2 * (j as f64 + 1.0).sin(),
+                0.15 * j as f64,
+                -0.1 * (j as f64).cos(),
+            );
+            let local = joint.parent_frame * DAffine3::from_quat(turn);
+            let global = match joint.parent {
+                Some(p) => globals[p] * local,
+                None => DAffine3::from_translation(DVec3::new(0.05, -0.1, 0.02)) * local,
+            };
+            globals.push(global);
+        }
+        let skinning: Vec<DAffine3> = globals
+            .iter()
+            .zip(skeleton.joints())
+            .map(|(g, j)| *g * j.inverse_bind)
+            .collect();
+        let n = 3 * params.len();
+        let (mut h, mut g) = (vec![0.0; n * n], vec![0.0; n]);
+        terms.add_system(&globals, &skinning, &params, &mut h, &mut g);
+        let (h_ref, g_ref) = pairwise(&terms, &params, (&globals, &skinning));
+        let largest = h_ref
+            .iter()
+            .chain(&g_ref)
+            .fold(0.0f64, |m, v| m.max(v.abs()));
+        assert!(largest > 1.0, "the floor acts: {largest}");
+        for (k, (a, b)) in h.iter().zip(&h_ref).chain(g.iter().zip(&g_ref)).enumerate() {
+            assert!(
+                (a - b).abs() <= 1e-10 * largest,
+                "entry {k}: {a} against {b}"
+            );
+        }
+    }
+}
