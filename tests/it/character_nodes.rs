@@ -10,6 +10,7 @@ use bevy_wii_deform::prelude::*;
 use glam::DVec3;
 use serde_json::json;
 
+use crate::common::scratch::ScratchDir;
 use crate::common::{self, drive_solves, settle_pose, spawn_handle};
 
 /// The parts the mesh is split into, by the height of each triangle's centroid (bind pose,
@@ -307,8 +308,7 @@ fn a_character_of_several_mesh_nodes_poses_as_one() {
         counts.iter().all(|&c| c > 20),
         "each part has vertices: {counts:?}"
     );
-    let dir = std::env::temp_dir().join(format!("character_nodes_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = ScratchDir::new("character_nodes");
     std::fs::write(dir.join("humanoid.glb"), glb).unwrap();
     let (mut app, root) = common::character_app(&dir, "humanoid.glb", PosePlugin);
     let posed = app.world().get::<PosedSkeleton>(root).unwrap().clone();
@@ -570,8 +570,7 @@ fn a_skin_bound_by_a_converter_poses_rigidly() {
 fn converter_rig_poses_rigidly(name: &str, layout: ConverterLayout) {
     let rig = mannequin_rig(12);
     let (glb, written, inverse_binds) = converted_glb(&rig, layout);
-    let dir = std::env::temp_dir().join(format!("character_converted_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = ScratchDir::new("character_converted");
     let file = format!("converted_{name}.glb");
     std::fs::write(dir.join(&file), &glb).unwrap();
     if let Some(keep) = std::env::var_os("BWD_WRITE_FIXTURES") {
@@ -675,8 +674,7 @@ fn converter_rig_poses_rigidly(name: &str, layout: ConverterLayout) {
 fn two_characters_from_one_asset_share_one_model_and_pose_independently() {
     let rig = mannequin_rig(12);
     let (glb, _) = three_node_glb(&rig);
-    let dir = std::env::temp_dir().join(format!("character_shared_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = ScratchDir::new("character_shared");
     std::fs::write(dir.join("humanoid.glb"), glb).unwrap();
     let (mut app, first) = common::character_app(&dir, "humanoid.glb", PosePlugin);
     let scene = common::loaded_scene(&app);

@@ -2,7 +2,7 @@
 //! and the scene load, the character poses (down to a rig of one joint), a `Deformable` on it
 //! bends, and the statuses name the missing file.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Duration;
 
 use bevy::prelude::*;
@@ -10,15 +10,13 @@ use bevy::time::TimeUpdateStrategy;
 use bevy::world_serialization::WorldAssetRoot;
 use bevy_wii_deform::prelude::*;
 
+use crate::common::scratch::ScratchDir;
 use crate::common::{drive_solves, headless_gltf, spawn_handle, update_until};
 use crate::fixtures::textured_rig::{LENGTH, MISSING_IMAGE, write_textured_rig};
 
-/// A fresh folder for this test's files.
-fn folder(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("bwd_{name}_{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// A fresh folder for this test's files (removed when the test ends).
+fn folder(name: &str) -> ScratchDir {
+    ScratchDir::new(name)
 }
 
 /// A headless app loading from `dir` with `plugins` and the file's materials as

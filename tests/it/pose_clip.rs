@@ -12,6 +12,7 @@ use bevy_wii_deform::prelude::*;
 use glam::{DQuat, DVec3, DVec4};
 
 use crate::common;
+use crate::common::scratch::ScratchDir;
 use common::{angle_between, animation_player, node_of, play_clip, show_clip_at};
 
 /// `pose` with joint `j` turned by `angle` about `axis` (in its parent's frame).
@@ -214,8 +215,7 @@ fn a_three_key_clip_plays_back_through_bevys_loader() {
     app.world_mut()
         .entity_mut(root)
         .remove::<(Poseable, PosedSkeleton)>();
-    let out = std::env::temp_dir().join(format!("pose_clip_{}", std::process::id()));
-    std::fs::create_dir_all(&out).unwrap();
+    let out = ScratchDir::new("pose_clip");
     let player = animation_player(&mut app);
     for (n, mode) in [
         KeyInterpolation::Linear,
@@ -536,7 +536,8 @@ fn a_timeline_shows_its_clip_on_the_character() {
         .map(|j| vec![j.name.clone()])
         .collect();
     paths[1] = vec!["Elsewhere".into()]; // the joint the clip turns
-    let file = std::env::temp_dir().join(format!("bad_clip_{}.glb", std::process::id()));
+    let scratch = ScratchDir::new("bad_clip");
+    let file = scratch.join("bad_clip.glb");
     std::fs::write(
         &file,
         write_gltf_clip(&clip, "x", &paths, Some(&rest)).unwrap(),
@@ -562,9 +563,9 @@ fn a_timeline_shows_its_clip_on_the_character() {
 fn the_pose_library_saves_lists_and_loads_poses() {
     use bevy_wii_deform::pose::synth_rig::mannequin_rig;
     use bevy_wii_deform::pose::{Mirror, PoseFile, PoseFileError, PoseLibrary};
-    let folder = std::env::temp_dir().join(format!("pose_library_{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&folder);
-    let library = PoseLibrary::new(&folder);
+    let folder = ScratchDir::new("pose_library");
+    std::fs::remove_dir(&*folder).unwrap(); // the library makes its folder
+    let library = PoseLibrary::new(folder.to_path_buf());
     assert_eq!(
         library.names(),
         Ok(vec![]),

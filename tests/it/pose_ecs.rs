@@ -10,6 +10,7 @@ use bevy_wii_deform::pose::synth_rig::bar_rig;
 use bevy_wii_deform::prelude::*;
 
 use crate::common;
+use crate::common::scratch::ScratchDir;
 use common::{drive_solves, pose_of, spawn_handle, spawn_rig, update_until};
 
 fn app() -> App {
@@ -200,8 +201,7 @@ fn saved_pose_plays_back_and_loads(
     });
     let glb = bevy_wii_deform::pose::write_gltf_pose_clip("pose", &tracks).unwrap();
     let ron = posed.pose_file().to_ron().unwrap();
-    let out = std::env::temp_dir().join(format!("pose_ecs_{}", std::process::id()));
-    std::fs::create_dir_all(&out).unwrap();
+    let out = ScratchDir::new("pose_ecs");
     std::fs::write(out.join("pose.glb"), glb).unwrap();
     // Let go: no handles, and stop holding the pose so the clip drives the joints.
     app.world_mut().despawn(handle);
@@ -262,7 +262,6 @@ fn saved_pose_plays_back_and_loads(
         );
         assert!((a.translation - b.translation).length() < 1e-12);
     }
-    let _ = std::fs::remove_dir_all(out);
 }
 
 /// The Fox through Bevy's own glTF loader: `Poseable` on the scene root finds the skin and

@@ -4,6 +4,7 @@
 pub mod bar;
 #[path = "../../../examples/common/headless_gltf.rs"]
 pub mod headless_gltf;
+pub mod scratch;
 pub mod shared;
 
 use bevy::asset::RenderAssetUsages;
