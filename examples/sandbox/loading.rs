@@ -661,7 +661,9 @@ mod tests {
     /// the app keeps running.
     #[test]
     fn broken_gltf_files_reach_the_status_line_and_the_app_runs_on() {
-        let (dir, files) = crate::broken_gltf::write_files("sandbox_broken_gltf");
+        let dir = std::env::temp_dir().join(format!("bwd_sandbox_gltf_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let files = crate::broken_gltf::write_files(&dir);
         let mut app = App::new();
         app.add_plugins(MinimalPlugins);
         // The broken files are read by absolute path (unapproved paths allowed).
@@ -711,5 +713,6 @@ mod tests {
         for _ in 0..5 {
             app.update();
         }
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

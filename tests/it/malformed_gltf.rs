@@ -10,6 +10,7 @@ use bevy::world_serialization::WorldAssetRoot;
 use bevy_wii_deform::prelude::*;
 
 use crate::common;
+use crate::common::scratch::ScratchDir;
 use crate::fixtures::broken_gltf::write_files;
 use bevy_wii_deform::ecs::MESH_WAIT_FRAMES;
 
@@ -39,7 +40,8 @@ fn gltf_app(dir: &Path) -> App {
 
 #[test]
 fn malformed_gltf_never_panics() {
-    let (dir, files) = write_files("bevy_wii_deform_malformed");
+    let dir = ScratchDir::new("malformed_gltf");
+    let files = write_files(&dir);
     let mut app = gltf_app(&dir);
     let roots: Vec<(Entity, &str, bool)> = files
         .iter()
