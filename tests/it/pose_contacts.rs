@@ -502,8 +502,8 @@ fn on_a_slope_too_steep_for_the_ankle_the_limit_holds_and_the_edge_touches() {
     );
     let tilt = sole_tilt_deg(&s, &pose, normal);
     assert!(
-        tilt > 10.0,
-        "the limits kept the sole off the slope's normal: {tilt:.1}°"
+        tilt > 5.0,
+        "the limits keep the sole off the slope's normal: {tilt:.1}°"
     );
     let heights: Vec<f64> = s.sole_at(&pose).iter().map(|p| slope.height(*p)).collect();
     let deepest = heights.iter().copied().fold(f64::INFINITY, f64::min);

@@ -348,6 +348,9 @@ impl TwistBlock {
 /// The least damping weight of a coordinate, as a share of the median diagonal entry of `H`
 /// among the coordinates of its kind (rotations; root translations): see [`solve_damped`].
 const DAMPING_FLOOR: f64 = 1e-3;
+/// The least damping weight of a coordinate the extra terms (effectors, the ground, balance)
+/// act on, as a share of the largest diagonal entry of its kind: see [`solve_damped`].
+const TOUCHED_FLOOR: f64 = 1e-3;
 
 /// Solves `(H + μ·D + ε I) x = −g` by a block-sparse Cholesky factorization
 /// ([`BlockCholesky`]), returned as per-parameter 3-vectors; raises the damping until the
@@ -355,18 +358,20 @@ const DAMPING_FLOOR: f64 = 1e-3;
 ///
 /// `D` is `H`'s diagonal (Marquardt's scaling, so rotations and translations of any scale
 /// are damped alike), each entry raised to at least [`DAMPING_FLOOR`] of the median of its
-/// kind. Without the floor, a coordinate the energy barely curves along (a light joint that
-/// moves a stiff term — balance, an effector — a little) is barely damped: past a point,
-/// raising `μ` makes it as cheap a way to lower that term as any other, and the step turns a
-/// thousand times as far through it (the Fox dragged against its balance took trial steps of
-/// several radians, rejected until the damping was huge). The median, not the largest entry:
-/// a stiff effector on one joint does not raise the damping of every other.
+/// kind and, where the extra terms act (`before_extras`: the diagonal before they were
+/// added; empty: nowhere), to [`TOUCHED_FLOOR`] of the largest of its kind. Without a floor,
+/// a coordinate that moves a stiff term (balance, an effector) only a little is damped by as
+/// little as it moves it: past a point, raising `μ` makes it as cheap a way to lower that
+/// term as any other, and the step turns it `1/j` times as far (a rig dragged against its
+/// balance took trial steps of 4–300 rad, longer as the damping rose, and rejected 15–20 a
+/// solve). The floor from the largest entry only where the extra terms act: a stiff effector
+/// on the wrist must not damp a knee that only the shape moves.
 pub(super) fn solve_damped(
     h: &[f64],
     g: &[f64],
     mu: f64,
     pattern: &BlockPattern,
-    params: &[Param],
+    (params, before_extras): (&[Param], &[f64]),
 ) -> DampedStep {
     let n = g.len();
     let diagonal = |i: usize| h[i * n + i];
@@ -383,9 +388,26 @@ pub(super) fn solve_damped(
             false => *kind.select_nth_unstable_by(middle, f64::total_cmp).1,
         }
     };
+    let largest = |rotation: bool| {
+        (0..n)
+            .filter(|&i| is_rotation(i) == rotation)
+            .map(diagonal)
+            .fold(0.0f64, f64::max)
+    };
     let floors = [median(false), median(true)].map(|m| DAMPING_FLOOR * m);
+    let touched_floors = [largest(false), largest(true)].map(|m| TOUCHED_FLOOR * m);
     let weights: Vec<f64> = (0..n)
-        .map(|i| diagonal(i).max(floors[usize::from(is_rotation(i))]))
+        .map(|i| {
+            let kind = usize::from(is_rotation(i));
+            let touched = before_extras
+                .get(i)
+                .is_some_and(|b| diagonal(i) > b + 1e-9 * diagonal(i));
+            let floor = match touched {
+                true => floors[kind].max(touched_floors[kind]),
+                false => floors[kind],
+            };
+            diagonal(i).max(floor)
+        })
         .collect();
     let mut mu = mu;
     for _ in 0..12 {
@@ -515,7 +537,7 @@ mod tests {
         let params = [Param::Rotation(0), Param::Rotation(1)];
         let pattern = BlockPattern::of(&h, n);
         let longest = |mu: f64| {
-            let x = solve_damped(&h, &g, mu, &pattern, &params).step;
+            let x = solve_damped(&h, &g, mu, &pattern, (&params, &[])).step;
             x.iter().map(|v| v.abs().max_element()).fold(0.0, f64::max)
         };
         // Barely damped: the Gauss–Newton step, by the stiff coordinate.
@@ -526,5 +548,36 @@ mod tests {
             assert!(now <= last * (1.0 + 1e-9), "μ = {mu}: {now} after {last}");
             last = now;
         }
+    }
+
+    /// Where the extra terms act, a coordinate is damped by at least a thousandth of the
+    /// largest entry of its kind; where only the shape acts, by its own curvature: a spring of
+    /// 1 beside an effector of 1e6 takes Marquardt's step, `g / (h (1 + μ))`, while the
+    /// effector's coordinates are damped from the largest entry.
+    #[test]
+    fn only_coordinates_the_extra_terms_act_on_get_the_largest_floor() {
+        let n = 6;
+        let mut h = vec![0.0; n * n];
+        let diagonal = [1e6, 1.0, 1.0, 1.0, 1.0, 1.0];
+        for (i, d) in diagonal.iter().enumerate() {
+            h[i * n + i] = *d;
+        }
+        let g = [1e6, 0.0, 0.0, 1.0, 0.0, 0.0];
+        // The effector's 1e6 on the first parameter is an extra term; the shape's springs of
+        // 1 were there before.
+        let before = [0.0, 1.0, 1.0, 1.0, 1.0, 1.0];
+        let params = [Param::Rotation(0), Param::Rotation(1)];
+        let pattern = BlockPattern::of(&h, n);
+        let mu = 0.5;
+        let step = solve_damped(&h, &g, mu, &pattern, (&params, &before)).step;
+        let marquardt = -1.0 / (1.0 + mu);
+        // (Within the solve's 1e-12 of the largest entry added to every coordinate.)
+        assert!((step[1].x - marquardt).abs() < 1e-5, "{step:?}");
+        assert!((step[0].x - marquardt).abs() < 1e-5, "{step:?}");
+        // Marked as acted on, the spring's coordinate is damped from the effector's entry.
+        let all = [0.0; 6];
+        let step = solve_damped(&h, &g, mu, &pattern, (&params, &all)).step;
+        let floored = -1.0 / (1.0 + mu * TOUCHED_FLOOR * 1e6);
+        assert!((step[1].x - floored).abs() < 1e-5, "{step:?}");
     }
 }

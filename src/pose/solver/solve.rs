@@ -139,6 +139,10 @@ impl PoseSolver {
             }
             // Levenberg–Marquardt: damp the Gauss–Newton step until it lowers the energy.
             let (mut h, mut g) = self.gauss_newton_system(&current, &objective, &mut scratch);
+            // The diagonal before the effector, floor and balance terms: the damping tells the
+            // coordinates those terms touch from the others ([`solve_damped`]).
+            let n = g.len();
+            let before_extras: Vec<f64> = (0..n).map(|i| h[i * n + i]).collect();
             if !extras.is_empty() {
                 extras.add_system(
                     &current.globals,
@@ -165,6 +169,7 @@ impl PoseSolver {
                 f0,
                 no_progress: options.tolerance * f0.abs() * 0.1,
                 pattern: &pattern,
+                before_extras: &before_extras,
             };
             let accepted = self.damped_step(
                 (&current, &mut spare),
