@@ -352,30 +352,21 @@ const DAMPING_FLOOR: f64 = 1e-3;
 /// act on, as a share of the largest diagonal entry of its kind: see [`solve_damped`].
 const TOUCHED_FLOOR: f64 = 1e-3;
 
-/// Solves `(H + μ·D + ε I) x = −g` by a block-sparse Cholesky factorization
-/// ([`BlockCholesky`]), returned as per-parameter 3-vectors; raises the damping until the
-/// matrix factors. All zeros if it never does.
+/// The damping weights `D` of [`solve_damped`]: `h`'s diagonal (Marquardt's scaling, so
+/// rotations and translations of any scale are damped alike), each entry raised to at least
+/// [`DAMPING_FLOOR`] of the median of its kind and, where `acted_on` (the effector, ground and
+/// balance terms raised it; shorter than `h`: nowhere past its end), to [`TOUCHED_FLOOR`] of
+/// the largest of its kind.
 ///
-/// `D` is `H`'s diagonal (Marquardt's scaling, so rotations and translations of any scale
-/// are damped alike), each entry raised to at least [`DAMPING_FLOOR`] of the median of its
-/// kind and, where the extra terms act (`before_extras`: the diagonal before they were
-/// added; empty: nowhere), to [`TOUCHED_FLOOR`] of the largest of its kind. Without a floor,
-/// a coordinate that moves a stiff term (balance, an effector) only a little is damped by as
-/// little as it moves it: past a point, raising `μ` makes it as cheap a way to lower that
-/// term as any other, and the step turns it `1/j` times as far (a rig dragged against its
-/// balance took trial steps of 4–300 rad, longer as the damping rose, and rejected 15–20 a
-/// solve). The floor from the largest entry only where the extra terms act: a stiff effector
-/// on the wrist must not damp a knee that only the shape moves.
-pub(super) fn solve_damped(
-    h: &[f64],
-    g: &[f64],
-    mu: f64,
-    pattern: &BlockPattern,
-    (params, before_extras): (&[Param], &[f64]),
-) -> DampedStep {
-    let n = g.len();
+/// Without a floor, a coordinate that moves a stiff term (balance, an effector) only a little
+/// is damped by as little as it moves it: past a point, raising `μ` makes it as cheap a way
+/// to lower that term as any other, and the step turns it `1/j` times as far (a rig dragged
+/// against its balance took trial steps of 4–300 rad, longer as the damping rose, and
+/// rejected 15–20 a solve). The floor from the largest entry only where those terms act: a
+/// stiff effector on the wrist must not damp a knee that only the shape moves.
+pub(super) fn damping_weights(h: &[f64], params: &[Param], acted_on: &[bool]) -> Vec<f64> {
+    let n = params.len() * 3;
     let diagonal = |i: usize| h[i * n + i];
-    let scale = (0..n).map(diagonal).fold(0.0f64, f64::max).max(1e-300);
     let is_rotation = |i: usize| matches!(params.get(i / 3), Some(Param::Rotation(_)));
     let median = |rotation: bool| {
         let mut kind: Vec<f64> = (0..n)
@@ -395,20 +386,34 @@ pub(super) fn solve_damped(
             .fold(0.0f64, f64::max)
     };
     let floors = [median(false), median(true)].map(|m| DAMPING_FLOOR * m);
-    let touched_floors = [largest(false), largest(true)].map(|m| TOUCHED_FLOOR * m);
-    let weights: Vec<f64> = (0..n)
+    let acted_floors = [largest(false), largest(true)].map(|m| TOUCHED_FLOOR * m);
+    (0..n)
         .map(|i| {
             let kind = usize::from(is_rotation(i));
-            let touched = before_extras
-                .get(i)
-                .is_some_and(|b| diagonal(i) > b + 1e-9 * diagonal(i));
-            let floor = match touched {
-                true => floors[kind].max(touched_floors[kind]),
-                false => floors[kind],
+            let floor = match acted_on.get(i) {
+                Some(true) => floors[kind].max(acted_floors[kind]),
+                _ => floors[kind],
             };
             diagonal(i).max(floor)
         })
-        .collect();
+        .collect()
+}
+
+/// Solves `(H + μ·D + ε I) x = −g` by a block-sparse Cholesky factorization
+/// ([`BlockCholesky`]), returned as per-parameter 3-vectors; raises the damping until the
+/// matrix factors. All zeros if it never does. `D`: `weights` ([`damping_weights`]).
+pub(super) fn solve_damped(
+    h: &[f64],
+    g: &[f64],
+    mu: f64,
+    pattern: &BlockPattern,
+    weights: &[f64],
+) -> DampedStep {
+    let n = g.len();
+    let scale = (0..n)
+        .map(|i| h[i * n + i])
+        .fold(0.0f64, f64::max)
+        .max(1e-300);
     let mut mu = mu;
     for _ in 0..12 {
         let shift: Vec<f64> = weights.iter().map(|w| mu * w + 1e-12 * scale).collect();
@@ -537,7 +542,8 @@ mod tests {
         let params = [Param::Rotation(0), Param::Rotation(1)];
         let pattern = BlockPattern::of(&h, n);
         let longest = |mu: f64| {
-            let x = solve_damped(&h, &g, mu, &pattern, (&params, &[])).step;
+            let weights = damping_weights(&h, &params, &[]);
+            let x = solve_damped(&h, &g, mu, &pattern, &weights).step;
             x.iter().map(|v| v.abs().max_element()).fold(0.0, f64::max)
         };
         // Barely damped: the Gauss–Newton step, by the stiff coordinate.
@@ -565,18 +571,19 @@ mod tests {
         let g = [1e6, 0.0, 0.0, 1.0, 0.0, 0.0];
         // The effector's 1e6 on the first parameter is an extra term; the shape's springs of
         // 1 were there before.
-        let before = [0.0, 1.0, 1.0, 1.0, 1.0, 1.0];
+        let acted_on = [true, false, false, false, false, false];
         let params = [Param::Rotation(0), Param::Rotation(1)];
         let pattern = BlockPattern::of(&h, n);
         let mu = 0.5;
-        let step = solve_damped(&h, &g, mu, &pattern, (&params, &before)).step;
+        let weights = damping_weights(&h, &params, &acted_on);
+        let step = solve_damped(&h, &g, mu, &pattern, &weights).step;
         let marquardt = -1.0 / (1.0 + mu);
         // (Within the solve's 1e-12 of the largest entry added to every coordinate.)
         assert!((step[1].x - marquardt).abs() < 1e-5, "{step:?}");
         assert!((step[0].x - marquardt).abs() < 1e-5, "{step:?}");
         // Marked as acted on, the spring's coordinate is damped from the effector's entry.
-        let all = [0.0; 6];
-        let step = solve_damped(&h, &g, mu, &pattern, (&params, &all)).step;
+        let weights = damping_weights(&h, &params, &[true; 6]);
+        let step = solve_damped(&h, &g, mu, &pattern, &weights).step;
         let floored = -1.0 / (1.0 + mu * TOUCHED_FLOOR * 1e6);
         assert!((step[1].x - floored).abs() < 1e-5, "{step:?}");
     }

@@ -11,7 +11,7 @@ use glam::{DAffine3, DQuat, DVec4};
 
 use super::arap::{ClusterFit, q_times_into};
 use super::effector_terms::{ExtraInputs, ExtraTerms, mass_sums, validate, validate_ground};
-use super::gauss_newton::HessianScratch;
+use super::gauss_newton::{HessianScratch, damping_weights};
 use super::holds::QBlocks;
 use super::step::{DampedSystem, Objective};
 use super::{
@@ -139,10 +139,10 @@ impl PoseSolver {
             }
             // Levenberg–Marquardt: damp the Gauss–Newton step until it lowers the energy.
             let (mut h, mut g) = self.gauss_newton_system(&current, &objective, &mut scratch);
-            // The diagonal before the effector, floor and balance terms: the damping tells the
-            // coordinates those terms touch from the others ([`solve_damped`]).
+            // The coordinates the effector, floor and balance terms act on (their diagonal
+            // grew): the damping's floor tells them from the others ([`damping_weights`]).
             let n = g.len();
-            let before_extras: Vec<f64> = (0..n).map(|i| h[i * n + i]).collect();
+            let before: Vec<f64> = (0..n).map(|i| h[i * n + i]).collect();
             if !extras.is_empty() {
                 extras.add_system(
                     &current.globals,
@@ -152,6 +152,9 @@ impl PoseSolver {
                     &mut g,
                 );
             }
+            let acted_on: Vec<bool> = (0..n)
+                .map(|i| h[i * n + i] > before[i] + 1e-9 * h[i * n + i])
+                .collect();
             if let Some(limits) = limits {
                 self.restrict_hinges(limits, &current.globals, &mut h, &mut g);
             }
@@ -162,6 +165,7 @@ impl PoseSolver {
             } else {
                 scratch.pattern_of(&h, g.len())
             };
+            let weights = damping_weights(&h, &self.params, &acted_on);
             stats.system_s += t.elapsed().as_secs_f64();
             let step = DampedSystem {
                 h: &h,
@@ -169,7 +173,7 @@ impl PoseSolver {
                 f0,
                 no_progress: options.tolerance * f0.abs() * 0.1,
                 pattern: &pattern,
-                before_extras: &before_extras,
+                weights: &weights,
             };
             let accepted = self.damped_step(
                 (&current, &mut spare),

@@ -43,8 +43,8 @@ pub(super) struct DampedSystem<'a> {
     pub(super) no_progress: f64,
     /// Where `h`'s Cholesky factor has non-zero blocks.
     pub(super) pattern: &'a BlockPattern,
-    /// `h`'s diagonal before the extra terms (effectors, the ground, balance) were added.
-    pub(super) before_extras: &'a [f64],
+    /// Each coordinate's damping weight ([`super::gauss_newton::damping_weights`]).
+    pub(super) weights: &'a [f64],
 }
 
 impl PoseSolver {
@@ -67,13 +67,7 @@ impl PoseSolver {
             let DampedStep {
                 step,
                 predicted_decrease,
-            } = solve_damped(
-                system.h,
-                system.g,
-                *damping,
-                system.pattern,
-                (&self.params, system.before_extras),
-            );
+            } = solve_damped(system.h, system.g, *damping, system.pattern, system.weights);
             if system.no_progress > 0.0 && predicted_decrease < system.no_progress {
                 return None;
             }
