@@ -56,7 +56,7 @@ const EDGE_SLACK: f64 = 1e-12;
 impl Shadow {
     /// The triangle `[a, b, c]` seen along `down`, across `axes`.
     fn new([a, b, c]: [DVec3; 3], down: DVec3, axes: (DVec3, DVec3)) -> Self {
-        let flat = |p: DVec3| DVec2::new(p.dot(axes.0), p.dot(axes.1));
+        let flat = |p: DVec3| across(p, axes);
         let (e1, e2) = (flat(b) - flat(a), flat(c) - flat(a));
         let area = e1.perp_dot(e2);
         let normal = (b - a).cross(c - a).normalize_or_zero();
@@ -104,7 +104,7 @@ impl TriangleGround {
         let down = gravity.try_normalize().unwrap_or(DVec3::NEG_Y);
         let x = down.any_orthonormal_vector();
         let axes = (x, down.cross(x));
-        let flat = |p: DVec3| DVec2::new(p.dot(axes.0), p.dot(axes.1));
+        let flat = |p: DVec3| across(p, axes);
         let triangles: Vec<[u32; 3]> = triangles
             .into_iter()
             .filter(|t| {
@@ -186,7 +186,7 @@ impl TriangleGround {
 
     /// `p` across this ground's gravity.
     fn flat(&self, p: DVec3) -> DVec2 {
-        DVec2::new(p.dot(self.axes.0), p.dot(self.axes.1))
+        across(p, self.axes)
     }
 
     /// The grid cell over `f` (across gravity), if it is over the ground's extent.
@@ -255,6 +255,11 @@ impl Ground for TriangleGround {
             self.cast_every_triangle(from, down, max)
         }
     }
+}
+
+/// `p`'s coordinates along `axes` (two unit vectors across gravity).
+fn across(p: DVec3, axes: (DVec3, DVec3)) -> DVec2 {
+    DVec2::new(p.dot(axes.0), p.dot(axes.1))
 }
 
 /// Möller–Trumbore: the distance along `dir` from `o` to triangle `abc`, if hit (either side).

@@ -177,6 +177,7 @@ mod tests {
     use glam::{DAffine3, DQuat, DVec3};
 
     use super::super::super::params::{Param, movers_of_joints};
+    use super::super::system::split;
     use super::super::{ExtraTerms, floor_only, ground, outer};
     use crate::pose::{GroundPlane, Joint, Skeleton, VertexInfluences};
 
@@ -234,10 +235,7 @@ mod tests {
                 };
                 let mut rows = Vec::new();
                 for (p, param) in params.iter().enumerate() {
-                    let (a, rotation) = match *param {
-                        Param::Rotation(a) => (a, true),
-                        Param::Translation(a) => (a, false),
-                    };
+                    let (a, rotation) = split(*param);
                     let origin = globals[a].translation;
                     if let Some(b) = terms.centroid_jacobian(sums, a, rotation, origin, skinning) {
                         rows.push((p, b.transpose() * along));
