@@ -203,9 +203,13 @@ fn drag(
             .expect("a solve");
         if std::env::var("GROUND_DEBUG").is_ok() {
             eprintln!(
-                "frame {frame} balance {balance}: boost {:.5}, {} rejected steps, energies {:?}",
+                "frame {frame} balance {balance}: boost {:.5}, {} rejected steps, ms total {:.3} local {:.3} system {:.3} global {:.3} energies {:?}",
                 solved.balance_boost / size,
                 solved.stats.rejected_steps,
+                solved.stats.total_s * 1e3,
+                solved.stats.local_s * 1e3,
+                solved.stats.system_s * 1e3,
+                solved.stats.global_s * 1e3,
                 solved.stats.energies
             );
         }

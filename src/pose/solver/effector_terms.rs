@@ -471,11 +471,11 @@ impl<'a> ExtraTerms<'a> {
         sum
     }
 
-    /// The Jacobian blocks (one 3 × 3 per residual 3-vector) of a term for one parameter, at
-    /// its `residual` there.
+    /// The Jacobian blocks (one 3 × 3 per residual 3-vector) of a two-sided term for one
+    /// parameter.
     fn jacobian(
         &self,
-        (term, residual): (&Term, &Rows<DVec3>),
+        term: &Term,
         param: Param,
         globals: &[DAffine3],
         skinning: &[DAffine3],
@@ -496,12 +496,6 @@ impl<'a> ExtraTerms<'a> {
         };
         // d(direction) for a direction turned with the subtree.
         let direction = |d: DVec3| if rotation { -skew(d) } else { DMat3::ZERO };
-        // A one-sided term's point, its change projected across its boundary.
-        let one_sided = |sums: &JointSums| {
-            let across = ground::across(term, *residual.iter().next()?)?;
-            self.centroid_jacobian(sums, a, rotation, origin, skinning)
-                .map(|b| Rows::of(&[across * b]))
-        };
         match term {
             Term::Position { joint, .. } => self
                 .moves(a, *joint)
@@ -536,8 +530,9 @@ impl<'a> ExtraTerms<'a> {
             Term::Centroid { sums, .. } => self
                 .centroid_jacobian(sums, a, rotation, origin, skinning)
                 .map(|b| Rows::of(&[b])),
-            Term::Above { sums, .. } => one_sided(sums),
-            Term::Balance { sums, .. } => one_sided(sums),
+            // Summed elsewhere: a vertex along its ground's normal (`moments.rs`), balance as
+            // rank-one parts (`system.rs`).
+            Term::Above { .. } | Term::Balance { .. } => None,
             Term::Stiffness {
                 joint,
                 root_translation,

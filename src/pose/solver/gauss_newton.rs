@@ -12,6 +12,7 @@ pub(super) use super::block_cholesky::BlockPattern;
 use super::block_cholesky::nonzero_lower_blocks;
 use super::effector_terms::skew;
 use super::holds::QBlocks;
+use super::low_rank::{self, RankOne};
 use super::params::Param;
 use super::solve::Posed;
 use super::step::Objective;
@@ -364,9 +365,9 @@ const TOUCHED_FLOOR: f64 = 1e-3;
 /// against its balance took trial steps of 4–300 rad, longer as the damping rose, and
 /// rejected 15–20 a solve). The floor from the largest entry only where those terms act: a
 /// stiff effector on the wrist must not damp a knee that only the shape moves.
-pub(super) fn damping_weights(h: &[f64], params: &[Param], acted_on: &[bool]) -> Vec<f64> {
+pub(super) fn damping_weights(diagonal: &[f64], params: &[Param], acted_on: &[bool]) -> Vec<f64> {
     let n = params.len() * 3;
-    let diagonal = |i: usize| h[i * n + i];
+    let diagonal = |i: usize| diagonal[i];
     let is_rotation = |i: usize| matches!(params.get(i / 3), Some(Param::Rotation(_)));
     let median = |rotation: bool| {
         let mut kind: Vec<f64> = (0..n)
@@ -399,11 +400,17 @@ pub(super) fn damping_weights(h: &[f64], params: &[Param], acted_on: &[bool]) ->
         .collect()
 }
 
-/// Solves `(H + μ·D + ε I) x = −g` by a block-sparse Cholesky factorization
-/// ([`BlockCholesky`]), returned as per-parameter 3-vectors; raises the damping until the
-/// matrix factors. All zeros if it never does. `D`: `weights` ([`damping_weights`]).
+/// The diagonal of the `n × n` row-major `h`.
+pub(super) fn diagonal_of(h: &[f64], n: usize) -> Vec<f64> {
+    (0..n).map(|i| h[i * n + i]).collect()
+}
+
+/// Solves `(H + U S Uᵀ + μ·D + ε I) x = −g` by a block-sparse Cholesky factorization
+/// ([`BlockCholesky`]) of all but the rank-one parts `low_rank` (`U S Uᵀ`, solved with by
+/// [`low_rank::solve_with`]), returned as per-parameter 3-vectors; raises the damping until
+/// the matrix factors. All zeros if it never does. `D`: `weights` ([`damping_weights`]).
 pub(super) fn solve_damped(
-    h: &[f64],
+    (h, low_rank): (&[f64], &[RankOne]),
     g: &[f64],
     mu: f64,
     pattern: &BlockPattern,
@@ -420,7 +427,7 @@ pub(super) fn solve_damped(
         if let Some(factor) = BlockCholesky::factor(h, &shift, pattern) {
             let mut x: Vec<f64> = g.iter().map(|v| -v).collect();
             factor.solve_in_place(&mut x);
-            if x.iter().all(|v| v.is_finite()) {
+            if low_rank::solve_with(low_rank, &factor, &mut x) && x.iter().all(|v| v.is_finite()) {
                 // (H + D) x = −g, so xᵀHx = −g·x − xᵀDx: the model's decrease in O(n).
                 let gx: f64 = g.iter().zip(&x).map(|(a, b)| a * b).sum();
                 let dxx: f64 = shift.iter().zip(&x).map(|(d, v)| d * v * v).sum();
@@ -542,8 +549,8 @@ mod tests {
         let params = [Param::Rotation(0), Param::Rotation(1)];
         let pattern = BlockPattern::of(&h, n);
         let longest = |mu: f64| {
-            let weights = damping_weights(&h, &params, &[]);
-            let x = solve_damped(&h, &g, mu, &pattern, &weights).step;
+            let weights = damping_weights(&diagonal_of(&h, g.len()), &params, &[]);
+            let x = solve_damped((&h, &[]), &g, mu, &pattern, &weights).step;
             x.iter().map(|v| v.abs().max_element()).fold(0.0, f64::max)
         };
         // Barely damped: the Gauss–Newton step, by the stiff coordinate.
@@ -575,15 +582,15 @@ mod tests {
         let params = [Param::Rotation(0), Param::Rotation(1)];
         let pattern = BlockPattern::of(&h, n);
         let mu = 0.5;
-        let weights = damping_weights(&h, &params, &acted_on);
-        let step = solve_damped(&h, &g, mu, &pattern, &weights).step;
+        let weights = damping_weights(&diagonal_of(&h, g.len()), &params, &acted_on);
+        let step = solve_damped((&h, &[]), &g, mu, &pattern, &weights).step;
         let marquardt = -1.0 / (1.0 + mu);
         // (Within the solve's 1e-12 of the largest entry added to every coordinate.)
         assert!((step[1].x - marquardt).abs() < 1e-5, "{step:?}");
         assert!((step[0].x - marquardt).abs() < 1e-5, "{step:?}");
         // Marked as acted on, the spring's coordinate is damped from the effector's entry.
-        let weights = damping_weights(&h, &params, &[true; 6]);
-        let step = solve_damped(&h, &g, mu, &pattern, &weights).step;
+        let weights = damping_weights(&diagonal_of(&h, g.len()), &params, &[true; 6]);
+        let step = solve_damped((&h, &[]), &g, mu, &pattern, &weights).step;
         let floored = -1.0 / (1.0 + mu * TOUCHED_FLOOR * 1e6);
         assert!((step[1].x - floored).abs() < 1e-5, "{step:?}");
     }

@@ -5,6 +5,7 @@
 use glam::DAffine3;
 
 use super::PoseSolver;
+use super::low_rank::RankOne;
 use super::params::Param;
 use crate::pose::JointLimits;
 use crate::pose::skeleton::rotation_of;
@@ -12,12 +13,12 @@ use crate::pose::skeleton::rotation_of;
 impl PoseSolver {
     /// Restricts each hinge joint's own rotation parameter to its hinge axis (world `a`):
     /// `H ← TᵀHT + (I − T)·s`, `g ← Tᵀg` with `T = a aᵀ` on that parameter's block, so the
-    /// step turns a hinge about its axis only.
+    /// step turns a hinge about its axis only (the matrix's rank-one parts `u ← Tᵀu`).
     pub(super) fn restrict_hinges(
         &self,
         limits: &JointLimits,
         globals: &[DAffine3],
-        h: &mut [f64],
+        (h, low_rank): (&mut [f64], &mut [RankOne]),
         g: &mut [f64],
     ) {
         let np = g.len();
@@ -67,6 +68,10 @@ impl PoseSolver {
             }
             let w = proj(&g[3 * p..3 * p + 3]);
             g[3 * p..3 * p + 3].copy_from_slice(&w);
+            for part in low_rank.iter_mut() {
+                let w = proj(&part.u[3 * p..3 * p + 3]);
+                part.u[3 * p..3 * p + 3].copy_from_slice(&w);
+            }
         }
     }
 }

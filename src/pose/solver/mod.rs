@@ -26,6 +26,7 @@ mod effector_terms;
 mod gauss_newton;
 mod hinges;
 mod holds;
+mod low_rank;
 mod params;
 mod penalties;
 mod setup;

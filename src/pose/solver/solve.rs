@@ -11,8 +11,9 @@ use glam::{DAffine3, DQuat, DVec4};
 
 use super::arap::{ClusterFit, q_times_into};
 use super::effector_terms::{ExtraInputs, ExtraTerms, mass_sums, validate, validate_ground};
-use super::gauss_newton::{HessianScratch, damping_weights};
+use super::gauss_newton::{HessianScratch, damping_weights, diagonal_of};
 use super::holds::QBlocks;
+use super::low_rank;
 use super::step::{DampedSystem, Objective};
 use super::{
     PoseConstraints, PoseSolution, PoseSolveOptions, PoseSolveStats, PoseSolver, PoseStart,
@@ -142,21 +143,26 @@ impl PoseSolver {
             // The coordinates the effector, floor and balance terms act on (their diagonal
             // grew): the damping's floor tells them from the others ([`damping_weights`]).
             let n = g.len();
-            let before: Vec<f64> = (0..n).map(|i| h[i * n + i]).collect();
+            let before = diagonal_of(&h, n);
+            // Balance's Jacobian reads every joint: kept apart as rank-one parts (`low_rank.rs`).
+            let mut low_rank = Vec::new();
             if !extras.is_empty() {
                 extras.add_system(
-                    &current.globals,
-                    &current.skin,
+                    (&current.globals, &current.skin),
                     &self.params,
-                    &mut h,
+                    (&mut h, &mut low_rank),
                     &mut g,
                 );
             }
+            let mut diagonal = diagonal_of(&h, n);
+            low_rank::add_diagonal(&low_rank, &mut diagonal);
             let acted_on: Vec<bool> = (0..n)
-                .map(|i| h[i * n + i] > before[i] + 1e-9 * h[i * n + i])
+                .map(|i| diagonal[i] > before[i] + 1e-9 * diagonal[i])
                 .collect();
             if let Some(limits) = limits {
-                self.restrict_hinges(limits, &current.globals, &mut h, &mut g);
+                self.restrict_hinges(limits, &current.globals, (&mut h, &mut low_rank), &mut g);
+                diagonal = diagonal_of(&h, n);
+                low_rank::add_diagonal(&low_rank, &mut diagonal);
             }
             // The effector terms may couple joints the shape energy does not: read their
             // blocks off the matrix; else the system's own pattern (hinges add none).
@@ -165,10 +171,11 @@ impl PoseSolver {
             } else {
                 scratch.pattern_of(&h, g.len())
             };
-            let weights = damping_weights(&h, &self.params, &acted_on);
+            let weights = damping_weights(&diagonal, &self.params, &acted_on);
             stats.system_s += t.elapsed().as_secs_f64();
             let step = DampedSystem {
                 h: &h,
+                low_rank: &low_rank,
                 g: &g,
                 f0,
                 no_progress: options.tolerance * f0.abs() * 0.1,

@@ -7,6 +7,7 @@ use glam::{DAffine3, DQuat, DVec3};
 use super::effector_terms::ExtraTerms;
 use super::gauss_newton::{BlockPattern, DampedStep, solve_damped};
 use super::holds::QBlocks;
+use super::low_rank::RankOne;
 use super::params::Param;
 use super::solve::Posed;
 use super::{PoseSolveStats, PoseSolver};
@@ -34,7 +35,10 @@ pub(super) struct Objective<'a> {
 
 /// An iteration's Gauss–Newton system and the energy it starts from.
 pub(super) struct DampedSystem<'a> {
+    /// The block-sparse part of the matrix.
     pub(super) h: &'a [f64],
+    /// Its rank-one parts (`low_rank.rs`: balance).
+    pub(super) low_rank: &'a [RankOne],
     pub(super) g: &'a [f64],
     pub(super) f0: f64,
     /// A predicted decrease of the energy below this is no progress: the solve has converged
@@ -67,7 +71,13 @@ impl PoseSolver {
             let DampedStep {
                 step,
                 predicted_decrease,
-            } = solve_damped(system.h, system.g, *damping, system.pattern, system.weights);
+            } = solve_damped(
+                (system.h, system.low_rank),
+                system.g,
+                *damping,
+                system.pattern,
+                system.weights,
+            );
             if system.no_progress > 0.0 && predicted_decrease < system.no_progress {
                 return None;
             }

@@ -320,7 +320,12 @@ mod tests {
             .collect();
         let n = 3 * params.len();
         let (mut h, mut g) = (vec![0.0; n * n], vec![0.0; n]);
-        terms.add_system(&globals, &skinning, &params, &mut h, &mut g);
+        terms.add_system(
+            (&globals, &skinning),
+            &params,
+            (&mut h, &mut Vec::new()),
+            &mut g,
+        );
         let (h_ref, g_ref) = pairwise(&terms, &params, (&globals, &skinning));
         let largest = h_ref
             .iter()

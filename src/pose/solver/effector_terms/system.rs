@@ -3,6 +3,7 @@
 
 use glam::{DAffine3, DMat3, DVec3};
 
+use super::super::low_rank::RankOne;
 use super::super::params::Param;
 use super::moments::RankOneSums;
 use super::{ExtraTerms, Rows, Term, ground};
@@ -26,12 +27,15 @@ impl ExtraTerms<'_> {
     /// `3P × 3P` row-major, `g` `3P`). A term has Jacobian blocks only for the parameters
     /// that move it; a vertex under its ground is a single number along the ground's normal,
     /// whose `JᵀJ` is an outer product of 3-vectors.
+    ///
+    /// Balance reads every joint (the centre of mass): its `JᵀJ` goes to `low_rank` as
+    /// rank-one parts ([`ExtraTerms::balance_parts`]), not into `h`, which stays as sparse as
+    /// the skeleton.
     pub(crate) fn add_system(
         &self,
-        globals: &[DAffine3],
-        skinning: &[DAffine3],
+        (globals, skinning): (&[DAffine3], &[DAffine3]),
         params: &[Param],
-        h: &mut [f64],
+        (h, low_rank): (&mut [f64], &mut Vec<RankOne>),
         g: &mut [f64],
     ) {
         let mut system = System {
@@ -48,6 +52,15 @@ impl ExtraTerms<'_> {
         let each = |term: &Term, w: f64, r: &Rows<DVec3>, gap: Option<f64>| {
             // A vertex just above its ground is in the step's model with curvature and no
             // pull ([`ExtraTerms::near_contact`]).
+            if let Term::Balance { .. } = term {
+                self.balance_parts(
+                    (term, w, r),
+                    (params, globals, skinning),
+                    system.g,
+                    low_rank,
+                );
+                return;
+            }
             let near = self.near_contact(term, gap);
             // A one-sided term that holds (a vertex above its ground, the centre of mass inside
             // its polygon) adds neither gradient nor curvature: skip its Jacobian.
@@ -75,7 +88,7 @@ impl ExtraTerms<'_> {
             }
             blocks.clear();
             blocks.extend(movers.iter().filter_map(|&p| {
-                self.jacobian((term, r), params[p as usize], globals, skinning)
+                self.jacobian(term, params[p as usize], globals, skinning)
                     .map(|j| (p as usize, j))
             }));
             system.add_blocks(&blocks, 2.0 * w, r);
@@ -83,6 +96,42 @@ impl ExtraTerms<'_> {
         // (A group of vertices certainly above their ground adds nothing.)
         self.for_each_residual(globals, skinning, each, |_| {});
         rank_one.finish(self, &mut system, (params, globals));
+    }
+}
+
+impl ExtraTerms<'_> {
+    /// A balance term's `2 w JᵀJ` as rank-one parts `2 w u uᵀ` into `low_rank` and its
+    /// `2 w Jᵀr` into `g`, one per direction its residual `r` is measured along
+    /// ([`ExtraTerms::balance_directions`]): `u` per parameter is the centre of mass's
+    /// change under it seen along that direction. Nothing while balance holds.
+    fn balance_parts(
+        &self,
+        (term, w, r): (&Term, f64, &Rows<DVec3>),
+        (params, globals, skinning): (&[Param], &[DAffine3], &[DAffine3]),
+        g: &mut [f64],
+        low_rank: &mut Vec<RankOne>,
+    ) {
+        let Term::Balance { sums, .. } = term else {
+            return;
+        };
+        let r = r.iter().next().copied().unwrap_or(DVec3::ZERO);
+        for (along, scale) in self.balance_directions(term, r) {
+            let s = 2.0 * w * scale;
+            let mut u = vec![0.0; params.len() * 3];
+            for (p, &param) in params.iter().enumerate() {
+                let (a, rotation) = split(param);
+                let origin = globals[a].translation;
+                if let Some(b) = self.centroid_jacobian(sums, a, rotation, origin, skinning) {
+                    let row = b.transpose() * along;
+                    u[3 * p..3 * p + 3].copy_from_slice(&row.to_array());
+                }
+            }
+            let depth = along.dot(r);
+            for (gi, ui) in g.iter_mut().zip(&u) {
+                *gi += s * depth * ui;
+            }
+            low_rank.push(RankOne { scale: s, u });
+        }
     }
 }
 
@@ -134,5 +183,223 @@ impl System<'_> {
                 self.add_pair((*pa, *pb), m, s);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::{DAffine3, DQuat, DVec3, DVec4};
+
+    use super::super::super::low_rank::RankOne;
+    use super::super::super::params::{Param, movers_of_joints};
+    use super::super::{ExtraInputs, ExtraTerms, Term, mass_sums};
+    use super::split;
+    use crate::pose::{Balance, Joint, JointTransform, Skeleton, SkeletonPose, VertexInfluences};
+
+    /// A two-joint chain standing on the origin, its child a unit up.
+    fn chain() -> Skeleton {
+        let frames = [DAffine3::IDENTITY, DAffine3::from_translation(DVec3::Y)];
+        Skeleton::new(vec![
+            Joint {
+                name: "hips".into(),
+                parent: None,
+                parent_frame: DAffine3::IDENTITY,
+                inverse_bind: frames[0].inverse(),
+            },
+            Joint {
+                name: "chest".into(),
+                parent: Some(0),
+                parent_frame: DAffine3::IDENTITY,
+                inverse_bind: frames[1].inverse(),
+            },
+        ])
+        .unwrap()
+    }
+
+    /// The chain with its chest leaning `lean` radians towards +x, and its skinning.
+    fn leaning(skeleton: &Skeleton, lean: f64) -> (Vec<DAffine3>, Vec<DAffine3>) {
+        let pose = SkeletonPose {
+            local: vec![
+                JointTransform::IDENTITY,
+                JointTransform {
+                    translation: DVec3::Y,
+                    rotation: DQuat::from_rotation_z(-lean),
+                    scale: DVec3::ONE,
+                },
+            ],
+        };
+        let globals = skeleton.global_transforms(&pose);
+        let skinning = skin(skeleton, &globals);
+        (globals, skinning)
+    }
+
+    fn skin(skeleton: &Skeleton, globals: &[DAffine3]) -> Vec<DAffine3> {
+        globals
+            .iter()
+            .zip(skeleton.joints())
+            .map(|(g, j)| *g * j.inverse_bind)
+            .collect()
+    }
+
+    /// What balance adds at a lean: the system (`h`, `g`, the rank-one parts), the term's
+    /// weight, its residual and the residual's Jacobian by central differences (a column per
+    /// coordinate: turns about each joint, the root's shift).
+    struct AtLean {
+        h: Vec<f64>,
+        g: Vec<f64>,
+        parts: Vec<RankOne>,
+        weight: f64,
+        residual: DVec3,
+        jacobian: Vec<DVec3>,
+    }
+
+    fn balance_at(lean: f64) -> AtLean {
+        let skeleton = chain();
+        let params = vec![
+            Param::Rotation(1),
+            Param::Rotation(0),
+            Param::Translation(0),
+        ];
+        let movers = movers_of_joints(&skeleton, &params);
+        let origins = skeleton.bind_origins();
+        // A mass low on the hips, one high on the chest.
+        let bind = [DVec3::new(0.0, 0.5, 0.0), DVec3::new(0.1, 1.6, 0.05)];
+        let influences: [VertexInfluences; 2] = [
+            [(0, 1.0), (0, 0.0), (0, 0.0), (0, 0.0)],
+            [(1, 1.0), (0, 0.0), (0, 0.0), (0, 0.0)],
+        ];
+        let sums: Vec<(usize, DVec4)> = mass_sums(2, (&bind, &influences), &[1.0, 1.0]);
+        let square = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+            .map(|(x, z)| DVec3::new(0.15 * x, 0.0, 0.15 * z));
+        let balance = Balance {
+            margin: 0.02,
+            ..Balance::over(square.to_vec())
+        };
+        let rest = vec![DAffine3::IDENTITY; 2];
+        let (globals, skinning) = leaning(&skeleton, lean);
+        let terms = ExtraTerms::new(
+            (&skeleton, &movers, &origins),
+            &ExtraInputs {
+                balance: Some((&balance, &sums)),
+                balance_boost: 0.0,
+                contacts: &[],
+                floor: &[],
+                effectors: &[],
+                centroids: &[],
+                stiffness: None,
+                reference_globals: &rest,
+                reference_skinning: &rest,
+                start_skinning: &skinning,
+                influences: &influences,
+                relative_inertia: &[1.0, 1.0],
+                bind: &bind,
+                joint_weight: 1.0,
+                vertex_weight: 1.0,
+                length_scale: 1.0,
+            },
+        );
+        let n = 3 * params.len();
+        let (mut h, mut g, mut parts) = (vec![0.0; n * n], vec![0.0; n], Vec::new());
+        terms.add_system((&globals, &skinning), &params, (&mut h, &mut parts), &mut g);
+        let term = terms
+            .terms
+            .iter()
+            .find(|t| matches!(t, Term::Balance { .. }))
+            .expect("a balance term");
+        let Term::Balance { weight, .. } = term else {
+            unreachable!()
+        };
+        let residual =
+            |globals: &[DAffine3]| terms.balance_residual(term, &skin(&skeleton, globals));
+        let moved = |(a, rotation): (usize, bool), d: DVec3| -> Vec<DAffine3> {
+            let o = globals[a].translation;
+            let motion = match rotation {
+                true => {
+                    DAffine3::from_translation(o)
+                        * DAffine3::from_quat(DQuat::from_scaled_axis(d))
+                        * DAffine3::from_translation(-o)
+                }
+                false => DAffine3::from_translation(d),
+            };
+            (0..2)
+                .map(|j| match skeleton.descends_from(j, a) {
+                    true => motion * globals[j],
+                    false => globals[j],
+                })
+                .collect()
+        };
+        let eps = 1e-6;
+        let mut jacobian = Vec::new();
+        for &param in &params {
+            for axis in DVec3::AXES {
+                let d = axis * eps;
+                let (plus, minus) = (moved(split(param), d), moved(split(param), -d));
+                jacobian.push((residual(&plus) - residual(&minus)) / (2.0 * eps));
+            }
+        }
+        AtLean {
+            h,
+            g,
+            parts,
+            weight: *weight,
+            residual: residual(&globals),
+            jacobian,
+        }
+    }
+
+    /// Out of its polygon, balance adds nothing to the sparse matrix and one rank-one part
+    /// whose `s u uᵀ` and gradient are `2 w JᵀJ` and `2 w Jᵀr` of its residual's finite
+    /// differences (turns about each joint, the root's shift).
+    #[test]
+    fn balance_is_a_rank_one_part_of_its_gauss_newton_system() {
+        let at = balance_at(0.5);
+        assert!(at.h.iter().all(|v| *v == 0.0), "balance left h alone");
+        assert_eq!(at.parts.len(), 1);
+        assert!(
+            at.residual.length() > 0.05,
+            "the chain leans out: {}",
+            at.residual
+        );
+        let scale = 2.0 * at.weight;
+        let (part, jac) = (&at.parts[0], &at.jacobian);
+        for a in 0..9 {
+            let expected_g = scale * jac[a].dot(at.residual);
+            assert!(
+                (at.g[a] - expected_g).abs() < 1e-5 * scale,
+                "g[{a}] {} vs {expected_g}",
+                at.g[a]
+            );
+            for b in 0..9 {
+                let expected = scale * jac[a].dot(jac[b]);
+                let got = part.scale * part.u[a] * part.u[b];
+                assert!(
+                    (got - expected).abs() < 1e-5 * scale,
+                    "H[{a}][{b}] {got} vs {expected}"
+                );
+            }
+        }
+    }
+
+    /// Inside its margin, balance adds nothing; just past it, its part (found by bisection
+    /// on the residual's onset: the part appears with the residual, not before).
+    #[test]
+    fn balance_adds_a_part_only_past_its_margin() {
+        let (mut inside, mut outside) = (0.0, 0.5);
+        for _ in 0..50 {
+            let mid = 0.5 * (inside + outside);
+            match balance_at(mid).residual == DVec3::ZERO {
+                true => inside = mid,
+                false => outside = mid,
+            }
+        }
+        let before = balance_at(inside - 1e-3);
+        assert!(before.parts.is_empty() && before.g.iter().all(|v| *v == 0.0));
+        let past = balance_at(outside + 1e-3);
+        assert_eq!(past.parts.len(), 1);
+        assert!(past.g.iter().any(|v| *v != 0.0));
+        assert!(
+            balance_at(0.0).parts.is_empty(),
+            "upright, balance adds nothing"
+        );
     }
 }
