@@ -8,6 +8,7 @@ use rayon::prelude::*;
 
 use super::PoseError;
 use super::skeleton::{Skeleton, SkeletonPose, VertexInfluences, skin_positions};
+use super::solver::{VertexSkin, vertex_skins};
 use crate::deform::{Topology, WeightMode, WeldPolicy};
 
 /// A skinned triangle mesh as a glTF primitive (or a Bevy `Mesh`) stores it, in render order.
@@ -122,6 +123,9 @@ pub struct SkinnedModel {
     /// Mass per welded vertex by area ([`super::balance::vertex_masses`]), made by the first
     /// balance that needs it.
     area_masses: std::sync::OnceLock<Vec<f64>>,
+    /// What the solver's ground terms read of each welded vertex's skin, made by the first
+    /// solve with contacts or a floor and shared by every solver of the model (a crowd's).
+    vertex_skins: std::sync::OnceLock<Vec<VertexSkin>>,
     pub(crate) q: Vec<f64>,
     pub(crate) k: Vec<f64>,
     pub(crate) c0: f64,
@@ -176,6 +180,7 @@ impl SkinnedModel {
         let mut model = Self {
             relative_inertia,
             area_masses: std::sync::OnceLock::new(),
+            vertex_skins: std::sync::OnceLock::new(),
             skeleton,
             topology,
             render_influences,
@@ -263,6 +268,14 @@ impl SkinnedModel {
     pub fn area_masses(&self) -> &[f64] {
         self.area_masses
             .get_or_init(|| super::balance::vertex_masses(self))
+    }
+
+    /// Each welded vertex's skin as the solver's ground terms read it (see
+    /// [`VertexSkin`]); made once.
+    pub(crate) fn vertex_skins(&self) -> &[VertexSkin] {
+        self.vertex_skins.get_or_init(|| {
+            vertex_skins(&self.bind, &self.influences, &self.skeleton.bind_origins())
+        })
     }
 
     /// Bind-pose position of each welded vertex (mesh space).

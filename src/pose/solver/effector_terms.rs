@@ -21,8 +21,8 @@ use crate::pose::effectors::{
 use crate::pose::skeleton::rotation_of;
 use crate::pose::{PoseError, Skeleton, VertexInfluences};
 pub(crate) use ground::{contact_hold_weight, validate_ground};
-pub(crate) use sums::mass_sums;
-use sums::{VertexSums, apply, centroid_of, joint_sums, vertex_sums};
+pub(crate) use sums::{VertexSkin, mass_sums, vertex_skins};
+use sums::{VertexSums, apply, centroid_of, joint_sums};
 
 /// An effector of weight 1 weighs this many joint pins.
 const EFFECTOR_STRENGTH: f64 = 100.0;
@@ -37,7 +37,7 @@ fn strength(weight: f64) -> f64 {
 type JointSums = [(usize, DVec4)];
 
 /// One residual block `r` (stacked 3-vectors) with its weight.
-enum Term {
+enum Term<'a> {
     Position {
         joint: usize,
         target: DVec3,
@@ -69,13 +69,13 @@ enum Term {
     /// A skinned vertex (`sums`) not below `plane`; one-sided. `start_gap`: its height above
     /// the ground's skin in the pose the solve starts from; `reach`: per joint of `sums`, its
     /// bind position's distance from the joint's (how far the joint's turn can move it, per
-    /// unit of turn).
+    /// unit of turn). Both read from the model's [`VertexSkin`]s.
     Above {
-        sums: VertexSums,
+        sums: &'a VertexSums,
         plane: GroundPlane,
         weight: f64,
         start_gap: f64,
-        reach: [f64; 4],
+        reach: &'a [f64; 4],
     },
     /// The centre of mass (`sums`: mass-weighted, normalised) at least `margin` inside the
     /// support polygon; one-sided.
@@ -87,7 +87,7 @@ enum Term {
     },
 }
 
-impl Term {
+impl Term<'_> {
     /// Calls `each` with every joint whose transform the term reads (a joint may repeat).
     fn for_each_joint(&self, mut each: impl FnMut(usize)) {
         match self {
@@ -106,7 +106,7 @@ impl Term {
 /// The extra terms of one solve, with the skeleton they refer to.
 pub(crate) struct ExtraTerms<'a> {
     skeleton: &'a Skeleton,
-    terms: Vec<Term>,
+    terms: Vec<Term<'a>>,
     /// The skinning matrices of the pose the solve starts from (where the vertices kept
     /// above the ground had their `start_gap`).
     start_skinning: Vec<DAffine3>,
@@ -213,8 +213,11 @@ impl<'a> ExtraTerms<'a> {
     /// The weighted terms for these inputs (targets blended from the reference pose).
     /// (`joint_movers`: per joint, the solver's parameters that move it; `bind_origins`: each
     /// joint's position in the bind pose.)
+    /// (`vertex_skins`: each vertex's skin for the ground's terms, [`vertex_skins`]; may be
+    /// empty without contacts and floor.)
     pub(crate) fn new(
         (skeleton, joint_movers, bind_origins): (&'a Skeleton, &'a [Vec<u32>], &'a [DVec3]),
+        vertex_skins: &'a [VertexSkin],
         input: &ExtraInputs<'_>,
     ) -> Self {
         let mut terms = Vec::new();
@@ -270,7 +273,7 @@ impl<'a> ExtraTerms<'a> {
                 weight: lw * strength(c.weight),
             });
         }
-        let floor = ground::push_terms(&mut terms, bind_origins, input, lw);
+        let floor = ground::push_terms(&mut terms, vertex_skins, input, lw);
         let floor_groups = floor_groups::group_floor(&terms, floor, skeleton.len());
         if let Some(s) = input.stiffness {
             let scale = |j: usize| match s.weighting {
@@ -586,17 +589,19 @@ impl<'a> ExtraTerms<'a> {
     }
 }
 
-/// Test terms: only a floor — every vertex of `bind` (its skin `influences`) kept above its
-/// plane in `under`, the joints at rest (identity skinning), size 1.
+/// Test terms: only a floor — every vertex of `skins` kept above its plane in `under`, the
+/// joints at rest (identity skinning), size 1.
+/// (`skins`: the vertices' [`vertex_skins`].)
 #[cfg(test)]
 fn floor_only<'a>(
     (skeleton, movers, bind_origins): (&'a Skeleton, &'a [Vec<u32>], &'a [DVec3]),
-    (bind, influences): (&[DVec3], &[VertexInfluences]),
+    skins: &'a [VertexSkin],
     under: &[(u32, GroundPlane)],
 ) -> ExtraTerms<'a> {
     let rest = vec![DAffine3::IDENTITY; skeleton.len()];
     ExtraTerms::new(
         (skeleton, movers, bind_origins),
+        skins,
         &ExtraInputs {
             balance: None,
             balance_boost: 0.0,
@@ -608,9 +613,9 @@ fn floor_only<'a>(
             reference_globals: &rest,
             reference_skinning: &rest,
             start_skinning: &rest,
-            influences,
+            influences: &[],
             relative_inertia: &vec![1.0; skeleton.len()],
-            bind,
+            bind: &[],
             joint_weight: 1.0,
             vertex_weight: 1.0,
             length_scale: 1.0,

@@ -34,6 +34,7 @@ mod shape_rest;
 mod solve;
 mod step;
 
+pub(crate) use effector_terms::{VertexSkin, vertex_skins};
 use params::{Param, movers_of_joints, parameters_for};
 use penalties::{SetSums, set_target};
 

@@ -364,8 +364,15 @@ impl PoseSolver {
                 .collect(),
             Some(Floor::Under(under)) => Cow::Borrowed(under),
         };
+        // The vertices' skins, made by the first solve that keeps vertices above a ground.
+        let grounded = !constraints.contacts.is_empty() || !floor.is_empty();
+        let vertex_skins = match grounded {
+            true => self.model.vertex_skins(),
+            false => &[],
+        };
         ExtraTerms::new(
             (skeleton, &self.joint_movers, &self.bind_origins),
+            vertex_skins,
             &ExtraInputs {
                 balance: balance.zip(mass_sums.as_deref()),
                 balance_boost,

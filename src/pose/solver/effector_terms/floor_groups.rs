@@ -126,7 +126,7 @@ pub(super) fn group_floor(terms: &[Term], floor: Range<usize>, joints: usize) ->
         group.weight_sum = group
             .weight_sum
             .max(sums.iter().map(|s| s.1.w.abs()).sum::<f64>());
-        for (&(j, _), &r) in sums.iter().zip(reach) {
+        for (&(j, _), &r) in sums.iter().zip(reach.iter()) {
             match group.reach.iter_mut().find(|(k, _)| *k == j) {
                 Some((_, far)) => *far = far.max(r),
                 None => group.reach.push((j, r)),
@@ -198,8 +198,8 @@ mod tests {
             .collect();
         let ground = GroundPlane::new(DVec3::Y * -0.3, DVec3::Y).unwrap();
         let under: Vec<(u32, GroundPlane)> = (0..bind.len() as u32).map(|v| (v, ground)).collect();
-        let terms =
-            super::super::floor_only((&skeleton, &movers, &origins), (&bind, &influences), &under);
+        let skins = super::super::vertex_skins(&bind, &influences, &origins);
+        let terms = super::super::floor_only((&skeleton, &movers, &origins), &skins, &under);
         let mut passed = 0;
         let mut failed = 0;
         for (turn, ankle) in [(0.01, 0.0), (0.05, -0.1), (-0.2, 0.3), (1.4, 1.2)] {

@@ -6,7 +6,7 @@
 use glam::DVec3;
 
 use super::{
-    EFFECTOR_STRENGTH, ExtraInputs, ExtraTerms, JointSums, Term, centroid_of, strength, vertex_sums,
+    EFFECTOR_STRENGTH, ExtraInputs, ExtraTerms, JointSums, Term, VertexSkin, centroid_of, strength,
 };
 use crate::pose::balance::SupportPolygon;
 use crate::pose::{Floor, GroundPlane, PoseConstraints, PoseError};
@@ -93,27 +93,22 @@ pub(crate) fn contact_hold_weight(joint_weight: f64) -> f64 {
 }
 
 /// Appends the contacts', the floor's and balance's terms of `input` (`lw`: a position
-/// effector's weight at weight 1); returns where the floor's are.
-/// (`bind_origins`: each joint's position in the bind pose.)
-pub(super) fn push_terms(
-    terms: &mut Vec<Term>,
-    bind_origins: &[DVec3],
+/// effector's weight at weight 1); returns where the floor's are. (`vertex_skins`: each
+/// vertex's, which its terms point at.)
+pub(super) fn push_terms<'a>(
+    terms: &mut Vec<Term<'a>>,
+    vertex_skins: &'a [VertexSkin],
     input: &ExtraInputs<'_>,
     lw: f64,
 ) -> std::ops::Range<usize> {
     // Contacts: every patch vertex above its ground; a planted one held where it touched,
     // its joint's up turned to the ground's normal.
     let above = ABOVE_OVER_HOLD * CONTACT_STRENGTH * lw;
-    let skin = CONTACT_SKIN * input.length_scale;
+    let contact_skin = CONTACT_SKIN * input.length_scale;
     let above_term = |v: u32, plane: GroundPlane| {
-        let sums = vertex_sums(input, v);
-        // Per joint of the sums, how far the vertex's bind position is from the joint's.
-        let mut reach = [0.0; 4];
-        for (r, &(j, _)) in reach.iter_mut().zip(sums.iter()) {
-            *r = input.bind[v as usize].distance(bind_origins[j]);
-        }
+        let VertexSkin { sums, reach } = &vertex_skins[v as usize];
         Term::Above {
-            start_gap: plane.height(centroid_of(&sums, input.start_skinning)) - skin,
+            start_gap: plane.height(centroid_of(sums, input.start_skinning)) - contact_skin,
             reach,
             sums,
             plane,
@@ -350,7 +345,7 @@ mod tests {
     use glam::{DAffine3, DVec3};
 
     use super::super::super::params::Param;
-    use super::super::{EFFECTOR_STRENGTH, ExtraTerms};
+    use super::super::{EFFECTOR_STRENGTH, ExtraTerms, VertexSkin, vertex_skins};
     use crate::pose::{GroundPlane, Joint, Skeleton};
 
     /// A one-joint bar (its joint at the origin).
@@ -364,21 +359,22 @@ mod tests {
         .unwrap()
     }
 
-    /// The terms keeping the bar's vertices (bind positions `bind`, all on its joint) above
-    /// `floor` (pinned joints of weight 1, size 1).
+    /// The skins of vertices at bind positions `bind`, all on the bar's joint.
+    fn bar_skins(bind: &[DVec3]) -> Vec<VertexSkin> {
+        let one = [(0u32, 1.0), (0, 0.0), (0, 0.0), (0, 0.0)];
+        vertex_skins(bind, &vec![one; bind.len()], &[DVec3::ZERO])
+    }
+
+    /// The terms keeping the bar's vertices (their `skins`: [`bar_skins`]) above `floor`
+    /// (pinned joints of weight 1, size 1).
     fn floor_terms<'a>(
         skeleton: &'a Skeleton,
         movers: &'a [Vec<u32>],
-        bind: &[DVec3],
+        skins: &'a [VertexSkin],
         floor: GroundPlane,
     ) -> ExtraTerms<'a> {
-        let one = [(0u32, 1.0), (0, 0.0), (0, 0.0), (0, 0.0)];
-        let under: Vec<(u32, GroundPlane)> = (0..bind.len() as u32).map(|v| (v, floor)).collect();
-        super::super::floor_only(
-            (skeleton, movers, &[DVec3::ZERO]),
-            (bind, &vec![one; bind.len()]),
-            &under,
-        )
+        let under: Vec<(u32, GroundPlane)> = (0..skins.len() as u32).map(|v| (v, floor)).collect();
+        super::super::floor_only((skeleton, movers, &[DVec3::ZERO]), skins, &under)
     }
 
     /// A step that takes a vertex 1 above the floor to 2 below it first touches the floor's
@@ -390,7 +386,8 @@ mod tests {
         let floor = GroundPlane::new(DVec3::ZERO, DVec3::Y).unwrap();
         let bind = [DVec3::new(0.0, 1.0, 0.0), DVec3::new(2.0, -0.5, 0.0)];
         let movers = [vec![0]];
-        let terms = floor_terms(&skeleton, &movers, &bind, floor);
+        let skins = bar_skins(&bind);
+        let terms = floor_terms(&skeleton, &movers, &skins, floor);
         let gaps = |skinning: DAffine3| {
             let mut gaps = Vec::new();
             terms.energy(&[skinning], &[skinning], &mut gaps);
@@ -419,7 +416,8 @@ mod tests {
         let params = [Param::Translation(0)];
         let system = |height: f64| {
             let y = super::CONTACT_SKIN + height * super::NEAR_CONTACT;
-            let terms = floor_terms(&skeleton, &movers, &[DVec3::new(0.3, y, 0.0)], floor);
+            let skins = bar_skins(&[DVec3::new(0.3, y, 0.0)]);
+            let terms = floor_terms(&skeleton, &movers, &skins, floor);
             let (mut h, mut g) = (vec![0.0; 9], vec![0.0; 3]);
             let at = [DAffine3::IDENTITY];
             terms.add_system((&at, &at), &params, (&mut h, &mut Vec::new()), &mut g);
@@ -455,7 +453,8 @@ mod tests {
             })
             .collect();
         let movers = [vec![0]];
-        let terms = floor_terms(&skeleton, &movers, &bind, floor);
+        let skins = bar_skins(&bind);
+        let terms = floor_terms(&skeleton, &movers, &skins, floor);
         let bounded = |motion: DAffine3| {
             let drift = terms.drift(&[motion]);
             let mut out = Vec::new();

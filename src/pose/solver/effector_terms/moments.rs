@@ -296,7 +296,8 @@ mod tests {
         let floor =
             GroundPlane::new(DVec3::new(0.0, -0.3, 0.0), DVec3::new(0.2, 1.0, -0.1)).unwrap();
         let under: Vec<(u32, GroundPlane)> = (0..bind.len() as u32).map(|v| (v, floor)).collect();
-        let terms = floor_only((&skeleton, &movers, &origins), (&bind, &influences), &under);
+        let skins = super::super::vertex_skins(&bind, &influences, &origins);
+        let terms = floor_only((&skeleton, &movers, &origins), &skins, &under);
         // A bent pose: every joint turned a little, the root moved.
         let mut globals = Vec::new();
         for (j, joint) in skeleton.joints().iter().enumerate() {

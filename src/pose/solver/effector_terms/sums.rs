@@ -3,7 +3,7 @@
 
 use glam::{DAffine3, DVec3, DVec4};
 
-use super::{ExtraInputs, JointSums};
+use super::JointSums;
 use crate::pose::VertexInfluences;
 
 /// Per joint, `Σ_v m_v w_vj (b_v, 1)` over `(vertex, m_v)`: a weighted centroid of skinned
@@ -51,13 +51,12 @@ pub(crate) fn mass_sums(
 /// [`joint_sums`] of one vertex at weight 1 (its influences, each joint once), without the
 /// dense per-joint pass and on the stack: one-vertex terms (a contact's or the floor's) are
 /// hundreds a solve.
-pub(super) fn vertex_sums(input: &ExtraInputs<'_>, v: u32) -> VertexSums {
-    let b = input.bind[v as usize];
+fn vertex_sums(b: DVec3, influences: &VertexInfluences) -> VertexSums {
     let mut sums = VertexSums {
         entries: [(0, DVec4::ZERO); 4],
         len: 0,
     };
-    for &(j, w) in &input.influences[v as usize] {
+    for &(j, w) in influences {
         if w == 0.0 {
             continue;
         }
@@ -86,9 +85,40 @@ pub(super) fn vertex_sums(input: &ExtraInputs<'_>, v: u32) -> VertexSums {
     sums
 }
 
+/// What the terms keeping a vertex above its ground read of its skin: its [`VertexSums`] and,
+/// per joint of them, its bind position's distance from the joint's (how far the joint's turn
+/// can move it, per unit of turn). The same in every solve of a model: the model keeps them
+/// ([`vertex_skins`]), and a solve's terms point at them — a floor of 3 000 vertices built
+/// them in 0.25 ms a solve, a fifth of a rig's.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct VertexSkin {
+    pub(super) sums: VertexSums,
+    pub(super) reach: [f64; 4],
+}
+
+/// Each vertex's [`VertexSkin`]: bind positions `bind` with their `influences`, the joints'
+/// bind positions `bind_origins`.
+pub(crate) fn vertex_skins(
+    bind: &[DVec3],
+    influences: &[VertexInfluences],
+    bind_origins: &[DVec3],
+) -> Vec<VertexSkin> {
+    bind.iter()
+        .zip(influences)
+        .map(|(&b, influences)| {
+            let sums = vertex_sums(b, influences);
+            let mut reach = [0.0; 4];
+            for (r, &(j, _)) in reach.iter_mut().zip(sums.iter()) {
+                *r = bind_origins.get(j).map_or(0.0, |o| b.distance(*o));
+            }
+            VertexSkin { sums, reach }
+        })
+        .collect()
+}
+
 /// One vertex's [`JointSums`] (at most four joints), kept in its term.
-#[derive(Clone, Copy)]
-pub(super) struct VertexSums {
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct VertexSums {
     entries: [(usize, DVec4); 4],
     len: usize,
 }

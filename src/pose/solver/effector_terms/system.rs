@@ -279,6 +279,7 @@ mod tests {
         let (globals, skinning) = leaning(&skeleton, lean);
         let terms = ExtraTerms::new(
             (&skeleton, &movers, &origins),
+            &[],
             &ExtraInputs {
                 balance: Some((&balance, &sums)),
                 balance_boost: 0.0,
