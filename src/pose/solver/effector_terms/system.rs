@@ -6,7 +6,8 @@ use glam::{DAffine3, DMat3, DVec3};
 use super::super::low_rank::RankOne;
 use super::super::params::Param;
 use super::moments::RankOneSums;
-use super::{ExtraTerms, Rows, Term, ground};
+use super::sums::apply;
+use super::{ExtraTerms, Rows, Term, ground, skew};
 
 impl ExtraTerms<'_> {
     /// Into `movers`, the parameters that move `term` (indices into the solver's, each once:
@@ -115,13 +116,44 @@ impl ExtraTerms<'_> {
             return;
         };
         let r = r.iter().next().copied().unwrap_or(DVec3::ZERO);
-        for (along, scale) in self.balance_directions(term, r) {
-            let s = 2.0 * w * scale;
-            let mut u = vec![0.0; params.len() * 3];
-            for (p, &param) in params.iter().enumerate() {
+        let directions = self.balance_directions(term, r);
+        if directions.is_empty() {
+            return;
+        }
+        // The centre of mass's change under each parameter, once for every direction: from
+        // each joint's subtree's share of the mass and its skinned moment, summed children to
+        // parents (what `centroid_jacobian` sums per parameter, walking the skeleton for each
+        // of its joints, in one pass).
+        let joints = self.skeleton.joints();
+        let mut moved = vec![DVec3::ZERO; joints.len()];
+        let mut mass = vec![0.0; joints.len()];
+        for &(j, m) in sums.iter() {
+            moved[j] += apply(&skinning[j], m);
+            mass[j] += m.w;
+        }
+        for j in (0..joints.len()).rev() {
+            if let Some(p) = joints[j].parent {
+                let (child, share) = (moved[j], mass[j]);
+                moved[p] += child;
+                mass[p] += share;
+            }
+        }
+        let changes: Vec<Option<DMat3>> = params
+            .iter()
+            .map(|&param| {
                 let (a, rotation) = split(param);
                 let origin = globals[a].translation;
-                if let Some(b) = self.centroid_jacobian(sums, a, rotation, origin, skinning) {
+                (mass[a] != 0.0).then(|| match rotation {
+                    true => -skew(moved[a] - origin * mass[a]),
+                    false => DMat3::IDENTITY * mass[a],
+                })
+            })
+            .collect();
+        for (along, scale) in directions {
+            let s = 2.0 * w * scale;
+            let mut u = vec![0.0; params.len() * 3];
+            for (p, change) in changes.iter().enumerate() {
+                if let Some(b) = change {
                     let row = b.transpose() * along;
                     u[3 * p..3 * p + 3].copy_from_slice(&row.to_array());
                 }
