@@ -353,11 +353,11 @@ const DAMPING_FLOOR: f64 = 1e-3;
 /// act on, as a share of the largest diagonal entry of its kind: see [`solve_damped`].
 const TOUCHED_FLOOR: f64 = 1e-3;
 
-/// The damping weights `D` of [`solve_damped`]: `h`'s diagonal (Marquardt's scaling, so
-/// rotations and translations of any scale are damped alike), each entry raised to at least
-/// [`DAMPING_FLOOR`] of the median of its kind and, where `acted_on` (the effector, ground and
-/// balance terms raised it; shorter than `h`: nowhere past its end), to [`TOUCHED_FLOOR`] of
-/// the largest of its kind.
+/// The damping weights `D` of [`solve_damped`]: the Gauss–Newton matrix's `diagonal` (its
+/// rank-one parts' included; Marquardt's scaling, so rotations and translations of any scale
+/// are damped alike), each entry raised to at least [`DAMPING_FLOOR`] of the median of its
+/// kind and, where `acted_on` (the effector, ground and balance terms raised it; shorter than
+/// `diagonal`: nowhere past its end), to [`TOUCHED_FLOOR`] of the largest of its kind.
 ///
 /// Without a floor, a coordinate that moves a stiff term (balance, an effector) only a little
 /// is damped by as little as it moves it: past a point, raising `μ` makes it as cheap a way
