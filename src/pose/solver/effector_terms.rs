@@ -212,9 +212,8 @@ pub(crate) fn validate(
 impl<'a> ExtraTerms<'a> {
     /// The weighted terms for these inputs (targets blended from the reference pose).
     /// (`joint_movers`: per joint, the solver's parameters that move it; `bind_origins`: each
-    /// joint's position in the bind pose.)
-    /// (`vertex_skins`: each vertex's skin for the ground's terms, [`vertex_skins`]; may be
-    /// empty without contacts and floor.)
+    /// joint's position in the bind pose; `vertex_skins`: each vertex's skin for the ground's
+    /// terms, [`vertex_skins`], may be empty without contacts and floor.)
     pub(crate) fn new(
         (skeleton, joint_movers, bind_origins): (&'a Skeleton, &'a [Vec<u32>], &'a [DVec3]),
         vertex_skins: &'a [VertexSkin],
@@ -579,14 +578,18 @@ impl<'a> ExtraTerms<'a> {
             moved += apply(&skinning[j], m);
             mass += m.w;
         }
-        (mass != 0.0).then(|| {
-            if rotation {
-                -skew(moved - origin * mass)
-            } else {
-                DMat3::IDENTITY * mass
-            }
-        })
+        carried_change((moved, mass), rotation, origin)
     }
+}
+
+/// The change of the part of a weighted centroid a parameter carries — its skinned sum
+/// `moved` and its weight `mass` — under the parameter: a turn about `origin`, or a root's
+/// translation; `None` when it carries none of it.
+fn carried_change((moved, mass): (DVec3, f64), rotation: bool, origin: DVec3) -> Option<DMat3> {
+    (mass != 0.0).then(|| match rotation {
+        true => -skew(moved - origin * mass),
+        false => DMat3::IDENTITY * mass,
+    })
 }
 
 /// Test terms: only a floor — every vertex of `skins` kept above its plane in `under`, the

@@ -406,7 +406,7 @@ fn targets_valid(constraints: &PoseConstraints) -> bool {
 }
 
 /// Each joint's skinning transform: its global transform times its inverse bind.
-fn skinning(globals: &[DAffine3], skeleton: &Skeleton) -> Vec<DAffine3> {
+pub(super) fn skinning(globals: &[DAffine3], skeleton: &Skeleton) -> Vec<DAffine3> {
     globals
         .iter()
         .zip(skeleton.joints())

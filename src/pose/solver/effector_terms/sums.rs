@@ -49,8 +49,7 @@ pub(crate) fn mass_sums(
 }
 
 /// [`joint_sums`] of one vertex at weight 1 (its influences, each joint once), without the
-/// dense per-joint pass and on the stack: one-vertex terms (a contact's or the floor's) are
-/// hundreds a solve.
+/// dense per-joint pass and in at most four entries: one per welded vertex ([`vertex_skins`]).
 fn vertex_sums(b: DVec3, influences: &VertexInfluences) -> VertexSums {
     let mut sums = VertexSums {
         entries: [(0, DVec4::ZERO); 4],

@@ -7,7 +7,7 @@ use super::super::low_rank::RankOne;
 use super::super::params::Param;
 use super::moments::RankOneSums;
 use super::sums::apply;
-use super::{ExtraTerms, Rows, Term, ground, skew};
+use super::{ExtraTerms, Rows, Term, carried_change, ground};
 
 impl ExtraTerms<'_> {
     /// Into `movers`, the parameters that move `term` (indices into the solver's, each once:
@@ -51,8 +51,6 @@ impl ExtraTerms<'_> {
         let mut stamp = 0;
         let mut rank_one = RankOneSums::new(self.skeleton.len(), params.len());
         let each = |term: &Term, w: f64, r: &Rows<DVec3>, gap: Option<f64>| {
-            // A vertex just above its ground is in the step's model with curvature and no
-            // pull ([`ExtraTerms::near_contact`]).
             if let Term::Balance { .. } = term {
                 self.balance_parts(
                     (term, w, r),
@@ -62,6 +60,8 @@ impl ExtraTerms<'_> {
                 );
                 return;
             }
+            // A vertex just above its ground is in the step's model with curvature and no
+            // pull ([`ExtraTerms::near_contact`]).
             let near = self.near_contact(term, gap);
             // A one-sided term that holds (a vertex above its ground, the centre of mass inside
             // its polygon) adds neither gradient nor curvature: skip its Jacobian.
@@ -98,9 +98,7 @@ impl ExtraTerms<'_> {
         self.for_each_residual(globals, skinning, each, |_| {});
         rank_one.finish(self, &mut system, (params, globals));
     }
-}
 
-impl ExtraTerms<'_> {
     /// A balance term's `2 w JᵀJ` as rank-one parts `2 w u uᵀ` into `low_rank` and its
     /// `2 w Jᵀr` into `g`, one per direction its residual `r` is measured along
     /// ([`ExtraTerms::balance_directions`]): `u` per parameter is the centre of mass's
@@ -142,11 +140,7 @@ impl ExtraTerms<'_> {
             .iter()
             .map(|&param| {
                 let (a, rotation) = split(param);
-                let origin = globals[a].translation;
-                (mass[a] != 0.0).then(|| match rotation {
-                    true => -skew(moved[a] - origin * mass[a]),
-                    false => DMat3::IDENTITY * mass[a],
-                })
+                carried_change((moved[a], mass[a]), rotation, globals[a].translation)
             })
             .collect();
         for (along, scale) in directions {
@@ -224,6 +218,7 @@ mod tests {
 
     use super::super::super::low_rank::RankOne;
     use super::super::super::params::{Param, movers_of_joints};
+    use super::super::super::solve;
     use super::super::{ExtraInputs, ExtraTerms, Term, mass_sums};
     use super::split;
     use crate::pose::{Balance, Joint, JointTransform, Skeleton, SkeletonPose, VertexInfluences};
@@ -261,16 +256,8 @@ mod tests {
             ],
         };
         let globals = skeleton.global_transforms(&pose);
-        let skinning = skin(skeleton, &globals);
+        let skinning = solve::skinning(&globals, skeleton);
         (globals, skinning)
-    }
-
-    fn skin(skeleton: &Skeleton, globals: &[DAffine3]) -> Vec<DAffine3> {
-        globals
-            .iter()
-            .zip(skeleton.joints())
-            .map(|(g, j)| *g * j.inverse_bind)
-            .collect()
     }
 
     /// What balance adds at a lean: the system (`h`, `g`, the rank-one parts), the term's
@@ -342,8 +329,9 @@ mod tests {
         let Term::Balance { weight, .. } = term else {
             unreachable!()
         };
-        let residual =
-            |globals: &[DAffine3]| terms.balance_residual(term, &skin(&skeleton, globals));
+        let residual = |globals: &[DAffine3]| {
+            terms.balance_residual(term, &solve::skinning(globals, &skeleton))
+        };
         let moved = |(a, rotation): (usize, bool), d: DVec3| -> Vec<DAffine3> {
             let o = globals[a].translation;
             let motion = match rotation {
