@@ -200,24 +200,50 @@ impl SupportPolygon {
 
     /// The horizontal vector from the region allowed to the centre of mass (at least `margin`
     /// inside a polygon; on a point or segment) to `point` projected along gravity, world
-    /// space; `None` while `point` is in that region.
+    /// space; `None` while `point` is in that region. (For many points against one margin,
+    /// make the region once: [`SupportPolygon::allowed`].)
     pub fn violation(&self, point: DVec3, margin: f64) -> Option<DVec3> {
-        let p = self.flatten(point);
-        let (nearest, inside) = self.nearest(p);
-        let margin = if self.corners.len() >= 3 { margin } else { 0.0 };
-        let d = p.distance(nearest);
-        let signed = if inside { d } else { -d };
-        if signed >= margin {
-            return None;
-        }
-        // Outward direction across the nearest boundary feature.
-        let outward = match (inside, (p - nearest).try_normalize()) {
-            (false, Some(n)) => n,
-            (true, Some(n)) => -n,
-            (_, None) => self.edge_normal_near(p)?,
+        self.allowed(margin).violation(point)
+    }
+
+    /// The region the centre of mass is allowed in, seen along gravity: the polygon shrunk by
+    /// `margin` (the intersection of its edges' half-planes moved inwards; as deep inside as
+    /// the polygon goes when it is narrower than twice the margin), or grown by `-margin`
+    /// when that is negative (a lean); a point or segment itself (the margin ignored).
+    pub fn allowed(&self, margin: f64) -> AllowedRegion {
+        let whole = |grow: f64| AllowedRegion {
+            polygon: self.clone(),
+            grow,
         };
-        let v = outward * (margin - signed);
-        Some(self.axes.0 * v.x + self.axes.1 * v.y)
+        if self.corners.len() < 3 || !margin.is_finite() || margin == 0.0 {
+            return whole(0.0);
+        }
+        if margin < 0.0 {
+            return whole(-margin);
+        }
+        let shrunk = |by: f64| {
+            shrink(&self.corners, by).map(|corners| AllowedRegion {
+                polygon: Self {
+                    corners,
+                    ..self.clone()
+                },
+                grow: 0.0,
+            })
+        };
+        if let Some(region) = shrunk(margin) {
+            return region;
+        }
+        // Narrower than twice the margin: the deepest region found by bisection.
+        let (mut inside, mut outside) = (0.0, margin);
+        for _ in 0..40 {
+            let mid = 0.5 * (inside + outside);
+            if shrink(&self.corners, mid).is_some() {
+                inside = mid;
+            } else {
+                outside = mid;
+            }
+        }
+        shrunk(inside).unwrap_or_else(|| whole(0.0))
     }
 
     /// `point` in the plane across gravity.
@@ -228,59 +254,139 @@ impl SupportPolygon {
     /// The nearest point of the polygon's boundary (or of the point / segment) to `p`, and
     /// whether `p` is inside a polygon.
     fn nearest(&self, p: DVec2) -> (DVec2, bool) {
+        let (nearest, inside, _) = self.nearest_feature(p);
+        (nearest, inside)
+    }
+
+    /// [`SupportPolygon::nearest`], and whether the nearest point is a corner (an end of its
+    /// edge, the point, an end of the segment).
+    fn nearest_feature(&self, p: DVec2) -> (DVec2, bool, bool) {
         let c = &self.corners;
         match c.len() {
-            0 => (p, false),
-            1 => (c[0], false),
-            2 => (closest_on_segment(p, c[0], c[1]), false),
+            0 => (p, false, false),
+            1 => (c[0], false, true),
+            2 => {
+                let (q, t) = closest_on_segment_at(p, c[0], c[1]);
+                (q, false, t <= 0.0 || t >= 1.0)
+            }
             n => {
-                let mut best = (c[0], f64::INFINITY);
+                let mut best = (c[0], f64::INFINITY, false);
                 let mut inside = true;
                 for k in 0..n {
                     let (a, b) = (c[k], c[(k + 1) % n]);
                     if (b - a).perp_dot(p - a) < 0.0 {
                         inside = false;
                     }
-                    let q = closest_on_segment(p, a, b);
+                    let (q, t) = closest_on_segment_at(p, a, b);
                     let d = q.distance_squared(p);
                     if d < best.1 {
-                        best = (q, d);
+                        best = (q, d, t <= 0.0 || t >= 1.0);
                     }
                 }
-                (best.0, inside)
+                (best.0, inside, best.2)
             }
         }
     }
+}
 
-    /// The outward normal of the polygon edge nearest `p` (for a point exactly on the
-    /// boundary); `None` for a point or segment.
-    fn edge_normal_near(&self, p: DVec2) -> Option<DVec2> {
-        let c = &self.corners;
-        if c.len() < 3 {
+/// Where the centre of mass may be, seen along gravity ([`SupportPolygon::allowed`]): a convex
+/// polygon, segment or point and how far outside it is still allowed. Its distance is smooth
+/// (the squared distance to a convex region has a continuous gradient): the residual turns
+/// round the region's corners instead of jumping from one edge's normal to the next.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AllowedRegion {
+    /// The region before growing (the support itself, or shrunk by a margin).
+    polygon: SupportPolygon,
+    /// How far outside `polygon` is still allowed (a lean; ≥ 0).
+    grow: f64,
+}
+
+impl AllowedRegion {
+    /// The horizontal vector from the region to `point` projected along gravity, world space;
+    /// `None` while `point` is in it.
+    pub fn violation(&self, point: DVec3) -> Option<DVec3> {
+        self.residual(point).map(|(r, _)| r)
+    }
+
+    /// The directions the residual at `point` changes along as the centre of mass moves, each
+    /// with its Gauss–Newton share: across the region's edge (one), or, past a corner, along
+    /// the way to the corner (share 1) and across it (`(1 − grow / distance)²`: the rounded
+    /// corner of a grown region turns less); none while `point` is in the region.
+    pub fn directions(&self, point: DVec3) -> Vec<(DVec3, f64)> {
+        let Some((r, corner)) = self.residual(point) else {
+            return Vec::new();
+        };
+        let Some(out) = r.try_normalize() else {
+            return Vec::new();
+        };
+        let mut directions = vec![(out, 1.0)];
+        if let Some(distance) = corner {
+            let share = (1.0 - self.grow / distance).powi(2);
+            directions.push((self.polygon.down.cross(out), share));
+        }
+        directions
+    }
+
+    /// The residual at `point` and, past a corner, the distance to it.
+    fn residual(&self, point: DVec3) -> Option<(DVec3, Option<f64>)> {
+        let p = self.polygon.flatten(point);
+        let (nearest, inside, at_corner) = self.polygon.nearest_feature(p);
+        if inside && self.polygon.corners.len() >= 3 {
             return None;
         }
-        (0..c.len())
-            .map(|k| (c[k], c[(k + 1) % c.len()]))
-            .min_by(|x, y| {
-                let dx = closest_on_segment(p, x.0, x.1).distance_squared(p);
-                let dy = closest_on_segment(p, y.0, y.1).distance_squared(p);
-                dx.total_cmp(&dy)
-            })
-            .and_then(|(a, b)| {
-                let e = b - a;
-                DVec2::new(e.y, -e.x).try_normalize()
-            })
+        let way = p - nearest;
+        let distance = way.length();
+        if distance <= self.grow || distance == 0.0 {
+            return None;
+        }
+        let v = way * ((distance - self.grow) / distance);
+        let axes = self.polygon.axes;
+        Some((axes.0 * v.x + axes.1 * v.y, at_corner.then_some(distance)))
     }
 }
 
-/// The point of segment `a`–`b` nearest `p`.
-fn closest_on_segment(p: DVec2, a: DVec2, b: DVec2) -> DVec2 {
+/// The point of segment `a`–`b` nearest `p`, and where along it (0 at `a`, 1 at `b`).
+fn closest_on_segment_at(p: DVec2, a: DVec2, b: DVec2) -> (DVec2, f64) {
     let e = b - a;
     let len = e.length_squared();
     if len == 0.0 {
-        return a;
+        return (a, 0.0);
     }
-    a + e * ((p - a).dot(e) / len).clamp(0.0, 1.0)
+    let t = ((p - a).dot(e) / len).clamp(0.0, 1.0);
+    (a + e * t, t)
+}
+
+/// The convex polygon `corners` (counter-clockwise) with each edge moved `by` inwards: the
+/// intersection of the moved half-planes (Sutherland–Hodgman), as a hull; `None` when nothing
+/// is left.
+fn shrink(corners: &[DVec2], by: f64) -> Option<Vec<DVec2>> {
+    let n = corners.len();
+    let mut kept = corners.to_vec();
+    for k in 0..n {
+        let (a, b) = (corners[k], corners[(k + 1) % n]);
+        let e = b - a;
+        let length = e.length();
+        if length == 0.0 {
+            continue;
+        }
+        let inside = |x: DVec2| e.perp_dot(x - a) / length - by;
+        let mut clipped = Vec::with_capacity(kept.len() + 1);
+        for i in 0..kept.len() {
+            let (p, q) = (kept[i], kept[(i + 1) % kept.len()]);
+            let (sp, sq) = (inside(p), inside(q));
+            if sp >= 0.0 {
+                clipped.push(p);
+            }
+            if (sp >= 0.0) != (sq >= 0.0) {
+                clipped.push(p + (q - p) * (sp / (sp - sq)));
+            }
+        }
+        kept = clipped;
+        if kept.is_empty() {
+            return None;
+        }
+    }
+    Some(convex_hull(kept))
 }
 
 /// Convex hull, counter-clockwise, without collinear points (Andrew's monotone chain): one
@@ -372,5 +478,81 @@ mod tests {
         let one = SupportPolygon::new(&[DVec3::new(1.0, 0.0, 1.0)], DVec3::NEG_Y);
         let v = one.violation(DVec3::new(1.0, 5.0, 2.0), 0.0).unwrap();
         assert!((v - DVec3::Z).length() < 1e-12, "{v}");
+    }
+
+    #[test]
+    fn past_a_corner_of_the_margin_the_residual_points_from_the_shrunk_corner() {
+        // Square of half-size 1, margin 0.2: the region is the square of half-size 0.8. At
+        // (0.9, 0.85), inside the band near the corner, the way out of the region is from its
+        // corner (0.8, 0.8), not across the nearest edge of the square alone.
+        let v = square().violation(DVec3::new(0.9, 1.0, 0.85), 0.2).unwrap();
+        assert!((v - DVec3::new(0.1, 0.0, 0.05)).length() < 1e-12, "{v}");
+    }
+
+    #[test]
+    fn the_residual_turns_without_jumping_across_the_corner_of_the_band() {
+        // Along a line across the diagonal in the margin's band, the residual is the way out
+        // of a convex region: it moves no faster than the point (measured from the edges, it
+        // jumped by ~0.14 from one edge's normal to the other where they are equally near).
+        let region = square().allowed(0.2);
+        let step = 1e-3;
+        let at = |k: i32| {
+            let t = f64::from(k) * step;
+            let p = DVec3::new(0.95 - t, 0.0, 0.85 + t);
+            region.violation(p).unwrap()
+        };
+        for k in 0..100 {
+            let jump = (at(k + 1) - at(k)).length();
+            assert!(
+                jump <= step * std::f64::consts::SQRT_2 + 1e-12,
+                "{k}: {jump}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_polygon_narrower_than_its_margin_allows_its_deepest_part() {
+        // 2 long and 0.2 wide, margin 0.3: the deepest part is the middle line.
+        let strip = SupportPolygon::new(
+            &[
+                DVec3::new(-1.0, 0.0, -0.1),
+                DVec3::new(1.0, 0.0, -0.1),
+                DVec3::new(1.0, 0.0, 0.1),
+                DVec3::new(-1.0, 0.0, 0.1),
+            ],
+            DVec3::NEG_Y,
+        );
+        let region = strip.allowed(0.3);
+        let v = region.violation(DVec3::new(0.2, 0.0, 0.05)).unwrap();
+        assert!((v - DVec3::new(0.0, 0.0, 0.05)).length() < 1e-6, "{v}");
+        assert_eq!(region.violation(DVec3::new(0.5, 0.0, 0.0)), None);
+    }
+
+    #[test]
+    fn a_lean_grows_the_region_round_its_corners() {
+        let region = square().allowed(-0.2);
+        assert_eq!(region.violation(DVec3::new(1.15, 0.0, 0.0)), None);
+        let v = region.violation(DVec3::new(1.5, 0.0, 0.0)).unwrap();
+        assert!((v - DVec3::new(0.3, 0.0, 0.0)).length() < 1e-12, "{v}");
+        // Past the corner: from the rounded corner, along the diagonal.
+        let v = region.violation(DVec3::new(2.0, 0.0, 2.0)).unwrap();
+        let expected = DVec3::new(1.0, 0.0, 1.0) * (1.0 - 0.2 / 2f64.sqrt());
+        assert!((v - expected).length() < 1e-12, "{v}");
+    }
+
+    #[test]
+    fn past_a_corner_the_residual_changes_along_two_directions_across_an_edge_one() {
+        let region = square().allowed(-0.2);
+        assert!(region.directions(DVec3::ZERO).is_empty());
+        let edge = region.directions(DVec3::new(1.5, 0.0, 0.3));
+        assert_eq!(edge.len(), 1);
+        assert!((edge[0].0 - DVec3::X).length() < 1e-12);
+        let corner = region.directions(DVec3::new(2.0, 0.0, 2.0));
+        assert_eq!(corner.len(), 2);
+        assert!((corner[0].1 - 1.0).abs() < 1e-12);
+        // Across the rounded corner the residual turns by (1 − grow / distance) of the way.
+        let share = (1.0 - 0.2 / 2f64.sqrt()).powi(2);
+        assert!((corner[1].1 - share).abs() < 1e-12, "{}", corner[1].1);
+        assert!(corner[0].0.dot(corner[1].0).abs() < 1e-12);
     }
 }

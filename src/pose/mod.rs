@@ -61,7 +61,7 @@ pub mod springs;
 pub mod synth_rig;
 mod triangle_ground;
 
-pub use balance::{Balance, SupportPolygon, centre_of_mass, vertex_masses};
+pub use balance::{AllowedRegion, Balance, SupportPolygon, centre_of_mass, vertex_masses};
 pub use blend::{BlendMode, additive_layer_for, blend_joint, blend_pose};
 pub use capsules::{BoneCapsule, fit_bone_capsules};
 pub use clip::{ClipError, KEY_TIME_EPSILON, KeyInterpolation, PoseClip, PoseKey};

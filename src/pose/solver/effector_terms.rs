@@ -7,7 +7,7 @@
 use glam::{DAffine3, DMat3, DVec3, DVec4};
 
 use super::params::Param;
-use crate::pose::balance::{Balance, SupportPolygon};
+use crate::pose::balance::{AllowedRegion, Balance, SupportPolygon};
 use crate::pose::contacts::{Contact, GroundPlane};
 
 mod floor_groups;
@@ -77,12 +77,14 @@ enum Term<'a> {
         start_gap: f64,
         reach: &'a [f64; 4],
     },
-    /// The centre of mass (`sums`: mass-weighted, normalised) at least `margin` inside the
-    /// support polygon; one-sided.
+    /// The centre of mass (`sums`: mass-weighted, normalised) in its allowed region (at least
+    /// the margin inside the support polygon); one-sided.
     Balance {
         sums: Vec<(usize, DVec4)>,
         polygon: SupportPolygon,
-        margin: f64,
+        /// Where the centre of mass may be: the polygon shrunk by the margin asked (or grown
+        /// by a lean).
+        allowed: AllowedRegion,
         weight: f64,
     },
 }

@@ -140,10 +140,11 @@ pub(super) fn push_terms<'a>(
     if let Some((b, sums)) = input.balance
         && !sums.is_empty()
     {
+        let polygon = SupportPolygon::new(&b.support, b.gravity);
         terms.push(Term::Balance {
             sums: sums.to_vec(),
-            polygon: SupportPolygon::new(&b.support, b.gravity),
-            margin: b.required_inside() + input.balance_boost,
+            allowed: polygon.allowed(b.required_inside() + input.balance_boost),
+            polygon,
             weight: BALANCE_STRENGTH * lw * strength(b.weight),
         });
     }
@@ -224,10 +225,16 @@ impl ExtraTerms<'_> {
         }
     }
 
-    /// The directions a balance term's residual `r` is measured along, each with its share
-    /// of the term's weight: across the nearest edge of the allowed region while the centre of
-    /// mass is out of it (two across gravity over a single point, where it must be over the
-    /// point); none while it holds.
+    /// The directions a balance term's residual is measured along in the pose of `skinning`,
+    /// each with its share of the term's weight ([`crate::pose::AllowedRegion::directions`]): across the
+    /// nearest edge of the allowed region while the centre of mass is out of it, towards and
+    /// across a corner past one; none while it holds.
+    ///
+    /// (The region is the polygon shrunk by the margin. Measured from the polygon's own edges
+    /// instead, the residual inside the margin's band jumped from one edge's normal to the
+    /// next where their distances were equal: a kink in the energy at the rounded front of the
+    /// feet's outline, where the humanoid's centre of mass rested, and a third of its solves
+    /// rejected 10–22 steps that went round it.)
     ///
     /// (Tried: near the edge, the outward direction at 1e-3 to 1e-1 of the weight with no
     /// pull, as the floor does for a vertex near its ground. The mannequin dragged on the slope
@@ -238,20 +245,15 @@ impl ExtraTerms<'_> {
     /// fell to 0.72 ms, but the centre of mass then rested exactly on the edge and every other
     /// solve of the humanoid overshot it: 1.36–1.54 ms; smoothed over 5e-3 of the size, all
     /// as here within 3 %.)
-    pub(super) fn balance_directions(&self, term: &Term, r: DVec3) -> Vec<(DVec3, f64)> {
-        let Term::Balance { polygon, .. } = term else {
+    pub(super) fn balance_directions(
+        &self,
+        term: &Term,
+        skinning: &[glam::DAffine3],
+    ) -> Vec<(DVec3, f64)> {
+        let Term::Balance { sums, allowed, .. } = term else {
             return Vec::new();
         };
-        if r == DVec3::ZERO {
-            return Vec::new();
-        }
-        if polygon.corners().len() == 1 {
-            let x = polygon.down().any_orthonormal_vector();
-            return vec![(x, 1.0), (polygon.down().cross(x), 1.0)];
-        }
-        r.try_normalize()
-            .map(|n| vec![(n, 1.0)])
-            .unwrap_or_default()
+        allowed.directions(centroid_of(sums, skinning))
     }
 
     /// Per joint, how far its skinning matrix is from the start's: the Frobenius norm of the
@@ -314,13 +316,8 @@ impl ExtraTerms<'_> {
     /// [`ExtraTerms::energy`].)
     pub(super) fn balance_residual(&self, term: &Term, skinning: &[glam::DAffine3]) -> DVec3 {
         match term {
-            Term::Balance {
-                sums,
-                polygon,
-                margin,
-                ..
-            } => polygon
-                .violation(centroid_of(sums, skinning), *margin)
+            Term::Balance { sums, allowed, .. } => allowed
+                .violation(centroid_of(sums, skinning))
                 .unwrap_or(DVec3::ZERO),
             _ => DVec3::ZERO,
         }

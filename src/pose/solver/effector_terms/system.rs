@@ -114,7 +114,7 @@ impl ExtraTerms<'_> {
             return;
         };
         let r = r.iter().next().copied().unwrap_or(DVec3::ZERO);
-        let directions = self.balance_directions(term, r);
+        let directions = self.balance_directions(term, skinning);
         if directions.is_empty() {
             return;
         }
