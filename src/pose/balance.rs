@@ -327,6 +327,28 @@ impl AllowedRegion {
         directions
     }
 
+    /// While `point` is in the region: the horizontal direction (world space, unit) in which
+    /// it is nearest to leaving it and how far it may go that way before it does; `None` out
+    /// of the region, or exactly on its boundary or on a point or segment support (no single
+    /// way out).
+    pub fn way_out(&self, point: DVec3) -> Option<(DVec3, f64)> {
+        let p = self.polygon.flatten(point);
+        let (nearest, inside, _) = self.polygon.nearest_feature(p);
+        let (way, slack) = if inside && self.polygon.corners.len() >= 3 {
+            let way = nearest - p;
+            (way, way.length() + self.grow)
+        } else {
+            let way = p - nearest;
+            (way, self.grow - way.length())
+        };
+        if slack < 0.0 {
+            return None;
+        }
+        let out = way.try_normalize()?;
+        let axes = self.polygon.axes;
+        Some((axes.0 * out.x + axes.1 * out.y, slack))
+    }
+
     /// The residual at `point` and, past a corner, the distance to it.
     fn residual(&self, point: DVec3) -> Option<(DVec3, Option<f64>)> {
         let p = self.polygon.flatten(point);
@@ -554,5 +576,26 @@ mod tests {
         let share = (1.0 - 0.2 / 2f64.sqrt()).powi(2);
         assert!((corner[1].1 - share).abs() < 1e-12, "{}", corner[1].1);
         assert!(corner[0].0.dot(corner[1].0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn inside_the_region_the_way_out_is_across_its_nearest_edge() {
+        let (out, slack) = square()
+            .allowed(0.2)
+            .way_out(DVec3::new(0.5, 3.0, 0.1))
+            .unwrap();
+        assert!((out - DVec3::X).length() < 1e-12, "{out}");
+        assert!((slack - 0.3).abs() < 1e-12, "{slack}");
+        // Leaning: outside the polygon, still inside what the lean allows.
+        let (out, slack) = square()
+            .allowed(-0.2)
+            .way_out(DVec3::new(1.1, 0.0, 0.0))
+            .unwrap();
+        assert!((out - DVec3::X).length() < 1e-12, "{out}");
+        assert!((slack - 0.1).abs() < 1e-12, "{slack}");
+        assert_eq!(
+            square().allowed(0.2).way_out(DVec3::new(0.9, 0.0, 0.0)),
+            None
+        );
     }
 }

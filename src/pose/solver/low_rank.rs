@@ -9,6 +9,14 @@
 //! as `s u uᵀ`, the sparse factor `A = H + μD` stays as it is and
 //! `(A + U S Uᵀ)⁻¹ b = A⁻¹b − A⁻¹U (S⁻¹ + Uᵀ A⁻¹ U)⁻¹ Uᵀ A⁻¹ b`: one more solve with the
 //! factor per part and a k × k system (k: one or two).
+//!
+//! A one-sided term that holds now (the centre of mass inside its region) but that a step
+//! may break is a part with a bound ([`RankOne::bound`]): it is left out of the model unless
+//! the step would carry it past its bound, and then solved with as active
+//! ([`gauss_newton::solve_damped`](super::gauss_newton)). Without it the model of a step did
+//! not know the term at all: a step took the centre of mass resting on its margin straight
+//! across it, the term's weight (a thousand times an effector's) made the energy rise by
+//! 10⁵–10⁶ times what the model promised, and a dozen damped trials followed.
 
 use super::block_cholesky::BlockCholesky;
 
@@ -17,11 +25,27 @@ use super::block_cholesky::BlockCholesky;
 pub(super) struct RankOne {
     pub(super) scale: f64,
     pub(super) u: Vec<f64>,
+    /// `None`: always part of the matrix. `Some(slack)`: a one-sided term that holds now
+    /// and acts once `u · x` exceeds `slack` (≥ 0); its energy is then
+    /// `scale / 2 · (u · x − slack)²`.
+    pub(super) bound: Option<f64>,
 }
 
-/// Adds each part's diagonal, `scale · u_i²`, to `diagonal`.
+impl RankOne {
+    /// A part always in the matrix.
+    pub(super) fn always(scale: f64, u: Vec<f64>) -> Self {
+        Self {
+            scale,
+            u,
+            bound: None,
+        }
+    }
+}
+
+/// Adds each part's diagonal, `scale · u_i²`, to `diagonal` (parts with a bound are not in
+/// the matrix until a step activates them: left out).
 pub(super) fn add_diagonal(parts: &[RankOne], diagonal: &mut [f64]) {
-    for part in parts {
+    for part in parts.iter().filter(|p| p.bound.is_none()) {
         for (d, u) in diagonal.iter_mut().zip(&part.u) {
             *d += part.scale * u * u;
         }
@@ -67,7 +91,8 @@ pub(super) fn solve_with(parts: &[RankOne], factor: &BlockCholesky, x: &mut [f64
     true
 }
 
-fn dot(a: &[f64], b: &[f64]) -> f64 {
+/// `a · b`.
+pub(super) fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
@@ -125,9 +150,11 @@ mod tests {
         let n = 3 * nb;
         let a = sparse(nb);
         let parts: Vec<RankOne> = (0..2)
-            .map(|k| RankOne {
-                scale: [50.0, 0.3][k],
-                u: (0..n).map(|i| ((i * (k + 2)) as f64 * 0.7).sin()).collect(),
+            .map(|k| {
+                RankOne::always(
+                    [50.0, 0.3][k],
+                    (0..n).map(|i| ((i * (k + 2)) as f64 * 0.7).sin()).collect(),
+                )
             })
             .collect();
         let b: Vec<f64> = (0..n).map(|i| (i as f64 * 0.37).cos()).collect();
@@ -182,10 +209,7 @@ mod tests {
         let pattern = BlockPattern::of(&a, n);
         let factor = BlockCholesky::factor(&a, &zero, &pattern).expect("SPD");
         let mut x = vec![1.0; n];
-        let parts = [RankOne {
-            scale: 0.0,
-            u: vec![1.0; n],
-        }];
+        let parts = [RankOne::always(0.0, vec![1.0; n])];
         assert!(!solve_with(&parts, &factor, &mut x));
         assert_eq!(x, vec![1.0; n]);
     }

@@ -22,6 +22,11 @@ use super::{
 use crate::deform::RigidTransform;
 use crate::pose::{Floor, GroundPlane, PoseError, Skeleton, SkeletonPose};
 
+/// The smallest share of the energy a step is tried for, whatever the tolerance: the energy
+/// is a sum of terms up to ~10¹⁰ times its last digit, and two evaluations of poses a
+/// rounding apart differ by ~10⁻¹⁰ of it. Steps promising less (measured: the humanoid's
+/// settle tried up to 24 of them an iteration, each rejected on rounding) are not taken.
+const ENERGY_RESOLUTION: f64 = 1e-9;
 /// Levenberg–Marquardt damping of a cold start (relative to the Hessian's diagonal).
 const INITIAL_DAMPING: f64 = 1e-4;
 /// The largest [`PoseSolution::balance_boost`], as a share of the model's size: a support the
@@ -178,7 +183,7 @@ impl PoseSolver {
                 low_rank: &low_rank,
                 g: &g,
                 f0,
-                no_progress: options.tolerance * f0.abs() * 0.1,
+                no_progress: (options.tolerance * 0.1).max(ENERGY_RESOLUTION) * f0.abs(),
                 pattern: &pattern,
                 weights: &weights,
             };

@@ -7,7 +7,7 @@ use super::super::low_rank::RankOne;
 use super::super::params::Param;
 use super::moments::RankOneSums;
 use super::sums::apply;
-use super::{ExtraTerms, Rows, Term, carried_change, ground};
+use super::{ExtraTerms, Rows, Term, carried_change, centroid_of, ground};
 
 impl ExtraTerms<'_> {
     /// Into `movers`, the parameters that move `term` (indices into the solver's, each once:
@@ -102,7 +102,9 @@ impl ExtraTerms<'_> {
     /// A balance term's `2 w JᵀJ` as rank-one parts `2 w u uᵀ` into `low_rank` and its
     /// `2 w Jᵀr` into `g`, one per direction its residual `r` is measured along
     /// ([`ExtraTerms::balance_directions`]): `u` per parameter is the centre of mass's
-    /// change under it seen along that direction. Nothing while balance holds.
+    /// change under it seen along that direction. While balance holds, one part with a bound
+    /// (no pull): along the way out of the region, active only for a step that would take
+    /// the centre of mass further than that ([`RankOne::bound`]).
     fn balance_parts(
         &self,
         (term, w, r): (&Term, f64, &Rows<DVec3>),
@@ -110,13 +112,18 @@ impl ExtraTerms<'_> {
         g: &mut [f64],
         low_rank: &mut Vec<RankOne>,
     ) {
-        let Term::Balance { sums, .. } = term else {
+        let Term::Balance { sums, allowed, .. } = term else {
             return;
         };
         let r = r.iter().next().copied().unwrap_or(DVec3::ZERO);
-        let directions = self.balance_directions(term, skinning);
+        let mut directions = self.balance_directions(term, skinning);
+        let mut bound = None;
         if directions.is_empty() {
-            return;
+            let Some((out, slack)) = allowed.way_out(centroid_of(sums, skinning)) else {
+                return;
+            };
+            directions.push((out, 1.0));
+            bound = Some(slack);
         }
         // The centre of mass's change under each parameter, once for every direction: from
         // each joint's subtree's share of the mass and its skinned moment, summed children to
@@ -156,7 +163,7 @@ impl ExtraTerms<'_> {
             for (gi, ui) in g.iter_mut().zip(&u) {
                 *gi += s * depth * ui;
             }
-            low_rank.push(RankOne { scale: s, u });
+            low_rank.push(RankOne { scale: s, u, bound });
         }
     }
 }
@@ -401,10 +408,11 @@ mod tests {
         }
     }
 
-    /// Inside its margin, balance adds nothing; just past it, its part (found by bisection
-    /// on the residual's onset: the part appears with the residual, not before).
+    /// Inside its margin, balance adds no pull and no curvature, only a part with a bound
+    /// (for a step that would cross the margin); just past it, its part in the matrix (found
+    /// by bisection on the residual's onset: the part acts with the residual, not before).
     #[test]
-    fn balance_adds_a_part_only_past_its_margin() {
+    fn balance_acts_only_past_its_margin() {
         let (mut inside, mut outside) = (0.0, 0.5);
         for _ in 0..50 {
             let mid = 0.5 * (inside + outside);
@@ -414,13 +422,20 @@ mod tests {
             }
         }
         let before = balance_at(inside - 1e-3);
-        assert!(before.parts.is_empty() && before.g.iter().all(|v| *v == 0.0));
+        assert!(before.g.iter().all(|v| *v == 0.0));
+        assert!(
+            before.parts.len() == 1 && before.parts[0].bound.is_some_and(|slack| slack > 0.0),
+            "{:?}",
+            before.parts.iter().map(|p| p.bound).collect::<Vec<_>>()
+        );
         let past = balance_at(outside + 1e-3);
         assert_eq!(past.parts.len(), 1);
+        assert_eq!(past.parts[0].bound, None);
         assert!(past.g.iter().any(|v| *v != 0.0));
+        let upright = balance_at(0.0);
         assert!(
-            balance_at(0.0).parts.is_empty(),
-            "upright, balance adds nothing"
+            upright.parts.iter().all(|p| p.bound.is_some()) && upright.g.iter().all(|v| *v == 0.0),
+            "upright, balance adds nothing to the matrix"
         );
     }
 }
