@@ -13,7 +13,7 @@
 //! A one-sided term that holds now (the centre of mass inside its region) but that a step
 //! may break is a part with a bound ([`RankOne::bound`]): it is left out of the model unless
 //! the step would carry it past its bound, and then solved with as active
-//! ([`gauss_newton::solve_damped`](super::gauss_newton)). Without it the model of a step did
+//! ([`damped_step::solve_damped`](super::damped_step)). Without it the model of a step did
 //! not know the term at all: a step took the centre of mass resting on its margin straight
 //! across it, the term's weight (a thousand times an effector's) made the energy rise by
 //! 10⁵–10⁶ times what the model promised, and a dozen damped trials followed.

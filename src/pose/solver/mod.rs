@@ -22,6 +22,7 @@ use glam::{DAffine3, DMat4, DQuat, DVec3, DVec4};
 
 mod arap;
 mod block_cholesky;
+mod damped_step;
 mod effector_terms;
 mod gauss_newton;
 mod hinges;

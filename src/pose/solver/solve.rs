@@ -10,8 +10,9 @@ use web_time::Instant;
 use glam::{DAffine3, DQuat, DVec4};
 
 use super::arap::{ClusterFit, q_times_into};
+use super::damped_step::{damping_weights, diagonal_of};
 use super::effector_terms::{ExtraInputs, ExtraTerms, mass_sums, validate, validate_ground};
-use super::gauss_newton::{HessianScratch, damping_weights, diagonal_of};
+use super::gauss_newton::HessianScratch;
 use super::holds::QBlocks;
 use super::low_rank;
 use super::step::{DampedSystem, Objective};

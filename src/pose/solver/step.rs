@@ -4,8 +4,9 @@
 
 use glam::{DAffine3, DQuat, DVec3};
 
+use super::block_cholesky::BlockPattern;
+use super::damped_step::{DampedStep, solve_damped};
 use super::effector_terms::ExtraTerms;
-use super::gauss_newton::{BlockPattern, DampedStep, solve_damped};
 use super::holds::QBlocks;
 use super::low_rank::RankOne;
 use super::params::Param;
@@ -47,7 +48,7 @@ pub(super) struct DampedSystem<'a> {
     pub(super) no_progress: f64,
     /// Where `h`'s Cholesky factor has non-zero blocks.
     pub(super) pattern: &'a BlockPattern,
-    /// Each coordinate's damping weight ([`super::gauss_newton::damping_weights`]).
+    /// Each coordinate's damping weight ([`super::damped_step::damping_weights`]).
     pub(super) weights: &'a [f64],
 }
 
