@@ -21,6 +21,8 @@
 
 use glam::DVec3;
 
+use super::ground::Ground;
+
 /// A plane of the ground: a point on it and its normal (unit, pointing out of the ground).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GroundPlane {
@@ -190,6 +192,38 @@ impl Contact {
             self.landing -= drop;
         }
         self.landing
+    }
+
+    /// Raises a planted patch that lies partly under `ground` out of it, along gravity
+    /// (`down`, unit), as one piece: every planted point by the depth of the deepest (casts
+    /// from `reach` above each point, `2 × reach` long). Returns that depth (0: nothing under).
+    ///
+    /// [`Contact::plant`] lays the patch on one plane, the ground under its centre; where the
+    /// ground under the patch is not that plane (a paw half on a terrace and half on the slope
+    /// rising from it), part of the patch was held inside the ground, the floor pushed those
+    /// vertices out and the hold pulled them back in: a walking crowd's planted paws stood
+    /// 1–1.6 % of their size in the terrain. Raised as one piece the patch keeps the shape its
+    /// joint carries (raising only the points under the ground bent it, and the sole, which
+    /// cannot bend, went under between them); it rests on its highest ground. Misses and
+    /// non-finite hits change nothing.
+    pub fn raise_onto(&mut self, ground: &dyn Ground, down: DVec3, reach: f64) -> f64 {
+        let Some(planted) = &mut self.planted else {
+            return 0.0;
+        };
+        let depth = planted
+            .iter()
+            .filter_map(|p| {
+                let hit = ground.cast_down(*p - down * reach, down, 2.0 * reach)?;
+                let depth = (hit.point - *p).dot(-down);
+                depth.is_finite().then_some(depth)
+            })
+            .fold(0.0f64, f64::max);
+        if depth > 0.0 {
+            for p in planted.iter_mut() {
+                *p -= down * depth;
+            }
+        }
+        depth
     }
 
     /// Releases a planted contact (it may then only not go below the ground).

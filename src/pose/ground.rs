@@ -242,7 +242,9 @@ impl ContactTracker {
     }
 
     /// Casts down from each patch of `model` in `pose` onto `ground`, updates grounds, plants
-    /// and releases; returns what happened to each contact.
+    /// and releases; returns what happened to each contact. A patch planted (or lowered while
+    /// landing) on the plane under its centre is raised out of the ground where the ground
+    /// under it is not that plane ([`Contact::raise_onto`]: one cast per patch vertex).
     pub fn update(
         &mut self,
         model: &SkinnedModel,
@@ -333,7 +335,12 @@ impl ContactTracker {
                                 ContactEvent::Released
                             }
                             Some(_) => {
-                                c.descend(self.landing_step);
+                                // Lowered along the plane's normal: kept out of the
+                                // ground where it is not that plane.
+                                if c.landing > 0.0 {
+                                    c.descend(self.landing_step);
+                                    c.raise_onto(ground, self.down, self.reach);
+                                }
                                 ContactEvent::Unchanged
                             }
                             // Without a clip, a patch a step released plants again once
@@ -353,6 +360,7 @@ impl ContactTracker {
                                 } else {
                                     c.plant_landing(&patch, up);
                                 }
+                                c.raise_onto(ground, self.down, self.reach);
                                 ContactEvent::Planted
                             }
                             _ => ContactEvent::Unchanged,

@@ -651,6 +651,102 @@ fn tracked_contacts_stand_the_body_on_steps() {
     assert_eq!(tracker.contacts, before);
 }
 
+/// Issue 42: a sole planted where a terrace meets the slope rising from it (its centre on the
+/// flat, its toes over the slope) is held out of the ground as one piece: no held point
+/// under the ground, one touching, the sole's shape kept; solved, no sole vertex goes under.
+/// (Laid on the plane under its centre, the toes were held inside the slope: the floor
+/// pushed them out, the hold pulled them in, and a walking crowd's planted paws stood 1–1.6 %
+/// of their size in the terrain.)
+#[test]
+fn a_sole_planted_at_the_foot_of_a_slope_is_held_out_of_it() {
+    let s = scene();
+    let down = DVec3::NEG_Y;
+    let mut tracker = ContactTracker::new(&s.model, &s.rig.rest, &[LEFT_ANKLE], down);
+    let patch = tracker.contacts[0].patch.clone();
+    let patch_at = |pose: &SkeletonPose| -> Vec<DVec3> {
+        let skinned = s.skinned(pose);
+        patch.iter().map(|&v| skinned[v as usize]).collect()
+    };
+    let rest_sole = patch_at(&s.rig.rest);
+    let (lo, hi) = rest_sole
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p.z), hi.max(p.z))
+        });
+    assert!(
+        hi - lo > 1e-2 * s.size,
+        "the sole has a length: {lo} .. {hi}"
+    );
+    // Flat up to a quarter of the sole's length ahead of its middle, then 45° up along +z.
+    let foot_of_slope = 0.5 * (lo + hi) + 0.25 * (hi - lo);
+    let (y, rise) = (s.lowest, 2.0 * s.size);
+    let p = DVec3::new;
+    let positions = vec![
+        p(-2.0, y, -2.0),
+        p(2.0, y, -2.0),
+        p(2.0, y, foot_of_slope),
+        p(-2.0, y, foot_of_slope),
+        p(2.0, y + rise, foot_of_slope + rise),
+        p(-2.0, y + rise, foot_of_slope + rise),
+    ];
+    let triangles = vec![[0, 2, 1], [0, 3, 2], [3, 4, 2], [3, 5, 4]];
+    let ground = TriangleGround::new(positions, triangles, down);
+    let height_above = |q: DVec3| {
+        let hit = ground
+            .cast_down(q + DVec3::Y * s.size, down, 4.0 * s.size)
+            .unwrap();
+        q.y - hit.point.y
+    };
+    let events = tracker.update(&s.model, &s.rig.rest, &ground);
+    assert_eq!(events, vec![ContactEvent::Planted]);
+    let contact = &tracker.contacts[0];
+    let held = contact.planted.as_ref().unwrap();
+    let heights: Vec<f64> = held.iter().map(|q| height_above(*q)).collect();
+    let lowest = heights.iter().copied().fold(f64::INFINITY, f64::min);
+    assert!(
+        lowest > -1e-9 * s.size,
+        "a held point is {:.2e} of the size inside the slope",
+        -lowest / s.size
+    );
+    assert!(
+        lowest < 1e-9 * s.size,
+        "the sole rests on the ground: {lowest}"
+    );
+    // One piece: the held points are the sole as its joint carries it, moved.
+    let mut laid = Contact::new(LEFT_ANKLE, contact.patch.clone(), contact.ground);
+    laid.plant(&rest_sole, Some(DVec3::Y));
+    let offset = held[0] - laid.planted.as_ref().unwrap()[0];
+    for (a, b) in held.iter().zip(laid.planted.as_ref().unwrap()) {
+        assert!(
+            (*a - *b - offset).length() < 1e-9 * s.size,
+            "the sole kept its shape"
+        );
+    }
+    assert!(offset.y > 1e-3 * s.size, "it was raised: {offset}");
+
+    // Solved standing on it, with the floor under the skin: no sole vertex under the ground.
+    let skinned = s.skinned(&s.rig.rest);
+    let sampling = FloorSampling::for_size(s.size, 0.3, down);
+    let constraints = PoseConstraints {
+        contacts: tracker.active(),
+        floor: Some(Floor::cast(&skinned, &ground, &sampling).0),
+        ..Default::default()
+    };
+    let pose = s
+        .solve(&constraints, PoseStart::Pose(&s.rig.rest), 20)
+        .unwrap()
+        .pose;
+    let deepest = patch_at(&pose)
+        .iter()
+        .map(|q| -height_above(*q))
+        .fold(f64::NEG_INFINITY, f64::max);
+    assert!(
+        deepest < 1e-3 * s.size,
+        "a sole vertex is {:.2e} of the size under the ground",
+        deepest / s.size
+    );
+}
+
 /// Issue 42: a character that walked on leaves its planted patches behind in its own space;
 /// past the stride they are released and planted again under it.
 #[test]
