@@ -19,7 +19,7 @@
 //!   the ground in the pose a solve starts from become one-sided terms of that solve (an
 //!   active set renewed every solve: a character dragged down into the floor does not sink).
 
-use glam::DVec3;
+use glam::{DQuat, DVec3};
 
 use super::ground::Ground;
 
@@ -112,6 +112,20 @@ pub struct Contact {
     /// onto the ground by [`Contact::descend`], so the body is not yanked down in one solve
     /// (the other planted patches would slide under the pull).
     pub landing: f64,
+    /// While a planted patch is still turning onto its ground ([`Contact::plant_rolling`]):
+    /// about which held point, and the turn left.
+    pub rolling: Option<Rolling>,
+}
+
+/// A planted patch still turning onto its ground: it touched down tilted (a paw toe first)
+/// and rolls flat about the point that touched, a bounded turn per update
+/// ([`Contact::roll`]), its joint's turn to the normal left to the holds meanwhile.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rolling {
+    /// The held point it turns about (an index into the patch): the lowest when it touched.
+    pub pivot: usize,
+    /// The turn still to make, about the pivot.
+    pub left: DQuat,
 }
 
 impl Contact {
@@ -125,6 +139,7 @@ impl Contact {
             planted: None,
             up: Some(DVec3::Y),
             landing: 0.0,
+            rolling: None,
         }
     }
 
@@ -135,29 +150,71 @@ impl Contact {
     /// lowest vertex touches. Each vertex is held there: the sole lies on the ground where it
     /// touched, curved or flat, and does not slide.
     pub fn plant(&mut self, positions: &[DVec3], current_up: Option<DVec3>) {
-        self.lay(positions, current_up, false);
+        self.lay(positions, current_up, false, f64::INFINITY);
     }
 
     /// Plants the contact as [`Contact::plant`] does, but a patch that is above the ground is
     /// held at its height for now ([`Contact::landing`]; lower it with [`Contact::descend`]):
     /// a foot coming down on a lower step while the others stand.
     pub fn plant_landing(&mut self, positions: &[DVec3], current_up: Option<DVec3>) {
-        self.lay(positions, current_up, true);
+        self.lay(positions, current_up, true, f64::INFINITY);
     }
 
-    fn lay(&mut self, positions: &[DVec3], current_up: Option<DVec3>, landing: bool) {
-        let turn = current_up
+    /// Plants the contact as [`Contact::plant_landing`] does, but turned onto the ground by
+    /// at most `max_turn` (radians) now: the rest of the turn is [`Contact::rolling`], made by
+    /// [`Contact::roll`] update after update, about the point that touched. A paw the walk
+    /// puts down toe first (tilted 14° at the median, 50° at the 90th percentile in the
+    /// crowd) was laid flat at once, its held points up to 7 % of its size from where it was,
+    /// and the solve snapped it there in a frame.
+    pub fn plant_rolling(&mut self, positions: &[DVec3], current_up: Option<DVec3>, max_turn: f64) {
+        self.lay(positions, current_up, true, max_turn.max(0.0));
+    }
+
+    /// Turns a rolling patch ([`Contact::rolling`]) by at most `max_turn` (radians) about its
+    /// pivot; returns whether it turned.
+    pub fn roll(&mut self, max_turn: f64) -> bool {
+        let (Some(rolling), Some(planted)) = (self.rolling, &mut self.planted) else {
+            self.rolling = None;
+            return false;
+        };
+        let Some(&pivot) = planted.get(rolling.pivot) else {
+            self.rolling = None;
+            return false;
+        };
+        let (now, left) = split_turn(rolling.left, max_turn.max(0.0));
+        for p in planted.iter_mut() {
+            *p = pivot + now * (*p - pivot);
+        }
+        self.rolling = left.map(|left| Rolling { left, ..rolling });
+        true
+    }
+
+    fn lay(
+        &mut self,
+        positions: &[DVec3],
+        current_up: Option<DVec3>,
+        landing: bool,
+        max_turn: f64,
+    ) {
+        let full = current_up
             .and_then(|u| u.try_normalize())
-            .map_or(glam::DQuat::IDENTITY, |u| {
-                glam::DQuat::from_rotation_arc(u, self.ground.normal)
+            .map_or(DQuat::IDENTITY, |u| {
+                DQuat::from_rotation_arc(u, self.ground.normal)
             });
-        let Some(&pivot) = positions
-            .iter()
-            .min_by(|a, b| self.ground.height(**a).total_cmp(&self.ground.height(**b)))
-        else {
+        let Some((pivot_index, &pivot)) = positions.iter().enumerate().min_by(|a, b| {
+            self.ground
+                .height(*a.1)
+                .total_cmp(&self.ground.height(*b.1))
+        }) else {
             self.planted = Some(Vec::new());
+            self.rolling = None;
             return;
         };
+        let (turn, left) = split_turn(full, max_turn);
+        self.rolling = left.map(|left| Rolling {
+            pivot: pivot_index,
+            left,
+        });
         let laid: Vec<DVec3> = positions
             .iter()
             .map(|p| pivot + turn * (*p - pivot))
@@ -226,10 +283,37 @@ impl Contact {
         depth
     }
 
+    /// Carries the contact by a similarity (`moved`: a rotation, a uniform scale and a
+    /// translation; e.g. into a character's space after it moved): its ground, its planted
+    /// points and the turn a rolling patch has left. A ground the map does not keep usable
+    /// (a singular `moved`) stays as it was.
+    pub fn move_by(&mut self, moved: &glam::DAffine3) {
+        if let Some(g) = GroundPlane::new(
+            moved.transform_point3(self.ground.point),
+            moved.matrix3 * self.ground.normal,
+        ) {
+            self.ground = g;
+        }
+        for p in self.planted.iter_mut().flatten() {
+            *p = moved.transform_point3(*p);
+        }
+        let scale = moved.matrix3.determinant().cbrt();
+        if let Some(r) = &mut self.rolling
+            && scale.is_finite()
+            && scale.abs() > 1e-12
+        {
+            let turn = DQuat::from_mat3(&(moved.matrix3 / scale)).normalize();
+            if turn.is_finite() {
+                r.left = (turn * r.left * turn.inverse()).normalize();
+            }
+        }
+    }
+
     /// Releases a planted contact (it may then only not go below the ground).
     pub fn release(&mut self) {
         self.planted = None;
         self.landing = 0.0;
+        self.rolling = None;
     }
 
     /// Whether the patch (`positions`, as for [`Contact::plant`]) is entirely more than
@@ -242,6 +326,7 @@ impl Contact {
     pub(crate) fn is_valid(&self) -> bool {
         self.ground.point.is_finite()
             && self.landing.is_finite()
+            && self.rolling.is_none_or(|r| r.left.is_finite())
             && self.ground.normal.is_finite()
             && (self.ground.normal.length() - 1.0).abs() < 1e-6
             && self
@@ -252,6 +337,17 @@ impl Contact {
                 .up
                 .is_none_or(|u| u.is_finite() && u.length_squared() > 1e-18)
     }
+}
+
+/// `turn` split into at most `max` radians now and the rest (`None`: nothing left), about
+/// the same axis.
+fn split_turn(turn: DQuat, max: f64) -> (DQuat, Option<DQuat>) {
+    let angle = DQuat::IDENTITY.angle_between(turn);
+    if angle.is_nan() || angle <= max {
+        return (turn, None);
+    }
+    let now = DQuat::IDENTITY.slerp(turn, max / angle);
+    (now, Some(now.inverse() * turn))
 }
 
 #[cfg(test)]
@@ -314,5 +410,60 @@ mod tests {
         assert!((planted[0].distance(planted[1]) - 0.2).abs() < 1e-12);
         assert!(!c.lifted(&[DVec3::new(0.0, 1.05, 0.0)], 0.1));
         assert!(c.lifted(&[DVec3::new(0.0, 1.2, 0.0)], 0.1));
+    }
+
+    /// A patch put down tilted 50° turns onto the ground 20° at a time about the point that
+    /// touched: 20° at planting, 20° and the last 10° in two rolls, then none; its shape kept,
+    /// its pivot where it touched, level at the end; carried by a turn, the turn left is too.
+    #[test]
+    fn a_patch_planted_tilted_rolls_flat_about_the_point_that_touched() {
+        let ground = GroundPlane::new(DVec3::ZERO, DVec3::Y).unwrap();
+        let tilt = DQuat::from_rotation_z(50f64.to_radians());
+        let patch = [DVec3::new(-0.1, 0.0, 0.0), DVec3::new(0.1, 0.0, 0.0)]
+            .map(|p| tilt * p + DVec3::new(0.0, 0.2, 0.0));
+        let up = tilt * DVec3::Y;
+        let max = 20f64.to_radians();
+        let level = |c: &Contact| {
+            let p = c.planted.as_ref().unwrap();
+            let along = (p[1] - p[0]).normalize();
+            along.angle_between(DVec3::X).to_degrees()
+        };
+        let mut c = Contact::new(0, vec![0, 1], ground);
+        c.plant_rolling(&patch, Some(up), max);
+        let pivot = c.planted.as_ref().unwrap()[0];
+        assert!(
+            (level(&c) - 30.0).abs() < 1e-9,
+            "turned 20° of 50: {}",
+            level(&c)
+        );
+        assert_eq!(c.rolling.map(|r| r.pivot), Some(0), "about the lower end");
+        // Carried by a quarter turn about the vertical and moved: the turn left is carried too.
+        let mut carried = c.clone();
+        let moved = glam::DAffine3::from_rotation_translation(
+            DQuat::from_rotation_y(std::f64::consts::FRAC_PI_2),
+            DVec3::new(3.0, 0.0, 1.0),
+        );
+        carried.move_by(&moved);
+        while carried.roll(max) {}
+        let held = carried.planted.as_ref().unwrap();
+        assert!(
+            (held[1] - held[0]).y.abs() < 1e-9,
+            "carried, it still rolls level"
+        );
+        assert!(c.roll(max));
+        assert!((level(&c) - 10.0).abs() < 1e-9, "{}", level(&c));
+        assert!(c.roll(max));
+        assert!(level(&c) < 1e-9 && c.rolling.is_none(), "{}", level(&c));
+        assert!(!c.roll(max), "nothing left to turn");
+        let held = c.planted.as_ref().unwrap();
+        assert!(held[0].distance(pivot) < 1e-12, "the pivot stays");
+        assert!(
+            (held[0].distance(held[1]) - 0.2).abs() < 1e-12,
+            "the shape is kept"
+        );
+        // Without a limit it is laid flat at once, as `plant_landing` lays it.
+        let mut flat = Contact::new(0, vec![0, 1], ground);
+        flat.plant_rolling(&patch, Some(up), f64::INFINITY);
+        assert!(flat.rolling.is_none() && level(&flat) < 1e-9);
     }
 }

@@ -65,7 +65,7 @@ pub use balance::{AllowedRegion, Balance, SupportPolygon, centre_of_mass, vertex
 pub use blend::{BlendMode, additive_layer_for, blend_joint, blend_pose};
 pub use capsules::{BoneCapsule, fit_bone_capsules};
 pub use clip::{ClipError, KEY_TIME_EPSILON, KeyInterpolation, PoseClip, PoseKey};
-pub use contacts::{Contact, GroundPlane};
+pub use contacts::{Contact, GroundPlane, Rolling};
 pub use effectors::{
     CentroidEffector, Effector, EffectorGoal, ReferenceStiffness, StiffnessWeighting,
 };

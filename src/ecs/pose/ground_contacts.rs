@@ -162,15 +162,7 @@ fn clip_lean(
 /// maps the old character space into the new one.
 fn follow_the_world(tracker: &mut ContactTracker, moved: &DAffine3) {
     for c in &mut tracker.contacts {
-        if let Some(g) = GroundPlane::new(
-            moved.transform_point3(c.ground.point),
-            moved.matrix3 * c.ground.normal,
-        ) {
-            c.ground = g;
-        }
-        for p in c.planted.iter_mut().flatten() {
-            *p = moved.transform_point3(*p);
-        }
+        c.move_by(moved);
     }
 }
 

@@ -121,7 +121,8 @@ pub(super) fn push_terms<'a>(
         for &v in &c.patch {
             terms.push(above_term(v, c.ground));
         }
-        if let (Some(_), Some(up)) = (&c.planted, c.up) {
+        // (A patch still rolling onto the ground turns with its holds.)
+        if let (Some(_), Some(up), None) = (&c.planted, c.up, c.rolling) {
             let origin = input.reference_globals[c.joint].translation;
             terms.push(Term::Aim {
                 joint: c.joint,
