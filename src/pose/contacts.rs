@@ -177,7 +177,11 @@ impl Contact {
             self.rolling = None;
             return false;
         };
-        let Some(&pivot) = planted.get(rolling.pivot) else {
+        // (A turn or pivot that is not usable ends the roll where it is.)
+        let Some(&pivot) = planted
+            .get(rolling.pivot)
+            .filter(|_| rolling.left.is_finite())
+        else {
             self.rolling = None;
             return false;
         };
@@ -465,5 +469,14 @@ mod tests {
         let mut flat = Contact::new(0, vec![0, 1], ground);
         flat.plant_rolling(&patch, Some(up), f64::INFINITY);
         assert!(flat.rolling.is_none() && level(&flat) < 1e-9);
+        // A turn left that is not a number ends the roll, the held points untouched.
+        let mut broken = Contact::new(0, vec![0, 1], ground);
+        broken.plant_rolling(&patch, Some(up), max);
+        let before = broken.planted.clone();
+        broken.rolling.as_mut().unwrap().left = DQuat::from_xyzw(f64::NAN, 0.0, 0.0, 1.0);
+        assert!(!broken.is_valid(), "a NaN turn is not a usable contact");
+        assert!(!broken.roll(max));
+        assert_eq!(broken.planted, before);
+        assert!(broken.rolling.is_none() && broken.is_valid());
     }
 }

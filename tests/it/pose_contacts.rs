@@ -747,6 +747,79 @@ fn a_sole_planted_at_the_foot_of_a_slope_is_held_out_of_it() {
     );
 }
 
+/// Issue 42: a foot released and put down again tilted 50° (toe first) rolls flat over the
+/// tracker's updates, 20° each, and a solve then stands it flat on the ground (within 3°),
+/// no sole vertex under it. (Laid flat at once, its held points were up to 7 % of the size
+/// from where the foot was, and the solve snapped it there.)
+#[test]
+fn a_foot_put_down_tilted_rolls_flat_over_the_updates() {
+    let s = scene();
+    let down = DVec3::NEG_Y;
+    let ground = s.flat_ground();
+    let mut tracker = ContactTracker::new(&s.model, &s.rig.rest, &[LEFT_ANKLE], down);
+    assert_eq!(
+        tracker.update(&s.model, &s.rig.rest, &ground),
+        vec![ContactEvent::Planted]
+    );
+    assert!(
+        tracker.contacts[0].rolling.is_none(),
+        "the first stance is laid at once"
+    );
+    // Released, then down again with the ankle turned 50° toes down (about x).
+    tracker.contacts[0].release();
+    let mut tilted = s.rig.rest.clone();
+    let ankle = &mut tilted.local[LEFT_ANKLE];
+    ankle.rotation = DQuat::from_rotation_x(50f64.to_radians()) * ankle.rotation;
+    assert_eq!(
+        tracker.update(&s.model, &tilted, &ground),
+        vec![ContactEvent::Planted]
+    );
+    let turn_left = |t: &ContactTracker| {
+        t.contacts[0]
+            .rolling
+            .map_or(0.0, |r| DQuat::IDENTITY.angle_between(r.left).to_degrees())
+    };
+    let mut lefts = vec![turn_left(&tracker)];
+    while tracker.contacts[0].rolling.is_some() && lefts.len() < 10 {
+        tracker.update(&s.model, &tilted, &ground);
+        lefts.push(turn_left(&tracker));
+    }
+    assert!(
+        (lefts[0] - 30.0).abs() < 1.0 && (lefts[1] - 10.0).abs() < 1.0 && lefts[2] == 0.0,
+        "20° at planting, 20° an update after: {lefts:?}"
+    );
+    // Landed: held on the ground, touching it, no point under it.
+    while tracker.contacts[0].landing > 0.0 {
+        tracker.update(&s.model, &tilted, &ground);
+    }
+    let held = tracker.contacts[0].planted.clone().unwrap();
+    let lowest_held = held
+        .iter()
+        .map(|p| p.y - s.lowest)
+        .fold(f64::INFINITY, f64::min);
+    assert!(
+        lowest_held.abs() < 1e-9 * s.size,
+        "the lowest held point is {:.2e} of the size off the ground",
+        lowest_held / s.size
+    );
+    let constraints = PoseConstraints {
+        contacts: tracker.active(),
+        floor: Some(s.flat_floor()),
+        ..Default::default()
+    };
+    let pose = s
+        .solve(&constraints, PoseStart::Pose(&tilted), 30)
+        .unwrap()
+        .pose;
+    let tilt = sole_tilt_deg(&s, &pose, DVec3::Y);
+    assert!(tilt < 3.0, "the sole stands {tilt:.1}° off flat");
+    assert!(
+        s.lowest_height(&pose) > -1e-3 * s.size,
+        "a vertex {:.2e} of the size under the ground",
+        -s.lowest_height(&pose) / s.size
+    );
+}
+
 /// Issue 42: a character that walked on leaves its planted patches behind in its own space;
 /// past the stride they are released and planted again under it.
 #[test]
