@@ -154,30 +154,6 @@ impl Field {
                         .zip(&b.drawn)
                         .map(|(p, q)| across(*q - *p))
                         .fold(0.0f64, f64::max);
-                    if std::env::var("SLIDE_DEBUG").is_ok() && slide > 2e-3 {
-                        let off = |pl: &Planted| {
-                            pl.drawn
-                                .iter()
-                                .zip(&pl.held)
-                                .map(|(d, h)| (*d - *h).length() / size)
-                                .fold(0.0f64, f64::max)
-                        };
-                        let moved_held = a
-                            .held
-                            .iter()
-                            .zip(&b.held)
-                            .map(|(p, q)| (*q - *p).length() / size)
-                            .fold(0.0f64, f64::max);
-                        eprintln!(
-                            "SLIDE root={root:?} frame={} joint={} slide={slide:.4} off_before={:.4} off_now={:.4} held_moved={:.5} landing_like={:.4}",
-                            self.pairs / roots.len() as u64,
-                            c.joint,
-                            off(a),
-                            off(b),
-                            moved_held,
-                            ((b.held[0] - a.held[0]).dot(n)) / size
-                        );
-                    }
                     self.slides.push(slide);
                     self.slide_max = self.slide_max.max(slide);
                 }

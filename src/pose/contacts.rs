@@ -163,7 +163,7 @@ impl Contact {
     /// Plants the contact as [`Contact::plant_landing`] does, but turned onto the ground by
     /// at most `max_turn` (radians) now: the rest of the turn is [`Contact::rolling`], made by
     /// [`Contact::roll`] update after update, about the point that touched. A paw the walk
-    /// puts down toe first (tilted 14° at the median, 50° at the 90th percentile in the
+    /// puts down toe first (tilted 14° at the median, 53° at the 90th percentile in the
     /// crowd) was laid flat at once, its held points up to 7 % of its size from where it was,
     /// and the solve snapped it there in a frame.
     pub fn plant_rolling(&mut self, positions: &[DVec3], current_up: Option<DVec3>, max_turn: f64) {
