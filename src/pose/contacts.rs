@@ -22,6 +22,7 @@
 use glam::{DQuat, DVec3};
 
 use super::ground::Ground;
+use super::skeleton::rotation_of;
 
 /// A plane of the ground: a point on it and its normal (unit, pointing out of the ground).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -301,15 +302,9 @@ impl Contact {
         for p in self.planted.iter_mut().flatten() {
             *p = moved.transform_point3(*p);
         }
-        let scale = moved.matrix3.determinant().cbrt();
-        if let Some(r) = &mut self.rolling
-            && scale.is_finite()
-            && scale.abs() > 1e-12
-        {
-            let turn = DQuat::from_mat3(&(moved.matrix3 / scale)).normalize();
-            if turn.is_finite() {
-                r.left = (turn * r.left * turn.inverse()).normalize();
-            }
+        if let Some(r) = &mut self.rolling {
+            let turn = rotation_of(&moved.matrix3);
+            r.left = (turn * r.left * turn.inverse()).normalize();
         }
     }
 
