@@ -83,8 +83,8 @@ pub use skeleton::{
     Joint, JointTransform, Skeleton, SkeletonPose, VertexInfluences, skin_positions,
 };
 pub use solver::{
-    JointHandle, PoseConstraints, PoseSolution, PoseSolveOptions, PoseSolveStats, PoseSolver,
-    PoseSolverSettings, PoseStart, THROUGH_THE_GROUND,
+    JointHandle, OFF_THE_HOLD, PoseConstraints, PoseSolution, PoseSolveOptions, PoseSolveStats,
+    PoseSolver, PoseSolverSettings, PoseStart, THROUGH_THE_GROUND,
 };
 pub use springs::{
     SpringChain, SpringCollider, SpringColliderShape, SpringError, SpringJoint, SpringRig,

@@ -339,6 +339,90 @@ fn a_solve_does_not_stop_with_the_skin_in_the_ground() {
     );
 }
 
+/// Issue 42: a solve whose budget runs out with a planted sole off its held points takes up
+/// to `ground_iterations` more, until no sole vertex is farther than `OFF_THE_HOLD` of the
+/// size from its held point. Each frame starts where the last ended but with the left hip
+/// turned 6° one way or the other (as a walk clip under a pose layer moves a planted leg from
+/// frame to frame), then one iteration (the first frame solved to convergence): without them
+/// the sole ends frames off its holds (the test says so, so it can fail) — the slide a
+/// walking crowd's paws showed; with them no frame does.
+#[test]
+fn a_solve_does_not_stop_with_a_planted_sole_off_its_holds() {
+    const LEFT_HIP: usize = 7;
+    let s = scene();
+    let rest_sole = s.sole_at(&s.rig.rest);
+    let mut contact = Contact::new(LEFT_ANKLE, s.sole.clone(), s.flat_ground());
+    contact.plant(&rest_sole, Some(DVec3::Y));
+    let constraints = PoseConstraints {
+        fixed_joints: vec![RIGHT_ANKLE],
+        contacts: vec![contact],
+        ..Default::default()
+    };
+    let solver = PoseSolver::new(
+        s.model.clone(),
+        &constraints,
+        &s.rig.rest,
+        PoseSolverSettings::default(),
+    )
+    .unwrap();
+    // Per frame: the sole vertex farthest from its held point (/ size), the iterations taken.
+    let walk = |ground_iterations| {
+        let mut last = solver
+            .solve(
+                &constraints,
+                &PoseSolveOptions {
+                    max_iterations: 40,
+                    ..Default::default()
+                },
+                PoseStart::Pose(&s.rig.rest),
+                &|| false,
+            )
+            .unwrap();
+        let mut frames = Vec::new();
+        for frame in 0..8 {
+            let mut moved = last.pose.clone();
+            let turn = if frame % 2 == 0 { 6f64 } else { -6.0 }.to_radians();
+            let hip = &mut moved.local[LEFT_HIP].rotation;
+            *hip = DQuat::from_rotation_x(turn) * *hip;
+            let options = PoseSolveOptions {
+                max_iterations: 1,
+                tolerance: 0.0,
+                ground_iterations,
+            };
+            let start = PoseStart::Near {
+                pose: &moved,
+                last: &last,
+            };
+            let solved = solver
+                .solve(&constraints, &options, start, &|| false)
+                .unwrap();
+            let off = s
+                .sole_at(&solved.pose)
+                .iter()
+                .zip(&rest_sole)
+                .map(|(a, b)| a.distance(*b))
+                .fold(0.0, f64::max)
+                / s.size;
+            frames.push((off, solved.stats.iterations));
+            last = solved;
+        }
+        frames
+    };
+    let budget = walk(0);
+    assert!(
+        budget.iter().all(|f| f.0 > OFF_THE_HOLD),
+        "one iteration a frame leaves the sole off its holds: {budget:?}"
+    );
+    let settled = walk(20);
+    for (frame, &(off, iterations)) in settled.iter().enumerate() {
+        assert!(
+            off <= OFF_THE_HOLD && iterations <= 21,
+            "frame {frame}: a sole vertex is {off} of the size off its hold \
+             ({iterations} iterations)"
+        );
+    }
+}
+
 /// Issue 42: a floor sampled from the ground under each vertex (`Floor::cast`) holds a body
 /// dragged down onto steps — the left foot over a block 5 % of the height up, starting sunk in
 /// it — while one plane under the root (the lower level) leaves the left foot in the block.

@@ -11,7 +11,7 @@
 
 use std::borrow::Cow;
 
-use glam::DMat4;
+use glam::{DAffine3, DMat4, DVec3};
 
 use super::PoseSolver;
 use super::effector_terms::contact_hold_weight;
@@ -71,6 +71,23 @@ impl PoseSolver {
         } else {
             Cow::Owned(list)
         }
+    }
+
+    /// How far the planted patch vertex farthest from its held point is from it, with the
+    /// joints' skinning transforms `skin` (0 with nothing planted).
+    pub(super) fn farthest_off_hold(&self, contacts: &[Contact], skin: &[DAffine3]) -> f64 {
+        let skinned = |v: u32| {
+            self.model
+                .row(v as usize)
+                .map(|(j, m)| skin[j].matrix3 * m.truncate() + skin[j].translation * m.w)
+                .sum::<DVec3>()
+        };
+        contacts
+            .iter()
+            .filter_map(|c| c.planted.as_ref().map(|at| (&c.patch, at)))
+            .flat_map(|(patch, at)| patch.iter().zip(at))
+            .map(|(&v, &target)| skinned(v).distance(target))
+            .fold(0.0, f64::max)
     }
 }
 

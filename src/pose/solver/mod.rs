@@ -142,9 +142,11 @@ pub struct PoseSolveOptions {
     pub tolerance: f64,
     /// Iterations past `max_iterations` a solve may take while a vertex kept above the
     /// ground (a contact's patch, the floor) is still through it by more than
-    /// [`THROUGH_THE_GROUND`] of the model's size: a solve does not end with the skin in
-    /// the ground because its budget ran out (0: stop at `max_iterations` regardless). It
-    /// also stops there when an iteration improves by less than `tolerance`.
+    /// [`THROUGH_THE_GROUND`] of the model's size, or a planted patch's vertex is farther
+    /// than [`OFF_THE_HOLD`] from its held point: a solve does not end with the skin in the
+    /// ground or a planted foot sliding because its budget ran out (0: stop at
+    /// `max_iterations` regardless). It also stops there when an iteration improves by less
+    /// than `tolerance`.
     pub ground_iterations: u32,
 }
 
@@ -152,12 +154,17 @@ pub struct PoseSolveOptions {
 /// it when a solve stops at `max_iterations` ([`PoseSolveOptions::ground_iterations`]).
 pub const THROUGH_THE_GROUND: f64 = 1e-3;
 
+/// How far (a share of the model's size) a planted contact's patch vertex may still be from
+/// the point it is held at when a solve stops at `max_iterations`
+/// ([`PoseSolveOptions::ground_iterations`]).
+pub const OFF_THE_HOLD: f64 = 1e-3;
+
 impl Default for PoseSolveOptions {
     fn default() -> Self {
         Self {
             max_iterations: 10,
             tolerance: 1e-6,
-            ground_iterations: 3,
+            ground_iterations: 6,
         }
     }
 }

@@ -17,8 +17,8 @@ use super::holds::QBlocks;
 use super::low_rank;
 use super::step::{DampedSystem, Objective};
 use super::{
-    PoseConstraints, PoseSolution, PoseSolveOptions, PoseSolveStats, PoseSolver, PoseStart,
-    THROUGH_THE_GROUND,
+    OFF_THE_HOLD, PoseConstraints, PoseSolution, PoseSolveOptions, PoseSolveStats, PoseSolver,
+    PoseStart, THROUGH_THE_GROUND,
 };
 use crate::deform::RigidTransform;
 use crate::pose::{Floor, GroundPlane, PoseError, Skeleton, SkeletonPose};
@@ -108,13 +108,18 @@ impl PoseSolver {
         let mut b = vec![0.0; b_pen.len()];
         let mut scratch = HessianScratch::take();
         let mut last = f64::NAN;
-        // Past the budget only while the skin is through the ground.
-        let through = THROUGH_THE_GROUND * self.model.topology().bounding_diagonal();
+        // Past the budget only while the skin is through the ground or a planted patch is off
+        // its holds.
+        let size = self.model.topology().bounding_diagonal();
+        let unsettled = |posed: &Posed| {
+            posed.gaps.iter().any(|g| *g < -THROUGH_THE_GROUND * size)
+                || self.farthest_off_hold(&constraints.contacts, &posed.skin) > OFF_THE_HOLD * size
+        };
         for it in 0..options
             .max_iterations
             .saturating_add(options.ground_iterations)
         {
-            if it >= options.max_iterations && !current.gaps.iter().any(|g| *g < -through) {
+            if it >= options.max_iterations && !unsettled(&current) {
                 break;
             }
             if cancel() {
