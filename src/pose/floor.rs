@@ -135,6 +135,22 @@ impl Floor {
         (Floor::Under(under), stats)
     }
 
+    /// How far the vertex deepest under its plane is below it, of `positions` (welded, as the
+    /// floor was cast for): negative when one is under, `+∞` for an empty floor. A vertex
+    /// the floor lists but `positions` does not have is skipped.
+    pub fn deepest(&self, positions: &[DVec3]) -> f64 {
+        match self {
+            Floor::Plane { plane, .. } => positions
+                .iter()
+                .map(|p| plane.height(*p))
+                .fold(f64::INFINITY, f64::min),
+            Floor::Under(under) => under
+                .iter()
+                .filter_map(|(v, plane)| positions.get(*v as usize).map(|p| plane.height(*p)))
+                .fold(f64::INFINITY, f64::min),
+        }
+    }
+
     /// Whether the numbers can be used (vertex indices are checked by the solver).
     pub(crate) fn is_valid(&self) -> bool {
         let usable = |g: &GroundPlane| {
@@ -281,5 +297,21 @@ mod tests {
         assert_eq!(floor, Floor::Under(Vec::new()));
         let (floor, _) = Floor::cast(&[], &ground, &sampling);
         assert_eq!(floor, Floor::Under(Vec::new()));
+    }
+
+    /// `deepest`: the vertex deepest under its own plane (a listed vertex the positions lack
+    /// skipped); every position under one plane; +∞ for nothing.
+    #[test]
+    fn the_deepest_vertex_is_read_under_its_own_plane() {
+        let plane = |y: f64| GroundPlane::new(DVec3::Y * y, DVec3::Y).unwrap();
+        let under = Floor::Under(vec![(0, plane(0.0)), (1, plane(0.5)), (7, plane(9.0))]);
+        let positions = [DVec3::new(0.0, 0.1, 0.0), DVec3::new(1.0, 0.3, 0.0)];
+        assert!((under.deepest(&positions) + 0.2).abs() < 1e-12);
+        let flat = Floor::Plane {
+            plane: plane(0.2),
+            band: 1.0,
+        };
+        assert!((flat.deepest(&positions) + 0.1).abs() < 1e-12);
+        assert_eq!(Floor::Under(Vec::new()).deepest(&positions), f64::INFINITY);
     }
 }

@@ -339,6 +339,65 @@ fn a_solve_does_not_stop_with_the_skin_in_the_ground() {
     );
 }
 
+/// Issue 42: the ground's penalty alone settles where it balances what pushes the skin in —
+/// under the ground; the iterations past the budget raise each such vertex's plane by its
+/// depth (the method of multipliers) until none is more than `THROUGH_THE_GROUND` of the size
+/// in. A sole held 4 % of the size under the floor (a hold the ground has to overrule):
+/// solved to convergence with no iterations past the budget the sole stays in (the test says
+/// so, so it can fail); with them — no more iterations in all — it does not.
+#[test]
+fn a_vertex_the_penalty_leaves_in_the_ground_is_raised_out_of_it() {
+    let s = scene();
+    let ground = s.flat_ground();
+    let sunk: Vec<DVec3> = s
+        .sole_at(&s.rig.rest)
+        .iter()
+        .map(|p| *p - DVec3::Y * 0.04 * s.size)
+        .collect();
+    let mut contact = Contact::new(LEFT_ANKLE, s.sole.clone(), ground);
+    // (Set, not `plant`ed: planting lays the points on the ground.)
+    contact.planted = Some(sunk);
+    let constraints = PoseConstraints {
+        fixed_joints: vec![RIGHT_ANKLE],
+        contacts: vec![contact],
+        floor: Some(s.flat_floor()),
+        ..Default::default()
+    };
+    let solver = PoseSolver::new(
+        s.model.clone(),
+        &constraints,
+        &s.rig.rest,
+        PoseSolverSettings::default(),
+    )
+    .unwrap();
+    let deepest = |max_iterations, ground_iterations| {
+        let options = PoseSolveOptions {
+            max_iterations,
+            tolerance: 0.0,
+            ground_iterations,
+        };
+        let solved = solver
+            .solve(
+                &constraints,
+                &options,
+                PoseStart::Pose(&s.rig.rest),
+                &|| false,
+            )
+            .unwrap();
+        -s.lowest_height(&solved.pose) / s.size
+    };
+    let penalty = deepest(40, 0);
+    assert!(
+        penalty > THROUGH_THE_GROUND,
+        "the penalty alone leaves the skin {penalty} of the size in the floor"
+    );
+    let raised = deepest(20, 20);
+    assert!(
+        raised <= THROUGH_THE_GROUND,
+        "raised, the skin is still {raised} of the size in the floor"
+    );
+}
+
 /// Issue 42: a solve whose budget runs out with a planted sole off its held points takes up
 /// to `ground_iterations` more, until no sole vertex is farther than `OFF_THE_HOLD` of the
 /// size from its held point. Each frame starts where the last ended but with the left hip

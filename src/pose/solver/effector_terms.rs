@@ -13,6 +13,7 @@ use crate::pose::contacts::{Contact, GroundPlane};
 mod floor_groups;
 mod ground;
 mod moments;
+mod raised_floor;
 mod sums;
 mod system;
 use crate::pose::effectors::{

@@ -47,6 +47,15 @@ pub(super) struct Posed {
     pub(super) gaps: Vec<f64>,
 }
 
+/// The deepest a vertex kept above the ground is in it, with `gaps` its heights above its
+/// plane raised by `raised` (0 past its end; positive when every vertex is above).
+fn deepest(gaps: &[f64], raised: &[f64]) -> f64 {
+    gaps.iter()
+        .enumerate()
+        .map(|(k, g)| g + raised.get(k).copied().unwrap_or(0.0))
+        .fold(f64::INFINITY, f64::min)
+}
+
 impl PoseSolver {
     /// Solves for the pose from `start`. `cancel` is polled between iterations.
     pub fn solve(
@@ -68,7 +77,7 @@ impl PoseSolver {
         let boost = warm
             .filter(|w| w.balance_support == support)
             .map_or(0.0, |w| w.balance_boost);
-        let extras = self.extra_terms(constraints, start, boost);
+        let mut extras = self.extra_terms(constraints, start, boost);
         let limits = constraints.limits.as_deref();
         // A warm start keeps the cluster rotations but not the damping the last solve ended
         // with: raised by that solve's landscape (a foot planting, the floor), carried over it
@@ -111,16 +120,23 @@ impl PoseSolver {
         // Past the budget only while the skin is through the ground or a planted patch is off
         // its holds.
         let size = self.model.topology().bounding_diagonal();
-        let unsettled = |posed: &Posed| {
-            posed.gaps.iter().any(|g| *g < -THROUGH_THE_GROUND * size)
-                || self.farthest_off_hold(&constraints.contacts, &posed.skin) > OFF_THE_HOLD * size
-        };
+        // How far each vertex kept above the ground has its plane raised (`raised_floor.rs`).
+        let mut raised = Vec::new();
         for it in 0..options
             .max_iterations
             .saturating_add(options.ground_iterations)
         {
-            if it >= options.max_iterations && !unsettled(&current) {
-                break;
+            if it >= options.max_iterations {
+                let through = deepest(&current.gaps, &raised) < -THROUGH_THE_GROUND * size;
+                let off = self.farthest_off_hold(&constraints.contacts, &current.skin);
+                if !through && off <= OFF_THE_HOLD * size {
+                    break;
+                }
+                // A vertex the ground's penalty leaves in the ground: its plane raised by its
+                // depth (the method of multipliers, `raised_floor.rs`).
+                if through && extras.raise_floor(&current.gaps, &mut raised) {
+                    last = f64::NAN;
+                }
             }
             if cancel() {
                 stats.cancelled = true;

@@ -69,6 +69,15 @@ impl FloorGroups {
             .collect()
     }
 
+    /// Term `i`'s start height is now `start_gap` (its plane was raised,
+    /// `raised_floor.rs`): its group's bound is lowered to it if it is below.
+    pub(super) fn lower_bound(&mut self, i: usize, start_gap: f64) {
+        if let Some(g) = self.group_of(i) {
+            let bound = &mut self.groups[g].min_start_gap;
+            *bound = bound.min(start_gap);
+        }
+    }
+
     /// The group of term `i` (`None` outside the floor's groups).
     pub(super) fn group_of(&self, i: usize) -> Option<usize> {
         let k = i.checked_sub(self.terms.start)?;
