@@ -39,8 +39,10 @@
 //! across its ground from one frame to the next / size, while held at the same points: a
 //! patch released and planted again within a frame is a new plant), `com_supported_share` ((character, frame) pairs with the centre
 //! of mass over the planted patches), `no_support_share` (pairs with nothing planted, counted
-//! unsupported), `planted_per_character` (at the end) and `replants` (plants after the first
-//! stance, all characters).
+//! unsupported), `planted_per_character` (at the end), `replants` (plants after the first
+//! stance, all characters) and `iterations_per_solve_mean` (each character's last solve each
+//! frame: the budget, the iterations past it while skin is in the ground or a planted paw off
+//! its holds, and the passes with the floor cast where the skin ended).
 
 #[path = "../common/cli.rs"]
 mod cli;

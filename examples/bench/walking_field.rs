@@ -28,6 +28,8 @@ pub struct Field {
     sole_errors_deg: Vec<f64>,
     /// Largest per-frame slide of a planted patch across its ground / size.
     slide_max: f64,
+    /// Each sampled (character, frame) pair's last solve's iterations.
+    iterations: Vec<u32>,
     /// (character, frame) pairs with the centre of mass over the planted patches, and all.
     supported: u64,
     pairs: u64,
@@ -62,6 +64,7 @@ pub fn spawn(app: &mut App, side: usize, frames: usize) -> Field {
         plants_at_start: None,
         sole_errors_deg: Vec::new(),
         slide_max: 0.0,
+        iterations: Vec::new(),
         supported: 0,
         pairs: 0,
         unsupported_no_support: 0,
@@ -94,6 +97,7 @@ impl Field {
             ) else {
                 continue;
             };
+            self.iterations.push(status.iterations);
             // The pose on screen: the walk clip with the pose's layer added.
             let pose = posed.shown_pose(|j| app.world().get::<Transform>(j).copied());
             let scale = posed.placement.matrix3.x_axis.length();
@@ -212,6 +216,11 @@ impl Field {
                 .into(),
         );
         out.insert("planted_slide_max".into(), self.slide_max.into());
+        let iterations: u64 = self.iterations.iter().map(|&i| u64::from(i)).sum();
+        out.insert(
+            "iterations_per_solve_mean".into(),
+            (iterations as f64 / self.iterations.len().max(1) as f64).into(),
+        );
         out.insert(
             "com_supported_share".into(),
             (self.supported as f64 / pairs).into(),

@@ -281,9 +281,10 @@ fn solve_pending(
         );
         landed.ms += t0.elapsed().as_secs_f64() * 1e3;
         // A failed pass keeps the last pose.
-        let Ok(solution) = again else {
+        let Ok(mut solution) = again else {
             break;
         };
+        solution.stats.iterations += landed.solution.stats.iterations;
         landed.solution = solution;
     }
     // The whole budget used and still improving: the same targets go on next frame
