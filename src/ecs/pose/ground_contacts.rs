@@ -7,7 +7,7 @@ use super::{GroundContactState, PoseBalance, PoseGround, PoseStatus, PosedSkelet
 use crate::ecs::SceneGround;
 use crate::pose::{
     Balance, ContactTracker, Floor, FloorSampling, GroundPlane, PoseConstraints, SkeletonPose,
-    SupportPolygon, THROUGH_THE_GROUND, centre_of_mass, lowest_joints,
+    SkinnedModel, SupportPolygon, THROUGH_THE_GROUND, centre_of_mass, lowest_joints,
 };
 
 /// Adds to `constraints` (character space) the character's ground contacts — found on the
@@ -108,29 +108,50 @@ pub(super) fn stand_on(
     }
 }
 
-/// The floor cast again under the skin of `solved` when that skin is through it by more than
-/// [`THROUGH_THE_GROUND`] of the size (`None`: the solve's floor held). A solve's floor is
-/// cast where the skin starts; a vertex the solve carries across the ground (a walking paw
-/// swung on into a rise) meets ground that was not under it then, and that plane is only
-/// found by casting where it ended — the narrow phase after the motion, as a physics engine
-/// does.
-pub(super) fn floor_where_it_ended(
-    posed: &PosedSkeleton,
-    solved: &SkeletonPose,
-    settings: &PoseGround,
-    ground: &SceneGround,
-) -> Option<Floor> {
-    let to_world = posed.placement;
-    let to_character = to_world.inverse();
-    let down = (to_character.matrix3 * DVec3::NEG_Y).normalize_or(DVec3::NEG_Y);
-    let cast = |from: DVec3, along: DVec3, max: f64| -> Option<GroundPlane> {
-        world_cast(ground, (&to_world, &to_character), from, along, max)
-    };
-    let size = posed.model.topology().bounding_diagonal();
-    let skinned = posed.model.skin_welded(solved);
-    let sampling = FloorSampling::for_size(size, f64::from(settings.floor_band), down);
-    let floor = Floor::cast(&skinned, &cast, &sampling).0;
-    (floor.deepest(&skinned) < -THROUGH_THE_GROUND * size).then_some(floor)
+/// What casting the floor again under a solve's skin needs: the character's ground settings,
+/// the scene's ground and where the character stood when the solve was taken
+/// ([`FloorRecast::floor_where_it_ended`]).
+#[derive(Clone)]
+pub(super) struct FloorRecast {
+    settings: PoseGround,
+    ground: SceneGround,
+    placement: DAffine3,
+}
+
+impl FloorRecast {
+    /// For a solve of `posed` as it is placed now.
+    pub(super) fn new(settings: &PoseGround, ground: &SceneGround, posed: &PosedSkeleton) -> Self {
+        Self {
+            settings: *settings,
+            ground: ground.clone(),
+            placement: posed.placement,
+        }
+    }
+
+    /// The floor cast again under the skin of `solved` (of `model`) when that skin is through
+    /// it by more than [`THROUGH_THE_GROUND`] of the size (`None`: the solve's floor held). A
+    /// solve's floor is cast where the skin starts; a vertex the solve carries across the
+    /// ground (a walking paw swung on into a rise, hips pulled onto a box in one move) meets
+    /// ground that was not under it then, and that plane is only found by casting where it
+    /// ended — the narrow phase after the motion, as a physics engine does.
+    pub(super) fn floor_where_it_ended(
+        &self,
+        model: &SkinnedModel,
+        solved: &SkeletonPose,
+    ) -> Option<Floor> {
+        let to_world = self.placement;
+        let to_character = to_world.inverse();
+        let down = (to_character.matrix3 * DVec3::NEG_Y).normalize_or(DVec3::NEG_Y);
+        let cast = |from: DVec3, along: DVec3, max: f64| -> Option<GroundPlane> {
+            world_cast(&self.ground, (&to_world, &to_character), from, along, max)
+        };
+        let size = model.topology().bounding_diagonal();
+        let skinned = model.skin_welded(solved);
+        let band = f64::from(self.settings.floor_band);
+        let sampling = FloorSampling::for_size(size, band, down);
+        let floor = Floor::cast(&skinned, &cast, &sampling).0;
+        (floor.deepest(&skinned) < -THROUGH_THE_GROUND * size).then_some(floor)
+    }
 }
 
 /// A character to stand: its tracker (made on the first call, with the placement it was

@@ -8,7 +8,7 @@ use bevy::prelude::*;
 use super::blend::BlendMemory;
 use super::constraints::core_effector;
 use super::convert::{affine, composed_global};
-use super::ground_contacts::{Standing, floor_where_it_ended, stand_on};
+use super::ground_contacts::{FloorRecast, Standing, stand_on};
 use super::solve::{SolveJob, SolveResult, store_landed};
 use super::state::{CharacterSpace, LastSolve, PoseDrivers, PoseSolves};
 use super::{
@@ -17,12 +17,7 @@ use super::{
 };
 use crate::ecs::SceneGround;
 use crate::pose::placement::similarity;
-use crate::pose::{EffectorGoal, PoseStart, SkeletonPose, blend_pose};
-use web_time::Instant;
-
-/// How many times an in-frame solve whose skin ended in ground that was not under it at its
-/// start is taken on with the floor cast where it ended (`floor_where_it_ended`).
-const FLOOR_PASSES: usize = 2;
+use crate::pose::{EffectorGoal, SkeletonPose, blend_pose};
 
 /// What an in-frame solve reads and writes of a character.
 type InFrameCharacter = (
@@ -258,35 +253,11 @@ fn solve_pending(
     ground: Option<(&PoseGround, &SceneGround)>,
 ) -> Option<SolveResult> {
     let budget = in_frame.iterations.max(1);
-    let job = SolveJob::take(solves, drivers, last, posed, poseable.options_with(budget))?;
-    let mut outcome = job.run(&|| false);
-    let mut constraints = job.constraints;
-    // Skin carried into ground that was not under it where the solve started: the floor cast
-    // where it ended, and the solve taken on from there (a pass or two).
-    for _ in 0..FLOOR_PASSES {
-        let (Ok(landed), Some((settings, ground))) = (&mut outcome, ground) else {
-            break;
-        };
-        let t0 = Instant::now();
-        let Some(floor) = floor_where_it_ended(posed, &landed.solution.pose, settings, ground)
-        else {
-            break;
-        };
-        constraints.floor = Some(floor);
-        let again = landed.solver.solve(
-            &constraints,
-            &poseable.options_with(1),
-            PoseStart::Warm(&landed.solution),
-            &|| false,
-        );
-        landed.ms += t0.elapsed().as_secs_f64() * 1e3;
-        // A failed pass keeps the last pose.
-        let Ok(mut solution) = again else {
-            break;
-        };
-        solution.stats.iterations += landed.solution.stats.iterations;
-        landed.solution = solution;
-    }
+    let recast = ground.map(|(settings, ground)| FloorRecast::new(settings, ground, posed));
+    let options = poseable.options_with(budget);
+    let job = SolveJob::take(solves, drivers, last, posed, (options, recast))?;
+    let outcome = job.run(&|| false);
+    let constraints = job.constraints;
     // The whole budget used and still improving: the same targets go on next frame
     // (warm-started), so a pose whose targets stop moving settles over a few frames.
     let again = matches!(&outcome, Ok(landed) if landed.solution.stats.iterations >= budget)

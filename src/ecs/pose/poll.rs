@@ -4,10 +4,14 @@
 use bevy::prelude::*;
 
 use super::blend::BlendMemory;
+use super::ground_contacts::FloorRecast;
 use super::solve::{SolveJob, store_landed};
 use super::state::{LastSolve, PoseDrivers, PoseSolves};
-use super::{PoseBlend, PoseFailed, PoseSolved, PoseStatus, PoseTimeline, Poseable, PosedSkeleton};
-use crate::ecs::DeformPhase;
+use super::{
+    PoseBlend, PoseFailed, PoseGround, PoseSolved, PoseStatus, PoseTimeline, Poseable,
+    PosedSkeleton,
+};
+use crate::ecs::{DeformPhase, SceneGround};
 
 /// What [`poll_pose_solves`] reads and writes of a character.
 type PolledCharacter = (
@@ -21,7 +25,7 @@ type PolledCharacter = (
         &'static BlendMemory,
     ),
     &'static mut PoseStatus,
-    Option<&'static PoseBlend>,
+    (Option<&'static PoseBlend>, Option<&'static PoseGround>),
 );
 
 /// Stores finished background solves in [`PosedSkeleton::pose`]; starts the pending one.
@@ -29,10 +33,10 @@ pub(super) fn poll_pose_solves(
     mut characters: Query<PolledCharacter>,
     mut solved: MessageWriter<PoseSolved>,
     mut failed: MessageWriter<PoseFailed>,
+    ground: Option<Res<SceneGround>>,
 ) {
-    for (entity, poseable, mut posed, (drivers, mut solves, mut last, memory), mut status, blend) in
-        &mut characters
-    {
+    for (entity, poseable, mut posed, parts, mut status, (blend, standing)) in &mut characters {
+        let (drivers, mut solves, mut last, memory) = parts;
         let solves = solves.bypass_change_detection();
         let last = last.bypass_change_detection();
         let Some(result) = solves.task.poll() else {
@@ -77,7 +81,11 @@ pub(super) fn poll_pose_solves(
         }
         if solves.pending.is_some() {
             let options = poseable.solve_options();
-            SolveJob::launch(solves, drivers, last, &posed, options, &mut status);
+            let recast = standing
+                .zip(ground.as_deref())
+                .map(|(settings, ground)| FloorRecast::new(settings, ground, &posed));
+            let job = (options, recast);
+            SolveJob::launch(solves, drivers, last, &posed, job, &mut status);
         }
     }
 }

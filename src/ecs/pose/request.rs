@@ -10,6 +10,7 @@ use super::constraints::{
     SetKey, core_effector, joint_handle, rebase, resolve_limits, vertex_handles,
 };
 use super::convert::{affine, composed_global};
+use super::ground_contacts::FloorRecast;
 use super::solve::SolveJob;
 use super::state::{CharacterSpace, LastSolve, PoseDrivers, PoseSolves, fail};
 use super::symmetry::Symmetry;
@@ -470,8 +471,13 @@ pub(super) fn request_pose_solves(
         solves.task.supersede();
         if !solves.task.is_running() {
             let options = poseable.solve_options();
+            let recast = extras
+                .ground
+                .zip(ground.as_deref())
+                .map(|(settings, ground)| FloorRecast::new(settings, ground, &posed));
             let last = last.bypass_change_detection();
-            SolveJob::launch(solves, driver_state, last, &posed, options, &mut status);
+            let job = (options, recast);
+            SolveJob::launch(solves, driver_state, last, &posed, job, &mut status);
         }
     }
 }

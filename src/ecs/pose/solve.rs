@@ -7,6 +7,7 @@ use std::sync::Arc;
 use web_time::Instant;
 
 use super::blend::{BlendMemory, additive_layer};
+use super::ground_contacts::FloorRecast;
 use super::state::{LastSolve, PoseDrivers, PoseSolves};
 use super::{PoseBlend, PoseBlendMode, PoseStatus, PoseableError, PosedSkeleton};
 use crate::ecs::DeformPhase;
@@ -49,7 +50,13 @@ pub(super) struct SolveJob {
     /// `current` was given (an additive layer's pose on screen), not the held pose.
     given: bool,
     options: PoseSolveOptions,
+    /// With the character standing on the ground: the floor cast again where the skin ended.
+    recast: Option<FloorRecast>,
 }
+
+/// How many times a solve whose skin ended in ground that was not under it at its start is
+/// taken on with the floor cast where it ended ([`FloorRecast`]).
+const FLOOR_PASSES: usize = 2;
 
 impl SolveJob {
     /// Takes the pending constraints of `solves` (`None`: nothing pending, or no reference
@@ -59,7 +66,7 @@ impl SolveJob {
         drivers: &PoseDrivers,
         last: &LastSolve,
         posed: &PosedSkeleton,
-        options: PoseSolveOptions,
+        (options, recast): (PoseSolveOptions, Option<FloorRecast>),
     ) -> Option<Self> {
         drivers.reference.as_ref()?;
         let constraints = solves.pending.take()?;
@@ -81,6 +88,7 @@ impl SolveJob {
             current,
             given,
             options,
+            recast,
         })
     }
 
@@ -98,7 +106,31 @@ impl SolveJob {
             )?),
         };
         let start = PoseStart::following(self.last.as_deref(), &self.current, self.given);
-        let solution = solver.solve(&self.constraints, &self.options, start, cancel)?;
+        let mut solution = solver.solve(&self.constraints, &self.options, start, cancel)?;
+        // Skin carried into ground that was not under it where the solve started: the floor
+        // cast where it ended, and the solve taken on from there (a pass or two).
+        if let Some(recast) = &self.recast {
+            let mut constraints = None;
+            for _ in 0..FLOOR_PASSES {
+                let Some(floor) = recast.floor_where_it_ended(&self.model, &solution.pose) else {
+                    break;
+                };
+                let constraints = constraints.get_or_insert_with(|| self.constraints.clone());
+                constraints.floor = Some(floor);
+                let options = PoseSolveOptions {
+                    max_iterations: 1,
+                    ..self.options
+                };
+                // A failed pass keeps the last pose.
+                let Ok(mut next) =
+                    solver.solve(constraints, &options, PoseStart::Warm(&solution), cancel)
+                else {
+                    break;
+                };
+                next.stats.iterations += solution.stats.iterations;
+                solution = next;
+            }
+        }
         Ok(Landed {
             solver,
             solution,
@@ -113,7 +145,7 @@ impl SolveJob {
         drivers: &PoseDrivers,
         last: &LastSolve,
         posed: &PosedSkeleton,
-        options: PoseSolveOptions,
+        options: (PoseSolveOptions, Option<FloorRecast>),
         status: &mut PoseStatus,
     ) {
         let Some(job) = Self::take(solves, drivers, last, posed, options) else {
