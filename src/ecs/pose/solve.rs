@@ -109,7 +109,7 @@ impl SolveJob {
         let mut solution = solver.solve(&self.constraints, &self.options, start, cancel)?;
         // Skin carried into ground that was not under it where the solve started: the floor
         // cast where it ended, and the solve taken on from there (a pass or two).
-        if let Some(recast) = &self.recast {
+        if let Some(recast) = self.recast.as_ref().filter(|_| !solution.stats.cancelled) {
             let mut constraints = None;
             for _ in 0..FLOOR_PASSES {
                 let Some(floor) = recast.floor_where_it_ended(&self.model, &solution.pose) else {
@@ -129,6 +129,9 @@ impl SolveJob {
                 };
                 next.stats.iterations += solution.stats.iterations;
                 solution = next;
+                if solution.stats.cancelled {
+                    break;
+                }
             }
         }
         Ok(Landed {
