@@ -53,6 +53,17 @@ impl Scene {
         solve_pose(&self.model, &self.rig.rest, constraints, iterations, start)
     }
 
+    /// A solver of `constraints` for the mannequin, from its rest pose.
+    fn solver(&self, constraints: &PoseConstraints) -> PoseSolver {
+        PoseSolver::new(
+            self.model.clone(),
+            constraints,
+            &self.rig.rest,
+            PoseSolverSettings::default(),
+        )
+        .unwrap()
+    }
+
     fn skinned(&self, pose: &SkeletonPose) -> Vec<DVec3> {
         self.model.skin_welded(pose)
     }
@@ -278,13 +289,7 @@ fn a_solve_does_not_stop_with_the_skin_in_the_ground() {
         floor: Some(floor.clone()),
         ..Default::default()
     };
-    let solver = PoseSolver::new(
-        s.model.clone(),
-        &pulled(0),
-        &s.rig.rest,
-        PoseSolverSettings::default(),
-    )
-    .unwrap();
+    let solver = s.solver(&pulled(0));
     // Per frame: how deep the deepest vertex is (/ size) and the iterations taken.
     let drag = |ground_iterations| {
         let options = PoseSolveOptions {
@@ -363,13 +368,7 @@ fn a_vertex_the_penalty_leaves_in_the_ground_is_raised_out_of_it() {
         floor: Some(s.flat_floor()),
         ..Default::default()
     };
-    let solver = PoseSolver::new(
-        s.model.clone(),
-        &constraints,
-        &s.rig.rest,
-        PoseSolverSettings::default(),
-    )
-    .unwrap();
+    let solver = s.solver(&constraints);
     let deepest = |max_iterations, ground_iterations| {
         let options = PoseSolveOptions {
             max_iterations,
@@ -417,13 +416,7 @@ fn a_solve_does_not_stop_with_a_planted_sole_off_its_holds() {
         contacts: vec![contact],
         ..Default::default()
     };
-    let solver = PoseSolver::new(
-        s.model.clone(),
-        &constraints,
-        &s.rig.rest,
-        PoseSolverSettings::default(),
-    )
-    .unwrap();
+    let solver = s.solver(&constraints);
     // Per frame: the sole vertex farthest from its held point (/ size), the iterations taken.
     let walk = |ground_iterations| {
         let mut last = solver

@@ -11,14 +11,20 @@ use bevy_wii_deform::prelude::*;
 use crate::common;
 use common::{drive_solves, pose_of, spawn_handle, spawn_rig, update_until};
 
-/// The deepest skinned vertex below `ground_y` (negative: below), world space, after a grab of
-/// the head pushed 0.6 m down, with or without `PoseGround` + `PoseBalance`; and the size.
-fn pushed_down(stand: bool) -> (f32, f32, usize) {
+/// A headless app with the pose plugin, 16 ms a frame.
+fn pose_app() -> App {
     let mut app = common::app();
     app.add_plugins(PosePlugin);
     app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_millis(
         16,
     )));
+    app
+}
+
+/// The deepest skinned vertex below `ground_y` (negative: below), world space, after a grab of
+/// the head pushed 0.6 m down, with or without `PoseGround` + `PoseBalance`; and the size.
+fn pushed_down(stand: bool) -> (f32, f32, usize) {
+    let mut app = pose_app();
     let rig = mannequin_rig(20);
     let offset = Vec3::new(1.0, 0.25, -0.5);
     let (root, joints, _) = spawn_rig(&mut app, &rig, offset);
@@ -94,11 +100,7 @@ fn a_character_pushed_into_the_ground_stops_at_it() {
 /// no skin vertex below it.
 #[test]
 fn a_character_placed_above_a_slope_stands_on_it() {
-    let mut app = common::app();
-    app.add_plugins(PosePlugin);
-    app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_millis(
-        16,
-    )));
+    let mut app = pose_app();
     let rig = mannequin_rig(20);
     let lowest = rig
         .mesh
@@ -166,11 +168,7 @@ fn a_character_placed_above_a_slope_stands_on_it() {
 /// second solve to land after the move, the first started after it) — the size; and how high
 /// the hips' lowest vertex is then.
 fn hips_pulled_onto_a_box_at_once(in_frame: bool) -> (f32, f32, f32) {
-    let mut app = common::app();
-    app.add_plugins(PosePlugin);
-    app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_millis(
-        16,
-    )));
+    let mut app = pose_app();
     let rig = mannequin_rig(20);
     let (root, joints, _) = spawn_rig(&mut app, &rig, Vec3::ZERO);
     let ground_y = rig

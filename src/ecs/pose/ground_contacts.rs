@@ -21,12 +21,9 @@ pub(super) fn stand_on(
     (settings, balance): (&PoseGround, Option<&PoseBalance>),
     ground: &SceneGround,
 ) -> Standing {
-    let to_world = posed.placement;
-    let to_character = to_world.inverse();
-    let down = (to_character.matrix3 * DVec3::NEG_Y).normalize_or(DVec3::NEG_Y);
-    let cast = |from: DVec3, along: DVec3, max: f64| -> Option<GroundPlane> {
-        world_cast(ground, (&to_world, &to_character), from, along, max)
-    };
+    let at = CharacterGround::new(ground, posed.placement);
+    let (to_world, to_character, down) = (at.to_world, at.to_character, at.down);
+    let cast = |from: DVec3, along: DVec3, max: f64| at.cast(from, along, max);
     let model = &posed.model;
     let size = model.topology().bounding_diagonal();
     let (tracker, placed_at) = tracker.get_or_insert_with(|| {
@@ -50,8 +47,7 @@ pub(super) fn stand_on(
         .count() as u32;
     constraints.contacts = tracker.active();
     // Every skin vertex near the ground under it kept above it (a plane per vertex: terrain).
-    let sampling = FloorSampling::for_size(size, f64::from(settings.floor_band), down);
-    constraints.floor = Some(Floor::cast(&skinned, &cast, &sampling).0);
+    constraints.floor = Some(at.floor_under(&skinned, settings, size));
     let support = tracker.support();
     let corners = support
         .iter()
@@ -139,17 +135,10 @@ impl FloorRecast {
         model: &SkinnedModel,
         solved: &SkeletonPose,
     ) -> Option<Floor> {
-        let to_world = self.placement;
-        let to_character = to_world.inverse();
-        let down = (to_character.matrix3 * DVec3::NEG_Y).normalize_or(DVec3::NEG_Y);
-        let cast = |from: DVec3, along: DVec3, max: f64| -> Option<GroundPlane> {
-            world_cast(&self.ground, (&to_world, &to_character), from, along, max)
-        };
+        let at = CharacterGround::new(&self.ground, self.placement);
         let size = model.topology().bounding_diagonal();
         let skinned = model.skin_welded(solved);
-        let band = f64::from(self.settings.floor_band);
-        let sampling = FloorSampling::for_size(size, band, down);
-        let floor = Floor::cast(&skinned, &cast, &sampling).0;
+        let floor = at.floor_under(&skinned, &self.settings, size);
         (floor.deepest(&skinned) < -THROUGH_THE_GROUND * size).then_some(floor)
     }
 }
@@ -212,20 +201,47 @@ fn follow_the_world(tracker: &mut ContactTracker, moved: &DAffine3) {
     }
 }
 
-/// A cast in character space on the world's ground: the ray taken into the world, the hit
-/// brought back (`None` for a miss or a hit that is not finite).
-fn world_cast(
-    ground: &SceneGround,
-    (to_world, to_character): (&DAffine3, &DAffine3),
-    from: DVec3,
-    along: DVec3,
-    max: f64,
-) -> Option<GroundPlane> {
-    let scale = to_world.matrix3.x_axis.length();
-    let direction = (to_world.matrix3 * along).try_normalize()?;
-    let hit = ground.cast_down(to_world.transform_point3(from), direction, max * scale)?;
-    GroundPlane::new(
-        to_character.transform_point3(hit.point),
-        to_character.matrix3 * hit.normal,
-    )
+/// The scene's ground seen from a character's space (placed in the world by `to_world`).
+struct CharacterGround<'a> {
+    ground: &'a SceneGround,
+    to_world: DAffine3,
+    to_character: DAffine3,
+    /// Gravity, in character space.
+    down: DVec3,
+}
+
+impl<'a> CharacterGround<'a> {
+    fn new(ground: &'a SceneGround, to_world: DAffine3) -> Self {
+        let to_character = to_world.inverse();
+        Self {
+            ground,
+            to_world,
+            to_character,
+            down: (to_character.matrix3 * DVec3::NEG_Y).normalize_or(DVec3::NEG_Y),
+        }
+    }
+
+    /// A cast in character space: the ray taken into the world, the hit brought back (`None`
+    /// for a miss or a hit that is not finite).
+    fn cast(&self, from: DVec3, along: DVec3, max: f64) -> Option<GroundPlane> {
+        let (to_world, to_character) = (&self.to_world, &self.to_character);
+        let scale = to_world.matrix3.x_axis.length();
+        let direction = (to_world.matrix3 * along).try_normalize()?;
+        let hit = self
+            .ground
+            .cast_down(to_world.transform_point3(from), direction, max * scale)?;
+        GroundPlane::new(
+            to_character.transform_point3(hit.point),
+            to_character.matrix3 * hit.normal,
+        )
+    }
+
+    /// The floor under the welded skin `skinned` of a model of `size` (its bounding
+    /// diagonal): every vertex within `settings`' band of the ground under it
+    /// ([`Floor::cast`]).
+    fn floor_under(&self, skinned: &[DVec3], settings: &PoseGround, size: f64) -> Floor {
+        let cast = |from: DVec3, along: DVec3, max: f64| self.cast(from, along, max);
+        let sampling = FloorSampling::for_size(size, f64::from(settings.floor_band), self.down);
+        Floor::cast(skinned, &cast, &sampling).0
+    }
 }

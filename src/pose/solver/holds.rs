@@ -11,7 +11,7 @@
 
 use std::borrow::Cow;
 
-use glam::{DAffine3, DMat4, DVec3};
+use glam::{DAffine3, DMat4};
 
 use super::PoseSolver;
 use super::effector_terms::contact_hold_weight;
@@ -76,12 +76,8 @@ impl PoseSolver {
     /// How far the planted patch vertex farthest from its held point is from it, with the
     /// joints' skinning transforms `skin` (0 with nothing planted).
     pub(super) fn farthest_off_hold(&self, contacts: &[Contact], skin: &[DAffine3]) -> f64 {
-        let skinned = |v: u32| {
-            self.model
-                .row(v as usize)
-                .map(|(j, m)| skin[j].matrix3 * m.truncate() + skin[j].translation * m.w)
-                .sum::<DVec3>()
-        };
+        let skins = self.model.vertex_skins();
+        let skinned = |v: u32| skins[v as usize].skinned(skin);
         contacts
             .iter()
             .filter_map(|c| c.planted.as_ref().map(|at| (&c.patch, at)))

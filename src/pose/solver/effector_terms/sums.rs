@@ -95,6 +95,13 @@ pub(crate) struct VertexSkin {
     pub(super) reach: [f64; 4],
 }
 
+impl VertexSkin {
+    /// The vertex skinned by the joints' skinning matrices `skinning`.
+    pub(crate) fn skinned(&self, skinning: &[DAffine3]) -> DVec3 {
+        centroid_of(&self.sums, skinning)
+    }
+}
+
 /// Each vertex's [`VertexSkin`]: bind positions `bind` with their `influences`, the joints'
 /// bind positions `bind_origins`.
 pub(crate) fn vertex_skins(
