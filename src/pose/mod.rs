@@ -55,6 +55,7 @@ pub mod limits;
 pub mod mirror;
 mod model;
 pub mod placement;
+mod planted_start;
 mod skeleton;
 mod solver;
 pub mod springs;

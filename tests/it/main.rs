@@ -30,6 +30,7 @@ mod pose_core;
 mod pose_ecs;
 mod pose_effectors_ecs;
 mod pose_ground_ecs;
+mod pose_planted_start;
 mod pose_springs;
 mod scene_roundtrip;
 mod springs_ecs;

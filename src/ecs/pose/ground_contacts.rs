@@ -28,14 +28,26 @@ pub(super) fn stand_on(
     let size = model.topology().bounding_diagonal();
     let (tracker, placed_at) = tracker.get_or_insert_with(|| {
         let tolerance = f64::from(settings.feet_tolerance) * size;
-        let feet = lowest_joints(model, pose, down, tolerance);
-        (ContactTracker::new(model, pose, &feet, down), to_world)
+        let feet = lowest_joints(model, pose.pose(), down, tolerance);
+        (
+            ContactTracker::new(model, pose.pose(), &feet, down),
+            to_world,
+        )
     });
     if *placed_at != to_world {
         // The character moved: planted patches stay where they touched in the world.
         follow_the_world(tracker, &(to_character * *placed_at));
         *placed_at = to_world;
     }
+    let pose: &SkeletonPose = match pose {
+        StartPose::Held(pose) => pose,
+        StartPose::Given { pose, last } => {
+            if let Some(last) = last {
+                tracker.carry_planted_limbs(model, last, pose);
+            }
+            pose
+        }
+    };
     // One skin for the contacts and the floor. Under an additive layer the clip decides when
     // a foot is down (`pose::gait`).
     let skinned = model.skin_welded(pose);
@@ -148,8 +160,31 @@ impl FloorRecast {
 pub(super) type Standee<'a> = (
     &'a mut Option<(ContactTracker, DAffine3)>,
     &'a PosedSkeleton,
-    &'a SkeletonPose,
+    StartPose<'a>,
 );
+
+/// The pose a character is stood on the ground in: the one its solve starts from.
+pub(super) enum StartPose<'a> {
+    /// The pose held now (the solve goes on from the last solution).
+    Held(&'a SkeletonPose),
+    /// A start given for this solve (an additive layer's: this frame's animation with the
+    /// layer added). Its planted limbs are started where `last`, the last solved pose, left
+    /// them ([`ContactTracker::carry_planted_limbs`]).
+    Given {
+        pose: &'a mut SkeletonPose,
+        last: Option<&'a SkeletonPose>,
+    },
+}
+
+impl StartPose<'_> {
+    /// The pose.
+    fn pose(&self) -> &SkeletonPose {
+        match self {
+            StartPose::Held(pose) => pose,
+            StartPose::Given { pose, .. } => pose,
+        }
+    }
+}
 
 /// What [`stand_on`] found.
 pub(super) struct Standing {

@@ -8,7 +8,7 @@ use bevy::prelude::*;
 use super::blend::BlendMemory;
 use super::constraints::core_effector;
 use super::convert::{affine, composed_global};
-use super::ground_contacts::{FloorRecast, Standing, stand_on};
+use super::ground_contacts::{FloorRecast, Standing, StartPose, stand_on};
 use super::solve::{SolveJob, SolveResult, store_landed};
 use super::state::{CharacterSpace, LastSolve, PoseDrivers, PoseSolves};
 use super::{
@@ -68,7 +68,7 @@ pub(super) fn solve_in_frame(
             if let (Some(settings), Some(ground)) = (standing, ground) {
                 let balance = balance.filter(|b| b.enabled);
                 if let Some(found) =
-                    stand_here(solves, drivers, &posed, (settings, balance), ground)
+                    stand_here((solves, drivers, last), &posed, (settings, balance), ground)
                 {
                     found.report(status.bypass_change_detection(), &posed);
                 }
@@ -160,14 +160,19 @@ fn start_from_this_frame(
 /// the pose its solve starts from (this frame's animation under an additive layer), added to
 /// the pending constraints. `None`: nothing pending.
 fn stand_here(
-    solves: &mut PoseSolves,
-    drivers: &mut PoseDrivers,
+    (solves, drivers, last): (&mut PoseSolves, &mut PoseDrivers, &LastSolve),
     posed: &PosedSkeleton,
     settings: (&PoseGround, Option<&PoseBalance>),
     ground: &SceneGround,
 ) -> Option<Standing> {
     let pending = solves.pending.as_mut()?;
-    let pose = solves.start.as_ref().unwrap_or(&posed.pose);
+    let pose = match solves.start.as_mut() {
+        Some(pose) => StartPose::Given {
+            pose,
+            last: last.solution.as_ref().map(|s| &s.pose),
+        },
+        None => StartPose::Held(&posed.pose),
+    };
     let standee = (&mut drivers.contacts, posed, pose);
     Some(stand_on(pending, standee, settings, ground))
 }

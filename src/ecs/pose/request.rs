@@ -10,7 +10,7 @@ use super::constraints::{
     SetKey, core_effector, joint_handle, rebase, resolve_limits, vertex_handles,
 };
 use super::convert::{affine, composed_global};
-use super::ground_contacts::FloorRecast;
+use super::ground_contacts::{FloorRecast, StartPose};
 use super::solve::SolveJob;
 use super::state::{CharacterSpace, LastSolve, PoseDrivers, PoseSolves, fail};
 use super::symmetry::Symmetry;
@@ -260,9 +260,11 @@ fn start_set(
 }
 
 /// The constraints of the current drivers, and where the solve starts when not from the held
-/// pose (an additive layer starts from what is on screen).
+/// pose (an additive layer starts from what is on screen, its planted limbs where `last`, the
+/// last solved pose, left them).
 fn constraints_of(
     (state, memory, ground): (&mut PoseDrivers, &BlendMemory, Option<&SceneGround>),
+    last: Option<&SkeletonPose>,
     posed: &PosedSkeleton,
     drivers: &Drivers,
     (pins, anchor): (&[Entity], &PoseAnchor),
@@ -294,7 +296,7 @@ fn constraints_of(
         }
     }
     // An additive layer holds what nothing pulls on where the animation puts it now.
-    let start = extras.additive().then(|| on_screen(posed, joints));
+    let mut start = extras.additive().then(|| on_screen(posed, joints));
     // Preferred angles: the animation itself under an additive layer (so the layer relaxes
     // back to nothing where nothing pulls), else the reference the drivers were set on.
     let animated = extras
@@ -346,7 +348,10 @@ fn constraints_of(
             );
     }
     if let (Some(settings), Some(ground)) = (extras.ground, ground) {
-        let pose = start.as_ref().unwrap_or(&posed.pose);
+        let pose = match start.as_mut() {
+            Some(pose) => StartPose::Given { pose, last },
+            None => StartPose::Held(&posed.pose),
+        };
         let balance = extras.balance.filter(|b| b.enabled);
         let standee = (&mut state.contacts, posed, pose);
         let standing = super::ground_contacts::stand_on(
@@ -449,6 +454,7 @@ pub(super) fn request_pose_solves(
         let stand_here = if in_frame { None } else { ground.as_deref() };
         let built = constraints_of(
             (driver_state, memory, stand_here),
+            last.solution.as_ref().map(|s| &s.pose),
             &posed,
             &drivers,
             (pinned, anchor),
