@@ -336,9 +336,63 @@ fn an_additive_look_at_over_a_playing_clip_turns_the_neck_not_the_body() {
 /// lifts the paws again and puts them down again: they re-plant (`pose::gait`).
 #[test]
 fn a_walking_fox_keeps_a_planted_paw_where_it_is_held() {
-    let Some(dir) = common::shared::shared_asset("models") else {
+    let Some(walk) = walk_in_place(10, Poseable::default().ground_iterations, 0.0) else {
         return;
     };
+    assert!(
+        walk.offs.len() > 100,
+        "paws were planted ({})",
+        walk.offs.len()
+    );
+    assert!(
+        walk.plants > walk.plants_after_settling + 4,
+        "the walk lifts the paws and puts them down again: {} plants, {} after settling",
+        walk.plants,
+        walk.plants_after_settling
+    );
+    let worst = walk.offs.iter().copied().fold(0.0, f64::max);
+    assert!(
+        worst < 1e-2,
+        "a planted paw is {worst} of the size off where it is held"
+    );
+}
+
+/// Issue 42: the same walk on the crowd's budget, 3 iterations and none past it, the Fox
+/// pushed on 0.5 % of its size a frame (as a character controller moves it). A planted limb
+/// starts where the last solve left it, re-aimed at its holds
+/// (`ContactTracker::carry_planted_limbs`): on screen its paw is 2.05e-3 of the size off its
+/// held points in nine frames of ten, 3.3e-3 at most. Started from the clip's new frame with
+/// last frame's layer, as before: 2.44e-3 and 5.1e-3 (checked failing).
+#[test]
+fn a_walking_fox_holds_its_planted_paws_on_a_small_budget() {
+    let Some(walk) = walk_in_place(3, 0, 0.005) else {
+        return;
+    };
+    let mut offs = walk.offs.clone();
+    assert!(offs.len() > 100, "paws were planted ({})", offs.len());
+    offs.sort_by(f64::total_cmp);
+    let p90 = offs[offs.len() * 9 / 10];
+    let worst = offs[offs.len() - 1];
+    assert!(
+        p90 < 2.25e-3 && worst < 4.2e-3,
+        "planted paws are {p90} of the size off where they are held (p90), {worst} at most"
+    );
+}
+
+/// What [`walk_in_place`] saw: each planted paw's distance on screen from its held points in
+/// each frame (the farthest vertex, / size), and the plants counted.
+struct WalkInPlace {
+    offs: Vec<f64>,
+    plants: u64,
+    plants_after_settling: u64,
+}
+
+/// The Fox walking in place by its "Walk" clip under an additive layer solved inside the frame
+/// (`iterations`, `ground_iterations` past them), standing by `PoseGround` on a flat ground
+/// mesh and pushed along +x by `push` of its size a frame, 150 frames (the first 10 not
+/// measured). `None` without the shared models.
+fn walk_in_place(iterations: u32, ground_iterations: u32, push: f64) -> Option<WalkInPlace> {
+    let dir = common::shared::shared_asset("models")?;
     let (mut app, root) = common::fox_app(&dir, PosePlugin);
     let size = flat_ground_under(&mut app, root);
     let clip = common::fox_clip(&app, 1);
@@ -350,14 +404,19 @@ fn a_walking_fox_keeps_a_planted_paw_where_it_is_held() {
         .stop_all()
         .play(node)
         .repeat();
+    app.world_mut()
+        .get_mut::<Poseable>(root)
+        .unwrap()
+        .ground_iterations = ground_iterations;
     app.world_mut().entity_mut(root).insert((
         PoseBlend::additive(1.0),
         PoseStiffness(0.3),
-        PoseInFrame { iterations: 10 },
+        PoseInFrame { iterations },
         PoseGround::default(),
+        Pushed((push * size) as f32),
     ));
-    let mut planted_frames = 0;
-    let mut worst = 0.0f64;
+    app.add_systems(Update, push_along_x.before(PoseSystems::Request));
+    let mut offs = Vec::new();
     let mut plants_after_settling = None;
     for frame in 0..150 {
         app.update();
@@ -370,30 +429,21 @@ fn a_walking_fox_keeps_a_planted_paw_where_it_is_held() {
         let shown = posed.shown_pose(|j| app.world().get::<Transform>(j).copied());
         let skin = posed.to_world(posed.model.skin_welded(&shown));
         for c in status.contacts.iter().filter(|c| c.planted) {
-            planted_frames += 1;
-            let mut w = 0.0f64;
-            for (&v, held) in c.patch.iter().zip(&c.held) {
-                w = w.max(skin[v as usize].distance(held.as_dvec3()) / size);
-            }
-            eprintln!(
-                "frame {frame} joint {} off {w:.4} plants {}",
-                c.joint, status.plants
-            );
-            worst = worst.max(w);
+            let off = c
+                .patch
+                .iter()
+                .zip(&c.held)
+                .map(|(&v, held)| skin[v as usize].distance(held.as_dvec3()) / size)
+                .fold(0.0f64, f64::max);
+            offs.push(off);
         }
     }
     let status = app.world().get::<PoseStatus>(root).unwrap();
-    assert!(planted_frames > 100, "paws were planted ({planted_frames})");
-    assert!(
-        status.plants > plants_after_settling.unwrap() + 4,
-        "the walk lifts the paws and puts them down again: {} plants, {} after settling",
-        status.plants,
-        plants_after_settling.unwrap()
-    );
-    assert!(
-        worst < 1e-2,
-        "a planted paw is {worst} of the size off where it is held"
-    );
+    Some(WalkInPlace {
+        offs,
+        plants: status.plants,
+        plants_after_settling: plants_after_settling.unwrap_or(0),
+    })
 }
 
 /// A flat `Ground` mesh under the character `root`'s lowest vertex, far wider than it; returns
