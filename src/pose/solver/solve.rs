@@ -45,6 +45,10 @@ pub(super) struct Posed {
     /// Each vertex kept above the ground: its height above the ground's skin, as the last
     /// energy of this pose found it ([`ExtraTerms::energy`]).
     pub(super) gaps: Vec<f64>,
+    /// The extra terms' energy of this pose, once an energy was taken of it: the shape part
+    /// changes with each iteration's cluster rotations, the extra terms' does not (an
+    /// accepted trial's is the next iteration's first).
+    pub(super) extras_energy: Option<f64>,
 }
 
 /// The deepest a vertex kept above the ground is in it, with `gaps` its heights above its
@@ -136,6 +140,7 @@ impl PoseSolver {
                 // depth (the method of multipliers, `raised_floor.rs`).
                 if through && extras.raise_floor(&current.gaps, &mut raised) {
                     last = f64::NAN;
+                    current.extras_energy = None;
                 }
             }
             if cancel() {
@@ -326,6 +331,7 @@ impl PoseSolver {
             x: Vec::new(),
             qx: Vec::new(),
             gaps: Vec::new(),
+            extras_energy: None,
         }
     }
 
@@ -344,14 +350,24 @@ impl PoseSolver {
         );
         self.model.stack_into(&posed.skin, &mut posed.x);
         q_times_into(q_blocks, &posed.x, &mut posed.qx);
+        posed.extras_energy = None;
     }
 
-    /// The energy of a posed skeleton (its vertices' heights above the ground noted in it).
+    /// The energy of a posed skeleton (its vertices' heights above the ground and its extra
+    /// terms' energy noted in it: taken again of the same pose and terms, only the shape part
+    /// is summed again).
     pub(super) fn energy(&self, posed: &mut Posed, objective: &Objective) -> f64 {
-        self.objective(&posed.x, &posed.qx, objective.b, objective.constant)
-            + objective
-                .extras
-                .energy(&posed.globals, &posed.skin, &mut posed.gaps)
+        let extras = match posed.extras_energy {
+            Some(e) => e,
+            None => {
+                let e = objective
+                    .extras
+                    .energy(&posed.globals, &posed.skin, &mut posed.gaps);
+                posed.extras_energy = Some(e);
+                e
+            }
+        };
+        self.objective(&posed.x, &posed.qx, objective.b, objective.constant) + extras
     }
 
     /// The effector and stiffness terms of `constraints`, with targets blended from the
