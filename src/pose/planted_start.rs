@@ -27,7 +27,8 @@ impl ContactTracker {
     /// the first joint with other children, never the root) at its rotations in `last` (the
     /// last solved pose of `model`), re-aimed at the contact's held points (see the module
     /// docs). Returns how many limbs were carried; `start` is left as it was when `last` is
-    /// not a finite pose of the same skeleton, or a carried start would not be finite.
+    /// not a finite pose of the same skeleton, or a carried start would not be finite, and a
+    /// contact whose patch is not the model's is skipped.
     pub fn carry_planted_limbs(
         &self,
         model: &SkinnedModel,
@@ -43,11 +44,15 @@ impl ContactTracker {
             return 0;
         }
         let before = start.clone();
+        let vertices = model.bind_positions().len();
         let mut carried = 0;
         for contact in &self.contacts {
             let Some(held) = contact.planted.as_deref() else {
                 continue;
             };
+            if contact.patch.iter().any(|&v| v as usize >= vertices) {
+                continue; // a patch of another model
+            }
             let Some(top) = limb_top(skeleton, contact.joint) else {
                 continue;
             };

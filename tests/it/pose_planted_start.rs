@@ -107,7 +107,8 @@ fn a_planted_limb_starts_where_the_last_solve_left_it_re_aimed_at_its_holds() {
     assert!(hip_turn > 1e-3, "the hip re-aimed: {hip_turn} rad");
 }
 
-/// Nothing planted, a `last` of another skeleton or not finite: the start is left as given.
+/// Nothing planted, a `last` of another skeleton or not finite, a patch of another model: the
+/// start is left as given.
 #[test]
 fn a_start_with_nothing_to_carry_is_left_as_given() {
     let rig = mannequin_rig(30);
@@ -134,4 +135,10 @@ fn a_start_with_nothing_to_carry_is_left_as_given() {
     let mut start = given.clone();
     assert_eq!(tracker.carry_planted_limbs(&model, &last, &mut start), 1);
     assert!(start.local.iter().all(|t| t.is_valid()));
+
+    let mut foreign = tracker.clone();
+    foreign.contacts[0].patch = vec![u32::MAX; patch.len()];
+    let mut start = given.clone();
+    assert_eq!(foreign.carry_planted_limbs(&model, &last, &mut start), 0);
+    assert_eq!(start, given, "a patch that is not the model's");
 }
