@@ -243,6 +243,8 @@ struct CharacterGround<'a> {
     to_character: DAffine3,
     /// Gravity, in character space.
     down: DVec3,
+    /// How much longer a length is in the world than in character space.
+    scale: f64,
 }
 
 impl<'a> CharacterGround<'a> {
@@ -253,6 +255,7 @@ impl<'a> CharacterGround<'a> {
             to_world,
             to_character,
             down: (to_character.matrix3 * DVec3::NEG_Y).normalize_or(DVec3::NEG_Y),
+            scale: to_world.matrix3.x_axis.length(),
         }
     }
 
@@ -260,11 +263,10 @@ impl<'a> CharacterGround<'a> {
     /// for a miss or a hit that is not finite).
     fn cast(&self, from: DVec3, along: DVec3, max: f64) -> Option<GroundPlane> {
         let (to_world, to_character) = (&self.to_world, &self.to_character);
-        let scale = to_world.matrix3.x_axis.length();
         let direction = (to_world.matrix3 * along).try_normalize()?;
-        let hit = self
-            .ground
-            .cast_down(to_world.transform_point3(from), direction, max * scale)?;
+        let hit =
+            self.ground
+                .cast_down(to_world.transform_point3(from), direction, max * self.scale)?;
         GroundPlane::new(
             to_character.transform_point3(hit.point),
             to_character.matrix3 * hit.normal,

@@ -169,7 +169,7 @@ fn stand_here(
     let pose = match solves.start.as_mut() {
         Some(pose) => StartPose::Given {
             pose,
-            last: last.solution.as_ref().map(|s| &s.pose),
+            last: last.solved_pose(),
         },
         None => StartPose::Held(&posed.pose),
     };

@@ -454,7 +454,7 @@ pub(super) fn request_pose_solves(
         let stand_here = if in_frame { None } else { ground.as_deref() };
         let built = constraints_of(
             (driver_state, memory, stand_here),
-            last.solution.as_ref().map(|s| &s.pose),
+            last.solved_pose(),
             &posed,
             &drivers,
             (pinned, anchor),

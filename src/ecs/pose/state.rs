@@ -106,6 +106,11 @@ pub(super) struct LastSolve {
 }
 
 impl LastSolve {
+    /// The last solved pose, if a solve landed (a planted limb's start: `stand_on`).
+    pub(super) fn solved_pose(&self) -> Option<&SkeletonPose> {
+        self.solution.as_ref().map(|s| &s.pose)
+    }
+
     /// Forgets the solver and its solution (a new driver set).
     pub(super) fn forget_solver(&mut self) {
         self.solver = None;
