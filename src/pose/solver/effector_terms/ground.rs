@@ -6,7 +6,8 @@
 use glam::DVec3;
 
 use super::{
-    EFFECTOR_STRENGTH, ExtraInputs, ExtraTerms, JointSums, Term, VertexSkin, centroid_of, strength,
+    EFFECTOR_STRENGTH, ExtraInputs, ExtraTerms, JointSums, Term, VertexSkin, VertexSums,
+    centroid_of, strength,
 };
 use crate::pose::balance::SupportPolygon;
 use crate::pose::{Floor, GroundPlane, PoseConstraints, PoseError};
@@ -215,7 +216,7 @@ impl ExtraTerms<'_> {
         &self,
         term: &'t Term,
         gap: Option<f64>,
-    ) -> Option<((&'t JointSums, DVec3, f64), f64)> {
+    ) -> Option<((&'t VertexSums, DVec3, f64), f64)> {
         match (term, gap) {
             (Term::Above { sums, plane, .. }, Some(gap))
                 if (0.0..NEAR_CONTACT * self.length_scale).contains(&gap) =>
@@ -333,7 +334,7 @@ impl ExtraTerms<'_> {
 pub(super) fn along_the_normal<'t>(
     term: &'t Term,
     r: &super::Rows<DVec3>,
-) -> Option<(&'t JointSums, DVec3, f64)> {
+) -> Option<(&'t VertexSums, DVec3, f64)> {
     let r = *r.iter().next()?;
     match term {
         Term::Above { sums, plane, .. } if r != DVec3::ZERO => {

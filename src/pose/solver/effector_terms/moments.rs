@@ -10,16 +10,25 @@
 //! `α_a α_b C_cc + α_a C_cm B_bᵀ + α_b B_a C_cmᵀ + B_a C_mm B_bᵀ` (a turn: `α = 1`,
 //! `B = −[o]×`; a translation: `α = 0`, `B = I`) in the moments `C_cc = Σ s c cᵀ`,
 //! `C_cm = Σ s c mᵀ`, `C_mm = Σ s m mᵀ` — summed once per vertex, expanded once per pair of
-//! parameters per `L` (a foot's), not once per pair per vertex. Only the parameters below `L`
-//! that move part of a vertex (a toe's share of a vertex the foot and the toe carry) are
-//! still paired term by term. The sums are the same as pair by pair, up to rounding.
+//! parameters per `L` (a foot's), not once per pair per vertex.
+//!
+//! A parameter below `L` moves part of a vertex (a toe's share of a vertex the foot and the
+//! toe carry; with weights on both legs, every joint of a leg): its row is `α c_K + B m_K`
+//! with `c_K`, `m_K` summed over the part `K` it moves. Every vertex skinned by the same
+//! joints has the same parameters, parts and carrier, so its rows' products are summed as
+//! the moments of the stacked `(c_K, m_K)` per such joint set ([`PartialGroup`]) and expanded
+//! once per set: an automatic skin weighting each foot vertex to both legs had 7 such
+//! parameters a vertex, 45 pairs of them, summed vertex by vertex (a third of a humanoid's
+//! solve). The sums are the same as pair by pair, up to rounding.
+
+use std::collections::HashMap;
 
 use glam::{DAffine3, DMat3, DVec3};
 
 use super::super::params::Param;
-use super::sums::apply;
+use super::sums::{VertexSums, apply};
 use super::system::{System, split};
-use super::{ExtraTerms, JointSums, outer, skew};
+use super::{ExtraTerms, outer, skew};
 
 /// The moments of the terms carried whole by one joint (see the module docs).
 #[derive(Debug, Clone, Copy)]
@@ -40,10 +49,29 @@ pub(super) struct RankOneSums {
     /// Per parameter, the stamp of the last term it moves whole.
     whole: Vec<u32>,
     stamp: u32,
-    /// A term's rows for the parameters that move part of it, and for those that move it
-    /// whole (reused term after term).
-    partial_rows: Vec<(usize, DVec3)>,
-    whole_rows: Vec<(usize, DVec3)>,
+    /// The terms with parameters that move part of their vertex, per joint set.
+    partial: Vec<PartialGroup>,
+    /// Each joint set's group in `partial` (its joints, then `usize::MAX`).
+    groups: HashMap<[usize; 4], usize>,
+    /// A term's stacked `(c_K, m_K)` (reused term after term).
+    stacked: Vec<f64>,
+}
+
+/// The terms of one joint set that parameters below its carrier move in part (see the module
+/// docs): their parts' stacked `v = (c_0, m_0, c_1, m_1, …)` — part 0 the whole vertex (no
+/// carrier: zero), part `k ≥ 1` what `masks[k − 1]` of the set's joints carry — summed as
+/// `Σ s v vᵀ` and `Σ s d v`.
+struct PartialGroup {
+    /// The joint carrying the whole vertex (`None`: joints of different roots).
+    carrier: Option<usize>,
+    /// The parameters that move part of the vertex, each with its part.
+    params: Vec<(usize, usize)>,
+    /// Per part after the whole, which of the set's joints it carries (bit `i`: joint `i`).
+    masks: Vec<u8>,
+    /// `Σ s v vᵀ` (upper triangle, row-major, `6 (1 + masks)` square; the whole part's own block is the carrier's).
+    moments: Vec<f64>,
+    /// `Σ s d v`.
+    gradient: Vec<f64>,
 }
 
 /// A parameter's row coefficients: `u = α c + B m` (see the module docs).
@@ -73,8 +101,9 @@ impl RankOneSums {
             per_joint: vec![Moments::NONE; joints],
             whole: vec![0; params],
             stamp: 0,
-            partial_rows: Vec::new(),
-            whole_rows: Vec::new(),
+            partial: Vec::new(),
+            groups: HashMap::new(),
+            stacked: Vec::new(),
         }
     }
 
@@ -83,35 +112,18 @@ impl RankOneSums {
     pub(super) fn add(
         &mut self,
         terms: &ExtraTerms,
-        system: &mut System,
-        (sums, along, depth): (&JointSums, DVec3, f64),
+        (sums, along, depth): (&VertexSums, DVec3, f64),
         (s, movers): (f64, &[u32]),
-        (params, globals, skinning): (&[Param], &[DAffine3], &[DAffine3]),
+        (params, skinning): (&[Param], &[DAffine3]),
     ) {
         self.stamp += 1;
         let carrier = terms.common_carrier(sums);
+        let mut whole = (DVec3::ZERO, DVec3::ZERO);
         if let Some(l) = carrier {
             for &p in &terms.joint_movers[l] {
                 self.whole[p as usize] = self.stamp;
             }
-        }
-        self.partial_rows.clear();
-        for &p in movers {
-            if self.whole[p as usize] == self.stamp {
-                continue;
-            }
-            let (a, rotation) = split(params[p as usize]);
-            let origin = globals[a].translation;
-            if let Some(b) = terms.centroid_jacobian(sums, a, rotation, origin, skinning) {
-                self.partial_rows.push((p as usize, b.transpose() * along));
-            }
-        }
-        self.whole_rows.clear();
-        if let Some(l) = carrier {
-            let (x, mass) = sums.iter().fold((DVec3::ZERO, 0.0), |(x, mass), (j, m)| {
-                (x + apply(&skinning[*j], *m), mass + m.w)
-            });
-            let (c, m) = (x.cross(along), along * mass);
+            let (c, m) = carried_part(sums, u8::MAX, along, skinning);
             let moments = &mut self.per_joint[l];
             moments.cc += outer(c, c) * s;
             moments.cm += outer(c, m) * s;
@@ -119,22 +131,44 @@ impl RankOneSums {
             moments.gc += c * (s * depth);
             moments.gm += m * (s * depth);
             moments.used = true;
-            if !self.partial_rows.is_empty() {
-                self.whole_rows
-                    .extend(terms.joint_movers[l].iter().map(|&p| {
-                        let (alpha, b) = coefficients(params[p as usize], globals);
-                        (p as usize, c * alpha + b * m)
-                    }));
-            }
+            whole = (c, m);
         }
-        for (i, &(pa, ua)) in self.partial_rows.iter().enumerate() {
-            for k in 0..3 {
-                system.g[pa * 3 + k] += s * ua[k] * depth;
-            }
-            for &(pb, ub) in self.partial_rows[i..].iter().chain(&self.whole_rows) {
-                system.add_pair((pa, pb), outer(ua, ub), s);
-            }
+        if movers.iter().all(|&p| self.whole[p as usize] == self.stamp) {
+            return;
         }
+        // A vertex has at most four joints (`VertexSums`).
+        let mut joints = [usize::MAX; 4];
+        for (slot, (j, _)) in joints.iter_mut().zip(sums.iter()) {
+            *slot = *j;
+        }
+        let k = match self.groups.get(&joints) {
+            Some(&k) => k,
+            None => {
+                let movers_in_part = movers
+                    .iter()
+                    .copied()
+                    .filter(|&p| self.whole[p as usize] != self.stamp);
+                let set = &joints[..sums.len()];
+                let group = PartialGroup::new(terms, set, carrier, movers_in_part, params);
+                self.partial.push(group);
+                self.groups.insert(joints, self.partial.len() - 1);
+                self.partial.len() - 1
+            }
+        };
+        let group = &mut self.partial[k];
+        let v = &mut self.stacked;
+        v.resize(6 * (1 + group.masks.len()), 0.0);
+        let parts = std::iter::once(whole).chain(
+            group
+                .masks
+                .iter()
+                .map(|&mask| carried_part(sums, mask, along, skinning)),
+        );
+        for (slot, (c, m)) in v.chunks_exact_mut(6).zip(parts) {
+            c.write_to_slice(&mut slot[..3]);
+            m.write_to_slice(&mut slot[3..]);
+        }
+        group.add(v, s, depth);
     }
 
     /// Adds the moments' blocks and gradients to `system`.
@@ -167,6 +201,145 @@ impl RankOneSums {
                         + b_a * moments.mm * b_b.transpose();
                     system.add_pair((pa, pb), block, 1.0);
                 }
+            }
+        }
+        for group in &self.partial {
+            group.finish(terms, system, (params, globals));
+        }
+    }
+}
+
+/// The part of a vertex (`sums`) the joints of `mask` carry (bit `i`: its joint `i`), seen
+/// along `along`: `c = x × along`, `m = M along` for its skinned sum `x` and weight `M`; zero
+/// when it weighs nothing.
+fn carried_part(
+    sums: &VertexSums,
+    mask: u8,
+    along: DVec3,
+    skinning: &[DAffine3],
+) -> (DVec3, DVec3) {
+    let (mut x, mut mass) = (DVec3::ZERO, 0.0);
+    for (i, (j, m)) in sums.iter().enumerate() {
+        if mask & (1 << i) != 0 {
+            x += apply(&skinning[*j], *m);
+            mass += m.w;
+        }
+    }
+    if mass == 0.0 {
+        return (DVec3::ZERO, DVec3::ZERO);
+    }
+    (x.cross(along), along * mass)
+}
+
+impl PartialGroup {
+    /// The group of the vertices skinned by `joints` (at most four), carried whole by
+    /// `carrier`, with the parameters `in_part` moving part of them.
+    fn new(
+        terms: &ExtraTerms,
+        joints: &[usize],
+        carrier: Option<usize>,
+        in_part: impl Iterator<Item = u32>,
+        params: &[Param],
+    ) -> Self {
+        let mut masks = Vec::new();
+        let params_in_part = in_part
+            .map(|p| {
+                let (a, _) = split(params[p as usize]);
+                let mask = joints
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, j)| terms.moves(a, **j))
+                    .fold(0u8, |mask, (i, _)| mask | (1 << i));
+                let part = match masks.iter().position(|&m| m == mask) {
+                    Some(k) => k,
+                    None => {
+                        masks.push(mask);
+                        masks.len() - 1
+                    }
+                };
+                (p as usize, part + 1)
+            })
+            .collect();
+        let n = 6 * (1 + masks.len());
+        Self {
+            carrier,
+            params: params_in_part,
+            masks,
+            moments: vec![0.0; n * n],
+            gradient: vec![0.0; n],
+        }
+    }
+
+    /// Adds a term's stacked parts `v` at weight `s` and depth `depth`.
+    fn add(&mut self, v: &[f64], s: f64, depth: f64) {
+        let n = v.len();
+        for (i, vi) in v.iter().enumerate() {
+            self.gradient[i] += s * depth * vi;
+            let (row, sv) = (&mut self.moments[i * n..(i + 1) * n], s * vi);
+            // The whole part with itself is in the carrier's moments.
+            let from = if i < 6 { 6 } else { i };
+            for (h, vj) in row[from..].iter_mut().zip(&v[from..]) {
+                *h += sv * vj;
+            }
+        }
+    }
+
+    /// The 3 × 3 block of `Σ s v vᵀ` at rows `r`, columns `c` (of the upper triangle).
+    fn block(&self, r: usize, c: usize) -> DMat3 {
+        let n = self.gradient.len();
+        let at = |i: usize, j: usize| self.moments[i.min(j) * n + i.max(j)];
+        DMat3::from_cols_array_2d(&[
+            [at(r, c), at(r + 1, c), at(r + 2, c)],
+            [at(r, c + 1), at(r + 1, c + 1), at(r + 2, c + 1)],
+            [at(r, c + 2), at(r + 1, c + 2), at(r + 2, c + 2)],
+        ])
+    }
+
+    /// `Σ s u_a u_bᵀ` for rows `u = α c_K + B m_K` of parts `ka`, `kb`.
+    fn pair(
+        &self,
+        (ka, alpha_a, b_a): (usize, f64, DMat3),
+        (kb, alpha_b, b_b): (usize, f64, DMat3),
+    ) -> DMat3 {
+        let (ra, rb) = (6 * ka, 6 * kb);
+        self.block(ra, rb) * (alpha_a * alpha_b)
+            + self.block(ra, rb + 3) * b_b.transpose() * alpha_a
+            + b_a * self.block(ra + 3, rb) * alpha_b
+            + b_a * self.block(ra + 3, rb + 3) * b_b.transpose()
+    }
+
+    /// Adds the group's pairs of a part-moving parameter with every parameter after it and
+    /// with the carrier's, and its gradient, to `system`.
+    fn finish(
+        &self,
+        terms: &ExtraTerms,
+        system: &mut System,
+        (params, globals): (&[Param], &[DAffine3]),
+    ) {
+        let with = |p: usize, k: usize| {
+            let (alpha, b) = coefficients(params[p], globals);
+            (k, alpha, b)
+        };
+        let whole: Vec<(usize, (usize, f64, DMat3))> = self
+            .carrier
+            .map_or(&[][..], |l| &terms.joint_movers[l][..])
+            .iter()
+            .map(|&p| (p as usize, with(p as usize, 0)))
+            .collect();
+        for (i, &(pa, ka)) in self.params.iter().enumerate() {
+            let a = with(pa, ka);
+            let r = 6 * ka;
+            let gc = DVec3::from_slice(&self.gradient[r..r + 3]);
+            let gm = DVec3::from_slice(&self.gradient[r + 3..r + 6]);
+            let g = gc * a.1 + a.2 * gm;
+            for k in 0..3 {
+                system.g[pa * 3 + k] += g[k];
+            }
+            for &(pb, kb) in &self.params[i..] {
+                system.add_pair((pa, pb), self.pair(a, with(pb, kb)), 1.0);
+            }
+            for &(pb, b) in &whole {
+                system.add_pair((pa, pb), self.pair(a, b), 1.0);
             }
         }
     }

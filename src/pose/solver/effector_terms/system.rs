@@ -80,10 +80,9 @@ impl ExtraTerms<'_> {
             {
                 rank_one.add(
                     self,
-                    &mut system,
                     (sums, along, depth),
                     (2.0 * w, &movers),
-                    (params, globals, skinning),
+                    (params, skinning),
                 );
                 return;
             }
