@@ -53,24 +53,26 @@ pub(super) struct RankOneSums {
     partial: Vec<PartialGroup>,
     /// Each joint set's group in `partial` (its joints, then `usize::MAX`).
     groups: HashMap<[usize; 4], usize>,
-    /// A term's stacked `(c_K, m_K)` (reused term after term).
+    /// A term's per-joint `(c_i, m_i)`, stacked (reused term after term).
     stacked: Vec<f64>,
 }
 
 /// The terms of one joint set that parameters below its carrier move in part (see the module
-/// docs): their parts' stacked `v = (c_0, m_0, c_1, m_1, …)` — part 0 the whole vertex (no
-/// carrier: zero), part `k ≥ 1` what `masks[k − 1]` of the set's joints carry — summed as
-/// `Σ s v vᵀ` and `Σ s d v`.
+/// docs). A part's `(c_K, m_K)` is the sum of its joints' `(c_i, m_i)` (joint `i`'s share
+/// of the vertex: `c_i = x_i × n`, `m_i = w_i n`), so the terms are summed per joint —
+/// `Σ s u uᵀ`, `Σ s d u` of the stacked `u = (c_1, m_1, c_2, m_2, …)`, at most 24 long — and
+/// the parts' moments read off them once, when the group is expanded.
 struct PartialGroup {
     /// The joint carrying the whole vertex (`None`: joints of different roots).
     carrier: Option<usize>,
     /// The parameters that move part of the vertex, each with its part.
     params: Vec<(usize, usize)>,
-    /// Per part after the whole, which of the set's joints it carries (bit `i`: joint `i`).
+    /// Per part, which of the set's joints it carries (bit `i`: joint `i`); part 0 is the
+    /// whole vertex.
     masks: Vec<u8>,
-    /// `Σ s v vᵀ` (upper triangle, row-major, `6 (1 + masks)` square; the whole part's own block is the carrier's).
+    /// `Σ s u uᵀ` (upper triangle, row-major, `6 × joints` square).
     moments: Vec<f64>,
-    /// `Σ s d v`.
+    /// `Σ s d u`.
     gradient: Vec<f64>,
 }
 
@@ -118,12 +120,14 @@ impl RankOneSums {
     ) {
         self.stamp += 1;
         let carrier = terms.common_carrier(sums);
-        let mut whole = (DVec3::ZERO, DVec3::ZERO);
         if let Some(l) = carrier {
             for &p in &terms.joint_movers[l] {
                 self.whole[p as usize] = self.stamp;
             }
-            let (c, m) = carried_part(sums, u8::MAX, along, skinning);
+            let (x, mass) = sums.iter().fold((DVec3::ZERO, 0.0), |(x, mass), (j, m)| {
+                (x + apply(&skinning[*j], *m), mass + m.w)
+            });
+            let (c, m) = (x.cross(along), along * mass);
             let moments = &mut self.per_joint[l];
             moments.cc += outer(c, c) * s;
             moments.cm += outer(c, m) * s;
@@ -131,7 +135,6 @@ impl RankOneSums {
             moments.gc += c * (s * depth);
             moments.gm += m * (s * depth);
             moments.used = true;
-            whole = (c, m);
         }
         if movers.iter().all(|&p| self.whole[p as usize] == self.stamp) {
             return;
@@ -155,20 +158,14 @@ impl RankOneSums {
                 self.partial.len() - 1
             }
         };
-        let group = &mut self.partial[k];
         let v = &mut self.stacked;
-        v.resize(6 * (1 + group.masks.len()), 0.0);
-        let parts = std::iter::once(whole).chain(
-            group
-                .masks
-                .iter()
-                .map(|&mask| carried_part(sums, mask, along, skinning)),
-        );
-        for (slot, (c, m)) in v.chunks_exact_mut(6).zip(parts) {
-            c.write_to_slice(&mut slot[..3]);
-            m.write_to_slice(&mut slot[3..]);
+        v.clear();
+        for (j, m) in sums.iter() {
+            let x = apply(&skinning[*j], *m);
+            v.extend(x.cross(along).to_array());
+            v.extend((along * m.w).to_array());
         }
-        group.add(v, s, depth);
+        self.partial[k].add(v, s, depth);
     }
 
     /// Adds the moments' blocks and gradients to `system`.
@@ -209,28 +206,6 @@ impl RankOneSums {
     }
 }
 
-/// The part of a vertex (`sums`) the joints of `mask` carry (bit `i`: its joint `i`), seen
-/// along `along`: `c = x × along`, `m = M along` for its skinned sum `x` and weight `M`; zero
-/// when it weighs nothing.
-fn carried_part(
-    sums: &VertexSums,
-    mask: u8,
-    along: DVec3,
-    skinning: &[DAffine3],
-) -> (DVec3, DVec3) {
-    let (mut x, mut mass) = (DVec3::ZERO, 0.0);
-    for (i, (j, m)) in sums.iter().enumerate() {
-        if mask & (1 << i) != 0 {
-            x += apply(&skinning[*j], *m);
-            mass += m.w;
-        }
-    }
-    if mass == 0.0 {
-        return (DVec3::ZERO, DVec3::ZERO);
-    }
-    (x.cross(along), along * mass)
-}
-
 impl PartialGroup {
     /// The group of the vertices skinned by `joints` (at most four), carried whole by
     /// `carrier`, with the parameters `in_part` moving part of them.
@@ -241,7 +216,7 @@ impl PartialGroup {
         in_part: impl Iterator<Item = u32>,
         params: &[Param],
     ) -> Self {
-        let mut masks = Vec::new();
+        let mut masks = vec![((1u16 << joints.len()) - 1) as u8];
         let params_in_part = in_part
             .map(|p| {
                 let (a, _) = split(params[p as usize]);
@@ -250,17 +225,17 @@ impl PartialGroup {
                     .enumerate()
                     .filter(|(_, j)| terms.moves(a, **j))
                     .fold(0u8, |mask, (i, _)| mask | (1 << i));
-                let part = match masks.iter().position(|&m| m == mask) {
-                    Some(k) => k,
+                let part = match masks[1..].iter().position(|&m| m == mask) {
+                    Some(k) => k + 1,
                     None => {
                         masks.push(mask);
                         masks.len() - 1
                     }
                 };
-                (p as usize, part + 1)
+                (p as usize, part)
             })
             .collect();
-        let n = 6 * (1 + masks.len());
+        let n = 6 * joints.len();
         Self {
             carrier,
             params: params_in_part,
@@ -270,42 +245,42 @@ impl PartialGroup {
         }
     }
 
-    /// Adds a term's stacked parts `v` at weight `s` and depth `depth`.
-    fn add(&mut self, v: &[f64], s: f64, depth: f64) {
-        let n = v.len();
-        for (i, vi) in v.iter().enumerate() {
-            self.gradient[i] += s * depth * vi;
-            let (row, sv) = (&mut self.moments[i * n..(i + 1) * n], s * vi);
-            // The whole part with itself is in the carrier's moments.
-            let from = if i < 6 { 6 } else { i };
-            for (h, vj) in row[from..].iter_mut().zip(&v[from..]) {
-                *h += sv * vj;
+    /// Adds a term's stacked per-joint `u` at weight `s` and depth `depth`.
+    fn add(&mut self, u: &[f64], s: f64, depth: f64) {
+        let n = u.len();
+        for (i, ui) in u.iter().enumerate() {
+            self.gradient[i] += s * depth * ui;
+            let (row, su) = (&mut self.moments[i * n + i..(i + 1) * n], s * ui);
+            for (h, uj) in row.iter_mut().zip(&u[i..]) {
+                *h += su * uj;
             }
         }
     }
 
-    /// The 3 × 3 block of `Σ s v vᵀ` at rows `r`, columns `c` (of the upper triangle).
-    fn block(&self, r: usize, c: usize) -> DMat3 {
-        let n = self.gradient.len();
+    /// The parts' moments `Σ s v vᵀ` (full, row-major, `6 × parts` square) and `Σ s d v`,
+    /// summed from the joints' (see [`PartialGroup`]).
+    fn parts(&self) -> (Vec<f64>, Vec<f64>) {
+        let (n, k) = (self.gradient.len(), 6 * self.masks.len());
         let at = |i: usize, j: usize| self.moments[i.min(j) * n + i.max(j)];
-        DMat3::from_cols_array_2d(&[
-            [at(r, c), at(r + 1, c), at(r + 2, c)],
-            [at(r, c + 1), at(r + 1, c + 1), at(r + 2, c + 1)],
-            [at(r, c + 2), at(r + 1, c + 2), at(r + 2, c + 2)],
-        ])
-    }
-
-    /// `Σ s u_a u_bᵀ` for rows `u = α c_K + B m_K` of parts `ka`, `kb`.
-    fn pair(
-        &self,
-        (ka, alpha_a, b_a): (usize, f64, DMat3),
-        (kb, alpha_b, b_b): (usize, f64, DMat3),
-    ) -> DMat3 {
-        let (ra, rb) = (6 * ka, 6 * kb);
-        self.block(ra, rb) * (alpha_a * alpha_b)
-            + self.block(ra, rb + 3) * b_b.transpose() * alpha_a
-            + b_a * self.block(ra + 3, rb) * alpha_b
-            + b_a * self.block(ra + 3, rb + 3) * b_b.transpose()
+        let joints_of = |mask: u8| (0..n / 6).filter(move |i| mask & (1 << i) != 0);
+        let (mut moments, mut gradient) = (vec![0.0; k * k], vec![0.0; k]);
+        for (a, &mask_a) in self.masks.iter().enumerate() {
+            for i in joints_of(mask_a) {
+                for r in 0..6 {
+                    gradient[6 * a + r] += self.gradient[6 * i + r];
+                }
+                for (b, &mask_b) in self.masks.iter().enumerate() {
+                    for j in joints_of(mask_b) {
+                        for r in 0..6 {
+                            for c in 0..6 {
+                                moments[(6 * a + r) * k + 6 * b + c] += at(6 * i + r, 6 * j + c);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        (moments, gradient)
     }
 
     /// Adds the group's pairs of a part-moving parameter with every parameter after it and
@@ -316,6 +291,25 @@ impl PartialGroup {
         system: &mut System,
         (params, globals): (&[Param], &[DAffine3]),
     ) {
+        let (moments, gradient) = self.parts();
+        let k = gradient.len();
+        let block = |r: usize, c: usize| {
+            let at = |i: usize, j: usize| moments[i * k + j];
+            DMat3::from_cols_array_2d(&[
+                [at(r, c), at(r + 1, c), at(r + 2, c)],
+                [at(r, c + 1), at(r + 1, c + 1), at(r + 2, c + 1)],
+                [at(r, c + 2), at(r + 1, c + 2), at(r + 2, c + 2)],
+            ])
+        };
+        // `Σ s u_a u_bᵀ` for rows `u = α c_K + B m_K` of parts `ka`, `kb`.
+        let pair = |(ka, alpha_a, b_a): (usize, f64, DMat3),
+                    (kb, alpha_b, b_b): (usize, f64, DMat3)| {
+            let (ra, rb) = (6 * ka, 6 * kb);
+            block(ra, rb) * (alpha_a * alpha_b)
+                + block(ra, rb + 3) * b_b.transpose() * alpha_a
+                + b_a * block(ra + 3, rb) * alpha_b
+                + b_a * block(ra + 3, rb + 3) * b_b.transpose()
+        };
         let with = |p: usize, k: usize| {
             let (alpha, b) = coefficients(params[p], globals);
             (k, alpha, b)
@@ -329,17 +323,17 @@ impl PartialGroup {
         for (i, &(pa, ka)) in self.params.iter().enumerate() {
             let a = with(pa, ka);
             let r = 6 * ka;
-            let gc = DVec3::from_slice(&self.gradient[r..r + 3]);
-            let gm = DVec3::from_slice(&self.gradient[r + 3..r + 6]);
+            let gc = DVec3::from_slice(&gradient[r..r + 3]);
+            let gm = DVec3::from_slice(&gradient[r + 3..r + 6]);
             let g = gc * a.1 + a.2 * gm;
             for k in 0..3 {
                 system.g[pa * 3 + k] += g[k];
             }
             for &(pb, kb) in &self.params[i..] {
-                system.add_pair((pa, pb), self.pair(a, with(pb, kb)), 1.0);
+                system.add_pair((pa, pb), pair(a, with(pb, kb)), 1.0);
             }
             for &(pb, b) in &whole {
-                system.add_pair((pa, pb), self.pair(a, b), 1.0);
+                system.add_pair((pa, pb), pair(a, b), 1.0);
             }
         }
     }
