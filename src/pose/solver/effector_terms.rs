@@ -82,10 +82,12 @@ enum Term<'a> {
     /// the margin inside the support polygon); one-sided.
     Balance {
         sums: Vec<(usize, DVec4)>,
-        polygon: SupportPolygon,
+        /// (Boxed, as `allowed`: a term is as large as its largest kind, and a solve holds
+        /// hundreds of floor terms and one balance.)
+        polygon: Box<SupportPolygon>,
         /// Where the centre of mass may be: the polygon shrunk by the margin asked (or grown
         /// by a lean).
-        allowed: AllowedRegion,
+        allowed: Box<AllowedRegion>,
         weight: f64,
     },
 }

@@ -145,8 +145,8 @@ pub(super) fn push_terms<'a>(
         let polygon = SupportPolygon::new(&b.support, b.gravity);
         terms.push(Term::Balance {
             sums: sums.to_vec(),
-            allowed: polygon.allowed(b.required_inside() + input.balance_boost),
-            polygon,
+            allowed: Box::new(polygon.allowed(b.required_inside() + input.balance_boost)),
+            polygon: Box::new(polygon),
             weight: BALANCE_STRENGTH * lw * strength(b.weight),
         });
     }
