@@ -336,12 +336,12 @@ impl<'a> ExtraTerms<'a> {
         self.skeleton.descends_from(j, a)
     }
 
-    /// The deepest joint that moves every joint of `sums` (their deepest common ancestor,
+    /// The deepest joint that moves every one of `joints` (their deepest common ancestor,
     /// or their one joint); `None` for no joints or joints of different roots.
-    fn common_carrier(&self, sums: &JointSums) -> Option<usize> {
-        let mut joints = sums.iter().map(|(j, _)| *j);
-        let mut carrier = joints.next()?;
-        for j in joints {
+    fn common_carrier(&self, joints: &[usize]) -> Option<usize> {
+        let (&first, others) = joints.split_first()?;
+        let mut carrier = first;
+        for &j in others {
             while !self.moves(carrier, j) {
                 carrier = self.skeleton.joints()[carrier].parent?;
             }

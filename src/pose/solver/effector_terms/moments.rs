@@ -22,6 +22,7 @@
 //! solve). The sums are the same as pair by pair, up to rounding.
 
 use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
 
 use glam::{DAffine3, DMat3, DVec3};
 
@@ -46,15 +47,49 @@ struct Moments {
 pub(super) struct RankOneSums {
     /// Per joint, the moments of the terms it is the deepest common carrier of.
     per_joint: Vec<Moments>,
-    /// Per parameter, the stamp of the last term it moves whole.
+    /// Per parameter, the stamp of the last joint set it moves whole.
     whole: Vec<u32>,
     stamp: u32,
     /// The terms with parameters that move part of their vertex, per joint set.
     partial: Vec<PartialGroup>,
-    /// Each joint set's group in `partial` (its joints, then `usize::MAX`).
-    groups: HashMap<[usize; 4], usize>,
+    /// What each joint set (its joints, then `usize::MAX`) met so far is to the sums: its
+    /// carrier and its group in `partial` — found once a system, not once a term (the
+    /// carrier is a walk up the skeleton per joint).
+    sets: HashMap<[usize; 4], JointSet, BuildHasherDefault<JointSetHasher>>,
     /// A term's per-joint `(c_i, m_i)`, stacked (reused term after term).
     stacked: Vec<f64>,
+}
+
+/// A joint set's carrier and group (see [`RankOneSums`]).
+#[derive(Debug, Clone, Copy)]
+struct JointSet {
+    carrier: Option<usize>,
+    group: Option<usize>,
+}
+
+/// Hashes a joint set (four small numbers) by multiplying and rotating: the sets are few
+/// and looked up once a term.
+#[derive(Default)]
+struct JointSetHasher(u64);
+
+impl Hasher for JointSetHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(u64::from(b));
+        }
+    }
+
+    fn write_u64(&mut self, n: u64) {
+        self.0 = (self.0.rotate_left(5) ^ n).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+
+    fn write_usize(&mut self, n: usize) {
+        self.write_u64(n as u64);
+    }
 }
 
 /// The terms of one joint set that parameters below its carrier move in part (see the module
@@ -104,26 +139,30 @@ impl RankOneSums {
             whole: vec![0; params],
             stamp: 0,
             partial: Vec::new(),
-            groups: HashMap::new(),
+            sets: HashMap::default(),
             stacked: Vec::new(),
         }
     }
 
     /// Adds `s uuᵀ` and `s d u` of the term whose vertex is `sums`, along `along` at depth
-    /// `d`, moved by `movers` (indices into `params`).
+    /// `d`.
     pub(super) fn add(
         &mut self,
         terms: &ExtraTerms,
         (sums, along, depth): (&VertexSums, DVec3, f64),
-        (s, movers): (f64, &[u32]),
+        s: f64,
         (params, skinning): (&[Param], &[DAffine3]),
     ) {
-        self.stamp += 1;
-        let carrier = terms.common_carrier(sums);
-        if let Some(l) = carrier {
-            for &p in &terms.joint_movers[l] {
-                self.whole[p as usize] = self.stamp;
-            }
+        // A vertex has at most four joints (`VertexSums`).
+        let mut joints = [usize::MAX; 4];
+        for (slot, (j, _)) in joints.iter_mut().zip(sums.iter()) {
+            *slot = *j;
+        }
+        let set = match self.sets.get(&joints) {
+            Some(&set) => set,
+            None => self.new_set(terms, joints, &joints[..sums.len()], params),
+        };
+        if let Some(l) = set.carrier {
             let (x, mass) = sums.iter().fold((DVec3::ZERO, 0.0), |(x, mass), (j, m)| {
                 (x + apply(&skinning[*j], *m), mass + m.w)
             });
@@ -136,27 +175,8 @@ impl RankOneSums {
             moments.gm += m * (s * depth);
             moments.used = true;
         }
-        if movers.iter().all(|&p| self.whole[p as usize] == self.stamp) {
+        let Some(k) = set.group else {
             return;
-        }
-        // A vertex has at most four joints (`VertexSums`).
-        let mut joints = [usize::MAX; 4];
-        for (slot, (j, _)) in joints.iter_mut().zip(sums.iter()) {
-            *slot = *j;
-        }
-        let k = match self.groups.get(&joints) {
-            Some(&k) => k,
-            None => {
-                let movers_in_part = movers
-                    .iter()
-                    .copied()
-                    .filter(|&p| self.whole[p as usize] != self.stamp);
-                let set = &joints[..sums.len()];
-                let group = PartialGroup::new(terms, set, carrier, movers_in_part, params);
-                self.partial.push(group);
-                self.groups.insert(joints, self.partial.len() - 1);
-                self.partial.len() - 1
-            }
         };
         let v = &mut self.stacked;
         v.clear();
@@ -166,6 +186,42 @@ impl RankOneSums {
             v.extend((along * m.w).to_array());
         }
         self.partial[k].add(v, s, depth);
+    }
+
+    /// The carrier of the vertices skinned by `joints` (`key`: as looked up) and, when
+    /// parameters below it move them in part, their new group.
+    fn new_set(
+        &mut self,
+        terms: &ExtraTerms,
+        key: [usize; 4],
+        joints: &[usize],
+        params: &[Param],
+    ) -> JointSet {
+        self.stamp += 1;
+        let carrier = terms.common_carrier(joints);
+        if let Some(l) = carrier {
+            for &p in &terms.joint_movers[l] {
+                self.whole[p as usize] = self.stamp;
+            }
+        }
+        // The parameters that move a joint of the set but not the carrier, each once.
+        let mut in_part = Vec::new();
+        for &j in joints {
+            for &p in &terms.joint_movers[j] {
+                if self.whole[p as usize] != self.stamp {
+                    self.whole[p as usize] = self.stamp;
+                    in_part.push(p);
+                }
+            }
+        }
+        let group = (!in_part.is_empty()).then(|| {
+            let group = PartialGroup::new(terms, joints, carrier, in_part.into_iter(), params);
+            self.partial.push(group);
+            self.partial.len() - 1
+        });
+        let set = JointSet { carrier, group };
+        self.sets.insert(key, set);
+        set
     }
 
     /// Adds the moments' blocks and gradients to `system`.
@@ -349,15 +405,16 @@ mod tests {
     use crate::pose::{GroundPlane, Joint, Skeleton, VertexInfluences};
 
     /// A chain of four joints (0 → 1 → 2 → 3) with a branch (4) off joint 1, each half a unit
-    /// from its parent.
+    /// from its parent, and a second root (5: a skin with two root joints).
     fn branching() -> Skeleton {
-        let parents = [None, Some(0), Some(1), Some(2), Some(1)];
+        let parents = [None, Some(0), Some(1), Some(2), Some(1), None];
         let offsets = [
             DVec3::ZERO,
             DVec3::new(0.5, 0.0, 0.0),
             DVec3::new(0.5, 0.1, 0.0),
             DVec3::new(0.4, -0.1, 0.1),
             DVec3::new(0.0, -0.5, 0.2),
+            DVec3::new(0.9, -0.4, -0.1),
         ];
         let mut globals = Vec::new();
         let joints = parents
@@ -428,22 +485,25 @@ mod tests {
     }
 
     /// Vertices carried by one joint, by a joint and its child, by two branches (their
-    /// common carrier above both), by the root and a tip, under and just above a tilted
-    /// floor, in a bent pose: the system summed by moments is the one summed pair by pair.
+    /// common carrier above both), by the root and a tip, by joints under two roots (no
+    /// carrier), under and just above a tilted floor, in a bent pose: the system summed by
+    /// moments is the one summed pair by pair.
     #[test]
     fn the_moments_sum_what_the_pairs_sum() {
         let skeleton = branching();
-        let mut params = vec![Param::Translation(0)];
+        let mut params = vec![Param::Translation(0), Param::Translation(5)];
         params.extend((0..skeleton.len()).map(Param::Rotation));
         let movers = movers_of_joints(&skeleton, &params);
         let origins = skeleton.bind_origins();
-        let mixes: [&[(u32, f64)]; 6] = [
+        let mixes: [&[(u32, f64)]; 8] = [
             &[(3, 1.0)],
             &[(2, 0.6), (3, 0.4)],
             &[(3, 0.5), (4, 0.5)],
             &[(0, 0.3), (3, 0.7)],
             &[(4, 0.8), (1, 0.2)],
             &[(1, 0.2), (2, 0.3), (4, 0.5)],
+            &[(3, 0.4), (5, 0.6)],
+            &[(2, 0.1), (3, 0.2), (4, 0.3), (5, 0.4)],
         ];
         let mut bind = Vec::new();
         let mut influences: Vec<VertexInfluences> = Vec::new();

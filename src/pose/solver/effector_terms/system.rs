@@ -71,21 +71,16 @@ impl ExtraTerms<'_> {
             {
                 return;
             }
-            stamp += 1;
-            self.movers_of(term, (&mut seen, stamp), &mut movers);
             let w = near.map_or(w, |(_, scale)| w * scale);
             if let Some((sums, along, depth)) = near
                 .map(|(along, _)| along)
                 .or_else(|| ground::along_the_normal(term, r))
             {
-                rank_one.add(
-                    self,
-                    (sums, along, depth),
-                    (2.0 * w, &movers),
-                    (params, skinning),
-                );
+                rank_one.add(self, (sums, along, depth), 2.0 * w, (params, skinning));
                 return;
             }
+            stamp += 1;
+            self.movers_of(term, (&mut seen, stamp), &mut movers);
             blocks.clear();
             blocks.extend(movers.iter().filter_map(|&p| {
                 self.jacobian(term, params[p as usize], globals, skinning)
