@@ -47,7 +47,8 @@ struct Moments {
 pub(super) struct RankOneSums {
     /// Per joint, the moments of the terms it is the deepest common carrier of.
     per_joint: Vec<Moments>,
-    /// Per parameter, the stamp of the last joint set it moves whole.
+    /// Per parameter, the stamp of the last joint set that took it (as moving the set whole,
+    /// or in part).
     whole: Vec<u32>,
     stamp: u32,
     /// The terms with parameters that move part of their vertex, per joint set.
@@ -78,7 +79,14 @@ impl Hasher for JointSetHasher {
     }
 
     fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
+        // (An array of `usize` arrives here as its bytes, eight at a time.)
+        let mut chunks = bytes.chunks_exact(8);
+        for chunk in &mut chunks {
+            let mut word = [0; 8];
+            word.copy_from_slice(chunk);
+            self.write_u64(u64::from_ne_bytes(word));
+        }
+        for &b in chunks.remainder() {
             self.write_u64(u64::from(b));
         }
     }
