@@ -109,7 +109,7 @@ struct PartialGroup {
     /// The joint carrying the whole vertex (`None`: joints of different roots).
     carrier: Option<usize>,
     /// The parameters that move part of the vertex, each with its part.
-    params: Vec<(usize, usize)>,
+    params: Vec<(u32, usize)>,
     /// Per part, which of the set's joints it carries (bit `i`: joint `i`); part 0 is the
     /// whole vertex.
     masks: Vec<u8>,
@@ -117,6 +117,19 @@ struct PartialGroup {
     moments: Vec<f64>,
     /// `Σ s d u`.
     gradient: Vec<f64>,
+}
+
+/// `Σ s u_a u_bᵀ` for rows `u = α c + B m` (see the module docs) from the moments
+/// `cc = Σ s c_a c_bᵀ`, `cm = Σ s c_a m_bᵀ`, `mc = Σ s m_a c_bᵀ`, `mm = Σ s m_a m_bᵀ`.
+fn pair_block(
+    [cc, cm, mc, mm]: [DMat3; 4],
+    (alpha_a, b_a): (f64, DMat3),
+    (alpha_b, b_b): (f64, DMat3),
+) -> DMat3 {
+    cc * (alpha_a * alpha_b)
+        + cm * b_b.transpose() * alpha_a
+        + b_a * mc * alpha_b
+        + b_a * mm * b_b.transpose()
 }
 
 /// A parameter's row coefficients: `u = α c + B m` (see the module docs).
@@ -170,10 +183,15 @@ impl RankOneSums {
             Some(&set) => set,
             None => self.new_set(terms, joints, &joints[..sums.len()], params),
         };
+        // Each joint's share of the vertex, skinned once for the carrier and the group.
+        let mut shares = [DVec3::ZERO; 4];
+        for (x, (j, m)) in shares.iter_mut().zip(sums.iter()) {
+            *x = apply(&skinning[*j], *m);
+        }
+        let shares = &shares[..sums.len()];
         if let Some(l) = set.carrier {
-            let (x, mass) = sums.iter().fold((DVec3::ZERO, 0.0), |(x, mass), (j, m)| {
-                (x + apply(&skinning[*j], *m), mass + m.w)
-            });
+            let x: DVec3 = shares.iter().sum();
+            let mass: f64 = sums.iter().map(|(_, m)| m.w).sum();
             let (c, m) = (x.cross(along), along * mass);
             let moments = &mut self.per_joint[l];
             moments.cc += outer(c, c) * s;
@@ -188,8 +206,7 @@ impl RankOneSums {
         };
         let v = &mut self.stacked;
         v.clear();
-        for (j, m) in sums.iter() {
-            let x = apply(&skinning[*j], *m);
+        for (x, (_, m)) in shares.iter().zip(sums.iter()) {
             v.extend(x.cross(along).to_array());
             v.extend((along * m.w).to_array());
         }
@@ -223,7 +240,7 @@ impl RankOneSums {
             }
         }
         let group = (!in_part.is_empty()).then(|| {
-            let group = PartialGroup::new(terms, joints, carrier, in_part.into_iter(), params);
+            let group = PartialGroup::new(terms, joints, carrier, &in_part, params);
             self.partial.push(group);
             self.partial.len() - 1
         });
@@ -255,11 +272,9 @@ impl RankOneSums {
                 for k in 0..3 {
                     system.g[pa * 3 + k] += g[k];
                 }
+                let blocks = [moments.cc, moments.cm, moments.cm.transpose(), moments.mm];
                 for &(pb, alpha_b, b_b) in &whole[i..] {
-                    let block = moments.cc * (alpha_a * alpha_b)
-                        + moments.cm * b_b.transpose() * alpha_a
-                        + b_a * moments.cm.transpose() * alpha_b
-                        + b_a * moments.mm * b_b.transpose();
+                    let block = pair_block(blocks, (alpha_a, b_a), (alpha_b, b_b));
                     system.add_pair((pa, pb), block, 1.0);
                 }
             }
@@ -277,12 +292,13 @@ impl PartialGroup {
         terms: &ExtraTerms,
         joints: &[usize],
         carrier: Option<usize>,
-        in_part: impl Iterator<Item = u32>,
+        in_part: &[u32],
         params: &[Param],
     ) -> Self {
         let mut masks = vec![((1u16 << joints.len()) - 1) as u8];
         let params_in_part = in_part
-            .map(|p| {
+            .iter()
+            .map(|&p| {
                 let (a, _) = split(params[p as usize]);
                 let mask = joints
                     .iter()
@@ -296,7 +312,7 @@ impl PartialGroup {
                         masks.len() - 1
                     }
                 };
-                (p as usize, part)
+                (p, part)
             })
             .collect();
         let n = 6 * joints.len();
@@ -366,37 +382,34 @@ impl PartialGroup {
             ])
         };
         // `Σ s u_a u_bᵀ` for rows `u = α c_K + B m_K` of parts `ka`, `kb`.
-        let pair = |(ka, alpha_a, b_a): (usize, f64, DMat3),
-                    (kb, alpha_b, b_b): (usize, f64, DMat3)| {
+        let pair = |(ka, a): (usize, (f64, DMat3)), (kb, b): (usize, (f64, DMat3))| {
             let (ra, rb) = (6 * ka, 6 * kb);
-            block(ra, rb) * (alpha_a * alpha_b)
-                + block(ra, rb + 3) * b_b.transpose() * alpha_a
-                + b_a * block(ra + 3, rb) * alpha_b
-                + b_a * block(ra + 3, rb + 3) * b_b.transpose()
+            let parts = [
+                block(ra, rb),
+                block(ra, rb + 3),
+                block(ra + 3, rb),
+                block(ra + 3, rb + 3),
+            ];
+            pair_block(parts, a, b)
         };
-        let with = |p: usize, k: usize| {
-            let (alpha, b) = coefficients(params[p], globals);
-            (k, alpha, b)
-        };
-        let whole: Vec<(usize, (usize, f64, DMat3))> = self
+        // Each parameter with its part and row coefficients, once.
+        let with = |p: u32, k: usize| (p as usize, (k, coefficients(params[p as usize], globals)));
+        let in_part: Vec<_> = self.params.iter().map(|&(p, k)| with(p, k)).collect();
+        let whole: Vec<_> = self
             .carrier
             .map_or(&[][..], |l| &terms.joint_movers[l][..])
             .iter()
-            .map(|&p| (p as usize, with(p as usize, 0)))
+            .map(|&p| with(p, 0))
             .collect();
-        for (i, &(pa, ka)) in self.params.iter().enumerate() {
-            let a = with(pa, ka);
-            let r = 6 * ka;
+        for (i, &(pa, a)) in in_part.iter().enumerate() {
+            let (r, (alpha, b)) = (6 * a.0, a.1);
             let gc = DVec3::from_slice(&gradient[r..r + 3]);
             let gm = DVec3::from_slice(&gradient[r + 3..r + 6]);
-            let g = gc * a.1 + a.2 * gm;
+            let g = gc * alpha + b * gm;
             for k in 0..3 {
                 system.g[pa * 3 + k] += g[k];
             }
-            for &(pb, kb) in &self.params[i..] {
-                system.add_pair((pa, pb), pair(a, with(pb, kb)), 1.0);
-            }
-            for &(pb, b) in &whole {
+            for &(pb, b) in in_part[i..].iter().chain(&whole) {
                 system.add_pair((pa, pb), pair(a, b), 1.0);
             }
         }
