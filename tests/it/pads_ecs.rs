@@ -107,7 +107,7 @@ fn an_emulated_dualsense_turns_a_handle_40_degrees_for_40() {
             .unwrap()
             .is_grabbing()
     });
-    let t0 = controllers(&mut app)[0].1.timestamp_us as f64 * 1e-6 + 0.1;
+    let t0 = common::emulated_start(&app, 0.1);
     controls.set_motion(Arc::new(FnMotion(move |t: f64| {
         let angle = ((t - t0) / 1.0).clamp(0.0, 1.0) * 40f64.to_radians();
         (DQuat::from_rotation_z(angle), DVec3::ZERO)
@@ -138,7 +138,7 @@ fn the_gyro_pointer_moves_by_its_sensitivity_and_recentres() {
     let start = controllers(&mut app)[0].1.pointer.unwrap();
     assert!((start - Vec2::splat(0.5)).length() < 0.01, "{start}");
     // Turn 10° to the right over half a second.
-    let t0 = controllers(&mut app)[0].1.timestamp_us as f64 * 1e-6 + 0.05;
+    let t0 = common::emulated_start(&app, 0.05);
     controls.set_motion(Arc::new(FnMotion(move |t: f64| {
         let angle = ((t - t0) / 0.5).clamp(0.0, 1.0) * -10f64.to_radians();
         (DQuat::from_rotation_z(angle), DVec3::ZERO)
@@ -155,7 +155,7 @@ fn the_gyro_pointer_moves_by_its_sensitivity_and_recentres() {
     common::update_until(&mut app, "the recentre button", |a| {
         controllers(a)[0].1.buttons & Buttons::HOME != 0
     });
-    let t1 = controllers(&mut app)[0].1.timestamp_us as f64 * 1e-6 + 0.1;
+    let t1 = common::emulated_start(&app, 0.1);
     update_until_sample(&mut app, t1);
     let back = controllers(&mut app)[0].1.pointer.unwrap();
     assert!((back - Vec2::splat(0.5)).length() < 0.005, "{back}");

@@ -278,7 +278,7 @@ fn an_emulated_remote_turns_a_handle_and_a_disconnect_keeps_the_pose() {
             .unwrap()
             .is_grabbing()
     });
-    let t0 = remote_state(&mut app).unwrap().timestamp_us as f64 * 1e-6 + 0.1;
+    let t0 = common::emulated_start(&app, 0.1);
     controls.set_motion(Arc::new(FnMotion(move |t: f64| {
         let angle = ((t - t0) / 1.0).clamp(0.0, 1.0) * 40f64.to_radians();
         (DQuat::from_rotation_z(angle), DVec3::ZERO)

@@ -120,6 +120,18 @@ pub fn pose_of(app: &App, joints: &[Entity]) -> bevy_wii_deform::pose::SkeletonP
     }
 }
 
+/// When a motion given to the app's emulated remotes and pads now may start, in their own
+/// time (s): the app's clock (`Time<Real>`, which paces their `EmulatorClock`s) plus
+/// `margin`. An emulator makes a report only once the clock has reached its time, and its
+/// time is the clock's since it was opened (never ahead of it), so no sample made before the
+/// motion was given falls after this start. (The last sample the app has read is no such
+/// bound: a reader thread can lag the clock by tens of milliseconds on a loaded machine, and a
+/// motion that starts before samples already made loses its first part — a gyro pointer test
+/// moved 0.195 instead of 0.2 so.)
+pub fn emulated_start(app: &App, margin: f64) -> f64 {
+    app.world().resource::<Time<Real>>().elapsed_secs_f64() + margin
+}
+
 /// Updates until `done` holds, with a generous deadline for the background tasks.
 pub fn update_until(app: &mut App, what: &str, done: impl Fn(&mut App) -> bool) {
     let deadline = Instant::now() + Duration::from_secs(60);
