@@ -155,7 +155,7 @@ fn the_gyro_pointer_moves_by_its_sensitivity_and_recentres() {
     common::update_until(&mut app, "the recentre button", |a| {
         controllers(a)[0].1.buttons & Buttons::HOME != 0
     });
-    let t1 = common::emulated_start(&app, 0.1);
+    let t1 = controllers(&mut app)[0].1.timestamp_us as f64 * 1e-6 + 0.1;
     update_until_sample(&mut app, t1);
     let back = controllers(&mut app)[0].1.pointer.unwrap();
     assert!((back - Vec2::splat(0.5)).length() < 0.005, "{back}");
