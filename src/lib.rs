@@ -1,4 +1,4 @@
-//! Bevy 0.19 plugins for posing and playfully editing 3D meshes in-engine with
+//! Bevy 0.20 plugins for posing and playfully editing 3D meshes in-engine with
 //! As-Rigid-As-Possible deformation, driven by the mouse, a pointer grab, or a Nintendo Wii
 //! Remote with the MotionPlus gyroscope.
 //!

@@ -9,10 +9,13 @@
 
 import { chromium } from "playwright-core";
 import { PNG } from "pngjs";
-import { mkdirSync, writeFileSync } from "node:fs";
+import { existsSync, mkdirSync, statSync, writeFileSync } from "node:fs";
 
 const url = process.argv[2] ?? "http://127.0.0.1:8123/";
 const shots = process.argv[3] ?? "web/dist/screenshots";
+/** The folder the pages are served from (web/build.sh's output): the download's sizes. */
+const dist = process.env.WEB_DIST ?? "web/dist";
+const bytes = (file) => (existsSync(`${dist}/${file}`) ? statSync(`${dist}/${file}`).size : null);
 mkdirSync(shots, { recursive: true });
 
 /** Pixels of a colour class in a horizontal band of the screenshot: their vertical extent
@@ -111,6 +114,11 @@ const result = {
   first_frame_s: firstFrame,
   grab_to_first_pose_ms: null,
   fps_while_dragging: null,
+  // What a player downloads before the first frame: the playground's module, plain and gzipped.
+  wasm_bytes: bytes("playground_bg.wasm"),
+  wasm_gzip_bytes: bytes("playground_bg.wasm.gz"),
+  character_wasm_bytes: bytes("character_bg.wasm"),
+  character_wasm_gzip_bytes: bytes("character_bg.wasm.gz"),
 };
 /** Presses near the top of `thing`, drags it right and down over `seconds` with real mouse
  *  events, holds, screenshots, releases. Returns the frames per second the page rendered while
@@ -201,7 +209,13 @@ result.cactus_grab_to_first_pose_ms = firstPoses[1] ?? null;
 result.cactus_solves_per_s = solveRates[1]?.[0] ?? null;
 result.cactus_median_solve_ms = solveRates[1]?.[1] ?? null;
 result.console_errors = errors.length;
+// The playground's download budget: 25 MB plain, 8 MB gzipped (decimal megabytes).
+const sizeOk =
+  result.wasm_bytes !== null && result.wasm_bytes <= 25e6 &&
+  result.wasm_gzip_bytes !== null && result.wasm_gzip_bytes <= 8e6;
+if (!sizeOk) console.error(`the playground's .wasm is over its budget: ${result.wasm_bytes} B, gzip ${result.wasm_gzip_bytes} B`);
+result.within_size_budget = sizeOk;
 for (const e of errors) console.error(`console: ${e}`);
 await browser.close();
 console.log(JSON.stringify(result));
-process.exit(result.rendered && result.bent && result.console_errors === 0 ? 0 : 1);
+process.exit(result.rendered && result.bent && result.console_errors === 0 && sizeOk ? 0 : 1);

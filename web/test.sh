@@ -2,7 +2,8 @@
 # The web build in a real browser: serves web/dist on 127.0.0.1, opens it in headless Chromium
 # (WebGL2 through SwiftShader), waits for the first frame, drags the bar with real input events
 # and checks that it bent and that the console holds no error. The last stdout line is JSON:
-#   {"rendered": true, "bent": true, "console_errors": 0, "first_frame_s": …, "grab_to_first_pose_ms": …}
+#   {"rendered": true, "bent": true, "console_errors": 0, "first_frame_s": …, "grab_to_first_pose_ms": …,
+#    "wasm_bytes": …, "wasm_gzip_bytes": …}  (the playground's download, plain and gzipped)
 # Builds web/dist first when it is missing; installs Chromium (Debian's package) and the test's
 # two npm packages when they are missing.
 set -euo pipefail

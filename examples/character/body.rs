@@ -62,7 +62,7 @@ struct Placement<'w, 's> {
     keys: Res<'w, ButtonInput<KeyCode>>,
 }
 
-fn toggle_effector_on_right_click(press: On<Pointer<Press>>, mut p: Placement) {
+fn toggle_effector_on_right_click(press: On<PointerPress>, mut p: Placement) {
     if press.button != PointerButton::Secondary {
         return;
     }

@@ -121,7 +121,7 @@ fn lighten_for_the_web(
     for camera in &cameras {
         commands.entity(camera).insert((
             Msaa::Off,
-            bevy::core_pipeline::tonemapping::Tonemapping::None,
+            bevy::core_pipeline::tonemapping::Tonemapping::Linear,
         ));
     }
     for mut light in &mut lights {

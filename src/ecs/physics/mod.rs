@@ -1,4 +1,4 @@
-//! Avian physics for bent meshes and posed characters (cargo feature `avian`, avian3d 0.7).
+//! Avian physics for bent meshes and posed characters (cargo feature `avian`, avian3d 0.8).
 //!
 //! - [`DeformCollider`] on a [`Deformable`](crate::ecs::Deformable) rebuilds its Avian
 //!   [`Collider`] from the bent mesh after each settled solve: the shape is built on the async

@@ -122,7 +122,7 @@ fn build(
             )
             .map_err(|e| format!("no triangle mesh collider: {e:?}"))
         }
-        ColliderShape::ConvexHull => Collider::convex_hull(positions)
+        ColliderShape::ConvexHull => Collider::convex_hull(&positions)
             .ok_or_else(|| "no convex hull (the vertices are flat or too few)".to_string()),
     }
 }

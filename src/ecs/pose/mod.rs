@@ -505,7 +505,7 @@ pub struct PosedSkeleton {
 
 impl PosedSkeleton {
     /// World positions of every render vertex in the current pose (CPU linear-blend
-    /// skinning): ray-cast these to pick the posed character (Bevy 0.19's mesh ray cast uses
+    /// skinning): ray-cast these to pick the posed character (Bevy's mesh ray cast uses
     /// the bind pose of skinned meshes).
     pub fn skinned_positions(&self) -> Vec<Vec3> {
         self.model
@@ -615,7 +615,7 @@ impl PosedSkeleton {
     }
 
     /// The nearest hit of a world-space ray with the posed character (CPU-skinned triangles):
-    /// what a click picks, where Bevy 0.19's mesh ray cast would test the bind pose of a
+    /// what a click picks, where Bevy's mesh ray cast would test the bind pose of a
     /// skinned mesh. Returns the hit point and its distance along `ray`.
     pub fn ray_cast(&self, ray: Ray3d) -> Option<(Vec3, f32)> {
         self.ray_cast_skinned(&self.skin_welded_world(), ray)

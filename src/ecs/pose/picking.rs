@@ -1,6 +1,6 @@
 //! Posed characters as a bevy_picking backend: hits on the CPU-skinned surface.
 //!
-//! Bevy 0.19's mesh picking tests the *bind pose* of a skinned mesh, so a bent arm would be
+//! Bevy's mesh picking tests the *bind pose* of a skinned mesh, so a bent arm would be
 //! picked where it was before posing. This backend reports, for every pointer ray, the nearest
 //! hit on each [`PosedSkeleton`]'s posed triangles as a hit on the character entity (the one
 //! holding the `PosedSkeleton`). Picking then orders those hits with meshes and UI, so UI over

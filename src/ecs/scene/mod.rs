@@ -1,4 +1,4 @@
-//! glTF scene roots (`WorldAssetRoot`, Bevy 0.19's scene root) as the deform and pose plugins
+//! glTF scene roots (`WorldAssetRoot`, Bevy's scene root) as the deform and pose plugins
 //! need them: when a root's instance has spawned (glTF splits a mesh into one entity per
 //! primitive under node entities that carry the node transforms, and the scene is spawned some
 //! frames after its asset loads), why a scene failed to load (a missing or malformed file: the

@@ -4,7 +4,7 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use bevy::picking::events::{Pointer, Press};
+use bevy::picking::events::PointerPress;
 use bevy::picking::pointer::{PointerAction, PointerId, PointerInput};
 use bevy::prelude::*;
 
@@ -67,7 +67,7 @@ impl Plugin for GrabPlugin {
             .init_resource::<GrabButton>()
             .init_resource::<ActiveGrabs>()
             // Registered here too, so the plugin runs (idle) without a picking plugin.
-            .add_message::<Pointer<Press>>()
+            .add_message::<PointerPress>()
             .add_message::<GrabStart>()
             .add_message::<PointerInput>()
             .add_message::<GrabMove>()
@@ -100,7 +100,7 @@ type GrabTargets = Or<(With<Deformable>, With<PosedSkeleton>)>;
 /// or another entity in front of it, takes the press instead. Characters report hits on their
 /// posed (CPU-skinned) surface through the pose plugin's picking backend.
 fn presses_to_grabs(
-    mut presses: MessageReader<Pointer<Press>>,
+    mut presses: MessageReader<PointerPress>,
     button: Res<GrabButton>,
     grabbable: Query<(), With<Grabbable>>,
     from: Query<&DeformableFrom>,
@@ -109,24 +109,23 @@ fn presses_to_grabs(
 ) {
     let mut nearest: HashMap<PointerId, (f32, GrabStart)> = HashMap::new();
     for p in presses.read() {
-        if p.event.button != button.0 {
+        if p.button != button.0 {
             continue;
         }
         let target = p.entity;
         let is_grabbable =
             grabbable.contains(target) || from.get(target).is_ok_and(|f| grabbable.contains(f.0));
-        let (true, true, Some(point)) =
-            (is_grabbable, targets.contains(target), p.event.hit.position)
+        let (true, true, Some(point)) = (is_grabbable, targets.contains(target), p.hit.position)
         else {
             continue;
         };
         let grab = GrabStart {
-            pointer: p.pointer_id,
+            pointer: p.pointer.id,
             entity: target,
             point,
-            camera: p.event.hit.camera,
+            camera: p.hit.camera,
         };
-        let depth = p.event.hit.depth;
+        let depth = p.hit.depth;
         if nearest.get(&grab.pointer).is_none_or(|(d, _)| depth < *d) {
             nearest.insert(grab.pointer, (depth, grab));
         }
