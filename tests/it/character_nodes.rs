@@ -373,7 +373,7 @@ struct ConverterLayout {
 }
 
 impl ConverterLayout {
-    /// Issue 30's layout: ×100 armature, the mesh node a sibling scaled (1.2, 1, 1).
+    /// A converter's layout: ×100 armature, the mesh node a sibling scaled (1.2, 1, 1).
     const SCALED: Self = Self {
         armature_scale: 100.0,
         turn: glam::DQuat::IDENTITY,
@@ -381,7 +381,7 @@ impl ConverterLayout {
         second_root_chain: false,
     };
 
-    /// Issue 40's layout, as common FBX converters write a Z-up rig: two root bone chains
+    /// The layout common FBX converters write for a Z-up rig: two root bone chains
     /// under one armature node scaled ×100 and turned −90° about X, the skinned mesh node its
     /// sibling with the same turn and a (1.21, 1, 1) scale.
     fn turned() -> Self {
@@ -551,8 +551,8 @@ fn drawn_by_bevy(
         .collect()
 }
 
-/// Converter rigs (issue 30's: the skinned mesh node at (1.2, 1, 1) beside a ×100 armature;
-/// issue 40's: both turned −90° about X, the node at (1.21, 1, 1), a second root bone chain)
+/// Converter rigs (one with the skinned mesh node at (1.2, 1, 1) beside a ×100 armature;
+/// one with both turned −90° about X, the node at (1.21, 1, 1), a second root bone chain)
 /// are drawn where the rig's bind is, pose where Bevy draws them (within 1e-4 of the size),
 /// keep their bones rigid (lengths within 1e-4 of the size, every joint's skin matrix a
 /// rotation times the node's bind) and meet a reachable drag with the feet pinned. Set
@@ -665,7 +665,7 @@ fn converter_rig_poses_rigidly(name: &str, layout: ConverterLayout) {
     assert!(worst(&now, &bind) > 0.05 * size);
 }
 
-/// Issue 30's sharing: two characters from one asset share one model (one build, one `Arc`),
+/// Sharing: two characters from one asset share one model (one build, one `Arc`),
 /// the second placed elsewhere, turned and scaled ×2; each poses on its own — a drag on the
 /// second's head is met where that character stands (within 10 % of the drag, its pinned
 /// feet within 1e-3 of its size) and leaves the first's pose as it was; moving the second

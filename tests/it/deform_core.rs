@@ -1056,7 +1056,7 @@ fn two_bars() -> TriMesh {
     mesh
 }
 
-/// Issue 41: a small mesh solves on the calling thread ([`Threading::Auto`] below
+/// A small mesh solves on the calling thread ([`Threading::Auto`] below
 /// [`SERIAL_BELOW`] free vertices) and gives the positions the pool's path gives, for every
 /// acceleration, from the Laplacian start and warm.
 #[test]

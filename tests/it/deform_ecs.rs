@@ -823,7 +823,7 @@ fn handle_error(app: &App, e: Entity, handle: Entity, rest: &[DVec3]) -> f32 {
         .fold(0.0, f32::max)
 }
 
-/// Issue 41: when a solve lands in a frame whose handle has moved again, the next solve starts
+/// When a solve lands in a frame whose handle has moved again, the next solve starts
 /// in that frame, and its pose is on screen in the next one: at most one frame between a
 /// handle's move and its written pose, once the worker is done.
 #[test]

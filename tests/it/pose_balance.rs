@@ -1,4 +1,4 @@
-//! Balance in the pose core (issue 42): the centre of mass over the support polygon, solved
+//! Balance in the pose core: the centre of mass over the support polygon, solved
 //! with the effectors, on the generated humanoid.
 
 use std::sync::Arc;
@@ -83,7 +83,7 @@ fn pulled(
     .pose
 }
 
-/// Issue 42: a humanoid with both feet planted, its hand pulled outward 30 % of its height:
+/// A humanoid with both feet planted, its hand pulled outward 30 % of its height:
 /// with balance the centre of mass stays inside the support polygon and the hips move the other
 /// way; without, the same pull puts it outside (so the test can tell them apart).
 #[test]
@@ -141,7 +141,7 @@ fn a_pulled_hand_is_counterbalanced_by_the_hips() {
     );
 }
 
-/// Issue 42, a walk's two-paw phases: `Balance::lean` lets the centre of mass out of the
+/// A walk's two-paw phases: `Balance::lean` lets the centre of mass out of the
 /// polygon by as much as asked, and no further. The hand pulled 30 % of the height leaves the
 /// centre of mass `d` outside without balance; leaning half of that, balance holds it half-way
 /// (out past its margin, so the lean is not ignored, and not as far as the pull alone takes
@@ -169,7 +169,7 @@ fn a_lean_lets_the_centre_of_mass_out_as_far_as_asked() {
     );
 }
 
-/// Issue 42: a penalty gives. A pull strong enough to leave the centre of mass short of its
+/// A penalty gives. A pull strong enough to leave the centre of mass short of its
 /// margin after one solve is met over a few warm solves (`PoseSolution::balance_boost`, a
 /// multiplier carried from solve to solve); over other support points the boost starts again.
 #[test]

@@ -327,7 +327,7 @@ fn an_additive_look_at_over_a_playing_clip_turns_the_neck_not_the_body() {
     }
 }
 
-/// Issue 42: the Fox walking in place by its "Walk" clip under an additive layer solved inside
+/// The Fox walking in place by its "Walk" clip under an additive layer solved inside
 /// the frame (10 iterations), standing by `PoseGround` on a flat ground mesh. A paw the clip
 /// puts down is planted and stays where it is held: on screen within 1e-2 of the size of its
 /// held points (0.6 % measured, a penalty's give against the clip's shape; the layer is taken
@@ -357,7 +357,7 @@ fn a_walking_fox_keeps_a_planted_paw_where_it_is_held() {
     );
 }
 
-/// Issue 42: the same walk on the crowd's budget, 3 iterations and none past it, the Fox
+/// The same walk on the crowd's budget, 3 iterations and none past it, the Fox
 /// pushed on 0.5 % of its size a frame (as a character controller moves it). A planted limb
 /// starts where the last solve left it, re-aimed at its holds
 /// (`ContactTracker::carry_planted_limbs`): on screen its paw is 2.05e-3 of the size off its
@@ -481,7 +481,7 @@ fn push_along_x(mut pushed: Query<(&mut Transform, &Pushed)>) {
     }
 }
 
-/// Issue 42: a character moved in `Update` is solved where it is drawn. Its `GlobalTransform`
+/// A character moved in `Update` is solved where it is drawn. Its `GlobalTransform`
 /// is last frame's until propagation; an in-frame solve placed there stood one frame's motion
 /// away from the drawn character, so planted paws were drawn that far from where they are held
 /// (1 % of the size here, checked failing). Measured through the root's propagated transform

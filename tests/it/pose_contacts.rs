@@ -1,4 +1,4 @@
-//! Ground contacts in the pose core (issue 42): a planted sole on a slope, no sliding while
+//! Ground contacts in the pose core: a planted sole on a slope, no sliding while
 //! planted and lifting once released, a floor nothing sinks through, bad input.
 
 use std::sync::Arc;
@@ -138,7 +138,7 @@ fn sole_tilt_deg(s: &Scene, pose: &SkeletonPose, normal: DVec3) -> f64 {
     up.angle_between(normal).to_degrees()
 }
 
-/// Issue 42: a foot planted on a 30° slope turns its sole to the slope's normal (within 3°),
+/// A foot planted on a 30° slope turns its sole to the slope's normal (within 3°),
 /// and no vertex of the sole is below the slope by more than 1e-3 of the model's size.
 #[test]
 fn a_foot_planted_on_a_slope_lies_on_it() {
@@ -171,7 +171,7 @@ fn a_foot_planted_on_a_slope_lies_on_it() {
     );
 }
 
-/// Issue 42: a planted foot under a pull on the hips slides at most 1e-3 of the model's size
+/// A planted foot under a pull on the hips slides at most 1e-3 of the model's size
 /// per frame; an effector lifting the foot does not move it while planted, and lifts it once
 /// the contact is released.
 #[test]
@@ -252,7 +252,7 @@ fn a_planted_foot_holds_under_a_pull_and_lifts_when_released() {
     assert!(lifted > 0.05, "released, the foot lifts: {lifted}");
 }
 
-/// Issue 42: the body dragged down into the floor (its hips pulled below it, frame after
+/// The body dragged down into the floor (its hips pulled below it, frame after
 /// frame): with a floor no skin vertex goes below it by more than 1e-3 of the size; without,
 /// the same drag sinks it.
 #[test]
@@ -269,7 +269,7 @@ fn a_body_dragged_into_the_floor_stops_at_it() {
     assert!(held > -1e-3 * s.size, "a vertex is {held} below the floor");
 }
 
-/// Issue 42: a solve whose iteration budget runs out with the skin through the ground takes
+/// A solve whose iteration budget runs out with the skin through the ground takes
 /// up to `ground_iterations` more, until no vertex is more than `THROUGH_THE_GROUND` of the
 /// size below it. The body's hips pulled down into a floor 40 % of its height further each
 /// frame (the first frame solved to convergence, then one warm iteration a frame): without
@@ -344,7 +344,7 @@ fn a_solve_does_not_stop_with_the_skin_in_the_ground() {
     );
 }
 
-/// Issue 42: the ground's penalty alone settles where it balances what pushes the skin in —
+/// The ground's penalty alone settles where it balances what pushes the skin in —
 /// under the ground; the iterations past the budget raise each such vertex's plane by its
 /// depth (the method of multipliers) until none is more than `THROUGH_THE_GROUND` of the size
 /// in. A sole held 4 % of the size under the floor (a hold the ground has to overrule):
@@ -397,7 +397,7 @@ fn a_vertex_the_penalty_leaves_in_the_ground_is_raised_out_of_it() {
     );
 }
 
-/// Issue 42: a solve whose budget runs out with a planted sole off its held points takes up
+/// A solve whose budget runs out with a planted sole off its held points takes up
 /// to `ground_iterations` more, until no sole vertex is farther than `OFF_THE_HOLD` of the
 /// size from its held point. Each frame starts where the last ended but with the left hip
 /// turned 6° one way or the other (as a walk clip under a pose layer moves a planted leg from
@@ -475,7 +475,7 @@ fn a_solve_does_not_stop_with_a_planted_sole_off_its_holds() {
     }
 }
 
-/// Issue 42: a floor sampled from the ground under each vertex (`Floor::cast`) holds a body
+/// A floor sampled from the ground under each vertex (`Floor::cast`) holds a body
 /// dragged down onto steps — the left foot over a block 5 % of the height up, starting sunk in
 /// it — while one plane under the root (the lower level) leaves the left foot in the block.
 #[test]
@@ -596,7 +596,7 @@ fn bad_contacts_are_typed_errors() {
     );
 }
 
-/// Issue 42: on a slope steeper than the leg's limits let the foot turn, the limits hold, the
+/// On a slope steeper than the leg's limits let the foot turn, the limits hold, the
 /// sole does not go into the slope and touches it with its edge.
 #[test]
 fn on_a_slope_too_steep_for_the_ankle_the_limit_holds_and_the_edge_touches() {
@@ -658,7 +658,7 @@ fn on_a_slope_too_steep_for_the_ankle_the_limit_holds_and_the_edge_touches() {
     );
 }
 
-/// Issue 42: automatic contacts from ground casts — the feet found as the lowest joints, the
+/// Automatic contacts from ground casts — the feet found as the lowest joints, the
 /// foot that touches its step planted and the one above its lower step left free; solved with
 /// balance over the planted sole, the planted sole holds, the free foot stays above its step
 /// and the centre of mass goes over the standing foot. A cast that hits nothing frees the
@@ -787,7 +787,7 @@ fn tracked_contacts_stand_the_body_on_steps() {
     assert_eq!(tracker.contacts, before);
 }
 
-/// Issue 42: a sole planted where a terrace meets the slope rising from it (its centre on the
+/// A sole planted where a terrace meets the slope rising from it (its centre on the
 /// flat, its toes over the slope) is held out of the ground as one piece: no held point
 /// under the ground, one touching, the sole's shape kept; solved, no sole vertex goes under.
 /// (Laid on the plane under its centre, the toes were held inside the slope: the floor
@@ -883,7 +883,7 @@ fn a_sole_planted_at_the_foot_of_a_slope_is_held_out_of_it() {
     );
 }
 
-/// Issue 42: a foot released and put down again tilted 50° (toe first) rolls flat over the
+/// A foot released and put down again tilted 50° (toe first) rolls flat over the
 /// tracker's updates, 20° each, and a solve then stands it flat on the ground (within 3°),
 /// no sole vertex under it. (Laid flat at once, its held points were up to 7 % of the size
 /// from where the foot was, and the solve snapped it there.)
@@ -956,7 +956,7 @@ fn a_foot_put_down_tilted_rolls_flat_over_the_updates() {
     );
 }
 
-/// Issue 42: a character that walked on leaves its planted patches behind in its own space;
+/// A character that walked on leaves its planted patches behind in its own space;
 /// past the stride they are released and planted again under it.
 #[test]
 fn a_patch_left_behind_by_a_walk_is_stepped_and_planted_again() {
@@ -1023,7 +1023,7 @@ fn feet_named(
     names
 }
 
-/// Issue 42: the joints a character stands on are its feet, not the legs above them. The
+/// The joints a character stands on are its feet, not the legs above them. The
 /// Fox's hocks (`b_*Foot01`) stand 3–4 % of its size above the paws under them; counted as
 /// feet, they were laid on the ground they do not reach and held there against the paws (a
 /// hold 3.8 % of the size off, and a support polygon widened by points in the air). A

@@ -302,7 +302,7 @@ fn a_warm_start_continues_where_the_last_solve_stopped() {
     assert_eq!(cancelled.pose, first.pose);
 }
 
-/// Issue 42: a warm start does not inherit the damping the last solve ended with. A solve
+/// A warm start does not inherit the damping the last solve ended with. A solve
 /// whose steps were rejected again and again (a foot planting, the floor's kinks) ends with a
 /// large damping; carried into the next frame's solve, it throttled every step (a walking
 /// crowd's 3-iteration solves moved about 1 % of the Gauss–Newton step). Here the targets move

@@ -1,4 +1,4 @@
-//! `PoseGround` and `PoseBalance` through the pose plugin (issue 42): a character grabbed by
+//! `PoseGround` and `PoseBalance` through the pose plugin: a character grabbed by
 //! the head and pushed down into a `Ground` mesh stops at it, its feet planted.
 
 use std::time::Duration;
@@ -95,7 +95,7 @@ fn a_character_pushed_into_the_ground_stops_at_it() {
     );
 }
 
-/// Issue 42: a character with `PoseGround` and nothing else driving it, placed a little above a
+/// A character with `PoseGround` and nothing else driving it, placed a little above a
 /// 10° slope, stands on it: a solve places its feet, each sole's lowest point on the slope and
 /// no skin vertex below it.
 #[test]
@@ -243,7 +243,7 @@ fn hips_pulled_onto_a_box_at_once(in_frame: bool) -> (f32, f32, f32) {
     (inside, size, lowest_hips - ground_y)
 }
 
-/// Issue 42: skin that a solve carries into ground that was not under it where the solve
+/// Skin that a solve carries into ground that was not under it where the solve
 /// started is caught where it ends: the floor is cast again under the solved skin and the
 /// solve taken on from there, in the same solve (in the frame or in the background). The hips
 /// pulled back over a box behind the body and into it in one move: no skin vertex in the box
