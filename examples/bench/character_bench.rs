@@ -62,7 +62,7 @@ use bevy_wii_deform::deform::{
     SolverSettings, arap_energy, centroid,
 };
 use bevy_wii_deform::ecs::{CharacterSkin, Poseable};
-use bevy_wii_deform::pose::synth_rig::{humanoid_rig, mannequin_rig};
+use bevy_wii_deform::pose::rig::synth_rig::{humanoid_rig, mannequin_rig};
 use bevy_wii_deform::pose::*;
 use glam::{DQuat, DVec3};
 

@@ -263,7 +263,7 @@ mod tests {
     /// A right-click picks the joint nearest the clicked point.
     #[test]
     fn the_nearest_joint_to_a_click_is_picked() {
-        use bevy_wii_deform::pose::synth_rig::bar_rig;
+        use bevy_wii_deform::pose::rig::synth_rig::bar_rig;
         let rig = bar_rig(3, 8, 12);
         let model = rig.model().unwrap();
         let mut world = World::new();

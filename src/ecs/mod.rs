@@ -43,8 +43,6 @@ pub use input::{
     WiimoteControlPlugin, WiimoteHandleControl, WiimotePointer, WiimotePointerPlugin,
     arcball_rotation,
 };
-#[allow(deprecated)]
-pub use pose::GrabAnchor;
 pub use pose::{
     CharacterSkin, GroundContactState, HandlePositionOnly, JointMask, PinnedJoints, PoseAnchor,
     PoseBalance, PoseBlend, PoseBlendMode, PoseEffector, PoseEffectorKind, PoseFailed, PoseGround,

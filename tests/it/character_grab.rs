@@ -10,7 +10,7 @@ use std::time::Duration;
 use bevy::picking::pointer::PointerId;
 use bevy::prelude::*;
 use bevy_wii_deform::ecs::{ActiveGrabs, GrabHandle, PoseAnchor};
-use bevy_wii_deform::pose::synth_rig::bar_rig;
+use bevy_wii_deform::pose::rig::synth_rig::bar_rig;
 use bevy_wii_deform::prelude::*;
 
 use crate::common;
@@ -211,7 +211,7 @@ fn character_app<M>(
 ) -> (
     App,
     Entity,
-    bevy_wii_deform::pose::synth_rig::SyntheticRig,
+    bevy_wii_deform::pose::rig::synth_rig::SyntheticRig,
     Entity,
     Vec<Entity>,
 ) {
@@ -223,7 +223,7 @@ fn character_app<M>(
         &mut app,
         Transform::from_xyz(0.0, 0.6, 4.0).looking_at(Vec3::new(0.0, 0.5, 0.0), Vec3::Y),
     );
-    let rig = bevy_wii_deform::pose::synth_rig::bar_rig(3, 12, 30);
+    let rig = bevy_wii_deform::pose::rig::synth_rig::bar_rig(3, 12, 30);
     let (root, joints, _) = common::spawn_rig(&mut app, &rig, Vec3::ZERO);
     app.world_mut().entity_mut(root).insert((
         Poseable {

@@ -5,7 +5,7 @@
 
 use bevy::prelude::*;
 use bevy_wii_deform::deform::glb_container;
-use bevy_wii_deform::pose::synth_rig::{SyntheticRig, mannequin_rig};
+use bevy_wii_deform::pose::rig::synth_rig::{SyntheticRig, mannequin_rig};
 use bevy_wii_deform::prelude::*;
 use glam::DVec3;
 use serde_json::json;

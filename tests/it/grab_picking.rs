@@ -90,7 +90,7 @@ fn only_the_grab_button_starts_a_grab() {
 
 /// A grabbable bar character at the origin; returns it once posed.
 fn spawn_character(app: &mut App) -> Entity {
-    let rig = bevy_wii_deform::pose::synth_rig::bar_rig(3, 12, 30);
+    let rig = bevy_wii_deform::pose::rig::synth_rig::bar_rig(3, 12, 30);
     let (root, joints, _) = common::spawn_rig(app, &rig, Vec3::ZERO);
     app.world_mut().entity_mut(root).insert((
         Poseable::default(),

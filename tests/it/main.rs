@@ -14,6 +14,7 @@ mod deform_obstacle;
 mod grab_ecs;
 mod grab_picking;
 mod input_turns;
+mod layering;
 mod malformed_gltf;
 mod missing_texture;
 mod motion_pads;

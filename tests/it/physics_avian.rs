@@ -164,7 +164,7 @@ fn ground_colliders_are_the_scene_ground() {
 /// 1.5 simulated seconds, and the capsules made.
 fn ball_on_a_posed_bar(with_colliders: bool) -> (f32, usize) {
     use bevy_wii_deform::ecs::physics::{BoneCollider, PosedColliders};
-    use bevy_wii_deform::pose::synth_rig;
+    use bevy_wii_deform::pose::rig::synth_rig;
 
     let mut app = crate::common::app();
     app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(

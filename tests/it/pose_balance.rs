@@ -3,8 +3,8 @@
 
 use std::sync::Arc;
 
-use bevy_wii_deform::pose::effectors::joint_positions;
-use bevy_wii_deform::pose::synth_rig::{SyntheticRig, mannequin_rig};
+use bevy_wii_deform::pose::constraints::effectors::joint_positions;
+use bevy_wii_deform::pose::rig::synth_rig::{SyntheticRig, mannequin_rig};
 use bevy_wii_deform::pose::*;
 use glam::DVec3;
 

@@ -3,7 +3,7 @@
 //! import of the Fox's own "Walk", and typed errors for bad clip files.
 
 use bevy::prelude::*;
-use bevy_wii_deform::pose::synth_rig::bar_rig;
+use bevy_wii_deform::pose::rig::synth_rig::bar_rig;
 use bevy_wii_deform::pose::{
     ClipError, JointTransform, KeyInterpolation, PoseClip, PoseKey, SkeletonPose, read_gltf_clip,
     write_gltf_clip,
@@ -561,7 +561,7 @@ fn a_timeline_shows_its_clip_on_the_character() {
 /// (mirroring twice gives the pose back), and refuse names that are not file names.
 #[test]
 fn the_pose_library_saves_lists_and_loads_poses() {
-    use bevy_wii_deform::pose::synth_rig::mannequin_rig;
+    use bevy_wii_deform::pose::rig::synth_rig::mannequin_rig;
     use bevy_wii_deform::pose::{Mirror, PoseFile, PoseFileError, PoseLibrary};
     let folder = ScratchDir::new("pose_library");
     std::fs::remove_dir(&*folder).unwrap(); // the library makes its folder

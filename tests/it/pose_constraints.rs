@@ -5,7 +5,7 @@
 use std::sync::Arc;
 
 use bevy_wii_deform::deform::{Handle, RigidTransform};
-use bevy_wii_deform::pose::synth_rig::{SyntheticRig, bar_rig, mannequin_rig};
+use bevy_wii_deform::pose::rig::synth_rig::{SyntheticRig, bar_rig, mannequin_rig};
 use bevy_wii_deform::pose::*;
 use glam::{DQuat, DVec3};
 
@@ -492,7 +492,7 @@ fn mirroring_twice_gives_the_pose_back_and_pairs_sides_by_name() {
 
 #[test]
 fn side_names_of_common_exporters_are_recognised() {
-    use bevy_wii_deform::pose::humanoid::split_name;
+    use bevy_wii_deform::pose::rig::humanoid::split_name;
     for (name, base, side) in [
         ("mixamorig:LeftForeArm", "forearm", Some(Side::Left)),
         ("mixamorig:RightUpLeg", "upleg", Some(Side::Right)),

@@ -4,8 +4,8 @@
 use std::sync::Arc;
 
 use bevy_wii_deform::deform::centroid;
-use bevy_wii_deform::pose::effectors::joint_positions;
-use bevy_wii_deform::pose::synth_rig::{SyntheticRig, mannequin_rig};
+use bevy_wii_deform::pose::constraints::effectors::joint_positions;
+use bevy_wii_deform::pose::rig::synth_rig::{SyntheticRig, mannequin_rig};
 use bevy_wii_deform::pose::*;
 use glam::{DQuat, DVec3};
 
@@ -1030,7 +1030,7 @@ fn feet_named(
 /// biped's heel and toes (its `Foot` and `ToeBase` joints), both down, stay two feet each.
 #[test]
 fn the_feet_found_are_paws_and_soles_not_the_hocks_above_them() {
-    let humanoid = bevy_wii_deform::pose::synth_rig::humanoid_rig(30);
+    let humanoid = bevy_wii_deform::pose::rig::synth_rig::humanoid_rig(30);
     let model = model_of(&humanoid);
     let feet = feet_named(&model, &humanoid.rest, DVec3::NEG_Y, 0.04);
     assert_eq!(

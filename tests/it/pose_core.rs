@@ -2,7 +2,7 @@
 //! monotone energy, rigid bones, degenerate skins, pose files and clips.
 
 use bevy_wii_deform::deform::{Handle, RigidTransform};
-use bevy_wii_deform::pose::synth_rig::{SyntheticRig, bar_rig, mannequin_rig};
+use bevy_wii_deform::pose::rig::synth_rig::{SyntheticRig, bar_rig, mannequin_rig};
 use bevy_wii_deform::pose::*;
 use glam::{DAffine3, DQuat, DVec3};
 
@@ -595,7 +595,7 @@ fn a_one_keyframe_clip_holds_the_pose_by_node_path() {
 /// reaches the target.
 #[test]
 fn a_52_joint_humanoid_poses_with_rigid_bones_and_pairs_by_name() {
-    use bevy_wii_deform::pose::synth_rig::humanoid_rig;
+    use bevy_wii_deform::pose::rig::synth_rig::humanoid_rig;
     let rig = humanoid_rig(24);
     let joints = rig.skeleton.len();
     assert!((50..=70).contains(&joints), "{joints} joints");

@@ -6,7 +6,7 @@ use std::time::Duration;
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 
-use bevy_wii_deform::pose::synth_rig::{bar_rig, mannequin_rig};
+use bevy_wii_deform::pose::rig::synth_rig::{bar_rig, mannequin_rig};
 use bevy_wii_deform::prelude::*;
 
 use crate::common;
@@ -189,7 +189,7 @@ fn symmetric_editing_drives_the_mirror_joint_too() {
 /// (the mannequin's symmetry plane).
 fn mirror_asymmetry(
     app: &App,
-    rig: &bevy_wii_deform::pose::synth_rig::SyntheticRig,
+    rig: &bevy_wii_deform::pose::rig::synth_rig::SyntheticRig,
     joints: &[Entity],
 ) -> f32 {
     let partners = bevy_wii_deform::pose::mirror_partners(&rig.skeleton);

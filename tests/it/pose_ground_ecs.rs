@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
-use bevy_wii_deform::pose::synth_rig::mannequin_rig;
+use bevy_wii_deform::pose::rig::synth_rig::mannequin_rig;
 use bevy_wii_deform::prelude::*;
 
 use crate::common;

@@ -1,7 +1,7 @@
 //! A planted limb's start ([`ContactTracker::carry_planted_limbs`]): where the last solve left
 //! it, re-aimed at its holds as the character moved since; nothing else of the start changed.
 
-use bevy_wii_deform::pose::synth_rig::mannequin_rig;
+use bevy_wii_deform::pose::rig::synth_rig::mannequin_rig;
 use bevy_wii_deform::pose::*;
 use glam::{DQuat, DVec3};
 

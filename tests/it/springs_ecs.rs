@@ -6,7 +6,8 @@ use std::time::Duration;
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 use bevy_wii_deform::ecs::{SpringBones, SpringPlugin, SpringStatus};
-use bevy_wii_deform::pose::{SpringChain, SpringJoint, SpringRig, synth_rig};
+use bevy_wii_deform::pose::rig::synth_rig;
+use bevy_wii_deform::pose::{SpringChain, SpringJoint, SpringRig};
 use bevy_wii_deform::prelude::*;
 
 use crate::common::{spawn_rig, update_until};

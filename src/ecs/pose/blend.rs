@@ -1,6 +1,6 @@
 //! The blend layer: a [`Poseable`](super::Poseable) character's pose blended over the
 //! animation that plays on its joints, by a weight, in override or additive mode, optionally
-//! on a mask of joints. The per-joint math is [`crate::pose::blend`]; the system is in
+//! on a mask of joints. The per-joint math is [`crate::pose::animation::blend`]; the system is in
 //! [`PoseSystems::Apply`](super::PoseSystems::Apply) (`PostUpdate`, after `AnimationSystems`,
 //! before transform propagation).
 

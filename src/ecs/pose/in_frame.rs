@@ -16,7 +16,7 @@ use super::{
     PoseStatus, Poseable, PosedSkeleton,
 };
 use crate::ecs::SceneGround;
-use crate::pose::placement::similarity;
+use crate::pose::constraints::frame::similarity;
 use crate::pose::{EffectorGoal, SkeletonPose, blend_pose};
 
 /// What an in-frame solve reads and writes of a character.

@@ -184,7 +184,7 @@ impl PoseJointHandle {
 /// joint below it — so grabbing the head pins the legs and the tail, the feet stay and the
 /// spine, neck and head bend; a character of one chain (every joint reaches the region) is
 /// held by the farther half of its surface instead. Insert it yourself to anchor any solve.
-/// (Called `GrabAnchor` before 0.2; the grab's decision lives in `ecs/input/grab`.)
+/// (The grab's decision to add one lives in `ecs/input/grab`.)
 ///
 /// [`Grabbable::region_radius`]: crate::ecs::Grabbable::region_radius
 #[derive(Component, Debug, Clone, Default, PartialEq, Reflect)]
@@ -196,13 +196,6 @@ pub struct PoseAnchor {
     /// Welded vertex indices of the model kept where they are.
     pub vertices: Vec<u32>,
 }
-
-/// The old name of [`PoseAnchor`].
-#[deprecated(
-    since = "0.2.0",
-    note = "renamed `PoseAnchor`: a pose mechanism the grab plugin uses"
-)]
-pub type GrabAnchor = PoseAnchor;
 
 /// On a [`DeformHandle`](crate::ecs::DeformHandle) aimed at a character: only the centroid
 /// of the handle's vertices follows the handle's translation, their orientation is left to
@@ -218,7 +211,7 @@ pub struct HandlePositionOnly;
 /// `GlobalTransform` every frame: its translation is the point (a position effector, the aim
 /// target), its rotation the orientation. Make it a child of another entity (a door handle,
 /// the player) and the goal follows it. Blended in by `weight` (0 = no effect, 1 = met when
-/// reachable; see [`crate::pose::effectors`]). Several may act on one character at once,
+/// reachable; see [`crate::pose::constraints::effectors`]). Several may act on one character at once,
 /// together with handles, pins, limits ([`PoseLimits`]) and stiffness ([`PoseStiffness`]).
 #[derive(Component, Debug, Clone, PartialEq, Reflect)]
 #[reflect(Component)]
@@ -282,13 +275,13 @@ pub enum PoseEffectorKind {
 }
 
 /// Joint limits of a [`Poseable`] character, applied to every solve (see
-/// [`crate::pose::limits`]). Resolved when the character's model is ready; a file that names
+/// [`crate::pose::constraints::limits`]). Resolved when the character's model is ready; a file that names
 /// a joint the skeleton lacks, or a bad value, fails the character with
 /// [`PoseableError::Limits`] naming the joint.
 #[derive(Component, Debug, Clone)]
 pub enum PoseLimits {
     /// The humanoid preset chosen by joint names (Mixamo, Rigify, VRM; see
-    /// [`crate::pose::humanoid`]).
+    /// [`crate::pose::rig::humanoid`]).
     Humanoid,
     /// A RON limits file's text, keyed by joint name.
     Ron(String),
@@ -312,7 +305,7 @@ pub enum PoseLimits {
 pub struct PoseStiffness(pub f32);
 
 /// Symmetric editing: every [`PoseEffector`] on a joint with a left/right partner (paired by
-/// name, [`crate::pose::mirror`]) drives the partner too, with its goal mirrored across the
+/// name, [`crate::pose::rig::mirror`]) drives the partner too, with its goal mirrored across the
 /// character's symmetry plane; every grab (a [`crate::ecs::DeformHandle`] on the character,
 /// rigid or position-only) drives the vertices nearest to its vertices' mirror image (in the
 /// bind pose) with the mirrored motion. A set on the plane (the head) mirrors onto itself and
@@ -625,29 +618,16 @@ impl PosedSkeleton {
     /// pose, in the world ([`PosedSkeleton::skin_welded_world`]), so several rays share one
     /// skinning.
     pub fn ray_cast_skinned(&self, skinned: &[glam::DVec3], ray: Ray3d) -> Option<(Vec3, f32)> {
-        let mut best: Option<f32> = None;
+        let (origin, direction) = (ray.origin.as_dvec3(), ray.direction.as_vec3().as_dvec3());
+        let mut best: Option<f64> = None;
         for t in self.model.topology().triangles() {
-            let [a, b, c] = t.map(|i| skinned[i as usize].as_vec3());
-            let (e1, e2) = (b - a, c - a);
-            let p = ray.direction.cross(e2);
-            let det = e1.dot(p);
-            if det.abs() <= f32::EPSILON * e1.length_squared().max(e2.length_squared()) {
-                continue; // parallel or degenerate
-            }
-            let s = ray.origin - a;
-            let u = s.dot(p) / det;
-            let q = s.cross(e1);
-            let v = ray.direction.dot(q) / det;
-            let distance = e2.dot(q) / det;
-            if u >= 0.0
-                && v >= 0.0
-                && u + v <= 1.0
-                && distance > 0.0
-                && best.is_none_or(|d| distance < d)
-            {
+            let [a, b, c] = t.map(|i| skinned[i as usize]);
+            let hit = crate::pose::ground::mesh::ray_triangle(origin, direction, a, b, c);
+            if let Some(distance) = hit.filter(|&d| d > 0.0 && best.is_none_or(|b| d < b)) {
                 best = Some(distance);
             }
         }
+        let best = best.map(|d| d as f32);
         best.map(|d| (ray.get_point(d), d))
     }
 

@@ -22,7 +22,7 @@ use super::{
 };
 use crate::ecs::DeformPhase;
 use crate::ecs::scene::{SceneSpawned, scene_load_failure};
-use crate::pose::placement::similarity;
+use crate::pose::constraints::frame::similarity;
 use crate::pose::{
     Joint, JointTransform, ModelSettings, Skeleton, SkeletonPose, SkinnedMesh, SkinnedModel,
 };

@@ -20,7 +20,7 @@ use super::{
     PoseStiffness, Poseable, PosedSkeleton, SymmetricEditing,
 };
 use crate::ecs::{DeformHandle, SceneGround};
-use crate::pose::placement::similarity;
+use crate::pose::constraints::frame::similarity;
 use crate::pose::{Effector, PoseConstraints, ReferenceStiffness, SkeletonPose};
 
 /// A character grabbed with no anchor (compared in place every frame, never allocated).

@@ -8,7 +8,7 @@ use bevy::prelude::*;
 /// meshes or the game's own): its lowest joints (feet, paws, a prop's base) become contacts —
 /// cast down every solve, planted when they touch, released when the pose lifts them — and
 /// every skin vertex near the ground under it is kept above it, so a grab pushing the
-/// character down stops at the ground ([`crate::pose::contacts`]).
+/// character down stops at the ground ([`crate::pose::ground::contact`]).
 #[derive(Component, Debug, Clone, Copy, PartialEq, Reflect)]
 #[reflect(Component, Default)]
 pub struct PoseGround {
@@ -30,7 +30,7 @@ impl Default for PoseGround {
     }
 }
 
-/// Keeps a character's centre of mass over its planted feet ([`crate::pose::balance`]); needs
+/// Keeps a character's centre of mass over its planted feet ([`crate::pose::ground::balance`]); needs
 /// [`PoseGround`] (the planted contacts make the support polygon).
 #[derive(Component, Debug, Clone, Copy, PartialEq, Reflect)]
 #[reflect(Component, Default)]

@@ -4,9 +4,10 @@
 
 use glam::DVec3;
 
-use super::block_cholesky::{BlockCholesky, BlockPattern};
-use super::low_rank::{self, RankOne, dot};
-use super::params::Param;
+use crate::pose::solver::linalg::block_cholesky::{BlockCholesky, BlockPattern};
+use crate::pose::solver::linalg::low_rank;
+use crate::pose::solver::linalg::low_rank::{RankOne, dot};
+use crate::pose::solver::params::Param;
 
 /// The least damping weight of a coordinate, as a share of the median diagonal entry of `H`
 /// among the coordinates of its kind (rotations; root translations): see [`solve_damped`].
@@ -187,7 +188,7 @@ pub(super) struct DampedStep {
 
 #[cfg(test)]
 mod tests {
-    use super::*;
+    use crate::pose::solver::*;
 
     /// Raising the damping shortens the step, also under a stiff term that one light
     /// coordinate barely moves: a heavy rank-one term `w (j·x + r)²` (`w = 1e4`) over a

@@ -6,14 +6,14 @@ use std::rc::Rc;
 
 use glam::{DAffine3, DMat3, DMat4, DVec3};
 
-use super::PoseSolver;
-pub(super) use super::block_cholesky::BlockPattern;
-use super::block_cholesky::nonzero_lower_blocks;
-use super::effector_terms::skew;
-use super::holds::QBlocks;
-use super::params::Param;
-use super::solve::Posed;
-use super::step::Objective;
+use crate::pose::solver::PoseSolver;
+use crate::pose::solver::energy::holds::QBlocks;
+pub(super) use crate::pose::solver::linalg::block_cholesky::BlockPattern;
+use crate::pose::solver::linalg::block_cholesky::nonzero_lower_blocks;
+use crate::pose::solver::params::Param;
+use crate::pose::solver::solve::Posed;
+use crate::pose::solver::step::Objective;
+use crate::pose::solver::terms::skew;
 
 impl PoseSolver {
     /// The Gauss–Newton model of the objective in the bone parameters (rotation increments,
@@ -346,7 +346,7 @@ impl TwistBlock {
 
 #[cfg(test)]
 mod tests {
-    use super::*;
+    use crate::pose::solver::*;
 
     /// [`parameter_block`] equals the twist block taken through the maps `[I; [o]×]`
     /// (rotation about `o`) or `[0; I]` (translation), for every pairing of the two kinds.

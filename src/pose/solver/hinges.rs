@@ -4,11 +4,11 @@
 
 use glam::DAffine3;
 
-use super::PoseSolver;
-use super::low_rank::RankOne;
-use super::params::Param;
-use crate::pose::JointLimits;
-use crate::pose::skeleton::rotation_of;
+use crate::pose::constraints::limits::JointLimits;
+use crate::pose::rig::skeleton::rotation_of;
+use crate::pose::solver::PoseSolver;
+use crate::pose::solver::linalg::low_rank::RankOne;
+use crate::pose::solver::params::Param;
 
 impl PoseSolver {
     /// Restricts each hinge joint's own rotation parameter to its hinge axis (world `a`):

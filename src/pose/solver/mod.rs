@@ -2,113 +2,47 @@
 //!
 //! | file | what it holds |
 //! |---|---|
-//! | `mod.rs` | the API: constraints, settings, options, solutions, where a solve starts, [`PoseSolver::new`] (the precompute) |
-//! | `params.rs` | the unknowns: a rotation per joint, a translation per root ([`Param`]) |
+//! | `mod.rs` | the API: settings, options, solutions, where a solve starts, [`PoseSolver::new`] (the precompute); the constraints are [`crate::pose::constraints`] |
+//! | `params.rs` | the unknowns: a rotation per joint, a translation per root (`Param`) |
 //! | `setup.rs` | the precompute's pieces: index checks, vertex-set sums, joint frames, the block pattern |
-//! | `solve.rs` | [`PoseSolver::solve`]: the local/global loop (cluster rotations, then one damped Gauss–Newton step) |
-//! | `step.rs` | the Levenberg–Marquardt step: damping, the line search, the retraction onto the skeleton |
+//! | `solve.rs` | [`PoseSolver::solve`]: the local/global loop (cluster rotations, then one damped Gauss–Newton step), the iterations past the budget for the ground and the holds |
+//! | `step.rs` | the Levenberg–Marquardt step: damping, trial steps, the retraction onto the skeleton |
 //! | `gauss_newton.rs` | the Gauss–Newton system in the bone parameters and its damped solve |
-//! | `block_cholesky.rs` | the block-sparse Cholesky factor over the joints |
-//! | energies: `arap.rs` | the shape energy: the cluster rotations' fit, `Q·X`, the objective |
-//! | `penalties.rs` | handles, fixed vertices, pinned joints and joint handles (quadratic penalties) |
-//! | `holds.rs` | planted contacts' holds, folded into a solve's `Q` (quadratic penalties) |
-//! | `effector_terms.rs` | effectors (position, orientation, aim, centroid), balance, ground contacts and reference stiffness |
+//! | `damped_step.rs` | one damped solve with the factor, low-rank parts and hinges |
 //! | `hinges.rs` | joint limits inside the step (hinges restrict it; cones and twist are projected in `step.rs`) |
-//! | `shape_rest.rs` | the shape-rest tilt (a given pose at rest) |
+//! | `energy/` | the shape energy and the quadratic penalties: `arap.rs`, `penalties.rs`, `holds.rs`, `shape_rest.rs` |
+//! | `terms/` | the extra (non-quadratic) terms: effectors, stiffness and balance in `mod.rs`; the ground's contact and floor terms in `ground.rs`, summed in groups (`floor_groups.rs`) and by moments (`moments.rs`), the raised floor (`raised_floor.rs`); their Gauss–Newton system (`system.rs`) |
+//! | `linalg/` | the block-sparse Cholesky factor and the low-rank (Woodbury) parts |
 
 use std::sync::Arc;
 
 use glam::{DAffine3, DMat4, DQuat, DVec3, DVec4};
 
-mod arap;
-mod block_cholesky;
 mod damped_step;
-mod effector_terms;
+mod energy;
 mod gauss_newton;
 mod hinges;
-mod holds;
-mod low_rank;
+mod linalg;
 mod params;
-mod penalties;
 mod setup;
-mod shape_rest;
 mod solve;
 mod step;
+mod terms;
 
-pub(crate) use effector_terms::{VertexSkin, vertex_skins};
-use params::{Param, movers_of_joints, parameters_for};
-use penalties::{SetSums, set_target};
+use crate::pose::solver::energy::penalties::{SetSums, set_target};
+use crate::pose::solver::params::{Param, movers_of_joints, parameters_for};
 
-use super::PoseError;
-use super::balance::Balance;
-use super::contacts::Contact;
-use super::effectors::{CentroidEffector, Effector, ReferenceStiffness};
-use super::floor::Floor;
-use super::limits::JointLimits;
-use super::model::SkinnedModel;
-use super::skeleton::SkeletonPose;
 use crate::deform::constraints::same_keys;
 use crate::deform::{Handle, RigidTransform};
-use setup::{check_indices, joint_frames, nonzero_blocks, set_sums};
-
-/// A joint driven to a rigid motion of where it was in the reference pose.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct JointHandle {
-    /// Joint index in the skeleton.
-    pub joint: usize,
-    /// Motion applied to the joint's reference world transform (pivot usually the joint's
-    /// reference position).
-    pub transform: RigidTransform,
-}
-
-/// What a pose solve must respect. Vertex indices are *welded* (map render indices with
-/// `model.topology().welded_set(..)`). Targets are rigid motions of where the vertices (or
-/// joints) were in the reference pose given to [`PoseSolver::new`]. The *sets* fix the
-/// precompute; the transforms may change every solve.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct PoseConstraints {
-    /// Vertex sets moved rigidly (grab the hand's vertices).
-    pub handles: Vec<Handle>,
-    /// Vertices kept where they were in the reference pose.
-    pub fixed_vertices: Vec<u32>,
-    /// Joints kept where they were in the reference pose, position and orientation (pin the
-    /// feet).
-    pub fixed_joints: Vec<usize>,
-    /// Joints moved rigidly (grab the hand joint).
-    pub joint_handles: Vec<JointHandle>,
-    /// Effectors on joints: positions, orientations, aims, each blended in by a weight (see
-    /// [`super::effectors`]). They may change freely between solves.
-    pub effectors: Vec<Effector>,
-    /// Centroids of vertex sets to world points.
-    pub centroid_effectors: Vec<CentroidEffector>,
-    /// A per-joint pull towards a reference pose ("preferred angles").
-    pub stiffness: Option<ReferenceStiffness>,
-    /// Joint limits every step respects ([`super::limits`]); `None` = every joint free.
-    pub limits: Option<Arc<JointLimits>>,
-    /// The centre of mass kept over the support polygon ([`super::balance`]); it may change
-    /// freely between solves.
-    pub balance: Option<Balance>,
-    /// Skin patches on the ground, free or planted ([`super::contacts`]); they may change
-    /// freely between solves.
-    pub contacts: Vec<Contact>,
-    /// Every skin vertex near the ground kept above it ([`super::floor`]).
-    pub floor: Option<Floor>,
-    /// The pose whose shape the ARAP energy keeps (`None`: the bind pose). With it, the
-    /// energy is tilted so this pose is at rest: a solve with nothing pulling leaves it as it
-    /// is, and effectors bend the body away from it (an additive layer sets it to the
-    /// animation under it; see `shape_rest.rs`). The energies in [`PoseSolveStats`] are then
-    /// relative to it and may be negative.
-    pub shape_rest: Option<SkeletonPose>,
-}
-
-impl PoseConstraints {
-    fn same_sets(&self, other: &PoseConstraints) -> bool {
-        self.fixed_vertices == other.fixed_vertices
-            && self.fixed_joints == other.fixed_joints
-            && same_keys(&self.handles, &other.handles, |h| &h.vertices)
-            && same_keys(&self.joint_handles, &other.joint_handles, |h| &h.joint)
-    }
-}
+use crate::pose::constraints::effectors::{CentroidEffector, Effector, ReferenceStiffness};
+use crate::pose::constraints::limits::JointLimits;
+use crate::pose::error::PoseError;
+use crate::pose::ground::balance::Balance;
+use crate::pose::ground::contact::Contact;
+use crate::pose::ground::floor::Floor;
+use crate::pose::rig::model::SkinnedModel;
+use crate::pose::rig::skeleton::SkeletonPose;
+use crate::pose::solver::setup::{check_indices, joint_frames, nonzero_blocks, set_sums};
 
 /// Settings of a [`PoseSolver`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -211,7 +145,7 @@ pub struct PoseSolution {
     /// multiplier of the method of augmented Lagrangians). It is learned for one support: a
     /// solve over other support points (a foot planted or lifted, a walk) starts again from 0.
     ///
-    /// [`Balance::required_inside`]: crate::pose::Balance::required_inside
+    /// [`Balance::required_inside`]: crate::pose::ground::balance::Balance::required_inside
     pub balance_boost: f64,
     /// Which support (points and gravity, hashed) [`PoseSolution::balance_boost`] was learned
     /// over (warm-start data; 0 without balance).

@@ -2,7 +2,7 @@
 //! joint's origin, moving its subtree) and a translation per root joint — the one parameter
 //! type every part of the solver (the system, the effector terms, the hinges, the step) uses.
 
-use crate::pose::Skeleton;
+use crate::pose::rig::skeleton::Skeleton;
 
 /// One bone parameter (three unknowns).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

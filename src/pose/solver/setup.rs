@@ -3,9 +3,11 @@
 
 use glam::{DMat4, DVec3, DVec4};
 
-use super::penalties::{SetSums, affine_rows};
-use crate::pose::model::add_outer4x3;
-use crate::pose::{PoseConstraints, PoseError, SkinnedModel};
+use crate::pose::constraints::PoseConstraints;
+use crate::pose::error::PoseError;
+use crate::pose::rig::model::SkinnedModel;
+use crate::pose::rig::model::add_outer4x3;
+use crate::pose::solver::energy::penalties::{SetSums, affine_rows};
 
 /// Every vertex and joint a constraint names exists.
 pub(super) fn check_indices(
@@ -82,7 +84,10 @@ pub(super) fn set_sums(
 
 /// Per joint, the rows of U = N D for the joint constraints ‖(S_j N_j − G*) D‖², with
 /// N_j = inverse_bind⁻¹ and D = diag(ℓ, ℓ, ℓ, 1).
-pub(super) fn joint_frames(skeleton: &crate::pose::Skeleton, length_scale: f64) -> Vec<[DVec4; 4]> {
+pub(super) fn joint_frames(
+    skeleton: &crate::pose::rig::skeleton::Skeleton,
+    length_scale: f64,
+) -> Vec<[DVec4; 4]> {
     skeleton
         .joints()
         .iter()

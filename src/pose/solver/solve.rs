@@ -9,19 +9,24 @@ use web_time::Instant;
 
 use glam::{DAffine3, DQuat, DVec4};
 
-use super::arap::{ClusterFit, q_times_into};
-use super::damped_step::{damping_weights, diagonal_of};
-use super::effector_terms::{ExtraInputs, ExtraTerms, mass_sums, validate, validate_ground};
-use super::gauss_newton::HessianScratch;
-use super::holds::QBlocks;
-use super::low_rank;
-use super::step::{DampedSystem, Objective};
-use super::{
-    OFF_THE_HOLD, PoseConstraints, PoseSolution, PoseSolveOptions, PoseSolveStats, PoseSolver,
-    PoseStart, THROUGH_THE_GROUND,
-};
 use crate::deform::RigidTransform;
-use crate::pose::{Floor, GroundPlane, PoseError, Skeleton, SkeletonPose};
+use crate::pose::constraints::PoseConstraints;
+use crate::pose::error::PoseError;
+use crate::pose::ground::GroundPlane;
+use crate::pose::ground::floor::Floor;
+use crate::pose::rig::skeleton::{Skeleton, SkeletonPose};
+use crate::pose::rig::skin::mass_sums;
+use crate::pose::solver::damped_step::{damping_weights, diagonal_of};
+use crate::pose::solver::energy::arap::{ClusterFit, q_times_into};
+use crate::pose::solver::energy::holds::QBlocks;
+use crate::pose::solver::gauss_newton::HessianScratch;
+use crate::pose::solver::linalg::low_rank;
+use crate::pose::solver::step::{DampedSystem, Objective};
+use crate::pose::solver::terms::{ExtraInputs, ExtraTerms, validate, validate_ground};
+use crate::pose::solver::{
+    OFF_THE_HOLD, PoseSolution, PoseSolveOptions, PoseSolveStats, PoseSolver, PoseStart,
+    THROUGH_THE_GROUND,
+};
 
 /// The smallest share of the energy a step is tried for, whatever the tolerance: the energy
 /// is a sum of terms up to ~10¹⁰ times its last digit, and two evaluations of poses a

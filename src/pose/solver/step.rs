@@ -4,15 +4,16 @@
 
 use glam::{DAffine3, DQuat, DVec3};
 
-use super::block_cholesky::BlockPattern;
-use super::damped_step::{DampedStep, solve_damped};
-use super::effector_terms::ExtraTerms;
-use super::holds::QBlocks;
-use super::low_rank::RankOne;
-use super::params::Param;
-use super::solve::Posed;
-use super::{PoseSolveStats, PoseSolver};
-use crate::pose::{JointLimits, JointTransform, SkeletonPose};
+use crate::pose::constraints::limits::JointLimits;
+use crate::pose::rig::skeleton::{JointTransform, SkeletonPose};
+use crate::pose::solver::damped_step::{DampedStep, solve_damped};
+use crate::pose::solver::energy::holds::QBlocks;
+use crate::pose::solver::linalg::block_cholesky::BlockPattern;
+use crate::pose::solver::linalg::low_rank::RankOne;
+use crate::pose::solver::params::Param;
+use crate::pose::solver::solve::Posed;
+use crate::pose::solver::terms::ExtraTerms;
+use crate::pose::solver::{PoseSolveStats, PoseSolver};
 
 /// A rejected step is shortened to where it first takes a vertex through the ground only when
 /// that is at least this share of it (a vertex already at the ground would make it a crawl:
@@ -58,7 +59,7 @@ pub(super) struct DampedSystem<'a> {
     pub(super) no_progress: f64,
     /// Where `h`'s Cholesky factor has non-zero blocks.
     pub(super) pattern: &'a BlockPattern,
-    /// Each coordinate's damping weight ([`super::damped_step::damping_weights`]).
+    /// Each coordinate's damping weight ([`crate::pose::solver::damped_step::damping_weights`]).
     pub(super) weights: &'a [f64],
 }
 
@@ -207,7 +208,7 @@ fn retract_into(
 
 #[cfg(test)]
 mod tests {
-    use super::{BEFORE_CONTACT, HOPELESS_RISE, shorter_trial};
+    use crate::pose::solver::{BEFORE_CONTACT, HOPELESS_RISE, shorter_trial};
 
     /// A rejected step goes most of the way to the vertex it first took through the ground
     /// whatever it rose by; without one it is halved after a rise within

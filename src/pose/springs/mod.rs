@@ -33,11 +33,12 @@ mod vrm;
 use glam::{DAffine3, DQuat, DVec3};
 use serde::{Deserialize, Serialize};
 
-use super::{JointLimits, Skeleton, SkeletonPose};
 use crate::deform::synth::closest_on_segment;
+use crate::pose::constraints::limits::JointLimits;
+use crate::pose::rig::skeleton::{Skeleton, SkeletonPose};
 
-pub use ron_file::SpringRonError;
-pub use vrm::{VrmSpringError, read_vrm_springs};
+pub use crate::pose::springs::ron_file::SpringRonError;
+pub use crate::pose::springs::vrm::{VrmSpringError, read_vrm_springs};
 
 /// Rounds of pushing a tail out of the colliders and back to its bone's length per step.
 const COLLISION_PASSES: usize = 4;

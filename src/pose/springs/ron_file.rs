@@ -4,11 +4,11 @@
 use glam::DVec3;
 use serde::Deserialize;
 
-use super::{
+use crate::pose::rig::skeleton::Skeleton;
+use crate::pose::springs::{
     SpringChain, SpringCollider, SpringColliderShape, SpringError, SpringJoint, SpringRig,
     SpringSettings,
 };
-use crate::pose::Skeleton;
 
 /// Why a RON spring rig could not be read.
 #[derive(Debug, thiserror::Error)]

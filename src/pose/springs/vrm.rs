@@ -8,10 +8,10 @@
 use glam::DVec3;
 use serde_json::Value;
 
-use super::{
+use crate::pose::rig::skeleton::Skeleton;
+use crate::pose::springs::{
     SpringChain, SpringCollider, SpringColliderShape, SpringError, SpringJoint, SpringRig,
 };
-use crate::pose::Skeleton;
 
 /// Why a `VRMC_springBone` extension could not be read.
 #[derive(Debug, thiserror::Error)]

@@ -13,7 +13,7 @@ use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
 use std::time::{Duration, Instant};
 
 use bevy::prelude::*;
-use bevy_wii_deform::pose::synth_rig::SyntheticRig;
+use bevy_wii_deform::pose::rig::synth_rig::SyntheticRig;
 use bevy_wii_deform::prelude::{DeformHandle, PoseStatus};
 
 /// Spawns the rig as a character entity (root) with a joint chain and a skinned mesh child,

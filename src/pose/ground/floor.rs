@@ -1,0 +1,317 @@
+//! The floor: every skin vertex near the ground kept above it, in the same solve as the
+//! contacts, the limits and the effectors (a one-sided term per vertex, see
+//! [`crate::pose::ground::contact`]).
+//!
+//! A [`Floor`] is either one plane for the whole body ([`Floor::Plane`]: a flat floor; the
+//! solve picks the vertices within its band of it in the pose it starts from) or a plane per
+//! vertex ([`Floor::Under`]), sampled from any [`Ground`] by [`Floor::cast`]: terrain, hills
+//! and steps, where a single plane under the root is centimetres off under the far paws.
+//!
+//! [`Floor::cast`] costs a coarse grid of casts over the body's footprint plus one cast per
+//! vertex that comes close to the ground:
+//! 1. the footprint (the skin across gravity) is covered by a grid of casts `spacing` apart,
+//!    each giving the ground's plane at a node;
+//! 2. a vertex's coarse ground is the highest of the planes of the four nodes around it (at a
+//!    step's edge the upper level wins: the floor errs on the side of lifting);
+//! 3. a vertex within `band` of its coarse ground is in the floor; within `near` of it, the
+//!    ground right under it is cast (one ray each: the exact triangle, the step's own edge),
+//!    and the coarse plane is its fallback when that cast misses.
+//!
+//! The floor is built from the pose a solve starts from, so `band` has to cover the motion of
+//! a solve (a paw that starts far above and ends below is in it).
+
+use glam::DVec3;
+
+use crate::pose::ground::Ground;
+use crate::pose::ground::GroundPlane;
+
+/// Every skin vertex near the ground kept above it (see the module docs).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Floor {
+    /// One plane: the vertices within `band` of it (or below it) in the pose a solve starts
+    /// from are kept above it in that solve.
+    Plane {
+        /// The floor.
+        plane: GroundPlane,
+        /// Vertices within this height of the floor are its active set (world units: more
+        /// than a solve's motion).
+        band: f64,
+    },
+    /// Each listed welded vertex kept above its own plane of the ground ([`Floor::cast`]).
+    Under(Vec<(u32, GroundPlane)>),
+}
+
+/// How [`Floor::cast`] samples the ground (world units).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FloorSampling {
+    /// Gravity (normalised by the cast).
+    pub down: DVec3,
+    /// Vertices within this height of the ground are in the floor.
+    pub band: f64,
+    /// Vertices within this height of the coarse ground get a cast of their own.
+    pub near: f64,
+    /// Spacing of the coarse grid of casts across the footprint.
+    pub spacing: f64,
+}
+
+impl FloorSampling {
+    /// The sampling for a character of `size` (its bounding diagonal): a band of `band` ×
+    /// size, a grid 6 % of the size apart, exact casts within 5 % of the size.
+    pub fn for_size(size: f64, band: f64, down: DVec3) -> Self {
+        Self {
+            down,
+            band: band * size,
+            near: 0.05 * size,
+            spacing: 0.06 * size,
+        }
+    }
+}
+
+/// What a [`Floor::cast`] did: how many rays, how many vertices it keeps.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct FloorCastStats {
+    /// Casts on the coarse grid.
+    pub grid_casts: usize,
+    /// Casts under single vertices.
+    pub vertex_casts: usize,
+    /// Vertices in the floor.
+    pub vertices: usize,
+}
+
+impl Floor {
+    /// The floor under the skin `positions` (welded, in the pose a solve starts from, in the
+    /// ground's space) on `ground` (see the module docs). Vertices over no ground are left
+    /// out; non-finite hits are ignored. The floor is empty for no positions or a sampling
+    /// that is not finite and positive.
+    pub fn cast(
+        positions: &[DVec3],
+        ground: &dyn Ground,
+        sampling: &FloorSampling,
+    ) -> (Self, FloorCastStats) {
+        let mut stats = FloorCastStats::default();
+        let Some(grid) = CoarseGrid::new(positions, sampling) else {
+            return (Floor::Under(Vec::new()), stats);
+        };
+        let down = grid.down;
+        let cast = |from: DVec3, max: f64| {
+            ground
+                .cast_down(from, down, max)
+                .and_then(|hit| GroundPlane::new(hit.point, hit.normal))
+        };
+        // The coarse planes, from the top of the band above the lowest vertex.
+        let top = grid.lowest + sampling.band;
+        let nodes: Vec<Option<GroundPlane>> = (0..grid.nodes())
+            .map(|k| cast(grid.node(k, top), 2.0 * sampling.band))
+            .collect();
+        stats.grid_casts = nodes.len();
+        let mut under = Vec::new();
+        for (v, p) in positions.iter().enumerate() {
+            if !p.is_finite() {
+                continue;
+            }
+            // The highest of the surrounding nodes' planes at this vertex (the first of equals).
+            let mut coarse: Option<GroundPlane> = None;
+            let mut height = f64::NEG_INFINITY;
+            for plane in grid.around(*p).filter_map(|k| nodes[k]) {
+                let h = plane.height(*p);
+                if coarse.is_none() || h.total_cmp(&height).is_lt() {
+                    (coarse, height) = (Some(plane), h);
+                }
+            }
+            if coarse.is_some() && height >= sampling.band {
+                continue;
+            }
+            let exact = (coarse.is_none() || height < sampling.near)
+                .then(|| {
+                    stats.vertex_casts += 1;
+                    cast(*p - down * sampling.band, 2.0 * sampling.band)
+                })
+                .flatten();
+            if let Some(plane) = exact.or(coarse) {
+                under.push((v as u32, plane));
+            }
+        }
+        stats.vertices = under.len();
+        (Floor::Under(under), stats)
+    }
+
+    /// How far the vertex deepest under its plane is below it, of `positions` (welded, as the
+    /// floor was cast for): negative when one is under, `+∞` for an empty floor. A vertex
+    /// the floor lists but `positions` does not have is skipped.
+    pub fn deepest(&self, positions: &[DVec3]) -> f64 {
+        match self {
+            Floor::Plane { plane, .. } => positions
+                .iter()
+                .map(|p| plane.height(*p))
+                .fold(f64::INFINITY, f64::min),
+            Floor::Under(under) => under
+                .iter()
+                .filter_map(|(v, plane)| positions.get(*v as usize).map(|p| plane.height(*p)))
+                .fold(f64::INFINITY, f64::min),
+        }
+    }
+
+    /// Whether the numbers can be used (vertex indices are checked by the solver).
+    pub(crate) fn is_valid(&self) -> bool {
+        let usable = |g: &GroundPlane| {
+            g.point.is_finite() && g.normal.is_finite() && (g.normal.length() - 1.0).abs() < 1e-6
+        };
+        match self {
+            Floor::Plane { plane, band } => usable(plane) && band.is_finite() && *band >= 0.0,
+            Floor::Under(under) => under.iter().all(|(_, g)| usable(g)),
+        }
+    }
+
+    /// The planes of the floor, to map them into another frame.
+    pub(crate) fn planes_mut(&mut self) -> Box<dyn Iterator<Item = &mut GroundPlane> + '_> {
+        match self {
+            Floor::Plane { plane, .. } => Box::new(std::iter::once(plane)),
+            Floor::Under(under) => Box::new(under.iter_mut().map(|(_, g)| g)),
+        }
+    }
+}
+
+/// The grid of coarse casts over the footprint of a set of points, across gravity.
+struct CoarseGrid {
+    down: DVec3,
+    axes: (DVec3, DVec3),
+    /// The grid's first node, across gravity.
+    origin: (f64, f64),
+    spacing: f64,
+    /// Nodes along each axis.
+    size: (usize, usize),
+    /// The lowest point's height against gravity.
+    lowest: f64,
+}
+
+impl CoarseGrid {
+    /// At most this many nodes along an axis (a sampling finer than the footprint allows is
+    /// coarsened).
+    const MAX_NODES: usize = 64;
+
+    fn new(positions: &[DVec3], sampling: &FloorSampling) -> Option<Self> {
+        let down = sampling.down.try_normalize()?;
+        let finite = sampling.band.is_finite() && sampling.near.is_finite();
+        if !(finite && sampling.band > 0.0 && sampling.spacing > 0.0) {
+            return None;
+        }
+        let x = down.any_orthonormal_vector();
+        let axes = (x, down.cross(x));
+        let (mut lo, mut hi) = (
+            (f64::INFINITY, f64::INFINITY),
+            (f64::NEG_INFINITY, f64::NEG_INFINITY),
+        );
+        let mut lowest = f64::INFINITY;
+        for p in positions.iter().filter(|p| p.is_finite()) {
+            let (a, b) = (p.dot(axes.0), p.dot(axes.1));
+            lo = (lo.0.min(a), lo.1.min(b));
+            hi = (hi.0.max(a), hi.1.max(b));
+            lowest = lowest.min(-p.dot(down));
+        }
+        if !lowest.is_finite() {
+            return None;
+        }
+        let extent = (hi.0 - lo.0).max(hi.1 - lo.1);
+        let spacing = sampling
+            .spacing
+            .max(extent / (Self::MAX_NODES - 1) as f64)
+            .max(1e-12);
+        let nodes = |span: f64| (span / spacing).ceil() as usize + 1;
+        Some(Self {
+            down,
+            axes,
+            origin: lo,
+            spacing,
+            size: (nodes(hi.0 - lo.0), nodes(hi.1 - lo.1)),
+            lowest,
+        })
+    }
+
+    fn nodes(&self) -> usize {
+        self.size.0 * self.size.1
+    }
+
+    /// Node `k` at height `height` against gravity.
+    fn node(&self, k: usize, height: f64) -> DVec3 {
+        let (i, j) = (k % self.size.0, k / self.size.0);
+        self.axes.0 * (self.origin.0 + i as f64 * self.spacing)
+            + self.axes.1 * (self.origin.1 + j as f64 * self.spacing)
+            - self.down * height
+    }
+
+    /// The (up to four) nodes around `p`.
+    fn around(&self, p: DVec3) -> impl Iterator<Item = usize> + '_ {
+        let cell = |along: f64, origin: f64, n: usize| {
+            (((along - origin) / self.spacing).floor().max(0.0) as usize).min(n.saturating_sub(2))
+        };
+        let i = cell(p.dot(self.axes.0), self.origin.0, self.size.0);
+        let j = cell(p.dot(self.axes.1), self.origin.1, self.size.1);
+        [(0, 0), (1, 0), (0, 1), (1, 1)]
+            .into_iter()
+            .map(move |(di, dj)| (i + di, j + dj))
+            .filter(|&(i, j)| i < self.size.0 && j < self.size.1)
+            .map(|(i, j)| j * self.size.0 + i)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn each_vertex_near_the_ground_gets_the_level_under_it_and_far_ones_are_left_out() {
+        // y = 0 for x < 0, 0.3 beyond.
+        let ground = crate::pose::ground::mesh::two_levels(0.0, 3.0);
+        let sampling = FloorSampling {
+            down: DVec3::NEG_Y,
+            band: 0.5,
+            near: 0.1,
+            spacing: 0.4,
+        };
+        // Two paws just above each level, one vertex high above, one sunk into the upper level.
+        let positions = [
+            DVec3::new(-0.5, 0.02, 0.0),
+            DVec3::new(0.5, 0.32, 0.0),
+            DVec3::new(0.0, 1.5, 0.0),
+            DVec3::new(1.0, 0.2, 0.5),
+        ];
+        let (floor, stats) = Floor::cast(&positions, &ground, &sampling);
+        let Floor::Under(under) = floor else {
+            panic!("a cast floor is per vertex")
+        };
+        let level = |v: u32| under.iter().find(|(u, _)| *u == v).map(|(_, g)| g.point.y);
+        assert!((level(0).unwrap() - 0.0).abs() < 1e-12, "{under:?}");
+        assert!((level(1).unwrap() - 0.3).abs() < 1e-12);
+        assert_eq!(level(2), None, "1.2 above the ground: not in the floor");
+        assert!(
+            (level(3).unwrap() - 0.3).abs() < 1e-12,
+            "a sunk vertex is kept"
+        );
+        assert_eq!(stats.vertices, 3);
+        assert!(
+            stats.vertex_casts >= 2 && stats.grid_casts >= 4,
+            "{stats:?}"
+        );
+        // A vertex over no ground is left out; no positions give an empty floor.
+        let (floor, _) = Floor::cast(&[DVec3::new(9.0, 0.0, 0.0)], &ground, &sampling);
+        assert_eq!(floor, Floor::Under(Vec::new()));
+        let (floor, _) = Floor::cast(&[], &ground, &sampling);
+        assert_eq!(floor, Floor::Under(Vec::new()));
+    }
+
+    /// `deepest`: the vertex deepest under its own plane (a listed vertex the positions lack
+    /// skipped); every position under one plane; +∞ for nothing.
+    #[test]
+    fn the_deepest_vertex_is_read_under_its_own_plane() {
+        let plane = |y: f64| GroundPlane::new(DVec3::Y * y, DVec3::Y).unwrap();
+        let under = Floor::Under(vec![(0, plane(0.0)), (1, plane(0.5)), (7, plane(9.0))]);
+        let positions = [DVec3::new(0.0, 0.1, 0.0), DVec3::new(1.0, 0.3, 0.0)];
+        assert!((under.deepest(&positions) + 0.2).abs() < 1e-12);
+        let flat = Floor::Plane {
+            plane: plane(0.2),
+            band: 1.0,
+        };
+        assert!((flat.deepest(&positions) + 0.1).abs() < 1e-12);
+        assert_eq!(Floor::Under(Vec::new()).deepest(&positions), f64::INFINITY);
+    }
+}

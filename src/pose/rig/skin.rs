@@ -1,0 +1,151 @@
+//! Weighted sums of skinned vertices as per-joint sums: a centroid (or one vertex) of the
+//! skin is `Σ_j S_j m_j` in the skinning matrices `S_j`, with `m_j` summed once per solve.
+
+use crate::pose::rig::skeleton::VertexInfluences;
+
+use glam::{DAffine3, DVec3, DVec4};
+
+/// Per joint, `Σ_v m_v w_vj (b_v, 1)` over `(vertex, m_v)`: a weighted centroid of skinned
+/// vertices as `Σ_j S_j m_j` ([`centroid_of`]); joints with no share left out.
+pub(crate) fn joint_sums(
+    joints: usize,
+    (bind, influences): (&[DVec3], &[VertexInfluences]),
+    vertices: impl Iterator<Item = (u32, f64)>,
+) -> Vec<(usize, DVec4)> {
+    let mut per_joint: Vec<DVec4> = vec![DVec4::ZERO; joints];
+    for (v, m) in vertices {
+        let b = bind[v as usize];
+        for &(j, w) in &influences[v as usize] {
+            if w != 0.0 {
+                per_joint[j as usize] += DVec4::new(b.x, b.y, b.z, 1.0) * (w * m);
+            }
+        }
+    }
+    per_joint
+        .into_iter()
+        .enumerate()
+        .filter(|(_, m)| *m != DVec4::ZERO)
+        .collect()
+}
+
+/// The centre of mass of the skin as per-joint sums ([`joint_sums`] of each welded vertex at
+/// its share of `masses`); empty when the masses do not add up to anything. The same for
+/// every solve of a model with the same masses: the solver keeps the area masses' ones.
+pub(crate) fn mass_sums(
+    joints: usize,
+    skin: (&[DVec3], &[VertexInfluences]),
+    masses: &[f64],
+) -> Vec<(usize, DVec4)> {
+    let total: f64 = masses.iter().sum();
+    if !(total > 0.0 && total.is_finite()) {
+        return Vec::new();
+    }
+    let shares = masses
+        .iter()
+        .enumerate()
+        .map(|(v, m)| (v as u32, m / total));
+    joint_sums(joints, skin, shares)
+}
+
+/// [`joint_sums`] of one vertex at weight 1 (its influences, each joint once), without the
+/// dense per-joint pass and in at most four entries: one per welded vertex ([`vertex_skins`]).
+fn vertex_sums(b: DVec3, influences: &VertexInfluences) -> VertexSums {
+    let mut sums = VertexSums {
+        entries: [(0, DVec4::ZERO); 4],
+        len: 0,
+    };
+    for &(j, w) in influences {
+        if w == 0.0 {
+            continue;
+        }
+        let m = DVec4::new(b.x, b.y, b.z, 1.0) * w;
+        let len = sums.len;
+        match sums.entries[..len]
+            .iter_mut()
+            .find(|(k, _)| *k == j as usize)
+        {
+            Some((_, sum)) => *sum += m,
+            None => {
+                sums.entries[len] = (j as usize, m);
+                sums.len += 1;
+            }
+        }
+    }
+    let mut kept = 0;
+    for k in 0..sums.len {
+        if sums.entries[k].1 != DVec4::ZERO {
+            sums.entries[kept] = sums.entries[k];
+            kept += 1;
+        }
+    }
+    sums.len = kept;
+    sums.entries[..kept].sort_unstable_by_key(|(j, _)| *j);
+    sums
+}
+
+/// What the terms keeping a vertex above its ground read of its skin: its [`VertexSums`] and,
+/// per joint of them, its bind position's distance from the joint's (how far the joint's turn
+/// can move it, per unit of turn). The same in every solve of a model: the model keeps them
+/// ([`vertex_skins`]), and a solve's terms point at them — a floor of 3 000 vertices built
+/// them in 0.25 ms a solve, a fifth of a rig's.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct VertexSkin {
+    pub(crate) sums: VertexSums,
+    pub(crate) reach: [f64; 4],
+}
+
+impl VertexSkin {
+    /// The vertex skinned by the joints' skinning matrices `skinning`.
+    pub(crate) fn skinned(&self, skinning: &[DAffine3]) -> DVec3 {
+        centroid_of(&self.sums, skinning)
+    }
+}
+
+/// Each vertex's [`VertexSkin`]: bind positions `bind` with their `influences`, the joints'
+/// bind positions `bind_origins`.
+pub(crate) fn vertex_skins(
+    bind: &[DVec3],
+    influences: &[VertexInfluences],
+    bind_origins: &[DVec3],
+) -> Vec<VertexSkin> {
+    bind.iter()
+        .zip(influences)
+        .map(|(&b, influences)| {
+            let sums = vertex_sums(b, influences);
+            let mut reach = [0.0; 4];
+            for (r, &(j, _)) in reach.iter_mut().zip(sums.iter()) {
+                *r = bind_origins.get(j).map_or(0.0, |o| b.distance(*o));
+            }
+            VertexSkin { sums, reach }
+        })
+        .collect()
+}
+
+/// One vertex's [`JointSums`] (at most four joints), kept in its term.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct VertexSums {
+    entries: [(usize, DVec4); 4],
+    len: usize,
+}
+
+impl std::ops::Deref for VertexSums {
+    type Target = JointSums;
+
+    fn deref(&self) -> &JointSums {
+        &self.entries[..self.len]
+    }
+}
+
+/// `Σ_j S_j m_j` (homogeneous weighted sums).
+pub(crate) fn centroid_of(sums: &[(usize, DVec4)], skinning: &[DAffine3]) -> DVec3 {
+    sums.iter().map(|&(j, m)| apply(&skinning[j], m)).sum()
+}
+
+/// An affine applied to a homogeneous point `(x, y, z, w)`.
+pub(crate) fn apply(a: &DAffine3, m: DVec4) -> DVec3 {
+    a.matrix3 * m.truncate() + a.translation * m.w
+}
+
+/// A weighted sum of skinned points as per-joint sums `(joint, Σ m w (b, 1))`
+/// ([`centroid_of`]).
+pub(crate) type JointSums = [(usize, DVec4)];

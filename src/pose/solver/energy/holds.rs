@@ -1,0 +1,162 @@
+//! A planted contact's holds as part of the solve's quadratic energy.
+//!
+//! A planted patch vertex is held where it touched: `w ‖Σ_j S_j m_j − t‖²`, with `m_j` its
+//! skinning weight for joint `j` times its homogeneous bind position. That is a quadratic in
+//! the stacked skinning matrices `X`, exactly like a handle's penalty: it adds `w m_j m_kᵀ` to
+//! the 4 × 4 block `(j, k)` of `Q`, `w m_j tᵀ` to block `j` of `B` and `w ‖t‖²` to the
+//! constant. Folded into `Q` once a solve, a hold costs nothing per iteration beyond the
+//! blocks it adds to (those of the few joints that skin a sole, already coupled by the shape
+//! energy) — as a per-vertex effector term it cost a Jacobian block per joint above it, for
+//! every vertex and every iteration (a walking crowd's largest single cost).
+
+use std::borrow::Cow;
+
+use glam::{DAffine3, DMat4};
+
+use crate::pose::ground::contact::Contact;
+use crate::pose::rig::model::add_outer4x3;
+use crate::pose::solver::PoseSolver;
+use crate::pose::solver::terms::contact_hold_weight;
+
+/// The 4 × 4 blocks `(k, l, Q_kl)` of a solve's `Q`.
+pub(crate) type QBlocks = [(usize, usize, DMat4)];
+
+impl PoseSolver {
+    /// This solve's `Q` blocks: the solver's with the holds of every planted contact added,
+    /// whose linear and constant parts go to `b` (4J × 3) and `constant`. Borrowed when
+    /// nothing is planted.
+    pub(crate) fn with_holds<'a>(
+        &'a self,
+        contacts: &[Contact],
+        b: &mut [f64],
+        constant: &mut f64,
+    ) -> Cow<'a, QBlocks> {
+        let planted = contacts
+            .iter()
+            .filter_map(|c| c.planted.as_ref().map(|at| (&c.patch, at)));
+        let weight = contact_hold_weight(self.joint_weight);
+        let joints = self.model.skeleton().len();
+        // The solver's blocks, copied at the first planted contact, and where each (k, l)
+        // block is in them.
+        let mut list: Vec<(usize, usize, DMat4)> = Vec::new();
+        let mut index: Vec<Option<usize>> = Vec::new();
+        for (patch, at) in planted {
+            if index.is_empty() {
+                index = vec![None; joints * joints];
+                for (i, &(k, l, _)) in self.q_blocks.iter().enumerate() {
+                    index[k * joints + l] = Some(i);
+                }
+                list = self.q_blocks.clone();
+            }
+            for (&v, &target) in patch.iter().zip(at) {
+                for (j, mj) in self.model.row(v as usize) {
+                    add_outer4x3(b, j, mj * weight, target);
+                    for (k, mk) in self.model.row(v as usize) {
+                        let slot = *index[j * joints + k].get_or_insert_with(|| {
+                            list.push((j, k, DMat4::ZERO));
+                            list.len() - 1
+                        });
+                        let q = &mut list[slot].2;
+                        // Q_jk[r][c] += w m_j[r] m_k[c]: column c gains m_j · w m_k[c].
+                        for c in 0..4 {
+                            *q.col_mut(c) += mj * (weight * mk[c]);
+                        }
+                    }
+                }
+                *constant += weight * target.length_squared();
+            }
+        }
+        if index.is_empty() {
+            Cow::Borrowed(&self.q_blocks)
+        } else {
+            Cow::Owned(list)
+        }
+    }
+
+    /// How far the planted patch vertex farthest from its held point is from it, with the
+    /// joints' skinning transforms `skin` (0 with nothing planted).
+    pub(crate) fn farthest_off_hold(&self, contacts: &[Contact], skin: &[DAffine3]) -> f64 {
+        let skins = self.model.vertex_skins();
+        let skinned = |v: u32| skins[v as usize].skinned(skin);
+        contacts
+            .iter()
+            .filter_map(|c| c.planted.as_ref().map(|at| (&c.patch, at)))
+            .flat_map(|(patch, at)| patch.iter().zip(at))
+            .map(|(&v, &target)| skinned(v).distance(target))
+            .fold(0.0, f64::max)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use glam::{DQuat, DVec3};
+
+    use crate::pose::constraints::PoseConstraints;
+    use crate::pose::ground::GroundPlane;
+    use crate::pose::ground::contact::Contact;
+    use crate::pose::rig::synth_rig::mannequin_rig;
+    use crate::pose::solver::energy::arap::q_times_into;
+    use crate::pose::solver::{PoseSolver, PoseSolverSettings};
+
+    /// The holds folded into `Q`, `B` and the constant weigh, at any pose, exactly what the
+    /// per-vertex terms `w ‖skinned vertex − held point‖²` weigh (a hold on the wrong
+    /// block, side or weight changes the sum).
+    #[test]
+    fn folded_holds_weigh_what_each_held_vertex_does() {
+        let rig = mannequin_rig(12);
+        let model = Arc::new(rig.model().unwrap());
+        let solver = PoseSolver::new(
+            model.clone(),
+            &PoseConstraints::default(),
+            &rig.rest,
+            PoseSolverSettings::default(),
+        )
+        .unwrap();
+        let ground = GroundPlane::new(DVec3::ZERO, DVec3::Y).unwrap();
+        // Two patches, one planted, held at points away from where any pose puts them.
+        let patch: Vec<u32> = (0..40).step_by(3).collect();
+        let held: Vec<DVec3> = (0..patch.len())
+            .map(|i| DVec3::new(0.1 * i as f64, -0.05, 0.3 - 0.02 * i as f64))
+            .collect();
+        let mut planted = Contact::new(1, patch.clone(), ground);
+        planted.planted = Some(held.clone());
+        let free = Contact::new(2, (50..60).collect(), ground);
+        let dim = model.skeleton().len() * 12;
+        let (mut b, mut constant) = (vec![0.0; dim], 0.0);
+        let blocks = solver.with_holds(&[planted, free], &mut b, &mut constant);
+        let mut pose = rig.rest.clone();
+        for (j, t) in pose.local.iter_mut().enumerate() {
+            t.rotation = DQuat::from_euler(glam::EulerRot::XYZ, 0.1 * j as f64, -0.2, 0.05);
+            t.translation += DVec3::splat(0.01 * j as f64);
+        }
+        let posed = solver.posed(pose.clone(), &blocks);
+        let plain = solver.posed(pose.clone(), &solver.q_blocks);
+        let mut qx = Vec::new();
+        q_times_into(&blocks, &posed.x, &mut qx);
+        let quadratic = |qx: &[f64], b: &[f64], c: f64| {
+            posed
+                .x
+                .iter()
+                .zip(qx)
+                .zip(b)
+                .map(|((x, q), b)| x * q - 2.0 * x * b)
+                .sum::<f64>()
+                + c
+        };
+        let folded = quadratic(&qx, &b, constant) - quadratic(&plain.qx, &vec![0.0; dim], 0.0);
+        let skinned = model.skin_welded(&pose);
+        let weight = crate::pose::solver::contact_hold_weight(solver.joint_weight);
+        let direct: f64 = patch
+            .iter()
+            .zip(&held)
+            .map(|(&v, t)| weight * (skinned[v as usize] - *t).length_squared())
+            .sum();
+        assert!(direct > 0.0);
+        assert!(
+            (folded - direct).abs() < 1e-9 * direct,
+            "folded {folded} vs per vertex {direct}"
+        );
+    }
+}

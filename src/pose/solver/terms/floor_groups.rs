@@ -1,0 +1,258 @@
+//! The floor's vertices in groups that share one bound on how far their joints moved them:
+//! a group certainly well above its ground passes its vertices in one test.
+//!
+//! A rig's floor keeps thousands of vertices above the ground (every vertex within 30 % of
+//! the size of it: a mannequin's legs to the knees), and nine in ten of them are certainly
+//! well above it in every trial pose of a solve — their height at the start less how far
+//! their joints moved ([`ExtraTerms::certainly_above`](crate::pose::solver::terms::ExtraTerms)). Grouped by the
+//! joint that carries them most (in the floor's order, [`GROUP`] at a time), a group's bound
+//! is its lowest start height less the most any of its joints moved a vertex of it:
+//! `min h₀ − W max_j (‖ΔA_j‖ R_j + |Δo_j|)`, `R_j` the farthest vertex of the group from
+//! joint `j`'s bind position, `W` the group's largest sum of skin weights (1 for normalised
+//! skins). It is below each vertex's own bound, so a group that passes holds only vertices
+//! that would each have passed; the terms keep their order.
+
+use std::ops::Range;
+
+use crate::pose::solver::terms::Term;
+
+/// How many vertices a group holds at most: few enough that its lowest vertex stays near the
+/// others, enough that the test is rare.
+const GROUP: usize = 16;
+
+/// A floor term in no group (not a vertex kept above the ground: none is made).
+const NO_GROUP: u32 = u32::MAX;
+
+/// The floor's terms in groups ([`group_floor`]).
+pub(crate) struct FloorGroups {
+    /// Where the floor's terms are among the solve's.
+    terms: Range<usize>,
+    /// Each floor term's group.
+    group_of: Vec<u32>,
+    groups: Vec<FloorGroup>,
+}
+
+/// One group's bound.
+struct FloorGroup {
+    /// The lowest start height of its vertices.
+    min_start_gap: f64,
+    /// The largest sum of absolute skin weights of a vertex of it.
+    weight_sum: f64,
+    /// Every joint carrying a vertex of it, with the farthest such vertex's distance from the
+    /// joint's bind position.
+    reach: Vec<(usize, f64)>,
+}
+
+impl FloorGroups {
+    /// Each group's lower bound of its vertices' heights above their ground's skin when it
+    /// is above `near` (else `None`), from how far each joint's skinning matrix `drift`ed
+    /// since the start ([`crate::pose::solver::terms::ExtraTerms::drift`]).
+    pub(crate) fn passing(&self, drift: &[(f64, f64)], near: f64) -> Vec<Option<f64>> {
+        self.groups
+            .iter()
+            .map(|g| {
+                let moved = g
+                    .reach
+                    .iter()
+                    .map(|&(j, r)| {
+                        let (turn, origin) = drift.get(j).copied().unwrap_or((f64::INFINITY, 0.0));
+                        turn * r + origin
+                    })
+                    // (A NaN motion stays NaN, and the group is then tested vertex by vertex.)
+                    .fold(
+                        0.0f64,
+                        |most, m| if m > most || m.is_nan() { m } else { most },
+                    );
+                let bound = g.min_start_gap - g.weight_sum * moved;
+                (bound > near).then_some(bound)
+            })
+            .collect()
+    }
+
+    /// Term `i`'s start height is now `start_gap` (its plane was raised,
+    /// `raised_floor.rs`): its group's bound is lowered to it if it is below.
+    pub(crate) fn lower_bound(&mut self, i: usize, start_gap: f64) {
+        if let Some(g) = self.group_of(i) {
+            let bound = &mut self.groups[g].min_start_gap;
+            *bound = bound.min(start_gap);
+        }
+    }
+
+    /// The group of term `i` (`None` outside the floor's groups).
+    pub(crate) fn group_of(&self, i: usize) -> Option<usize> {
+        let k = i.checked_sub(self.terms.start)?;
+        self.group_of
+            .get(k)
+            .filter(|&&g| g != NO_GROUP)
+            .map(|&g| g as usize)
+    }
+}
+
+/// Groups the floor's terms (`terms[floor]`, all `Term::Above`): by the joint carrying each
+/// most, [`GROUP`] at a time in the floor's order.
+pub(crate) fn group_floor(terms: &[Term], floor: Range<usize>, joints: usize) -> FloorGroups {
+    let mut out = FloorGroups {
+        terms: floor.clone(),
+        group_of: Vec::with_capacity(floor.len()),
+        groups: Vec::new(),
+    };
+    // Per joint, its open group and how many it holds.
+    let mut open: Vec<Option<(u32, usize)>> = vec![None; joints + 1];
+    for term in &terms[floor] {
+        let Term::Above {
+            sums,
+            start_gap,
+            reach,
+            ..
+        } = term
+        else {
+            out.group_of.push(NO_GROUP);
+            continue;
+        };
+        let top = sums
+            .iter()
+            .max_by(|a, b| a.1.w.abs().total_cmp(&b.1.w.abs()))
+            .map_or(joints, |s| s.0.min(joints));
+        let index = match open[top] {
+            Some((g, n)) if n < GROUP => {
+                open[top] = Some((g, n + 1));
+                g
+            }
+            _ => {
+                let g = out.groups.len() as u32;
+                out.groups.push(FloorGroup {
+                    min_start_gap: f64::INFINITY,
+                    weight_sum: 0.0,
+                    reach: Vec::new(),
+                });
+                open[top] = Some((g, 1));
+                g
+            }
+        };
+        out.group_of.push(index);
+        let group = &mut out.groups[index as usize];
+        group.min_start_gap = group.min_start_gap.min(*start_gap);
+        group.weight_sum = group
+            .weight_sum
+            .max(sums.iter().map(|s| s.1.w.abs()).sum::<f64>());
+        for (&(j, _), &r) in sums.iter().zip(reach.iter()) {
+            match group.reach.iter_mut().find(|(k, _)| *k == j) {
+                Some((_, far)) => *far = far.max(r),
+                None => group.reach.push((j, r)),
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::{DAffine3, DQuat, DVec3};
+
+    use crate::pose::ground::GroundPlane;
+    use crate::pose::rig::skeleton::{Joint, Skeleton, VertexInfluences};
+    use crate::pose::solver::Term;
+
+    /// A chain of three joints up the y axis (bind origins at y = 0, 1, 2).
+    fn chain() -> Skeleton {
+        let joint = |name: &str, parent: Option<usize>, y: f64| Joint {
+            name: name.into(),
+            parent,
+            parent_frame: DAffine3::from_translation(
+                DVec3::Y * if parent.is_some() { 1.0 } else { 0.0 },
+            ),
+            inverse_bind: DAffine3::from_translation(-DVec3::Y * y),
+        };
+        Skeleton::new(vec![
+            joint("hips", None, 0.0),
+            joint("knee", Some(0), 1.0),
+            joint("ankle", Some(1), 2.0),
+        ])
+        .unwrap()
+    }
+
+    /// The skinning matrices with the knee turned by `turn` about z (the ankle following) and
+    /// the ankle by `ankle` more.
+    fn bent(turn: f64, ankle: f64) -> Vec<DAffine3> {
+        let about = |y: f64, a: f64| {
+            let o = DVec3::Y * y;
+            DAffine3::from_translation(o)
+                * DAffine3::from_quat(DQuat::from_rotation_z(a))
+                * DAffine3::from_translation(-o)
+        };
+        let knee = about(1.0, turn);
+        vec![DAffine3::IDENTITY, knee, knee * about(2.0, ankle)]
+    }
+
+    /// A floor group's bound is below the exact height and the own bound of every vertex in
+    /// it, whatever the joints did; small motions pass most groups, a large one fails some.
+    /// (Fails with half the joints' motion subtracted.)
+    #[test]
+    fn a_group_bound_is_below_each_of_its_vertices() {
+        let skeleton = chain();
+        let movers: Vec<Vec<u32>> = (0..3).map(|j| (0..=j as u32).collect()).collect();
+        let origins = [DVec3::ZERO, DVec3::Y, DVec3::Y * 2.0];
+        // 90 vertices up the chain, a little off it, each blended between the two joints
+        // it lies between.
+        let bind: Vec<DVec3> = (0..90)
+            .map(|i| DVec3::new(0.2 * ((i % 7) as f64 - 3.0), 2.7 * i as f64 / 89.0, 0.1))
+            .collect();
+        let influences: Vec<VertexInfluences> = bind
+            .iter()
+            .map(|p| {
+                let t = p.y.clamp(0.0, 2.0);
+                let j = (t.floor() as u32).min(1);
+                let f = t - j as f64;
+                [(j, 1.0 - f), (j + 1, f), (0, 0.0), (0, 0.0)]
+            })
+            .collect();
+        let ground = GroundPlane::new(DVec3::Y * -0.3, DVec3::Y).unwrap();
+        let under: Vec<(u32, GroundPlane)> = (0..bind.len() as u32).map(|v| (v, ground)).collect();
+        let skins = crate::pose::rig::skin::vertex_skins(&bind, &influences, &origins);
+        let terms = crate::pose::solver::floor_only((&skeleton, &movers, &origins), &skins, &under);
+        let mut passed = 0;
+        let mut failed = 0;
+        for (turn, ankle) in [(0.01, 0.0), (0.05, -0.1), (-0.2, 0.3), (1.4, 1.2)] {
+            let skinning = bent(turn, ankle);
+            let drift = terms.drift(&skinning);
+            let passing = terms.floor_groups.passing(&drift, -f64::INFINITY);
+            for (i, term) in terms.terms.iter().enumerate() {
+                let Term::Above {
+                    sums,
+                    plane,
+                    start_gap,
+                    reach,
+                    ..
+                } = term
+                else {
+                    continue;
+                };
+                let group = terms.floor_groups.group_of(i).unwrap();
+                let bound = passing[group].unwrap();
+                let exact = terms.gap_above(sums, plane, &skinning);
+                assert!(
+                    bound <= exact + 1e-12,
+                    "turn {turn}: vertex {i} is {exact} above, its group's bound {bound}"
+                );
+                if let Some(own) = terms.certainly_above(sums, (*start_gap, reach), &drift) {
+                    assert!(
+                        bound <= own + 1e-12,
+                        "its own bound {own} is lower: {bound}"
+                    );
+                }
+            }
+            let near = 0.05;
+            let groups = terms.floor_groups.passing(&drift, near);
+            passed += groups.iter().filter(|g| g.is_some()).count();
+            failed += groups.iter().filter(|g| g.is_none()).count();
+        }
+        assert!(passed > 0 && failed > 0, "passed {passed}, failed {failed}");
+        // A joint whose motion is not a number passes none of the groups it carries.
+        let drift = vec![(0.0, 0.0), (f64::NAN, 0.0), (0.0, 0.0)];
+        let nan = terms.floor_groups.passing(&drift, f64::NEG_INFINITY);
+        for (g, group) in terms.floor_groups.groups.iter().enumerate() {
+            let carried = group.reach.iter().any(|(j, _)| *j == 1);
+            assert_eq!(nan[g].is_none(), carried, "group {g}");
+        }
+    }
+}

@@ -1,0 +1,242 @@
+//! The layers of the source tree: `src/pose`'s folders import only the folders below them
+//! (rig ← ground ← constraints ← solver; animation on rig; springs on rig and constraints),
+//! and no core imports the ECS layer. Read from the `use` lines and paths of the sources
+//! themselves (test modules inside a file are left out: tests may reach anywhere).
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+/// Every `.rs` file under `dir`, recursively.
+fn rust_files(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for entry in std::fs::read_dir(&d).expect("a source folder") {
+            let path = entry.expect("a folder entry").path();
+            if path.is_dir() {
+                stack.push(path);
+            } else if path.extension().is_some_and(|e| e == "rs") {
+                out.push(path);
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+/// The code of a file without its comments and without its `#[cfg(test)]` tail.
+fn code_of(text: &str) -> String {
+    let text = text.split("#[cfg(test)]").next().unwrap_or("");
+    text.lines()
+        .map(|l| match l.find("//") {
+            Some(i) => &l[..i],
+            None => l,
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// The module path of a source file below `src/`, as segments (`src/pose/rig/mod.rs` →
+/// `["pose", "rig"]`).
+fn module_of(src: &Path, file: &Path) -> Vec<String> {
+    let rel = file.strip_prefix(src).expect("a file under src");
+    let mut segs: Vec<String> = rel
+        .with_extension("")
+        .components()
+        .map(|c| c.as_os_str().to_string_lossy().into_owned())
+        .collect();
+    if segs.last().is_some_and(|s| s == "mod" || s == "lib") {
+        segs.pop();
+    }
+    segs
+}
+
+/// Every path a file's code names: `crate::a::b…` as `[a, b, …]`, `super::…` resolved against
+/// the file's module, with `{…}` groups of `use` lines expanded to their first segment.
+fn paths_named(code: &str, module: &[String]) -> Vec<Vec<String>> {
+    let flat: String = code.chars().filter(|c| !c.is_whitespace()).collect();
+    let mut out = Vec::new();
+    let bytes = flat.as_bytes();
+    let mut i = 0;
+    while i < bytes.len() {
+        let rest = &flat[i..];
+        let boundary = i == 0
+            || !(bytes[i - 1].is_ascii_alphanumeric()
+                || bytes[i - 1] == b'_'
+                || bytes[i - 1] == b':');
+        let (base, after) = if boundary && rest.starts_with("crate::") {
+            (Vec::new(), "crate::".len())
+        } else if boundary && rest.starts_with("super::") {
+            let mut base = module.to_vec();
+            let mut n = 0;
+            while flat[i + n..].starts_with("super::") {
+                base.pop();
+                n += "super::".len();
+            }
+            (base, n)
+        } else {
+            i += 1;
+            continue;
+        };
+        let mut segs = base;
+        let mut j = i + after;
+        loop {
+            let ident: String = flat[j..]
+                .chars()
+                .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+                .collect();
+            if ident.is_empty() {
+                // a `{a::x, b::y}` group: each member's first segment
+                if flat[j..].starts_with('{') {
+                    let end = flat[j..].find('}').map_or(flat.len(), |e| j + e);
+                    for member in flat[j + 1..end].split(',') {
+                        let first: String = member
+                            .chars()
+                            .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+                            .collect();
+                        if !first.is_empty() {
+                            let mut p = segs.clone();
+                            p.push(first);
+                            out.push(p);
+                        }
+                    }
+                }
+                break;
+            }
+            segs.push(ident.clone());
+            j += ident.len();
+            if flat[j..].starts_with("::") {
+                j += 2;
+            } else {
+                break;
+            }
+        }
+        out.push(segs);
+        i = j.max(i + 1);
+    }
+    out
+}
+
+/// The folder of `src/pose` a module belongs to (`None` for the root's own files).
+fn pose_folder(module: &[String]) -> Option<&str> {
+    (module.first().is_some_and(|m| m == "pose")
+        && module.len() > 1
+        && !matches!(module[1].as_str(), "error"))
+    .then(|| module[1].as_str())
+}
+
+/// Which folders of `src/pose` each folder may import.
+fn allowed() -> BTreeMap<&'static str, &'static [&'static str]> {
+    BTreeMap::from([
+        ("rig", &[][..]),
+        ("ground", &["rig"][..]),
+        ("constraints", &["rig", "ground"][..]),
+        ("solver", &["rig", "ground", "constraints"][..]),
+        ("animation", &["rig"][..]),
+        ("springs", &["rig", "constraints"][..]),
+    ])
+}
+
+/// The imports between `src/pose`'s folders that break the layer order, as
+/// `file: folder → folder (path)`; also every import of a root re-export from inside a
+/// folder (which hides the folder it comes from).
+fn pose_layer_violations(src: &Path) -> Vec<String> {
+    let allowed = allowed();
+    let mut bad = Vec::new();
+    for file in rust_files(&src.join("pose")) {
+        let module = module_of(src, &file);
+        let Some(from) = pose_folder(&module) else {
+            continue;
+        };
+        let code = code_of(&std::fs::read_to_string(&file).expect("a source file"));
+        for path in paths_named(&code, &module) {
+            if path.first().is_none_or(|p| p != "pose") || path.len() < 2 {
+                continue;
+            }
+            let to = path[1].as_str();
+            let shown = format!("{}: {from} → {to} ({})", file.display(), path.join("::"));
+            match allowed.get(to) {
+                Some(_) if to == from => {}
+                Some(_) if allowed[from].contains(&to) => {}
+                Some(_) => bad.push(shown),
+                None if to == "error" || to == "PoseError" => {}
+                None => bad.push(format!("{shown}: a root re-export, name the folder")),
+            }
+        }
+    }
+    bad
+}
+
+fn src_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("src")
+}
+
+/// The pose layer's folders import only the folders below them.
+#[test]
+fn pose_folders_import_only_the_layers_below_them() {
+    let bad = pose_layer_violations(&src_dir());
+    assert!(
+        bad.is_empty(),
+        "imports against the layer order:\n{}",
+        bad.join("\n")
+    );
+}
+
+/// The layer table has no cycle, so following it never comes back to a folder.
+#[test]
+fn the_pose_layer_order_has_no_cycle() {
+    let allowed = allowed();
+    for start in allowed.keys() {
+        let mut seen = BTreeSet::new();
+        let mut stack: Vec<&str> = allowed[start].to_vec();
+        while let Some(f) = stack.pop() {
+            assert_ne!(f, *start, "{start} reaches itself");
+            if seen.insert(f) {
+                stack.extend(allowed[f].iter().copied());
+            }
+        }
+    }
+}
+
+/// The checker itself: an import of the solver from the rig, and one through a root
+/// re-export, are both found in a source tree made for the purpose.
+#[test]
+fn an_import_against_the_order_is_found() {
+    let dir = std::env::temp_dir().join(format!("bwd-layering-{}", std::process::id()));
+    let rig = dir.join("pose").join("rig");
+    std::fs::create_dir_all(&rig).unwrap();
+    std::fs::write(
+        rig.join("model.rs"),
+        "use crate::pose::solver::PoseSolver;\nuse super::super::Skeleton;\n\
+         use crate::pose::rig::skeleton::Joint;\n#[cfg(test)]\nmod tests { use crate::pose::ground::Floor; }\n",
+    )
+    .unwrap();
+    let bad = pose_layer_violations(&dir);
+    std::fs::remove_dir_all(&dir).ok();
+    assert_eq!(bad.len(), 2, "{bad:?}");
+    assert!(bad[0].contains("rig → solver"), "{bad:?}");
+    assert!(bad[1].contains("root re-export"), "{bad:?}");
+}
+
+/// No core layer (deform, pose, controllers, history) imports the ECS layer or Bevy.
+#[test]
+fn the_cores_import_neither_the_ecs_layer_nor_bevy() {
+    let src = src_dir();
+    let mut bad = Vec::new();
+    for core in ["deform", "pose", "controllers"] {
+        for file in rust_files(&src.join(core)) {
+            let module = module_of(&src, &file);
+            let code = code_of(&std::fs::read_to_string(&file).unwrap());
+            if paths_named(&code, &module)
+                .iter()
+                .any(|p| p.first().is_some_and(|s| s == "ecs"))
+            {
+                bad.push(format!("{}: imports the ECS layer", file.display()));
+            }
+            if code.contains("bevy::") || code.contains("use bevy") {
+                bad.push(format!("{}: uses Bevy", file.display()));
+            }
+        }
+    }
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
+}
