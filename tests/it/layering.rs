@@ -51,49 +51,78 @@ fn module_of(src: &Path, file: &Path) -> Vec<String> {
     segs
 }
 
+/// `code` with the whitespace around `::`, braces and commas taken out (so a `use` tree
+/// written over several lines reads as one path), other runs of whitespace kept as one space.
+fn compact(code: &str) -> Vec<char> {
+    let chars: Vec<char> = code.chars().collect();
+    let glue = |c: char| matches!(c, ':' | '{' | '}' | ',');
+    let mut out: Vec<char> = Vec::with_capacity(chars.len());
+    let mut i = 0;
+    while i < chars.len() {
+        if chars[i].is_whitespace() {
+            let mut j = i;
+            while j < chars.len() && chars[j].is_whitespace() {
+                j += 1;
+            }
+            let before = out.last().copied();
+            let after = chars.get(j).copied();
+            if !(before.is_some_and(glue) || after.is_some_and(glue)) {
+                out.push(' ');
+            }
+            i = j;
+        } else {
+            out.push(chars[i]);
+            i += 1;
+        }
+    }
+    out
+}
+
 /// Every path a file's code names: `crate::a::b…` as `[a, b, …]`, `super::…` resolved against
 /// the file's module, with `{…}` groups of `use` lines expanded to their first segment.
 fn paths_named(code: &str, module: &[String]) -> Vec<Vec<String>> {
-    let flat: String = code.chars().filter(|c| !c.is_whitespace()).collect();
+    let text = compact(code);
+    let ident_char = |c: char| c.is_ascii_alphanumeric() || c == '_';
+    let starts = |at: usize, word: &str| {
+        word.chars()
+            .enumerate()
+            .all(|(k, w)| text.get(at + k) == Some(&w))
+    };
+    let ident_at = |at: usize| -> String {
+        text[at.min(text.len())..]
+            .iter()
+            .take_while(|c| ident_char(**c))
+            .collect()
+    };
     let mut out = Vec::new();
-    let bytes = flat.as_bytes();
     let mut i = 0;
-    while i < bytes.len() {
-        let rest = &flat[i..];
-        let boundary = i == 0
-            || !(bytes[i - 1].is_ascii_alphanumeric()
-                || bytes[i - 1] == b'_'
-                || bytes[i - 1] == b':');
-        let (base, after) = if boundary && rest.starts_with("crate::") {
-            (Vec::new(), "crate::".len())
-        } else if boundary && rest.starts_with("super::") {
+    while i < text.len() {
+        let boundary = i == 0 || !(ident_char(text[i - 1]) || text[i - 1] == ':');
+        let (mut segs, mut j) = if boundary && starts(i, "crate::") {
+            (Vec::new(), i + "crate::".len())
+        } else if boundary && starts(i, "super::") {
             let mut base = module.to_vec();
-            let mut n = 0;
-            while flat[i + n..].starts_with("super::") {
+            let mut j = i;
+            while starts(j, "super::") {
                 base.pop();
-                n += "super::".len();
+                j += "super::".len();
             }
-            (base, n)
+            (base, j)
         } else {
             i += 1;
             continue;
         };
-        let mut segs = base;
-        let mut j = i + after;
         loop {
-            let ident: String = flat[j..]
-                .chars()
-                .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
-                .collect();
+            let ident = ident_at(j);
             if ident.is_empty() {
                 // a `{a::x, b::y}` group: each member's first segment
-                if flat[j..].starts_with('{') {
-                    let end = flat[j..].find('}').map_or(flat.len(), |e| j + e);
-                    for member in flat[j + 1..end].split(',') {
-                        let first: String = member
-                            .chars()
-                            .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
-                            .collect();
+                if text.get(j) == Some(&'{') {
+                    let end = (j..text.len())
+                        .find(|&e| text[e] == '}')
+                        .unwrap_or(text.len());
+                    let group: String = text[j + 1..end].iter().collect();
+                    for member in group.split(',') {
+                        let first: String = member.chars().take_while(|c| ident_char(*c)).collect();
                         if !first.is_empty() {
                             let mut p = segs.clone();
                             p.push(first);
@@ -103,9 +132,9 @@ fn paths_named(code: &str, module: &[String]) -> Vec<Vec<String>> {
                 }
                 break;
             }
-            segs.push(ident.clone());
             j += ident.len();
-            if flat[j..].starts_with("::") {
+            segs.push(ident);
+            if starts(j, "::") {
                 j += 2;
             } else {
                 break;

@@ -1,6 +1,7 @@
 //! Spring bones: gravity and stiffness, frame-rate independence, hitches, teleports,
 //! colliders, joint limits, and VRM's `VRMC_springBone` read from a generated VRM-style glTF.
 
+use bevy_wii_deform::pose::rig::synth_rig;
 use bevy_wii_deform::pose::*;
 use glam::{DAffine3, DQuat, DVec3};
 

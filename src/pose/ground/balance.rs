@@ -30,8 +30,6 @@
 //! it from the clip under an additive layer): balance then keeps what the clip does on flat
 //! ground, and corrects what the terrain and the pose add.
 
-use crate::pose::rig::model::SkinnedModel;
-use crate::pose::rig::skeleton::SkeletonPose;
 use glam::{DVec2, DVec3};
 
 /// Keep the centre of mass over the support polygon (see the module docs).

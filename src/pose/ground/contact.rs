@@ -19,7 +19,7 @@
 //!   the ground in the pose a solve starts from become one-sided terms of that solve (an
 //!   active set renewed every solve: a character dragged down into the floor does not sink).
 
-use crate::pose::ground::Ground;
+use crate::pose::ground::{Ground, GroundPlane};
 use crate::pose::rig::skeleton::rotation_of;
 use glam::{DQuat, DVec3};
 

@@ -25,8 +25,7 @@
 //! [`ContactTracker`]: tracker::ContactTracker
 //! [`GaitPhases`]: gait::GaitPhases
 
-use crate::pose::rig::skeleton::rotation_of;
-use glam::{DQuat, DVec3};
+use glam::DVec3;
 
 pub mod balance;
 pub mod contact;

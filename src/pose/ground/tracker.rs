@@ -20,10 +20,10 @@
 //! contact's joint turned back so that the sole keeps its tilt. It only moves the start: the
 //! solve still meets the holds, the floor, the limits and balance itself.
 
-use crate::pose::ground::GroundPlane;
 use crate::pose::ground::contact::Contact;
 use crate::pose::ground::feet::{SOLE_THICKNESS, horizontal, sole_patch};
 use crate::pose::ground::gait::GaitPhases;
+use crate::pose::ground::{Ground, GroundPlane};
 
 use crate::pose::rig::model::SkinnedModel;
 use crate::pose::rig::skeleton::SkeletonPose;

@@ -28,10 +28,6 @@
 //! brings the hand forward and a flexed knee takes the foot back, whatever each exporter's bone
 //! roll.
 
-use glam::{DQuat, DVec3};
-
-use crate::pose::rig::skeleton::{Skeleton, SkeletonPose};
-
 /// A humanoid joint's role.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum HumanoidRole {

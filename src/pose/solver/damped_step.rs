@@ -188,7 +188,7 @@ pub(super) struct DampedStep {
 
 #[cfg(test)]
 mod tests {
-    use crate::pose::solver::*;
+    use super::*;
 
     /// Raising the damping shortens the step, also under a stiff term that one light
     /// coordinate barely moves: a heavy rank-one term `w (j·x + r)²` (`w = 1e4`) over a

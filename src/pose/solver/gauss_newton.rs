@@ -346,7 +346,7 @@ impl TwistBlock {
 
 #[cfg(test)]
 mod tests {
-    use crate::pose::solver::*;
+    use super::*;
 
     /// [`parameter_block`] equals the twist block taken through the maps `[I; [o]×]`
     /// (rotation about `o`) or `[0; I]` (translation), for every pairing of the two kinds.

@@ -32,14 +32,9 @@ mod terms;
 use crate::pose::solver::energy::penalties::{SetSums, set_target};
 use crate::pose::solver::params::{Param, movers_of_joints, parameters_for};
 
-use crate::deform::constraints::same_keys;
-use crate::deform::{Handle, RigidTransform};
-use crate::pose::constraints::effectors::{CentroidEffector, Effector, ReferenceStiffness};
-use crate::pose::constraints::limits::JointLimits;
+use crate::deform::RigidTransform;
+use crate::pose::constraints::PoseConstraints;
 use crate::pose::error::PoseError;
-use crate::pose::ground::balance::Balance;
-use crate::pose::ground::contact::Contact;
-use crate::pose::ground::floor::Floor;
 use crate::pose::rig::model::SkinnedModel;
 use crate::pose::rig::skeleton::SkeletonPose;
 use crate::pose::solver::setup::{check_indices, joint_frames, nonzero_blocks, set_sums};

@@ -208,7 +208,7 @@ fn retract_into(
 
 #[cfg(test)]
 mod tests {
-    use crate::pose::solver::{BEFORE_CONTACT, HOPELESS_RISE, shorter_trial};
+    use super::{BEFORE_CONTACT, HOPELESS_RISE, shorter_trial};
 
     /// A rejected step goes most of the way to the vertex it first took through the ground
     /// whatever it rose by; without one it is halved after a rise within

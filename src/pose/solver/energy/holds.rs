@@ -147,7 +147,7 @@ mod tests {
         };
         let folded = quadratic(&qx, &b, constant) - quadratic(&plain.qx, &vec![0.0; dim], 0.0);
         let skinned = model.skin_welded(&pose);
-        let weight = crate::pose::solver::contact_hold_weight(solver.joint_weight);
+        let weight = crate::pose::solver::terms::contact_hold_weight(solver.joint_weight);
         let direct: f64 = patch
             .iter()
             .zip(&held)

@@ -278,7 +278,7 @@ fn subtract_product(a: &mut Block, lik: &Block, ljk: &Block) {
 
 #[cfg(test)]
 mod tests {
-    use crate::pose::solver::*;
+    use super::*;
 
     /// A block-sparse SPD matrix (an arrow: every block couples with the last one, and a few
     /// neighbours), its factorization solves the system as the dense product checks.

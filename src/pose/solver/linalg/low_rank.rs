@@ -125,8 +125,8 @@ fn solve_small(m: &mut [f64], c: &mut [f64]) -> bool {
 
 #[cfg(test)]
 mod tests {
+    use super::*;
     use crate::pose::solver::linalg::block_cholesky::BlockPattern;
-    use crate::pose::solver::*;
 
     /// A block-tridiagonal SPD matrix of `nb` 3 × 3 blocks (row-major).
     fn sparse(nb: usize) -> Vec<f64> {

@@ -24,7 +24,7 @@ const GROUP: usize = 16;
 const NO_GROUP: u32 = u32::MAX;
 
 /// The floor's terms in groups ([`group_floor`]).
-pub(crate) struct FloorGroups {
+pub(super) struct FloorGroups {
     /// Where the floor's terms are among the solve's.
     terms: Range<usize>,
     /// Each floor term's group.
@@ -47,7 +47,7 @@ impl FloorGroups {
     /// Each group's lower bound of its vertices' heights above their ground's skin when it
     /// is above `near` (else `None`), from how far each joint's skinning matrix `drift`ed
     /// since the start ([`crate::pose::solver::terms::ExtraTerms::drift`]).
-    pub(crate) fn passing(&self, drift: &[(f64, f64)], near: f64) -> Vec<Option<f64>> {
+    pub(super) fn passing(&self, drift: &[(f64, f64)], near: f64) -> Vec<Option<f64>> {
         self.groups
             .iter()
             .map(|g| {
@@ -71,7 +71,7 @@ impl FloorGroups {
 
     /// Term `i`'s start height is now `start_gap` (its plane was raised,
     /// `raised_floor.rs`): its group's bound is lowered to it if it is below.
-    pub(crate) fn lower_bound(&mut self, i: usize, start_gap: f64) {
+    pub(super) fn lower_bound(&mut self, i: usize, start_gap: f64) {
         if let Some(g) = self.group_of(i) {
             let bound = &mut self.groups[g].min_start_gap;
             *bound = bound.min(start_gap);
@@ -79,7 +79,7 @@ impl FloorGroups {
     }
 
     /// The group of term `i` (`None` outside the floor's groups).
-    pub(crate) fn group_of(&self, i: usize) -> Option<usize> {
+    pub(super) fn group_of(&self, i: usize) -> Option<usize> {
         let k = i.checked_sub(self.terms.start)?;
         self.group_of
             .get(k)
@@ -90,7 +90,7 @@ impl FloorGroups {
 
 /// Groups the floor's terms (`terms[floor]`, all `Term::Above`): by the joint carrying each
 /// most, [`GROUP`] at a time in the floor's order.
-pub(crate) fn group_floor(terms: &[Term], floor: Range<usize>, joints: usize) -> FloorGroups {
+pub(super) fn group_floor(terms: &[Term], floor: Range<usize>, joints: usize) -> FloorGroups {
     let mut out = FloorGroups {
         terms: floor.clone(),
         group_of: Vec::with_capacity(floor.len()),
@@ -151,7 +151,7 @@ mod tests {
 
     use crate::pose::ground::GroundPlane;
     use crate::pose::rig::skeleton::{Joint, Skeleton, VertexInfluences};
-    use crate::pose::solver::Term;
+    use crate::pose::solver::terms::Term;
 
     /// A chain of three joints up the y axis (bind origins at y = 0, 1, 2).
     fn chain() -> Skeleton {
@@ -209,7 +209,8 @@ mod tests {
         let ground = GroundPlane::new(DVec3::Y * -0.3, DVec3::Y).unwrap();
         let under: Vec<(u32, GroundPlane)> = (0..bind.len() as u32).map(|v| (v, ground)).collect();
         let skins = crate::pose::rig::skin::vertex_skins(&bind, &influences, &origins);
-        let terms = crate::pose::solver::floor_only((&skeleton, &movers, &origins), &skins, &under);
+        let terms =
+            crate::pose::solver::terms::floor_only((&skeleton, &movers, &origins), &skins, &under);
         let mut passed = 0;
         let mut failed = 0;
         for (turn, ankle) in [(0.01, 0.0), (0.05, -0.1), (-0.2, 0.3), (1.4, 1.2)] {

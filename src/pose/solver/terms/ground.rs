@@ -29,7 +29,7 @@ const SOLE_TURN: f64 = 3.0;
 const CONTACT_SKIN: f64 = 1e-3;
 /// A vertex less than this share of the model's size above its ground's skin is near contact
 /// ([`ExtraTerms::near_contact`]).
-pub(crate) const NEAR_CONTACT: f64 = 5e-3;
+pub(super) const NEAR_CONTACT: f64 = 5e-3;
 /// A near-contact vertex's curvature in the step's model against its non-penetration weight:
 /// a position effector's worth (a thousandth of the ground's push).
 const NEAR_CURVATURE: f64 = 1e-3;
@@ -97,7 +97,7 @@ pub(crate) fn contact_hold_weight(joint_weight: f64) -> f64 {
 /// Appends the contacts', the floor's and balance's terms of `input` (`lw`: a position
 /// effector's weight at weight 1); returns where the floor's are. (`vertex_skins`: each
 /// vertex's, which its terms point at.)
-pub(crate) fn push_terms<'a>(
+pub(super) fn push_terms<'a>(
     terms: &mut Vec<Term<'a>>,
     vertex_skins: &'a [VertexSkin],
     input: &ExtraInputs<'_>,
@@ -213,7 +213,7 @@ impl ExtraTerms<'_> {
     /// terrain: four rejected steps a solve, a tenth of its solves a dozen). With the
     /// curvature the step's model knows what going down there would cost, as the one-sided
     /// term would once it acts; rising stays nearly free.
-    pub(crate) fn near_contact<'t>(
+    pub(super) fn near_contact<'t>(
         &self,
         term: &'t Term,
         gap: Option<f64>,
@@ -248,7 +248,7 @@ impl ExtraTerms<'_> {
     /// fell to 0.72 ms, but the centre of mass then rested exactly on the edge and every other
     /// solve of the humanoid overshot it: 1.36–1.54 ms; smoothed over 5e-3 of the size, all
     /// as here within 3 %.)
-    pub(crate) fn balance_directions(
+    pub(super) fn balance_directions(
         &self,
         term: &Term,
         skinning: &[glam::DAffine3],
@@ -262,7 +262,7 @@ impl ExtraTerms<'_> {
     /// Per joint, how far its skinning matrix is from the start's: the Frobenius norm of the
     /// linear part's change and how far it moved the joint's bind position (empty without
     /// vertices kept above the ground).
-    pub(crate) fn drift(&self, skinning: &[glam::DAffine3]) -> Vec<(f64, f64)> {
+    pub(super) fn drift(&self, skinning: &[glam::DAffine3]) -> Vec<(f64, f64)> {
         if !self.terms.iter().any(|t| matches!(t, Term::Above { .. })) {
             return Vec::new();
         }
@@ -286,7 +286,7 @@ impl ExtraTerms<'_> {
     /// most `Σ_j w_j (‖ΔA_j‖ |b − c_j| + |Δo_j|)`, `c_j` the joint's bind position, `Δo_j`
     /// how far it moved), when that bound is above [`NEAR_CONTACT`]; `None` when the vertex
     /// may be near or in its ground (then it is skinned).
-    pub(crate) fn certainly_above(
+    pub(super) fn certainly_above(
         &self,
         sums: &JointSums,
         (start_gap, reach): (f64, &[f64; 4]),
@@ -305,7 +305,7 @@ impl ExtraTerms<'_> {
     }
 
     /// A vertex's height above its ground's skin (negative: in it).
-    pub(crate) fn gap_above(
+    pub(super) fn gap_above(
         &self,
         sums: &[(usize, glam::DVec4)],
         plane: &GroundPlane,
@@ -317,7 +317,7 @@ impl ExtraTerms<'_> {
     /// The residual of a balance term (zero while it holds): the centre of mass's way out of
     /// its allowed region. (A vertex's is its depth along its ground's normal, from its gap:
     /// [`ExtraTerms::energy`].)
-    pub(crate) fn balance_residual(&self, term: &Term, skinning: &[glam::DAffine3]) -> DVec3 {
+    pub(super) fn balance_residual(&self, term: &Term, skinning: &[glam::DAffine3]) -> DVec3 {
         match term {
             Term::Balance { sums, allowed, .. } => allowed
                 .violation(centroid_of(sums, skinning))
@@ -332,7 +332,7 @@ impl ExtraTerms<'_> {
 /// (`J = n nᵀ B` for the vertex's change `B`), so `JᵀJ` and `Jᵀr` need only `Bᵀ n`. `None`
 /// for other terms and a vertex above its ground. (Balance's are rank-one parts of their own:
 /// [`ExtraTerms::balance_directions`].)
-pub(crate) fn along_the_normal<'t>(
+pub(super) fn along_the_normal<'t>(
     term: &'t Term,
     r: &crate::pose::solver::terms::Rows<DVec3>,
 ) -> Option<(&'t VertexSums, DVec3, f64)> {
@@ -353,7 +353,7 @@ mod tests {
     use crate::pose::rig::skeleton::{Joint, Skeleton};
     use crate::pose::rig::skin::{VertexSkin, vertex_skins};
     use crate::pose::solver::params::Param;
-    use crate::pose::solver::{EFFECTOR_STRENGTH, ExtraTerms};
+    use crate::pose::solver::terms::{EFFECTOR_STRENGTH, ExtraTerms};
 
     /// A one-joint bar (its joint at the origin).
     fn bar() -> Skeleton {
@@ -381,7 +381,7 @@ mod tests {
         floor: GroundPlane,
     ) -> ExtraTerms<'a> {
         let under: Vec<(u32, GroundPlane)> = (0..skins.len() as u32).map(|v| (v, floor)).collect();
-        crate::pose::solver::floor_only((skeleton, movers, &[DVec3::ZERO]), skins, &under)
+        crate::pose::solver::terms::floor_only((skeleton, movers, &[DVec3::ZERO]), skins, &under)
     }
 
     /// A step that takes a vertex 1 above the floor to 2 below it first touches the floor's
@@ -402,7 +402,7 @@ mod tests {
         };
         let from = gaps(DAffine3::IDENTITY);
         let down = gaps(DAffine3::from_translation(DVec3::new(0.0, -3.0, 0.0)));
-        let skin = crate::pose::solver::terms::CONTACT_SKIN;
+        let skin = super::CONTACT_SKIN;
         let t = terms
             .first_contact(&from, &down, &[DAffine3::IDENTITY])
             .unwrap();
@@ -422,8 +422,7 @@ mod tests {
         let movers = [vec![0]];
         let params = [Param::Translation(0)];
         let system = |height: f64| {
-            let y = crate::pose::solver::terms::CONTACT_SKIN
-                + height * crate::pose::solver::terms::NEAR_CONTACT;
+            let y = super::CONTACT_SKIN + height * super::NEAR_CONTACT;
             let skins = bar_skins(&[DVec3::new(0.3, y, 0.0)]);
             let terms = floor_terms(&skeleton, &movers, &skins, floor);
             let (mut h, mut g) = (vec![0.0; 9], vec![0.0; 3]);
@@ -431,11 +430,9 @@ mod tests {
             terms.add_system((&at, &at), &params, (&mut h, &mut Vec::new()), &mut g);
             (h, g)
         };
-        let above = crate::pose::solver::terms::ABOVE_OVER_HOLD
-            * crate::pose::solver::terms::CONTACT_STRENGTH
-            * EFFECTOR_STRENGTH;
+        let above = super::ABOVE_OVER_HOLD * super::CONTACT_STRENGTH * EFFECTOR_STRENGTH;
         let (h, g) = system(0.5);
-        let expected = 2.0 * above * crate::pose::solver::terms::NEAR_CURVATURE;
+        let expected = 2.0 * above * super::NEAR_CURVATURE;
         assert!((h[4] - expected).abs() < 1e-9 * expected, "{h:?}");
         assert!(
             h.iter().enumerate().all(|(k, v)| k == 4 || *v == 0.0),

@@ -22,7 +22,7 @@ use crate::pose::constraints::effectors::{
 use crate::pose::error::PoseError;
 use crate::pose::rig::skeleton::rotation_of;
 use crate::pose::rig::skeleton::{Skeleton, VertexInfluences};
-pub(crate) use crate::pose::rig::skin::{VertexSkin, mass_sums, vertex_skins};
+pub(crate) use crate::pose::rig::skin::VertexSkin;
 use crate::pose::rig::skin::{VertexSums, apply, centroid_of, joint_sums};
 pub(crate) use crate::pose::solver::terms::ground::{contact_hold_weight, validate_ground};
 

@@ -44,7 +44,7 @@ struct Moments {
 }
 
 /// One-number terms being summed into a system (see the module docs).
-pub(crate) struct RankOneSums {
+pub(super) struct RankOneSums {
     /// Per joint, the moments of the terms it is the deepest common carrier of.
     per_joint: Vec<Moments>,
     /// Per parameter, the stamp of the last joint set that took it (as moving the set whole,
@@ -154,7 +154,7 @@ impl Moments {
 
 impl RankOneSums {
     /// Empty sums for a skeleton of `joints` and `params` parameters.
-    pub(crate) fn new(joints: usize, params: usize) -> Self {
+    pub(super) fn new(joints: usize, params: usize) -> Self {
         Self {
             per_joint: vec![Moments::NONE; joints],
             whole: vec![0; params],
@@ -167,7 +167,7 @@ impl RankOneSums {
 
     /// Adds `s uuᵀ` and `s d u` of the term whose vertex is `sums`, along `along` at depth
     /// `d`.
-    pub(crate) fn add(
+    pub(super) fn add(
         &mut self,
         terms: &ExtraTerms,
         (sums, along, depth): (&VertexSums, DVec3, f64),
@@ -250,7 +250,7 @@ impl RankOneSums {
     }
 
     /// Adds the moments' blocks and gradients to `system`.
-    pub(crate) fn finish(
+    pub(super) fn finish(
         &self,
         terms: &ExtraTerms,
         system: &mut System,
@@ -423,8 +423,8 @@ mod tests {
     use crate::pose::ground::GroundPlane;
     use crate::pose::rig::skeleton::{Joint, Skeleton, VertexInfluences};
     use crate::pose::solver::params::{Param, movers_of_joints};
-    use crate::pose::solver::system::split;
-    use crate::pose::solver::{ExtraTerms, floor_only, ground, outer};
+    use crate::pose::solver::terms::system::split;
+    use crate::pose::solver::terms::{ExtraTerms, floor_only, ground, outer};
 
     /// A chain of four joints (0 → 1 → 2 → 3) with a branch (4) off joint 1, each half a unit
     /// from its parent, and a second root (5: a skin with two root joints).

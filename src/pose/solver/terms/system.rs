@@ -164,7 +164,7 @@ impl ExtraTerms<'_> {
 }
 
 /// A parameter's joint, and whether it is a rotation (else a root's translation).
-pub(crate) fn split(param: Param) -> (usize, bool) {
+pub(super) fn split(param: Param) -> (usize, bool) {
     match param {
         Param::Rotation(a) => (a, true),
         Param::Translation(a) => (a, false),
@@ -172,15 +172,15 @@ pub(crate) fn split(param: Param) -> (usize, bool) {
 }
 
 /// The Gauss–Newton system being summed into (`h`: `n × n` row-major).
-pub(crate) struct System<'s> {
+pub(super) struct System<'s> {
     n: usize,
     h: &'s mut [f64],
-    pub(crate) g: &'s mut [f64],
+    pub(super) g: &'s mut [f64],
 }
 
 impl System<'_> {
     /// Adds `s` times the block at parameters `(a, b)`, and its transpose at `(b, a)`.
-    pub(crate) fn add_pair(&mut self, (a, b): (usize, usize), m: DMat3, s: f64) {
+    pub(super) fn add_pair(&mut self, (a, b): (usize, usize), m: DMat3, s: f64) {
         let n = self.n;
         for r in 0..3 {
             for c in 0..3 {
@@ -218,15 +218,16 @@ impl System<'_> {
 mod tests {
     use glam::{DAffine3, DQuat, DVec3, DVec4};
 
+    use super::split;
     use crate::pose::ground::balance::Balance;
     use crate::pose::rig::skeleton::{
         Joint, JointTransform, Skeleton, SkeletonPose, VertexInfluences,
     };
+    use crate::pose::rig::skin::mass_sums;
     use crate::pose::solver::linalg::low_rank::RankOne;
     use crate::pose::solver::params::{Param, movers_of_joints};
     use crate::pose::solver::solve;
-    use crate::pose::solver::terms::split;
-    use crate::pose::solver::{ExtraInputs, ExtraTerms, Term, mass_sums};
+    use crate::pose::solver::terms::{ExtraInputs, ExtraTerms, Term};
 
     /// A two-joint chain standing on the origin, its child a unit up.
     fn chain() -> Skeleton {
