@@ -498,7 +498,7 @@ fn orient_outward(
 /// The sandbox's humanoid "mannequin": a smooth union of capsules and spheres, 1.8 units tall
 /// (feet at y ≈ 0, arms hanging forward), meshed with [`implicit_surface`] on `cells` cells
 /// along its width (100 cells ≈ 25k vertices; vertex count grows with `cells²`). The
-/// skeleton of `pose::synth_rig::mannequin_rig` follows the same capsules.
+/// skeleton of `pose::rig::synth_rig::mannequin_rig` follows the same capsules.
 pub fn mannequin(cells: u32) -> TriMesh {
     let f = |p: DVec3| {
         let parts: Vec<f64> = MANNEQUIN_PARTS

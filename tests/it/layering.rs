@@ -148,10 +148,10 @@ fn paths_named(code: &str, module: &[String]) -> Vec<Vec<String>> {
 
 /// The folder of `src/pose` a module belongs to (`None` for the root's own files).
 fn pose_folder(module: &[String]) -> Option<&str> {
-    (module.first().is_some_and(|m| m == "pose")
-        && module.len() > 1
-        && !matches!(module[1].as_str(), "error"))
-    .then(|| module[1].as_str())
+    match module {
+        [first, folder, ..] if first == "pose" && folder != "error" => Some(folder.as_str()),
+        _ => None,
+    }
 }
 
 /// Which folders of `src/pose` each folder may import.

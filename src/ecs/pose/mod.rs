@@ -627,8 +627,7 @@ impl PosedSkeleton {
                 best = Some(distance);
             }
         }
-        let best = best.map(|d| d as f32);
-        best.map(|d| (ray.get_point(d), d))
+        best.map(|d| (ray.get_point(d as f32), d as f32))
     }
 
     /// Index of a joint entity in the skeleton.

@@ -1,6 +1,6 @@
 //! [`PoseSolver::solve`]: the local/global loop. Each iteration fits one rotation per weight
 //! cluster (the local step, `arap.rs`), builds the Gauss–Newton system in the bone parameters
-//! with the effector, stiffness and hinge terms (`gauss_newton.rs`, `effector_terms.rs`,
+//! with the effector, stiffness and hinge terms (`gauss_newton.rs`, `terms/`,
 //! `hinges.rs`), and takes one damped step that lowers the energy (`step.rs`).
 
 use std::borrow::Cow;
