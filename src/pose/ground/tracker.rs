@@ -304,22 +304,6 @@ impl ContactTracker {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_plane_and_a_closure_are_grounds() {
-        let plane = GroundPlane::new(DVec3::ZERO, DVec3::new(0.0, 1.0, 0.5)).unwrap();
-        let hit = plane
-            .cast_down(DVec3::new(0.0, 2.0, 0.0), DVec3::NEG_Y, 5.0)
-            .unwrap();
-        assert!(plane.height(hit.point).abs() < 1e-12);
-        let nothing = |_: DVec3, _: DVec3, _: f64| None;
-        assert_eq!(nothing.cast_down(DVec3::ZERO, DVec3::NEG_Y, 1.0), None);
-    }
-}
-
 /// The largest re-aim of a limb's top joint, radians: a hold far from where the limb points (a
 /// first frame, a teleport) is left to the solve.
 const MAX_REAIM: f64 = 0.35;
@@ -432,5 +416,21 @@ fn reaim(
         let parent = skeleton.parent_rotation(&globals, joint);
         let local = &mut start.local[joint].rotation;
         *local = (parent.inverse() * turn.inverse() * parent * *local).normalize();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_plane_and_a_closure_are_grounds() {
+        let plane = GroundPlane::new(DVec3::ZERO, DVec3::new(0.0, 1.0, 0.5)).unwrap();
+        let hit = plane
+            .cast_down(DVec3::new(0.0, 2.0, 0.0), DVec3::NEG_Y, 5.0)
+            .unwrap();
+        assert!(plane.height(hit.point).abs() < 1e-12);
+        let nothing = |_: DVec3, _: DVec3, _: f64| None;
+        assert_eq!(nothing.cast_down(DVec3::ZERO, DVec3::NEG_Y, 1.0), None);
     }
 }
