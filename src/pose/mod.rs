@@ -13,6 +13,7 @@
 //! ```
 //! use std::sync::Arc;
 //! use bevy_wii_deform::pose::*;
+//! use bevy_wii_deform::pose::rig::synth_rig;
 //! use bevy_wii_deform::deform::{Handle, RigidTransform};
 //! use glam::{DQuat, DVec3};
 //!
