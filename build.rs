@@ -13,10 +13,7 @@ fn main() {
     let keep = std::env::var_os("BEVY_WII_DEFORM_EXAMPLE_DEBUGINFO").is_some_and(|v| v != "0");
     let linux = std::env::var("CARGO_CFG_TARGET_OS").is_ok_and(|os| os == "linux");
     let debug = std::env::var("PROFILE").is_ok_and(|p| p == "debug");
-    // The published package has no examples (Cargo refuses the instruction then).
-    let manifest = std::env::var_os("CARGO_MANIFEST_DIR").unwrap_or_default();
-    let examples = std::path::Path::new(&manifest).join("examples").is_dir();
-    if linux && debug && !keep && examples {
+    if linux && debug && !keep {
         println!("cargo:rustc-link-arg-examples=-Wl,--strip-debug");
     }
 }
