@@ -51,11 +51,9 @@ for app in playground character; do
   [ -s "$dist/${app}_bg.opt.wasm" ] || { echo "wasm-opt failed on $app"; exit 1; }
   mv "$dist/${app}_bg.opt.wasm" "$dist/${app}_bg.wasm"
   gzip -9 -k -f "$dist/${app}_bg.wasm"
+  echo "$app: $(stat -c %s "$dist/${app}_bg.wasm") bytes, gzip $(stat -c %s "$dist/${app}_bg.wasm.gz")"
 done
 cp web/index.html web/character.html "$dist/"
 # What the pages load over HTTP (the playground's cactus is compiled in).
 cp assets/models/alien.glb assets/models/Fox.glb "$dist/assets/models/"
-for app in playground character; do
-  echo "$app: $(stat -c %s "$dist/${app}_bg.wasm") bytes, gzip $(stat -c %s "$dist/${app}_bg.wasm.gz")"
-done
 echo "built $dist ($(du -sh "$dist" | cut -f1)); serve it with: python3 -m http.server -d $dist"

@@ -6,6 +6,8 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
+use crate::common::scratch::ScratchDir;
+
 /// Every `.rs` file under `dir`, recursively.
 fn rust_files(dir: &Path) -> Vec<PathBuf> {
     let mut out = Vec::new();
@@ -231,7 +233,7 @@ fn the_pose_layer_order_has_no_cycle() {
 /// re-export, are both found in a source tree made for the purpose.
 #[test]
 fn an_import_against_the_order_is_found() {
-    let dir = std::env::temp_dir().join(format!("bwd-layering-{}", std::process::id()));
+    let dir = ScratchDir::new("layering");
     let rig = dir.join("pose").join("rig");
     std::fs::create_dir_all(&rig).unwrap();
     std::fs::write(
@@ -241,7 +243,6 @@ fn an_import_against_the_order_is_found() {
     )
     .unwrap();
     let bad = pose_layer_violations(&dir);
-    std::fs::remove_dir_all(&dir).ok();
     assert_eq!(bad.len(), 2, "{bad:?}");
     assert!(bad[0].contains("rig → solver"), "{bad:?}");
     assert!(bad[1].contains("root re-export"), "{bad:?}");
