@@ -11,12 +11,14 @@
 
 pub mod controllers;
 pub mod deform;
+#[cfg(feature = "bevy")]
 pub mod ecs;
 pub mod history;
 pub mod pose;
 
 /// Everything most apps need: the plugins, their components, messages and settings, and the
 /// core types a game touches. Listed by name, so nothing internal leaks in.
+#[cfg(feature = "bevy")]
 pub mod prelude {
     pub use crate::controllers::wiimote::{
         EmulatorConfig, EmulatorControls, FilterKind, RemoteProblem,

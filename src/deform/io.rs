@@ -130,7 +130,9 @@ impl TriMesh {
         if nv > 100_000_000 || nf > 200_000_000 {
             return Err(parse_err(ln, "vertex/face counts are implausibly large"));
         }
-        let mut positions = Vec::with_capacity(nv);
+        // Reserve no more than the text can hold (a vertex line takes at least 6 bytes, a face
+        // line 7): a header may claim any count.
+        let mut positions = Vec::with_capacity(nv.min(text.len() / 6));
         for k in 0..nv {
             let (ln, l) = lines
                 .next()
@@ -150,7 +152,7 @@ impl TriMesh {
             }
             positions.push(DVec3::from_array(c));
         }
-        let mut triangles = Vec::with_capacity(nf);
+        let mut triangles = Vec::with_capacity(nf.min(text.len() / 7));
         for f in 0..nf {
             let (ln, l) = lines
                 .next()

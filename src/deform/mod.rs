@@ -33,6 +33,7 @@ mod ordering;
 mod parallel;
 mod preview;
 mod rotation;
+mod selection_io;
 mod solver;
 pub mod synth;
 mod topology;
@@ -45,6 +46,9 @@ pub use obstacle::{HeightField, HeightFieldError, Obstacle, PlaneObstacle, Surfa
 pub use parallel::{SERIAL_BELOW, Threading};
 pub use preview::{Preview, PreviewRegion};
 pub use rotation::{best_rotation_exact, fit_rotation_warm};
+pub use selection_io::{
+    VertexRole, VertexSelection, parse_handle_transform, read_handle_transform,
+};
 pub use solver::{
     Acceleration, ArapSolver, Factorization, FillOrdering, InitialGuess, PrecomputeStats,
     SliceProgress, SlicedSolve, Solution, SolveError, SolveOptions, SolveStats, SolverSettings,
