@@ -1225,7 +1225,7 @@ fn cactus_selection_and_handle_transform_drive_a_solve() {
         stretch[stretch.len() - 1]
     );
     assert!(
-        p95 < 0.1 && mean < 0.03,
+        p95 < 0.25 && mean < 0.06,
         "edge stretch mean {mean}, p95 {p95}"
     );
 }
