@@ -65,7 +65,9 @@ pub mod solver;
 pub mod springs;
 
 pub use animation::blend::{BlendMode, additive_layer_for, blend_joint, blend_pose};
-pub use animation::clip::{ClipError, KEY_TIME_EPSILON, KeyInterpolation, PoseClip, PoseKey};
+pub use animation::clip::{
+    ClipError, KEY_TIME_EPSILON, KeyInterpolation, MAX_CLIP_TRANSFORMS, PoseClip, PoseKey,
+};
 pub use animation::gltf_clip::{read_gltf_clip, write_gltf_clip, write_gltf_pose_clip};
 pub use animation::library::PoseLibrary;
 pub use animation::pose_file::{PoseFile, PoseFileError};
@@ -85,6 +87,8 @@ pub use ground::gait::GaitPhases;
 pub use ground::mesh::TriangleGround;
 pub use ground::tracker::{ContactEvent, ContactTracker};
 pub use rig::capsules::{BoneCapsule, fit_bone_capsules};
+pub use rig::gltf_character::{CharacterReadError, GltfCharacter, MAX_JOINTS, read_gltf_character};
+pub use rig::gltf_file::{GltfFile, GltfFileError, MAX_ACCESSOR_ELEMENTS, MAX_FILE_ELEMENTS};
 pub use rig::humanoid::{HumanoidRole, Side, humanoid_role};
 pub use rig::mass::{centre_of_mass, vertex_masses};
 pub use rig::mirror::{Mirror, mirror_partners};

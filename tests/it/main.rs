@@ -11,6 +11,7 @@ mod deform_core;
 mod deform_dynamics;
 mod deform_ecs;
 mod deform_obstacle;
+mod gltf_character;
 mod grab_ecs;
 mod grab_picking;
 mod input_turns;

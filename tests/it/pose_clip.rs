@@ -5,8 +5,8 @@
 use bevy::prelude::*;
 use bevy_wii_deform::pose::rig::synth_rig::bar_rig;
 use bevy_wii_deform::pose::{
-    ClipError, JointTransform, KeyInterpolation, PoseClip, PoseKey, SkeletonPose, read_gltf_clip,
-    write_gltf_clip,
+    ClipError, GltfFileError, JointTransform, KeyInterpolation, PoseClip, PoseKey, SkeletonPose,
+    read_gltf_clip, write_gltf_clip,
 };
 use bevy_wii_deform::prelude::*;
 use glam::{DQuat, DVec3, DVec4};
@@ -356,7 +356,7 @@ fn bad_clip_files_give_typed_errors() {
     );
     assert!(matches!(
         read_gltf_clip(b"not a glTF", None, None, &skeleton, &base),
-        Err(ClipError::Gltf(_))
+        Err(ClipError::File(GltfFileError::Parse(_)))
     ));
     // An empty clip has nothing to export.
     assert_eq!(

@@ -118,8 +118,12 @@ impl PoseTimeline {
         animation: Option<&str>,
         posed: &PosedSkeleton,
     ) -> Result<(), ClipError> {
-        let bytes =
-            std::fs::read(path).map_err(|e| ClipError::Gltf(format!("{}: {e}", path.display())))?;
+        let bytes = std::fs::read(path).map_err(|e| {
+            ClipError::File(crate::pose::rig::gltf_file::GltfFileError::Io {
+                path: path.display().to_string(),
+                message: e.to_string(),
+            })
+        })?;
         let clip = read_gltf_clip(
             &bytes,
             path.parent(),

@@ -33,9 +33,11 @@ use json::animation::{Interpolation, Property};
 use json::validation::{Checked, USize64};
 
 use crate::pose::animation::clip::{
-    ClipError, KEY_TIME_EPSILON, KeyInterpolation, PoseClip, PoseKey, hermite, sign_aligned,
+    ClipError, KEY_TIME_EPSILON, KeyInterpolation, MAX_CLIP_TRANSFORMS, PoseClip, PoseKey, hermite,
+    sign_aligned,
 };
 use crate::pose::animation::pose_file::PoseFileError;
+use crate::pose::rig::gltf_file::{GltfFile, GltfFileError};
 use crate::pose::rig::skeleton::{JointTransform, Skeleton, SkeletonPose};
 
 /// Writes a binary glTF (`.glb`) holding one animation clip called `clip_name` with a single
@@ -160,10 +162,9 @@ pub fn read_gltf_clip(
             got: base.local.len(),
             expected: skeleton.len(),
         })?;
-    let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| ClipError::Gltf(e.to_string()))?;
-    let buffers = read_buffers(&gltf, folder)?;
-    let found = gltf
-        .document
+    let file = GltfFile::parse(bytes, folder)?;
+    let found = file
+        .document()
         .animations()
         .find(|a| animation.is_none_or(|name| a.name() == Some(name)));
     let Some(found) = found else {
@@ -185,12 +186,19 @@ pub fn read_gltf_clip(
             .find(&name)
             .ok_or_else(|| ClipError::UnknownJoint(name.clone()))?;
         channels.push(ImportedChannel::read(
-            &channel, &buffers, joint, &name, property,
+            &channel, &file, joint, &name, property,
         )?);
     }
     let mut times: Vec<f32> = channels.iter().flat_map(|c| c.times.clone()).collect();
     times.sort_by(f32::total_cmp);
     times.dedup_by(|b, a| *b - *a <= KEY_TIME_EPSILON);
+    if times.len().saturating_mul(skeleton.len()) > MAX_CLIP_TRANSFORMS {
+        return Err(ClipError::TooLarge {
+            keys: times.len(),
+            joints: skeleton.len(),
+            limit: MAX_CLIP_TRANSFORMS,
+        });
+    }
     let modes: Vec<Interpolation> = channels.iter().map(|c| c.interpolation).collect();
     let interpolation = match modes.first() {
         Some(&m) if modes.iter().all(|&n| n == m) => match m {
@@ -480,27 +488,6 @@ fn push_accessor(
     json::Index::new(root.accessors.len() as u32 - 1)
 }
 
-/// The file's buffers: the GLB binary chunk, or files next to a `.gltf`.
-fn read_buffers(gltf: &gltf::Gltf, folder: Option<&Path>) -> Result<Vec<Vec<u8>>, ClipError> {
-    gltf.document
-        .buffers()
-        .map(|buffer| match buffer.source() {
-            gltf::buffer::Source::Bin => gltf
-                .blob
-                .clone()
-                .ok_or_else(|| ClipError::Gltf("the GLB binary chunk is missing".into())),
-            gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => Err(ClipError::Gltf(
-                "data: URIs are not read; save the file as .glb".into(),
-            )),
-            gltf::buffer::Source::Uri(uri) => {
-                let path = folder.unwrap_or(Path::new(".")).join(uri);
-                std::fs::read(&path)
-                    .map_err(|e| ClipError::Gltf(format!("buffer {}: {e}", path.display())))
-            }
-        })
-        .collect()
-}
-
 /// One channel of an imported animation, ready to sample.
 struct ImportedChannel {
     joint: usize,
@@ -516,13 +503,17 @@ struct ImportedChannel {
 impl ImportedChannel {
     fn read(
         channel: &gltf::animation::Channel<'_>,
-        buffers: &[Vec<u8>],
+        file: &GltfFile,
         joint: usize,
         name: &str,
         property: Property,
     ) -> Result<Self, ClipError> {
-        let reader = channel.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
-        let missing = || ClipError::Gltf(format!("the channel on {name:?} cannot be read"));
+        file.budget(&channel.sampler().input())?;
+        file.budget(&channel.sampler().output())?;
+        let reader = channel.reader(|b| file.buffer(b));
+        let missing = || GltfFileError::Unreadable {
+            what: format!("the channel on {name:?}"),
+        };
         let times: Vec<f32> = reader.read_inputs().ok_or_else(missing)?.collect();
         for (index, &time) in times.iter().enumerate() {
             if !time.is_finite() {
@@ -558,11 +549,11 @@ impl ImportedChannel {
             1
         };
         if times.is_empty() || raw.len() != times.len() * per_key {
-            return Err(ClipError::Gltf(format!(
-                "the channel on {name:?} has {} values for {} times",
-                raw.len(),
-                times.len()
-            )));
+            return Err(ClipError::ChannelLength {
+                joint: name.to_string(),
+                values: raw.len(),
+                times: times.len(),
+            });
         }
         if let Some(k) = raw.iter().position(|v| !v.is_finite()) {
             return Err(ClipError::NonFiniteKey {

@@ -11,6 +11,8 @@
 //! | humanoid joint roles and sides, found by name (Mixamo, Rigify, VRM) | `humanoid.rs` ([`humanoid_role`]) |
 //! | left/right joints paired by name, poses mirrored across the symmetry plane | `mirror.rs` ([`Mirror`]) |
 //! | capsules fitted to the skin along the bones (physics) | `capsules.rs` ([`fit_bone_capsules`]) |
+//! | a glTF file's document and buffers, the bounds on what a file may claim | `gltf_file.rs` ([`GltfFile`]) |
+//! | a rigged character (skeleton, skinned mesh, rest pose) read from a glTF file without Bevy | `gltf_character.rs` ([`read_gltf_character`]) |
 //! | rigged test characters generated in code (bar, mannequin, 52-joint humanoid) | `synth_rig.rs` |
 //!
 //! [`Skeleton`]: skeleton::Skeleton
@@ -21,8 +23,12 @@
 //! [`humanoid_role`]: humanoid::humanoid_role
 //! [`Mirror`]: mirror::Mirror
 //! [`fit_bone_capsules`]: capsules::fit_bone_capsules
+//! [`GltfFile`]: gltf_file::GltfFile
+//! [`read_gltf_character`]: gltf_character::read_gltf_character
 
 pub mod capsules;
+pub mod gltf_character;
+pub mod gltf_file;
 pub mod humanoid;
 pub(crate) mod inertia;
 pub mod mass;

@@ -1,0 +1,145 @@
+//! A glTF file's document and buffers, and the bounds every reader of the crate applies to what
+//! a file claims. A file may claim any element count for an accessor: a sparse accessor with no
+//! buffer view reads as `count` zeros, so a few bytes can ask for billions of elements. Every
+//! accessor a reader collects goes through [`GltfFile::budget`], which refuses one past
+//! [`MAX_ACCESSOR_ELEMENTS`] and a file whose reads together pass [`MAX_FILE_ELEMENTS`].
+
+use std::cell::Cell;
+use std::path::Path;
+
+/// The most elements (vertices, keys, matrices) one accessor may hold: 16.7 million, above any
+/// character's vertex count or a clip channel's key count.
+pub const MAX_ACCESSOR_ELEMENTS: usize = 1 << 24;
+
+/// The most elements all the accessors one read of a file may hold together: 33.5 million
+/// (e.g. a 100-joint clip of 55 000 keys with a separate time track per channel), about 1 GB
+/// once converted to double precision.
+pub const MAX_FILE_ELEMENTS: usize = 1 << 25;
+
+/// A glTF file could not be read.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum GltfFileError {
+    /// The bytes are not a glTF (JSON) or GLB file the `gltf` crate accepts.
+    #[error("not a readable glTF file: {0}")]
+    Parse(String),
+    /// A buffer names the GLB binary chunk, and there is none.
+    #[error("the GLB binary chunk is missing")]
+    MissingBinChunk,
+    /// A buffer is a `data:` URI (not read: save the file as `.glb`).
+    #[error("data: URIs are not read; save the file as .glb")]
+    DataUri,
+    /// The file, or one of its external buffers, could not be read.
+    #[error("cannot read {path}: {message}")]
+    Io {
+        /// Where it was looked for.
+        path: String,
+        /// The file system's message.
+        message: String,
+    },
+    /// An accessor claims more elements than [`MAX_ACCESSOR_ELEMENTS`].
+    #[error("accessor {accessor} claims {count} elements, past the bound of {limit}")]
+    AccessorTooLarge {
+        /// The accessor's index.
+        accessor: usize,
+        /// The count it claims.
+        count: usize,
+        /// [`MAX_ACCESSOR_ELEMENTS`].
+        limit: usize,
+    },
+    /// The accessors read from the file hold more than [`MAX_FILE_ELEMENTS`] together.
+    #[error("the file's accessors hold more than {limit} elements together")]
+    FileTooLarge {
+        /// [`MAX_FILE_ELEMENTS`].
+        limit: usize,
+    },
+    /// An accessor the reader needs has no data in the buffers (a view past a buffer's end,
+    /// a wrong type).
+    #[error("{what} cannot be read (its accessor has no data in the file's buffers)")]
+    Unreadable {
+        /// What was being read.
+        what: String,
+    },
+}
+
+/// A parsed glTF file and its buffers, with the element budget of one read.
+pub struct GltfFile {
+    /// The document (and, for a GLB, its binary chunk).
+    pub(crate) gltf: gltf::Gltf,
+    /// The file's buffers, indexed like the document's.
+    pub(crate) buffers: Vec<Vec<u8>>,
+    elements: Cell<usize>,
+}
+
+impl GltfFile {
+    /// Parses `bytes` (a `.gltf` or `.glb`) and reads its buffers: the GLB binary chunk, or
+    /// files next to a `.gltf` in `folder` (the working directory when `None`).
+    pub fn parse(bytes: &[u8], folder: Option<&Path>) -> Result<Self, GltfFileError> {
+        let gltf =
+            gltf::Gltf::from_slice(bytes).map_err(|e| GltfFileError::Parse(e.to_string()))?;
+        let buffers = gltf
+            .document
+            .buffers()
+            .map(|buffer| match buffer.source() {
+                gltf::buffer::Source::Bin => {
+                    gltf.blob.clone().ok_or(GltfFileError::MissingBinChunk)
+                }
+                gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
+                    Err(GltfFileError::DataUri)
+                }
+                gltf::buffer::Source::Uri(uri) => {
+                    let path = folder.unwrap_or(Path::new(".")).join(uri);
+                    std::fs::read(&path).map_err(|e| GltfFileError::Io {
+                        path: path.display().to_string(),
+                        message: e.to_string(),
+                    })
+                }
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Self {
+            gltf,
+            buffers,
+            elements: Cell::new(0),
+        })
+    }
+
+    /// Reads the file at `path` (its external buffers from the same folder) and parses it.
+    pub fn read(path: &Path) -> Result<Self, GltfFileError> {
+        let bytes = std::fs::read(path).map_err(|e| GltfFileError::Io {
+            path: path.display().to_string(),
+            message: e.to_string(),
+        })?;
+        Self::parse(&bytes, path.parent())
+    }
+
+    /// The document.
+    pub fn document(&self) -> &gltf::Document {
+        &self.gltf.document
+    }
+
+    /// The bytes of buffer `buffer`, for the `gltf` crate's readers.
+    pub(crate) fn buffer(&self, buffer: gltf::Buffer<'_>) -> Option<&[u8]> {
+        self.buffers.get(buffer.index()).map(Vec::as_slice)
+    }
+
+    /// Admits `accessor` before it is collected: refuses one that claims more than
+    /// [`MAX_ACCESSOR_ELEMENTS`], or that would bring this file's reads past
+    /// [`MAX_FILE_ELEMENTS`].
+    pub(crate) fn budget(&self, accessor: &gltf::Accessor<'_>) -> Result<(), GltfFileError> {
+        let count = accessor.count();
+        if count > MAX_ACCESSOR_ELEMENTS {
+            return Err(GltfFileError::AccessorTooLarge {
+                accessor: accessor.index(),
+                count,
+                limit: MAX_ACCESSOR_ELEMENTS,
+            });
+        }
+        let total = self.elements.get() + count;
+        if total > MAX_FILE_ELEMENTS {
+            return Err(GltfFileError::FileTooLarge {
+                limit: MAX_FILE_ELEMENTS,
+            });
+        }
+        self.elements.set(total);
+        Ok(())
+    }
+}
