@@ -11,6 +11,7 @@ mod deform_core;
 mod deform_dynamics;
 mod deform_ecs;
 mod deform_obstacle;
+mod fuzz_regressions;
 mod gltf_character;
 mod grab_ecs;
 mod grab_picking;

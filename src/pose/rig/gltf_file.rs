@@ -61,6 +61,54 @@ pub enum GltfFileError {
     },
 }
 
+/// The JSON of a `.gltf` (the bytes themselves) or of a `.glb` (its JSON chunk). A GLB header
+/// whose total length is shorter than the header itself is refused here: `gltf` 1.4 subtracts
+/// the header size from it unchecked (a panic where overflow is checked, as in debug builds).
+pub(crate) fn json_of(bytes: &[u8]) -> Result<std::borrow::Cow<'_, [u8]>, GltfFileError> {
+    if !bytes.starts_with(b"glTF") {
+        return Ok(std::borrow::Cow::Borrowed(bytes));
+    }
+    const HEADER: usize = 12;
+    let length = bytes
+        .get(8..12)
+        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize);
+    if length.is_none_or(|l| l < HEADER) {
+        return Err(GltfFileError::Parse(format!(
+            "the GLB header gives a total length of {} bytes, less than its own {HEADER}",
+            length.unwrap_or(0)
+        )));
+    }
+    gltf::Glb::from_slice(bytes)
+        .map(|glb| glb.json)
+        .map_err(|e| GltfFileError::Parse(e.to_string()))
+}
+
+/// Refuses a file whose mesh primitive names a `POSITION` accessor that does not exist:
+/// `gltf-json` 1.4's validation indexes the accessor list with it unchecked (and panics) before
+/// it reports the index as invalid. Everything else is left to the `gltf` crate's validation.
+fn check_position_accessors(bytes: &[u8]) -> Result<(), GltfFileError> {
+    let json = json_of(bytes)?;
+    let Ok(root) = gltf_json::deserialize::from_slice::<gltf_json::Root>(&json) else {
+        return Ok(());
+    };
+    let accessors = root.accessors.len();
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            let position =
+                gltf_json::validation::Checked::Valid(gltf_json::mesh::Semantic::Positions);
+            if let Some(index) = primitive.attributes.get(&position)
+                && index.value() >= accessors
+            {
+                return Err(GltfFileError::Parse(format!(
+                    "mesh {m} primitive {p}: POSITION names accessor {}, and the file has {accessors}",
+                    index.value()
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// A parsed glTF file and its buffers, with the element budget of one read.
 pub struct GltfFile {
     /// The document (and, for a GLB, its binary chunk).
@@ -74,6 +122,7 @@ impl GltfFile {
     /// Parses `bytes` (a `.gltf` or `.glb`) and reads its buffers: the GLB binary chunk, or
     /// files next to a `.gltf` in `folder` (the working directory when `None`).
     pub fn parse(bytes: &[u8], folder: Option<&Path>) -> Result<Self, GltfFileError> {
+        check_position_accessors(bytes)?;
         let gltf =
             gltf::Gltf::from_slice(bytes).map_err(|e| GltfFileError::Parse(e.to_string()))?;
         let buffers = gltf

@@ -41,14 +41,8 @@ pub enum VrmSpringError {
 /// The spring rig of a VRM 1.0 model: `gltf` is the file's bytes (`.gltf` JSON, or `.glb`),
 /// `skeleton` its skin as the pose layer reads it.
 pub fn read_vrm_springs(gltf: &[u8], skeleton: &Skeleton) -> Result<SpringRig, VrmSpringError> {
-    let json: Vec<u8> = if gltf.starts_with(b"glTF") {
-        gltf::Glb::from_slice(gltf)
-            .map_err(|e| VrmSpringError::NotGltf(e.to_string()))?
-            .json
-            .into_owned()
-    } else {
-        gltf.to_vec()
-    };
+    let json = crate::pose::rig::gltf_file::json_of(gltf)
+        .map_err(|e| VrmSpringError::NotGltf(e.to_string()))?;
     let root: Value =
         serde_json::from_slice(&json).map_err(|e| VrmSpringError::NotGltf(e.to_string()))?;
     let ext = root
