@@ -32,7 +32,7 @@ if ! cargo fuzz --version 2>/dev/null | grep -q "$CARGO_FUZZ_VERSION"; then
   cargo install cargo-fuzz --locked --version "$CARGO_FUZZ_VERSION"
 fi
 
-TARGETS=(wiimote_reports pad_reports mesh_files selection_files gltf_character gltf_clip vrm_springs ron_files)
+TARGETS=(wiimote_reports pad_reports mesh_files selection_files gltf_character gltf_clip vrm_springs ron_files bvh_files)
 if [ "$TARGET" != all ]; then
   if [[ ! " ${TARGETS[*]} " =~ " $TARGET " ]]; then
     echo "unknown target $TARGET (targets: ${TARGETS[*]})" >&2
@@ -46,6 +46,7 @@ dict_of() {
     gltf_*|vrm_springs) echo "$FUZZ_DIR/dict/gltf.dict" ;;
     mesh_files|selection_files) echo "$FUZZ_DIR/dict/mesh.dict" ;;
     ron_files) echo "$FUZZ_DIR/dict/ron.dict" ;;
+    bvh_files) echo "$FUZZ_DIR/dict/bvh.dict" ;;
     *) echo "" ;;
   esac
 }

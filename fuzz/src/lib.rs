@@ -22,7 +22,7 @@ use bevy_wii_deform::controllers::{ControllerKind, Link, PadReport};
 use bevy_wii_deform::deform::{TriMesh, VertexSelection, parse_handle_transform};
 use bevy_wii_deform::pose::rig::synth_rig::{SyntheticRig, humanoid_rig};
 use bevy_wii_deform::pose::{
-    GltfCharacter, GltfFile, JointLimits, ModelSettings, PoseClip, PoseFile, PoseLibrary,
+    GltfCharacter, GltfFile, JointLimits, read_bvh, write_bvh, ModelSettings, PoseClip, PoseFile, PoseLibrary,
     Skeleton, SkeletonPose, SpringRig, read_gltf_clip, read_vrm_springs,
 };
 
@@ -30,7 +30,7 @@ use bevy_wii_deform::pose::{
 pub type Target = fn(&[u8]);
 
 /// The targets, by the names `fuzz/run.sh` and the regression folders use.
-pub const TARGETS: [(&str, Target); 8] = [
+pub const TARGETS: [(&str, Target); 9] = [
     ("wiimote_reports", wiimote_reports),
     ("pad_reports", pad_reports),
     ("mesh_files", mesh_files),
@@ -39,6 +39,7 @@ pub const TARGETS: [(&str, Target); 8] = [
     ("gltf_clip", gltf_clip),
     ("vrm_springs", vrm_springs),
     ("ron_files", ron_files),
+    ("bvh_files", bvh_files),
 ];
 
 /// Runs target `name` on `data`; `false` when there is no such target.
@@ -302,5 +303,24 @@ pub fn ron_files(data: &[u8]) {
             std::path::Path::new(&path).starts_with(library.folder()),
             "pose name {text:?} reads {path}, outside the library"
         );
+    }
+}
+
+/// Motion capture: a BVH file read (skeleton, rest pose, frames), its clip played, and written
+/// back and read again (the writer must accept whatever the reader gives).
+pub fn bvh_files(data: &[u8]) {
+    let Ok(text) = std::str::from_utf8(data) else {
+        return;
+    };
+    let Ok(motion) = read_bvh(text) else {
+        return;
+    };
+    assert!(motion.rest.local.iter().all(|t| t.is_valid()));
+    check_clip(&motion.clip);
+    if motion.clip.keys().len() <= 64 {
+        let written = write_bvh(&motion.skeleton, &motion.rest, &motion.clip, motion.frame_time)
+            .expect("a clip read from BVH writes back");
+        let again = read_bvh(&written).expect("a written BVH reads back");
+        assert_eq!(again.clip.keys().len(), motion.clip.keys().len());
     }
 }

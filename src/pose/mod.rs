@@ -65,6 +65,7 @@ pub mod solver;
 pub mod springs;
 
 pub use animation::blend::{BlendMode, additive_layer_for, blend_joint, blend_pose};
+pub use animation::bvh::{BvhError, BvhMotion, MAX_BVH_FRAMES, read_bvh, write_bvh};
 pub use animation::clip::{
     ClipError, KEY_TIME_EPSILON, KeyInterpolation, MAX_CLIP_TRANSFORMS, PoseClip, PoseKey,
 };
@@ -88,7 +89,9 @@ pub use ground::mesh::TriangleGround;
 pub use ground::tracker::{ContactEvent, ContactTracker};
 pub use rig::capsules::{BoneCapsule, fit_bone_capsules};
 pub use rig::gltf_character::{CharacterReadError, GltfCharacter, MAX_JOINTS, read_gltf_character};
-pub use rig::gltf_file::{GltfFile, GltfFileError, MAX_ACCESSOR_ELEMENTS, MAX_FILE_ELEMENTS};
+pub use rig::gltf_file::{
+    AccessorUse, GltfFile, GltfFileError, MAX_ACCESSOR_ELEMENTS, MAX_FILE_ELEMENTS,
+};
 pub use rig::humanoid::{HumanoidRole, Side, humanoid_role};
 pub use rig::mass::{centre_of_mass, vertex_masses};
 pub use rig::mirror::{Mirror, mirror_partners};

@@ -11,7 +11,9 @@ use bevy_wii_deform::controllers::wiimote::protocol::{MotionPlusCalibration, Out
 use bevy_wii_deform::controllers::wiimote::{EmulatedRemote, EmulatorConfig, Transport};
 use bevy_wii_deform::controllers::{ControllerKind, Link};
 use bevy_wii_deform::pose::rig::synth_rig::humanoid_rig;
-use bevy_wii_deform::pose::{KeyInterpolation, PoseClip, PoseFile, PoseKey, write_gltf_clip};
+use bevy_wii_deform::pose::{
+    KeyInterpolation, PoseClip, PoseFile, PoseKey, write_bvh, write_gltf_clip,
+};
 
 /// The largest seed kept: libFuzzer's inputs grow from the seeds, and large ones slow it down.
 const MAX_SEED: usize = 200_000;
@@ -223,6 +225,11 @@ fn main() {
         .as_bytes(),
     );
     ron.add(b"Wave pose");
+    let mut bvh = Corpus::new(&out, "bvh_files");
+    if let Ok(text) = write_bvh(&rig.skeleton, &rig.rest, &clip, 1.0 / 30.0) {
+        bvh.add(text.as_bytes());
+    }
+    bvh.add(CMU_STYLE.as_bytes());
     ron.add(b"../../etc/passwd");
 }
 
@@ -268,3 +275,46 @@ fn vrm_seed(skeleton: &bevy_wii_deform::pose::Skeleton) -> String {
         joints.join(",")
     )
 }
+
+/// A hierarchy in the layout of the CMU library's BVH exports (six root channels, three per
+/// joint, End Sites), two frames.
+const CMU_STYLE: &str = "HIERARCHY
+ROOT Hips
+{
+  OFFSET 0.0 0.0 0.0
+  CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation
+  JOINT LHipJoint
+  {
+    OFFSET 0 0 0
+    CHANNELS 0
+    JOINT LeftUpLeg
+    {
+      OFFSET 1.36 -1.79 0.84
+      CHANNELS 3 Zrotation Yrotation Xrotation
+      JOINT LeftLeg
+      {
+        OFFSET 2.45 -6.72 0.0
+        CHANNELS 3 Zrotation Yrotation Xrotation
+        End Site
+        {
+          OFFSET 2.5 -6.9 0.0
+        }
+      }
+    }
+  }
+  JOINT LowerBack
+  {
+    OFFSET 0 0 0
+    CHANNELS 3 Zrotation Yrotation Xrotation
+    End Site
+    {
+      OFFSET -0.05 2.0 -0.1
+    }
+  }
+}
+MOTION
+Frames: 2
+Frame Time: 0.008333
+9.37 17.8 -17.7 -3.5 -6.6 -3.9 -6.4 -12.9 4.3 27.1 0 0 1.2 0.4 0.7
+9.38 17.8 -17.7 -3.5 -6.6 -3.9 -6.5 -13.0 4.4 27.3 0 0 1.2 0.4 0.6
+";

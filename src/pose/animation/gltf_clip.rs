@@ -37,7 +37,7 @@ use crate::pose::animation::clip::{
     sign_aligned,
 };
 use crate::pose::animation::pose_file::PoseFileError;
-use crate::pose::rig::gltf_file::{GltfFile, GltfFileError};
+use crate::pose::rig::gltf_file::{AccessorUse, GltfFile, GltfFileError};
 use crate::pose::rig::skeleton::{JointTransform, Skeleton, SkeletonPose};
 
 /// Writes a binary glTF (`.glb`) holding one animation clip called `clip_name` with a single
@@ -508,8 +508,12 @@ impl ImportedChannel {
         name: &str,
         property: Property,
     ) -> Result<Self, ClipError> {
-        file.budget(&channel.sampler().input())?;
-        file.budget(&channel.sampler().output())?;
+        file.admit(&channel.sampler().input(), AccessorUse::Times)?;
+        let values = match property {
+            Property::Rotation => AccessorUse::Rotations,
+            _ => AccessorUse::Vectors,
+        };
+        file.admit(&channel.sampler().output(), values)?;
         let reader = channel.reader(|b| file.buffer(b));
         let missing = || GltfFileError::Unreadable {
             what: format!("the channel on {name:?}"),

@@ -13,7 +13,7 @@ use std::path::Path;
 use glam::{DAffine3, DMat4, DQuat, DVec3, Vec3};
 
 use crate::pose::error::PoseError;
-use crate::pose::rig::gltf_file::{GltfFile, GltfFileError};
+use crate::pose::rig::gltf_file::{AccessorUse, GltfFile, GltfFileError};
 use crate::pose::rig::model::{ModelSettings, SkinnedMesh, SkinnedModel};
 use crate::pose::rig::skeleton::{Joint, JointTransform, Skeleton, SkeletonPose};
 
@@ -288,7 +288,7 @@ fn inverse_binds(
     let Some(accessor) = skin.inverse_bind_matrices() else {
         return Ok(vec![DAffine3::IDENTITY; joints]);
     };
-    file.budget(&accessor)?;
+    file.admit(&accessor, AccessorUse::Matrices)?;
     let reader = skin.reader(|b| file.buffer(b));
     let matrices: Vec<DAffine3> = reader
         .read_inverse_bind_matrices()
@@ -333,17 +333,17 @@ fn skinned_mesh(file: &GltfFile, skin: usize) -> Result<SkinnedMesh, CharacterRe
             ) {
                 continue;
             }
-            for semantic in [
-                gltf::Semantic::Positions,
-                gltf::Semantic::Joints(0),
-                gltf::Semantic::Weights(0),
+            for (semantic, element) in [
+                (gltf::Semantic::Positions, AccessorUse::Positions),
+                (gltf::Semantic::Joints(0), AccessorUse::Joints),
+                (gltf::Semantic::Weights(0), AccessorUse::Weights),
             ] {
                 if let Some(accessor) = primitive.get(&semantic) {
-                    file.budget(&accessor)?;
+                    file.admit(&accessor, element)?;
                 }
             }
             if let Some(indices) = primitive.indices() {
-                file.budget(&indices)?;
+                file.admit(&indices, AccessorUse::Indices)?;
             }
             let reader = primitive.reader(|b| file.buffer(b));
             let positions: Vec<Vec3> = reader

@@ -1,7 +1,8 @@
 //! A glTF file's document and buffers, and the bounds every reader of the crate applies to what
 //! a file claims. A file may claim any element count for an accessor: a sparse accessor with no
 //! buffer view reads as `count` zeros, so a few bytes can ask for billions of elements. Every
-//! accessor a reader collects goes through [`GltfFile::budget`], which refuses one past
+//! accessor a reader collects goes through `GltfFile::admit`, which checks its type and layout
+//! against what the reader reads and refuses one past
 //! [`MAX_ACCESSOR_ELEMENTS`] and a file whose reads together pass [`MAX_FILE_ELEMENTS`].
 
 use std::cell::Cell;
@@ -35,6 +36,17 @@ pub enum GltfFileError {
         path: String,
         /// The file system's message.
         message: String,
+    },
+    /// An accessor is not what its use asks for (its type, its component type, its stride or
+    /// its sparse part).
+    #[error("accessor {accessor} cannot be read as {element:?}: {problem}")]
+    Accessor {
+        /// The accessor's index.
+        accessor: usize,
+        /// What it was to be read as.
+        element: AccessorUse,
+        /// What is wrong.
+        problem: String,
     },
     /// An accessor claims more elements than [`MAX_ACCESSOR_ELEMENTS`].
     #[error("accessor {accessor} claims {count} elements, past the bound of {limit}")]
@@ -170,14 +182,65 @@ impl GltfFile {
         self.buffers.get(buffer.index()).map(Vec::as_slice)
     }
 
-    /// Admits `accessor` before it is collected: refuses one that claims more than
-    /// [`MAX_ACCESSOR_ELEMENTS`], or that would bring this file's reads past
-    /// [`MAX_FILE_ELEMENTS`].
-    pub(crate) fn budget(&self, accessor: &gltf::Accessor<'_>) -> Result<(), GltfFileError> {
+    /// Admits `accessor` before a reader of the `gltf` crate collects it as `element`: refuses
+    /// one of another type or component type than the reader reads, with a stride shorter
+    /// than its element or no elements (the reader would read past its items, or panic where
+    /// it asserts), one that claims more than [`MAX_ACCESSOR_ELEMENTS`], and one that would
+    /// bring this file's reads past [`MAX_FILE_ELEMENTS`].
+    pub(crate) fn admit(
+        &self,
+        accessor: &gltf::Accessor<'_>,
+        element: AccessorUse,
+    ) -> Result<(), GltfFileError> {
+        let index = accessor.index();
+        let mismatch = |what: String| GltfFileError::Accessor {
+            accessor: index,
+            element,
+            problem: what,
+        };
+        use gltf::accessor::{DataType as D, Dimensions as N};
+        let (dimensions, types): (N, &[D]) = match element {
+            AccessorUse::Positions | AccessorUse::Vectors => (N::Vec3, &[D::F32]),
+            AccessorUse::Joints => (N::Vec4, &[D::U8, D::U16]),
+            AccessorUse::Weights => (N::Vec4, &[D::F32, D::U8, D::U16]),
+            AccessorUse::Indices => (N::Scalar, &[D::U8, D::U16, D::U32]),
+            AccessorUse::Matrices => (N::Mat4, &[D::F32]),
+            AccessorUse::Times => (N::Scalar, &[D::F32]),
+            AccessorUse::Rotations => (N::Vec4, &[D::F32, D::I8, D::U8, D::I16, D::U16]),
+        };
+        if accessor.dimensions() != dimensions || !types.contains(&accessor.data_type()) {
+            return Err(mismatch(format!(
+                "it holds {:?} of {:?}",
+                accessor.dimensions(),
+                accessor.data_type()
+            )));
+        }
+        let size = accessor.size();
+        if accessor.count() == 0 {
+            return Err(mismatch("it has no elements".into()));
+        }
+        if let Some(stride) = accessor.view().and_then(|v| v.stride())
+            && stride < size
+        {
+            return Err(mismatch(format!(
+                "its stride {stride} is shorter than its {size}-byte elements"
+            )));
+        }
+        if let Some(sparse) = accessor.sparse() {
+            let index_size = sparse.indices().index_type().size();
+            let short = |stride: Option<usize>, needed: usize| stride.is_some_and(|s| s < needed);
+            if sparse.count() == 0
+                || sparse.count() > accessor.count()
+                || short(sparse.indices().view().stride(), index_size)
+                || short(sparse.values().view().stride(), size)
+            {
+                return Err(mismatch("its sparse part has no elements, more than the accessor, or a stride shorter than its elements".into()));
+            }
+        }
         let count = accessor.count();
         if count > MAX_ACCESSOR_ELEMENTS {
             return Err(GltfFileError::AccessorTooLarge {
-                accessor: accessor.index(),
+                accessor: index,
                 count,
                 limit: MAX_ACCESSOR_ELEMENTS,
             });
@@ -191,4 +254,25 @@ impl GltfFile {
         self.elements.set(total);
         Ok(())
     }
+}
+
+/// What a reader collects an accessor as.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AccessorUse {
+    /// Vertex positions (`VEC3` of `f32`).
+    Positions,
+    /// Joint indices (`VEC4` of `u8` or `u16`).
+    Joints,
+    /// Joint weights (`VEC4` of `f32`, or normalised `u8`/`u16`).
+    Weights,
+    /// Triangle indices (`SCALAR` of `u8`, `u16` or `u32`).
+    Indices,
+    /// Inverse bind matrices (`MAT4` of `f32`).
+    Matrices,
+    /// Key times (`SCALAR` of `f32`).
+    Times,
+    /// Translations or scales of a clip (`VEC3` of `f32`).
+    Vectors,
+    /// Rotations of a clip (`VEC4` of `f32` or a normalised integer type).
+    Rotations,
 }
