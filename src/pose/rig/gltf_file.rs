@@ -121,6 +121,27 @@ fn check_position_accessors(bytes: &[u8]) -> Result<(), GltfFileError> {
     Ok(())
 }
 
+/// Refuses an animation channel whose target node does not exist or whose path is not one
+/// glTF defines: `gltf-json` 1.4 does not validate channel targets, and the `gltf` crate's
+/// `Target::node` and `Target::property` unwrap them (a panic).
+fn check_channel_targets(root: &gltf_json::Root) -> Result<(), GltfFileError> {
+    for (a, animation) in root.animations.iter().enumerate() {
+        for (c, channel) in animation.channels.iter().enumerate() {
+            let node_ok = channel.target.node.value() < root.nodes.len();
+            let path_ok = matches!(
+                channel.target.path,
+                gltf_json::validation::Checked::Valid(_)
+            );
+            if !(node_ok && path_ok) {
+                return Err(GltfFileError::Parse(format!(
+                    "animation {a} channel {c} targets a node or a path that does not exist"
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// A parsed glTF file and its buffers, with the element budget of one read.
 pub struct GltfFile {
     /// The document (and, for a GLB, its binary chunk).
@@ -137,6 +158,7 @@ impl GltfFile {
         check_position_accessors(bytes)?;
         let gltf =
             gltf::Gltf::from_slice(bytes).map_err(|e| GltfFileError::Parse(e.to_string()))?;
+        check_channel_targets(gltf.document.as_json())?;
         let buffers = gltf
             .document
             .buffers()
