@@ -51,9 +51,16 @@ dict_of() {
   esac
 }
 
-# Seeds, written fresh from the repository (with the stable toolchain: no sanitizers needed).
-rm -rf "$FUZZ_WORK/seeds"
-cargo run --quiet --manifest-path "$FUZZ_DIR/Cargo.toml" --bin seeds -- "$FUZZ_WORK/seeds" "$ROOT"
+# Seeds, written fresh from the repository (with the stable toolchain: no sanitizers needed),
+# then swapped in for the targets of this run only (runs of other targets may go on beside it).
+fresh=$(mktemp -d "$FUZZ_WORK/seeds.XXXXXX" 2>/dev/null || { mkdir -p "$FUZZ_WORK"; mktemp -d "$FUZZ_WORK/seeds.XXXXXX"; })
+cargo run --quiet --manifest-path "$FUZZ_DIR/Cargo.toml" --bin seeds -- "$fresh" "$ROOT"
+mkdir -p "$FUZZ_WORK/seeds"
+for t in "${TARGETS[@]}"; do
+  rm -rf "$FUZZ_WORK/seeds/$t"
+  mv "$fresh/$t" "$FUZZ_WORK/seeds/$t"
+done
+rm -rf "$fresh"
 
 # Debug assertions on: an integer overflow is a finding too.
 for t in "${TARGETS[@]}"; do

@@ -41,7 +41,7 @@
 //! ## Where things are
 //!
 //! The folders are layers: each uses only those above it in this table (`animation` and
-//! `springs` sit on `rig`; springs also read joint limits). A test (`tests/it/layering.rs`)
+//! `springs` sit on `rig`; springs also read joint limits; `retarget` uses them all). A test (`tests/it/layering.rs`)
 //! fails on an import against that order.
 //!
 //! | question | folder |
@@ -50,7 +50,8 @@
 //! | where the ground is and how feet meet it: the `Ground` trait and plane, mesh ground, one contact, the whole-skin floor, balance and the support polygon, which joints are feet, the per-frame contact tracker, gait phases | [`ground`] |
 //! | what a solve must respect: `PoseConstraints`, effectors and stiffness, joint limits (and the humanoid preset), changes of frame | [`constraints`] |
 //! | how a pose is solved: parameters, the local/global loop, the damped Gauss–Newton step, the energies, the extra terms, the linear algebra | [`solver`] |
-//! | poses over time: clips, glTF clips read and written, blending, pose files and the pose library | [`animation`] |
+//! | poses over time: clips, glTF clips read and written, motion capture (BVH), blending, pose files and the pose library | [`animation`] |
+//! | clips made for another skeleton played on this one, feet kept planted | [`retarget`] |
 //! | motion after the pose: spring bones, VRM and RON spring files | [`springs`] |
 //! | why something was rejected | [`PoseError`] (`error.rs`) |
 //!
@@ -60,6 +61,7 @@ pub mod animation;
 pub mod constraints;
 mod error;
 pub mod ground;
+pub mod retarget;
 pub mod rig;
 pub mod solver;
 pub mod springs;
@@ -92,7 +94,7 @@ pub use rig::gltf_character::{CharacterReadError, GltfCharacter, MAX_JOINTS, rea
 pub use rig::gltf_file::{
     AccessorUse, GltfFile, GltfFileError, MAX_ACCESSOR_ELEMENTS, MAX_FILE_ELEMENTS,
 };
-pub use rig::humanoid::{HumanoidRole, Side, humanoid_role};
+pub use rig::humanoid::{HumanoidRole, Side, humanoid_role, humanoid_role_and_side};
 pub use rig::mass::{centre_of_mass, vertex_masses};
 pub use rig::mirror::{Mirror, mirror_partners};
 pub use rig::model::{ModelSettings, SkinnedMesh, SkinnedModel};

@@ -35,6 +35,7 @@ mod pose_effectors_ecs;
 mod pose_ground_ecs;
 mod pose_planted_start;
 mod pose_springs;
+mod retarget;
 mod scene_roundtrip;
 mod springs_ecs;
 mod wiimote_device;

@@ -21,6 +21,15 @@
 //! | ankle | `Foot` | `foot` | `Foot` | cone 40° × 30°, twist ±20° |
 //! | toes | `ToeBase` | `toe` | `ToeBase`, `Toes` | cone 40° × 10°, twist ±5° |
 //!
+//! Other sources' names are found too: motion-capture libraries (CMU's BVH `LowerBack`,
+//! `Neck1`, and its ASF-converted `lfemur`, `ltibia`, `lhumerus`, `lradius`, `thorax`,
+//! `lowerneck`; Bandai Namco / Truebones `UpperArm_L`, `LowerLeg_L`, `Toes_L`), Unreal's
+//! mannequin (`spine_01`…`spine_05`, `neck_01`, `clavicle_l`, `upperarm_l`, `lowerarm_l`,
+//! `thigh_l`, `calf_l`, `ball_l`), 3ds Max Biped (`Bip01 L Thigh`, `Bip01 L Calf`,
+//! `Bip01 L Toe0`, `Bip01 L Clavicle`), Daz Genesis (`lThighBend`, `lShin`, `lShldrBend`,
+//! `lForearmBend`, `abdomenLower`, `chestUpper`, `neckLower`). A pelvis or hips joint has no
+//! role: retargeting finds the hips as the joint the two thighs hang from.
+//!
 //! Rigs named after joints rather than bones are recognised too: `elbow`, `wrist`, `hip`,
 //! `knee`, `ankle`. The hips (root) and fingers are left free. Hinge axes are found from the rest pose: the
 //! character's up is +Y and forward +Z of the skeleton root's parent space (glTF's axes), an
@@ -75,6 +84,10 @@ pub fn split_name(name: &str) -> (String, Option<Side>) {
         "org-",
         "mch-",
         "j_bip_c_",
+        "bip01 ",
+        "bip001 ",
+        "bip01_",
+        "bip001_",
     ] {
         if let Some(rest) = s.strip_prefix(prefix) {
             s = rest.to_string();
@@ -126,7 +139,7 @@ fn strip_side(s: &str) -> (String, Option<Side>) {
             return (base.to_string(), Some(Side::Right));
         }
     }
-    for (l, r) in [("l_", "r_"), ("l.", "r."), ("l-", "r-")] {
+    for (l, r) in [("l_", "r_"), ("l.", "r."), ("l-", "r-"), ("l ", "r ")] {
         if let Some(base) = s.strip_prefix(l) {
             return (base.to_string(), Some(Side::Left));
         }
@@ -139,23 +152,52 @@ fn strip_side(s: &str) -> (String, Option<Side>) {
 
 /// The humanoid role of a joint name, if it has one (see the module's table).
 pub fn humanoid_role(name: &str) -> Option<HumanoidRole> {
-    use HumanoidRole::*;
+    humanoid_role_and_side(name).map(|(role, _)| role)
+}
+
+/// The humanoid role of a joint name and the side it is on. Besides the table's names, a
+/// side written as a bare `l`/`r` before the rest of the name is recognised where the rest is
+/// a known limb (`lfemur`, `rHand`, `lThighBend`: the ASF-converted CMU skeletons, Daz).
+pub fn humanoid_role_and_side(name: &str) -> Option<(HumanoidRole, Option<Side>)> {
     let (base, side) = split_name(name);
     let base = base.replace(['_', '.', '-', ' '], "");
-    let sided = side.is_some();
-    let role = match base.as_str() {
+    if let Some(role) = role_of_base(&base, side.is_some()) {
+        return Some((role, side));
+    }
+    if side.is_none() {
+        for (prefix, side) in [("l", Side::Left), ("r", Side::Right)] {
+            if let Some(rest) = base.strip_prefix(prefix)
+                && let Some(role) = role_of_base(rest, true)
+                && !matches!(
+                    role,
+                    HumanoidRole::Spine | HumanoidRole::Neck | HumanoidRole::Head
+                )
+            {
+                return Some((role, Some(side)));
+            }
+        }
+    }
+    None
+}
+
+fn role_of_base(base: &str, sided: bool) -> Option<HumanoidRole> {
+    use HumanoidRole::*;
+    let role = match base {
         "spine" | "spine1" | "spine2" | "spine3" | "spine001" | "spine002" | "spine003"
-        | "chest" | "upperchest" => Spine,
-        "neck" | "spine004" | "neck1" => Neck,
+        | "spine01" | "spine02" | "spine03" | "spine04" | "spine05" | "chest" | "upperchest"
+        | "lowerback" | "upperback" | "thorax" | "abdomen" | "abdomenlower" | "abdomenupper"
+        | "chestlower" | "chestupper" | "torso" => Spine,
+        "neck" | "spine004" | "neck1" | "neck01" | "neck02" | "lowerneck" | "upperneck"
+        | "necklower" | "neckupper" => Neck,
         "head" | "spine006" => Head,
         "shoulder" | "clavicle" | "collar" if sided => Clavicle,
-        "arm" | "upperarm" if sided => UpperArm,
-        "forearm" | "lowerarm" | "elbow" if sided => Elbow,
+        "arm" | "upperarm" | "uparm" | "humerus" | "shldr" | "shldrbend" if sided => UpperArm,
+        "forearm" | "lowerarm" | "elbow" | "radius" | "forearmbend" if sided => Elbow,
         "hand" | "wrist" if sided => Wrist,
-        "upleg" | "thigh" | "upperleg" | "hip" if sided => Hip,
-        "leg" | "shin" | "lowerleg" | "calf" | "knee" if sided => Knee,
+        "upleg" | "thigh" | "upperleg" | "hip" | "femur" | "thighbend" if sided => Hip,
+        "leg" | "shin" | "lowerleg" | "calf" | "knee" | "tibia" if sided => Knee,
         "foot" | "ankle" if sided => Ankle,
-        "toebase" | "toe" | "toes" if sided => Toes,
+        "toebase" | "toe" | "toes" | "toe0" | "ball" if sided => Toes,
         _ => return None,
     };
     Some(role)

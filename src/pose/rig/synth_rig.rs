@@ -282,3 +282,183 @@ pub fn humanoid_rig(cells: u32) -> SyntheticRig {
     }
     rig_from_segments(&mesh, &spec)
 }
+
+/// The joint names a generated figure ([`figure_rig`]) uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FigureNames {
+    /// Mixamo's (`Hips`, `Spine`, `LeftArm`, `LeftUpLeg`, …), the hips the root.
+    Mixamo,
+    /// Unreal's mannequin (`root` at the feet, `pelvis`, `spine_01`, `upperarm_l`, `thigh_l`,
+    /// `calf_l`, `ball_l`, …): the hips are not the root.
+    Unreal,
+}
+
+/// What a generated figure looks like ([`figure_rig`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FigureSpec {
+    /// The joints' names.
+    pub names: FigureNames,
+    /// How far the arms hang below horizontal at rest (0: a T-pose, 45: an A-pose).
+    pub arm_down_deg: f64,
+    /// Thigh length (hip to knee).
+    pub thigh: f64,
+    /// Shin length (knee to ankle).
+    pub shin: f64,
+    /// Grid cells of the skin's surface along its longest side.
+    pub cells: u32,
+}
+
+impl Default for FigureSpec {
+    fn default() -> Self {
+        Self {
+            names: FigureNames::Mixamo,
+            arm_down_deg: 45.0,
+            thigh: 0.42,
+            shin: 0.4,
+            cells: 40,
+        }
+    }
+}
+
+/// A 21-joint humanoid (hips, two spine joints, neck, head, and per side a clavicle, arm,
+/// forearm, hand, thigh, shin, foot and toes; Unreal's names add a root at the feet) with
+/// the proportions, rest pose and names of `spec`, standing on `y = 0` facing +Z, and a skin
+/// of capsules along its bones, smoothly joined. Test material for retargeting: the same
+/// motion on skeletons that differ the way real ones do.
+pub fn figure_rig(spec: &FigureSpec) -> SyntheticRig {
+    let v = DVec3::new;
+    let mixamo = spec.names == FigureNames::Mixamo;
+    let name = |mixamo_name: &str, unreal: &str| {
+        if mixamo {
+            mixamo_name.to_string()
+        } else {
+            unreal.to_string()
+        }
+    };
+    let ankle_y = 0.08;
+    let knee_y = ankle_y + spec.shin;
+    let hip_y = knee_y + spec.thigh;
+    let hips_y = hip_y + 0.06;
+    // (name, position, parent, radius of the skin along the bone to its first child)
+    let mut joints: Vec<(String, DVec3, Option<usize>, f64)> = Vec::new();
+    let root = if mixamo {
+        None
+    } else {
+        joints.push(("root".into(), DVec3::ZERO, None, 0.0));
+        Some(0)
+    };
+    let hips = joints.len();
+    joints.push((name("Hips", "pelvis"), v(0.0, hips_y, 0.0), root, 0.12));
+    let spine = joints.len();
+    joints.push((
+        name("Spine", "spine_01"),
+        v(0.0, hips_y + 0.14, 0.0),
+        Some(hips),
+        0.12,
+    ));
+    let chest = joints.len();
+    joints.push((
+        name("Spine1", "spine_02"),
+        v(0.0, hips_y + 0.3, 0.0),
+        Some(spine),
+        0.14,
+    ));
+    let neck = joints.len();
+    joints.push((
+        name("Neck", "neck_01"),
+        v(0.0, hips_y + 0.52, 0.0),
+        Some(chest),
+        0.05,
+    ));
+    joints.push((
+        name("Head", "head"),
+        v(0.0, hips_y + 0.62, 0.0),
+        Some(neck),
+        0.1,
+    ));
+    let down = spec.arm_down_deg.to_radians();
+    for (side, s) in [("Left", 1.0), ("Right", -1.0)] {
+        let suffix = if s > 0.0 { "_l" } else { "_r" };
+        let n = |m: &str, u: &str| name(&format!("{side}{m}"), &format!("{u}{suffix}"));
+        let shoulder_y = hips_y + 0.46;
+        let clavicle = joints.len();
+        joints.push((
+            n("Shoulder", "clavicle"),
+            v(s * 0.04, shoulder_y, 0.0),
+            Some(chest),
+            0.05,
+        ));
+        let arm_dir = v(s * down.cos(), -down.sin(), 0.0);
+        let shoulder = v(s * 0.18, shoulder_y, 0.0);
+        let arm = joints.len();
+        joints.push((n("Arm", "upperarm"), shoulder, Some(clavicle), 0.045));
+        let elbow = shoulder + arm_dir * 0.28;
+        let forearm = joints.len();
+        joints.push((n("ForeArm", "lowerarm"), elbow, Some(arm), 0.04));
+        let wrist = elbow + arm_dir * 0.25;
+        joints.push((n("Hand", "hand"), wrist, Some(forearm), 0.035));
+        let thigh = joints.len();
+        joints.push((
+            n("UpLeg", "thigh"),
+            v(s * 0.1, hip_y, 0.0),
+            Some(hips),
+            0.07,
+        ));
+        let shin = joints.len();
+        joints.push((n("Leg", "calf"), v(s * 0.1, knee_y, 0.0), Some(thigh), 0.05));
+        let foot = joints.len();
+        joints.push((
+            n("Foot", "foot"),
+            v(s * 0.1, ankle_y, 0.0),
+            Some(shin),
+            0.045,
+        ));
+        joints.push((
+            n("ToeBase", "ball"),
+            v(s * 0.1, 0.03, 0.12),
+            Some(foot),
+            0.03,
+        ));
+    }
+    // Each joint's bone runs to its first child (a leaf: a short stub onward).
+    let end_of = |j: usize| -> DVec3 {
+        match joints.iter().position(|c| c.2 == Some(j)) {
+            Some(c) => joints[c].1,
+            None => {
+                let from = joints[j]
+                    .2
+                    .map_or(joints[j].1 - DVec3::Y * 0.1, |p| joints[p].1);
+                joints[j].1 + (joints[j].1 - from).normalize_or(DVec3::Y) * 0.08
+            }
+        }
+    };
+    let bones: Vec<(DVec3, DVec3, f64)> = (0..joints.len())
+        .filter(|&j| joints[j].3 > 0.0)
+        .map(|j| (joints[j].1, end_of(j), joints[j].3))
+        .collect();
+    let surface = |p: DVec3| {
+        bones
+            .iter()
+            .map(|&(a, b, r)| synth::capsule(p, a, b, r))
+            .reduce(|a, b| synth::smooth_min(a, b, 0.03))
+            .unwrap_or(f64::MAX)
+    };
+    let (lo, hi) = joints.iter().fold(
+        (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
+        |(lo, hi), j| (lo.min(j.1), hi.max(j.1)),
+    );
+    let margin = DVec3::splat(0.2);
+    let mesh = synth::implicit_surface(&surface, lo - margin, hi + margin, spec.cells);
+    // A joint without skin (Unreal's root) skins nothing: its segment is a point at the feet.
+    let spec: Vec<JointSpec> = (0..joints.len())
+        .map(|j| {
+            let end = if joints[j].3 > 0.0 {
+                end_of(j)
+            } else {
+                joints[j].1
+            };
+            (joints[j].0.clone(), joints[j].1, joints[j].2, end)
+        })
+        .collect();
+    rig_from_segments(&mesh, &spec)
+}

@@ -1,0 +1,400 @@
+//! Retargeting (`pose::retarget`) on generated figures that differ the way real skeletons do
+//! (names, rest poses, proportions, a root above the hips), with a walk whose feet truly stand:
+//! a clip comes back unchanged on its own skeleton, arm directions survive a T-pose to A-pose
+//! change, planted feet stay put on longer legs only with the contacts, the skin stays out of a
+//! sloped ground, and what cannot be mapped is a typed error.
+
+use std::sync::Arc;
+
+use bevy_wii_deform::pose::retarget::{
+    RetargetError, RetargetSettings, Retargeter, SkeletonMap, Which,
+};
+use bevy_wii_deform::pose::rig::synth_rig::{FigureNames, FigureSpec, SyntheticRig, figure_rig};
+use bevy_wii_deform::pose::{
+    GroundPlane, PoseClip, SkeletonPose, read_bvh, read_gltf_clip, rotation_angle, write_bvh,
+    write_gltf_clip,
+};
+use glam::DVec3;
+
+use crate::fixtures::walk::{FRAME_TIME, walk};
+
+fn figure(spec: FigureSpec) -> SyntheticRig {
+    figure_rig(&FigureSpec { cells: 36, ..spec })
+}
+
+fn joint(rig: &SyntheticRig, name: &str) -> usize {
+    rig.skeleton
+        .find(name)
+        .unwrap_or_else(|| panic!("no joint {name}"))
+}
+
+/// The Mixamo-named figure's walk: 4 steps of 0.3.
+fn mixamo_walk(rig: &SyntheticRig) -> PoseClip {
+    let feet = (joint(rig, "LeftFoot"), joint(rig, "RightFoot"));
+    walk(rig, joint(rig, "Hips"), feet, 4, 0.3).0
+}
+
+fn retargeter(
+    source: &SyntheticRig,
+    target: &SyntheticRig,
+    settings: RetargetSettings,
+) -> Retargeter {
+    let map = SkeletonMap::humanoid(
+        (&source.skeleton, &source.rest),
+        (&target.skeleton, &target.rest),
+    )
+    .unwrap();
+    let model = Arc::new(target.model().unwrap());
+    Retargeter::new(
+        (&source.skeleton, &source.rest),
+        model,
+        &target.rest,
+        map,
+        settings,
+    )
+    .unwrap()
+}
+
+fn size_of(rig: &SyntheticRig) -> f64 {
+    rig.model().unwrap().topology().bounding_diagonal()
+}
+
+fn frames(clip: &PoseClip) -> Vec<SkeletonPose> {
+    clip.keys().iter().map(|k| k.pose.clone()).collect()
+}
+
+#[test]
+fn a_clip_on_its_own_skeleton_comes_back_unchanged() {
+    let rig = figure(FigureSpec::default());
+    let clip = mixamo_walk(&rig);
+    let off = RetargetSettings {
+        contacts: false,
+        ..RetargetSettings::default()
+    };
+    let r = retargeter(&rig, &rig, off);
+    let baked = r.bake(&clip, &r.rest_ground()).unwrap();
+    let size = size_of(&rig);
+    for (a, b) in clip.keys().iter().zip(baked.clip.keys()) {
+        for (j, (x, y)) in a.pose.local.iter().zip(&b.pose.local).enumerate() {
+            assert!(
+                rotation_angle(x.rotation, y.rotation) < 1e-6,
+                "joint {j} at {}",
+                a.time
+            );
+            assert!(
+                (x.translation - y.translation).length() < 1e-6 * size,
+                "joint {j} at {}",
+                a.time
+            );
+        }
+    }
+}
+
+#[test]
+fn a_horizontal_arm_of_a_t_pose_source_is_horizontal_on_an_a_pose_target() {
+    let t_pose = figure(FigureSpec {
+        arm_down_deg: 0.0,
+        ..FigureSpec::default()
+    });
+    let a_pose = figure(FigureSpec {
+        arm_down_deg: 45.0,
+        names: FigureNames::Unreal,
+        ..FigureSpec::default()
+    });
+    // The source holds its rest pose: arms horizontal.
+    let clip = PoseClip::from_keys(vec![bevy_wii_deform::pose::PoseKey {
+        time: 0.0,
+        pose: t_pose.rest.clone(),
+        interpolation: Default::default(),
+    }])
+    .unwrap();
+    let off = RetargetSettings {
+        contacts: false,
+        ..RetargetSettings::default()
+    };
+    let baked = retargeter(&t_pose, &a_pose, off)
+        .bake(
+            &clip,
+            &GroundPlane {
+                point: DVec3::ZERO,
+                normal: DVec3::Y,
+            },
+        )
+        .unwrap();
+    let pose = &baked.clip.keys()[0].pose;
+    let g = a_pose.skeleton.global_transforms(pose);
+    for (arm, forearm, hand) in [
+        ("upperarm_l", "lowerarm_l", "hand_l"),
+        ("upperarm_r", "lowerarm_r", "hand_r"),
+    ] {
+        for (a, b) in [(arm, forearm), (forearm, hand)] {
+            let d = g[joint(&a_pose, b)].translation - g[joint(&a_pose, a)].translation;
+            let elevation = d.normalize().y.asin().to_degrees();
+            assert!(
+                elevation.abs() < 2.0,
+                "{a}→{b} is {elevation}° off horizontal (the rest's 45° would be carried)"
+            );
+        }
+    }
+}
+
+/// Longer legs (thigh ×1.5, shin ×1.1: 30 % longer) under the same walk: the root motion is
+/// scaled, and the planted feet stay put with the contacts — and visibly slide without them.
+#[test]
+fn planted_feet_stay_put_on_longer_legs_only_with_the_contacts() {
+    let source = figure(FigureSpec::default());
+    let base = FigureSpec::default();
+    let target = figure(FigureSpec {
+        thigh: base.thigh * 1.5,
+        shin: base.shin * 1.1,
+        names: FigureNames::Unreal,
+        ..base
+    });
+    let clip = mixamo_walk(&source);
+    let with = retargeter(&source, &target, RetargetSettings::default());
+    let ground = with.rest_ground();
+    let ratio = with.transfer().leg_ratio();
+    assert!((ratio - 1.3).abs() < 0.02, "leg ratio {ratio}");
+    let baked = with.bake(&clip, &ground).unwrap();
+    assert!(
+        baked.source_contacts.planted_share() > 0.5,
+        "{}",
+        baked.source_contacts.planted_share()
+    );
+    assert_eq!(baked.failed_solves, 0);
+    let q = with.quality(
+        &frames(&clip),
+        &frames(&baked.clip),
+        &baked.source_contacts,
+        &ground,
+    );
+    let without = retargeter(
+        &source,
+        &target,
+        RetargetSettings {
+            contacts: false,
+            ..RetargetSettings::default()
+        },
+    );
+    let bare = without.bake(&clip, &ground).unwrap();
+    let q0 = without.quality(
+        &frames(&clip),
+        &frames(&bare.clip),
+        &bare.source_contacts,
+        &ground,
+    );
+    eprintln!("with contacts {q:?}\nwithout {q0:?}");
+    assert!(
+        q.foot_slide_max <= 2e-3,
+        "slide with contacts {}",
+        q.foot_slide_max
+    );
+    assert!(
+        q0.foot_slide_max > 2.0 * q.foot_slide_max.max(1e-3),
+        "without contacts the feet slide only {}",
+        q0.foot_slide_max
+    );
+    assert!(
+        q.penetration_max <= 1e-3,
+        "penetration {}",
+        q.penetration_max
+    );
+    assert!(
+        q.bone_length_error_max <= 1e-4,
+        "bones {}",
+        q.bone_length_error_max
+    );
+    assert!(
+        q.limb_direction_error_deg_p95 <= 10.0,
+        "limbs {}",
+        q.limb_direction_error_deg_p95
+    );
+    // The root moved 1.3 times as far.
+    let hips_s = joint(&source, "Hips");
+    let hips_t = joint(&target, "pelvis");
+    let travel = |rig: &SyntheticRig, c: &PoseClip, j: usize| {
+        let first = rig.skeleton.global_transforms(&c.keys()[0].pose)[j].translation;
+        let last = rig
+            .skeleton
+            .global_transforms(&c.keys()[c.keys().len() - 1].pose)[j]
+            .translation;
+        (last - first).z
+    };
+    let (ts, tt) = (
+        travel(&source, &clip, hips_s),
+        travel(&target, &baked.clip, hips_t),
+    );
+    assert!(
+        (tt / ts - ratio).abs() < 0.05,
+        "the root travels {tt} for the source's {ts}"
+    );
+}
+
+#[test]
+fn no_skin_goes_below_a_sloped_ground() {
+    let rig = figure(FigureSpec::default());
+    let clip = mixamo_walk(&rig);
+    let r = retargeter(&rig, &rig, RetargetSettings::default());
+    // 8° up towards +Z through the rest ground's point: the walk on the flat goes into it.
+    let normal = DVec3::new(0.0, 8f64.to_radians().cos(), -8f64.to_radians().sin());
+    let slope = GroundPlane {
+        point: r.rest_ground().point,
+        normal,
+    };
+    let baked = r.bake(&clip, &slope).unwrap();
+    let q = r.quality(
+        &frames(&clip),
+        &frames(&baked.clip),
+        &baked.source_contacts,
+        &slope,
+    );
+    let bare = retargeter(
+        &rig,
+        &rig,
+        RetargetSettings {
+            contacts: false,
+            ..RetargetSettings::default()
+        },
+    )
+    .bake(&clip, &slope)
+    .unwrap();
+    let q0 = r.quality(
+        &frames(&clip),
+        &frames(&bare.clip),
+        &bare.source_contacts,
+        &slope,
+    );
+    assert!(
+        q0.penetration_max > 1e-2,
+        "the flat walk should go into the slope ({})",
+        q0.penetration_max
+    );
+    assert!(
+        q.penetration_max <= 1e-3,
+        "penetration {}",
+        q.penetration_max
+    );
+}
+
+#[test]
+fn what_cannot_be_mapped_is_a_typed_error() {
+    let rig = figure(FigureSpec::default());
+    let bar = bevy_wii_deform::pose::rig::synth_rig::bar_rig(3, 8, 8);
+    assert_eq!(
+        SkeletonMap::humanoid((&bar.skeleton, &bar.rest), (&rig.skeleton, &rig.rest)).unwrap_err(),
+        RetargetError::MissingRole {
+            role: "left thigh",
+            which: Which::Source
+        }
+    );
+    let chains = r#"(root: ("Hips", "Hips"), chains: [(name: "tail", source: ["Spine"], target: ["Tail1"])])"#;
+    assert_eq!(
+        SkeletonMap::from_ron(
+            chains,
+            (&rig.skeleton, &rig.rest),
+            (&rig.skeleton, &rig.rest)
+        )
+        .unwrap_err(),
+        RetargetError::ChainJoint {
+            chain: "tail".into(),
+            joint: "Tail1".into(),
+            which: Which::Target
+        }
+    );
+    let empty =
+        r#"(root: ("Hips", "Hips"), chains: [(name: "tail", source: [], target: ["Spine"])])"#;
+    assert_eq!(
+        SkeletonMap::from_ron(
+            empty,
+            (&rig.skeleton, &rig.rest),
+            (&rig.skeleton, &rig.rest)
+        )
+        .unwrap_err(),
+        RetargetError::EmptyChain("tail".into())
+    );
+    assert!(matches!(
+        SkeletonMap::from_ron(
+            "(root: ",
+            (&rig.skeleton, &rig.rest),
+            (&rig.skeleton, &rig.rest)
+        ),
+        Err(RetargetError::MapFile(_))
+    ));
+    // Joints nothing maps to are listed (the Unreal figure's root).
+    let unreal = figure(FigureSpec {
+        names: FigureNames::Unreal,
+        ..FigureSpec::default()
+    });
+    let map = SkeletonMap::humanoid((&rig.skeleton, &rig.rest), (&unreal.skeleton, &unreal.rest))
+        .unwrap();
+    assert_eq!(map.unmapped, vec![joint(&unreal, "root")]);
+    assert_eq!(map.joints_mapped(), unreal.skeleton.len() - 1);
+}
+
+/// A baked clip written to glTF and read back plays the same poses; the source written to BVH
+/// and read back retargets the same.
+#[test]
+fn a_baked_clip_round_trips_through_gltf_and_its_source_through_bvh() {
+    let source = figure(FigureSpec::default());
+    let target = figure(FigureSpec {
+        names: FigureNames::Unreal,
+        arm_down_deg: 20.0,
+        ..FigureSpec::default()
+    });
+    let clip = mixamo_walk(&source);
+    let r = retargeter(&source, &target, RetargetSettings::default());
+    let ground = r.rest_ground();
+    let baked = r.bake(&clip, &ground).unwrap();
+    let paths: Vec<Vec<String>> = target
+        .skeleton
+        .joints()
+        .iter()
+        .map(|j| vec![j.name.clone()])
+        .collect();
+    let glb = write_gltf_clip(&baked.clip, "walk", &paths, Some(&target.rest)).unwrap();
+    let back = read_gltf_clip(&glb, None, Some("walk"), &target.skeleton, &target.rest).unwrap();
+    assert_eq!(back.keys().len(), baked.clip.keys().len());
+    for (a, b) in baked.clip.keys().iter().zip(back.keys()) {
+        for (x, y) in a.pose.local.iter().zip(&b.pose.local) {
+            assert!(rotation_angle(x.rotation, y.rotation) < 1e-5);
+            assert!((x.translation - y.translation).length() < 1e-5);
+        }
+    }
+    let text = write_bvh(&source.skeleton, &source.rest, &clip, FRAME_TIME).unwrap();
+    let motion = read_bvh(&text).unwrap();
+    let map = SkeletonMap::humanoid(
+        (&motion.skeleton, &motion.rest),
+        (&target.skeleton, &target.rest),
+    )
+    .unwrap();
+    let model = Arc::new(target.model().unwrap());
+    let from_bvh = Retargeter::new(
+        (&motion.skeleton, &motion.rest),
+        model,
+        &target.rest,
+        map,
+        RetargetSettings {
+            contacts: false,
+            ..RetargetSettings::default()
+        },
+    )
+    .unwrap()
+    .bake(&motion.clip, &ground)
+    .unwrap();
+    let direct = retargeter(
+        &source,
+        &target,
+        RetargetSettings {
+            contacts: false,
+            ..RetargetSettings::default()
+        },
+    )
+    .bake(&clip, &ground)
+    .unwrap();
+    for (a, b) in direct.clip.keys().iter().zip(from_bvh.clip.keys()) {
+        for (x, y) in a.pose.local.iter().zip(&b.pose.local) {
+            assert!(rotation_angle(x.rotation, y.rotation) < 1e-5);
+            assert!((x.translation - y.translation).length() < 1e-5);
+        }
+    }
+}
