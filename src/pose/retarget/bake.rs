@@ -10,6 +10,7 @@ use glam::DVec3;
 use crate::pose::animation::clip::{KeyInterpolation, PoseClip, PoseKey};
 use crate::pose::constraints::PoseConstraints;
 use crate::pose::constraints::effectors::{Effector, EffectorGoal, ReferenceStiffness};
+use crate::pose::ground::feet::sole_patch;
 use crate::pose::ground::floor::{Floor, FloorSampling};
 use crate::pose::ground::{Ground, GroundPlane};
 use crate::pose::retarget::RetargetError;
@@ -73,6 +74,8 @@ pub struct Retargeter {
     solver: PoseSolver,
     settings: RetargetSettings,
     size: f64,
+    /// Per foot of the map, the target's sole (welded vertices), found at rest.
+    soles: Vec<Vec<u32>>,
 }
 
 impl Retargeter {
@@ -100,7 +103,15 @@ impl Retargeter {
             PoseSolverSettings::default(),
         )?;
         let size = model.topology().bounding_diagonal();
+        let down = -transfer.map().axes[1].0.normalize_or(DVec3::Y);
+        let soles = transfer
+            .map()
+            .feet
+            .iter()
+            .map(|&(_, foot)| sole_patch(&model, target_rest, foot, down, 0.01 * size))
+            .collect();
         Ok(Self {
+            soles,
             transfer,
             model,
             solver,
@@ -219,26 +230,33 @@ impl Retargeter {
         let map = self.transfer.map();
         let up = map.axes[1].0.normalize_or(DVec3::Y);
         let globals = self.model.skeleton().global_transforms(pose);
-        let rest_globals = self
-            .model
-            .skeleton()
-            .global_transforms(self.transfer.target_rest());
-        let rest_ground = self.rest_ground();
+        let skin = self.model.skin_welded(pose);
         let mut effectors = Vec::new();
         for (k, &(_, foot)) in map.feet.iter().enumerate() {
             if !planted[k] {
                 holds[k] = None;
                 continue;
             }
-            let hold = *holds[k].get_or_insert_with(|| {
-                // Where the foot is, lowered or raised to its rest height over the ground.
-                let at = globals[foot].translation;
-                let rest_height = rest_ground.height(rest_globals[foot].translation);
-                match ground.cast_down(at + up * self.size, -up, 4.0 * self.size) {
-                    Some(hit) => at - up * (at - hit.point).dot(up) + up * rest_height,
-                    None => at,
-                }
-            });
+            // Held where it planted across the ground, at the height the carried-over pose
+            // gives it now (a paw shifting its weight rises and sinks as the source's does),
+            // raised by as much as its sole is below the ground (the proportions' error).
+            let at = globals[foot].translation;
+            let planted_at = *holds[k].get_or_insert(at);
+            let lowest = self.soles[k]
+                .iter()
+                .map(|&v| skin[v as usize])
+                .map(|p| {
+                    ground
+                        .cast_down(p + up * self.size, -up, 4.0 * self.size)
+                        .map_or(0.0, |hit| (p - hit.point).dot(up))
+                })
+                .fold(f64::INFINITY, f64::min);
+            let raise = if lowest.is_finite() {
+                (-lowest).max(0.0)
+            } else {
+                0.0
+            };
+            let hold = planted_at - up * planted_at.dot(up) + up * (at.dot(up) + raise);
             effectors.push(Effector {
                 joint: foot,
                 goal: EffectorGoal::Position(hold),
@@ -261,7 +279,6 @@ impl Retargeter {
             goal: EffectorGoal::Position(globals[root].translation),
             weight: 1.0,
         });
-        let skin = self.model.skin_welded(pose);
         let sampling = FloorSampling::for_size(self.size, 0.1, -up);
         let (floor, _) = Floor::cast(&skin, ground, &sampling);
         let constraints = PoseConstraints {
