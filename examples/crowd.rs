@@ -1,5 +1,5 @@
 //! A field of Foxes standing on a hilly, terraced terrain mesh, every one playing its own
-//! animation and posed inside the frame over it: the terrain is `Ground`, each Fox is dropped
+//! animation and posed inside the frame over it: the terrain is `GroundMesh`, each Fox is dropped
 //! onto it by a ray cast and stands on it with `PoseGround` (its paws found, cast down, planted
 //! on the slope or the step under each; nothing below the surface) and `PoseBalance`; a look-at
 //! effector turns each head toward a firefly that wanders over the field (the effectors are the
@@ -286,7 +286,7 @@ fn setup(
     commands.spawn((
         Mesh3d(meshes.add(mesh_from_triangles(&positions, &triangles))),
         MeshMaterial3d(materials.add(Color::srgb(0.3, 0.45, 0.3))),
-        Ground,
+        GroundMesh,
     ));
     let scene = assets.load(GltfAssetLabel::Scene(0).from_asset(FOX));
     for k in 0..crowd.0 {

@@ -1,7 +1,7 @@
 //! Bend a plank and watch the balls follow the bend (feature `avian`): the plank is a static
 //! Avian body whose collider is rebuilt from the bent mesh after each settled solve
 //! (`DeformCollider`); balls drop on it every second. Behind it the Fox stands on the floor
-//! (`PoseGround`: the floor's Avian collider is the `Ground`) with a kinematic capsule on each
+//! (`PoseGround`: the floor's Avian collider is the `GroundMesh`) with a kinematic capsule on each
 //! bone (`PosedColliders`), and every other ball bounces off it. Press on the plank (or the
 //! Fox), drag, release.
 //!
@@ -99,7 +99,7 @@ fn setup(
         Transform::from_xyz(0.0, -0.8, 0.0),
         RigidBody::Static,
         Collider::half_space(Vec3::Y),
-        Ground,
+        GroundMesh,
     ));
     // The Fox (about a metre long at this scale) standing on the floor behind the plank.
     commands.spawn((

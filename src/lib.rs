@@ -31,7 +31,7 @@ pub mod prelude {
         ConnectionState, DeformConfig, DeformDynamics, DeformError, DeformFailed, DeformGround,
         DeformHandle, DeformPhase, DeformPlugin, DeformSolved, DeformStatus, DeformSystems,
         Deformable, DeformableFrom, DeformableScene, FixedRegion, GrabButton, GrabEnd, GrabMove,
-        GrabPlugin, GrabStart, GrabTurn, GrabTwist, Grabbable, Ground, GroundContactState,
+        GrabPlugin, GrabStart, GrabTurn, GrabTwist, Grabbable, GroundContactState, GroundMesh,
         InputSystems, JointMask, MissingSceneAssets, MouseControlPlugin, MouseHandleControl,
         PinnedJoints, PoseAnchor, PoseBalance, PoseBlend, PoseBlendMode, PoseEffector,
         PoseEffectorKind, PoseFailed, PoseGround, PoseInFrame, PoseJointHandle, PoseLimits,

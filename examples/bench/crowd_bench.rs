@@ -26,7 +26,7 @@
 //! `SpringSystems::Simulate`).
 //!
 //! `--terrain` (`walking_field.rs`): the characters stand on the crowd example's hilly,
-//! terraced terrain mesh (`Ground`; hills up to 30°, steps 10 units, about a third of the Fox's
+//! terraced terrain mesh (`GroundMesh`; hills up to 30°, steps 10 units, about a third of the Fox's
 //! leg) with `PoseGround` and `PoseBalance` instead of foot effectors, play the file's "Walk"
 //! clip (its first clip without one) under an additive pose layer, face +X and walk along it
 //! (40 units/s, the root kept on the ground under it by a cast), so their paws plant, lift
@@ -86,7 +86,7 @@ usage: crowd_bench [--characters N] [--frames N] [--iterations N] [--model PATH]
   --iterations N  solver iterations per frame (default 3)
   --model PATH    the rigged glTF (default assets/models/Fox.glb)
   --playing       each plays its clip; the pose is an additive layer over it
-  --terrain       on a hilly, terraced terrain mesh (Ground), walking, stood by PoseGround and
+  --terrain       on a hilly, terraced terrain mesh (GroundMesh), walking, stood by PoseGround and
                   PoseBalance (no foot effectors)
   --springs       every tail on spring bones (SpringBones by name); adds the spring time
   --json          accepted for older command lines: the JSON is always the last line";

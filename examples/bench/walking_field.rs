@@ -1,4 +1,4 @@
-//! `crowd_bench --terrain`: the crowd example's terrain as `Ground`, characters walking across
+//! `crowd_bench --terrain`: the crowd example's terrain as `GroundMesh`, characters walking across
 //! it, and what is measured of their contacts.
 
 use bevy::prelude::*;
@@ -55,7 +55,7 @@ pub fn spawn(app: &mut App, side: usize, frames: usize) -> Field {
     let mesh = mesh_from_triangles(&positions, &triangles);
     let handle = app.world_mut().resource_mut::<Assets<Mesh>>().add(mesh);
     app.world_mut()
-        .spawn((Mesh3d(handle), Transform::IDENTITY, Ground));
+        .spawn((Mesh3d(handle), Transform::IDENTITY, GroundMesh));
     let field = Field {
         ground: std::sync::Arc::new(TriangleGround::new(positions, triangles, DVec3::NEG_Y)),
         penetration_max: 0.0,

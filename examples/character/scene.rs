@@ -21,7 +21,7 @@ impl Plugin for ScenePlugin {
 #[derive(Component)]
 pub struct Character;
 
-/// The stage's floor (the crate's `Ground`: what `PoseGround` stands the character on).
+/// The stage's floor (the crate's `GroundMesh`: what `PoseGround` stands the character on).
 #[derive(Component)]
 struct Stage;
 
@@ -48,7 +48,7 @@ fn setup(
         Mesh3d(meshes.add(Plane3d::default().mesh().size(1000.0, 1000.0))),
         MeshMaterial3d(materials.add(Color::srgb(0.3, 0.35, 0.3))),
         Stage,
-        Ground,
+        GroundMesh,
     ));
     let scene = assets.load(GltfAssetLabel::Scene(0).from_asset(args.model.clone()));
     commands.spawn((

@@ -1,5 +1,5 @@
 //! Standing on the ground: G toggles the character's ground contacts (`PoseGround` on the stage,
-//! which is `Ground`), B its balance (`PoseBalance`); the planted feet's support polygon and the
+//! which is `GroundMesh`), B its balance (`PoseBalance`); the planted feet's support polygon and the
 //! centre of mass over it are drawn (green inside, red outside).
 
 use bevy::prelude::*;

@@ -1,6 +1,6 @@
 //! A terrain mesh for characters to stand on: rolling hills no steeper than a given slope, cut
 //! by terraces (steps) no higher than a given height, as one triangle grid. The apps mark it
-//! `Ground`; the characters find its height by casting down on it, never from this code.
+//! `GroundMesh`; the characters find its height by casting down on it, never from this code.
 
 use glam::{DVec2, DVec3};
 

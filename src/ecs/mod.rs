@@ -36,7 +36,7 @@ pub use deform::{
     DeformPhase, DeformPlugin, DeformSolved, DeformState, DeformStatus, DeformSystems, Deformable,
     DeformableFrom, DeformableScene, FixedRegion, MESH_WAIT_FRAMES, mesh_from_triangles,
 };
-pub use ground::{Ground, GroundPlugin, SceneGround};
+pub use ground::{GroundMesh, GroundPlugin, SceneGround};
 pub use input::{
     ActiveGrabs, GrabButton, GrabEnd, GrabHandle, GrabMove, GrabPlugin, GrabStart, GrabTurn,
     GrabTwist, Grabbable, InputSystems, MouseControlPlugin, MouseHandleControl,

@@ -5,7 +5,7 @@ use std::sync::Arc;
 use bevy::prelude::*;
 use bevy_wii_deform::deform::*;
 use bevy_wii_deform::prelude::{
-    DeformGround, DeformPlugin, DeformStatus, Ground, mesh_from_triangles,
+    DeformGround, DeformPlugin, DeformStatus, GroundMesh, mesh_from_triangles,
 };
 use glam::DVec3;
 
@@ -218,7 +218,7 @@ fn a_floor_under_the_bar_changes_nothing() {
     assert!(moved < 1e-12, "{moved}");
 }
 
-/// A `DeformPlugin` app at 60 frames a second with a `Ground` quad 6 wide at y = 0.
+/// A `DeformPlugin` app at 60 frames a second with a `GroundMesh` quad 6 wide at y = 0.
 fn ground_quad_app() -> App {
     let mut app = crate::common::app();
     app.add_plugins(DeformPlugin::default()).insert_resource(
@@ -235,11 +235,11 @@ fn ground_quad_app() -> App {
     let floor = mesh_from_triangles(&quad, &[[0, 2, 1], [0, 3, 2]]);
     let floor = app.world_mut().resource_mut::<Assets<Mesh>>().add(floor);
     app.world_mut()
-        .spawn((Mesh3d(floor), Transform::default(), Ground));
+        .spawn((Mesh3d(floor), Transform::default(), GroundMesh));
     app
 }
 
-/// A bar `Deformable` lying along world +X with its axis 0.4 above a `Ground` quad at y = 0
+/// A bar `Deformable` lying along world +X with its axis 0.4 above a `GroundMesh` quad at y = 0
 /// (the mesh turned, raised and scaled ×1.5 by its transform), its handle pushed 1.2 below
 /// and 0.3 across in world units; the mesh's world positions once settled.
 fn push_a_bar_into_a_ground_quad(on_ground: bool) -> (Vec<Vec3>, Vec<Vec3>, DeformStatus) {

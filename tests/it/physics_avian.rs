@@ -1,4 +1,4 @@
-//! Avian (feature `avian`): a bent plank's collider follows the bend, and `Ground` colliders
+//! Avian (feature `avian`): a bent plank's collider follows the bend, and `GroundMesh` colliders
 //! are the scene's ground.
 
 use std::time::Duration;
@@ -132,7 +132,7 @@ fn ground_colliders_are_the_scene_ground() {
         RigidBody::Static,
         Collider::cuboid(4.0, 1.0, 4.0),
         Transform::from_rotation(tilt),
-        Ground,
+        GroundMesh,
     ));
     for _ in 0..3 {
         app.update();

@@ -446,7 +446,7 @@ fn walk_in_place(iterations: u32, ground_iterations: u32, push: f64) -> Option<W
     })
 }
 
-/// A flat `Ground` mesh under the character `root`'s lowest vertex, far wider than it; returns
+/// A flat `GroundMesh` under the character `root`'s lowest vertex, far wider than it; returns
 /// the character's size.
 fn flat_ground_under(app: &mut App, root: Entity) -> f64 {
     let posed = app.world().get::<PosedSkeleton>(root).unwrap().clone();
@@ -466,7 +466,7 @@ fn flat_ground_under(app: &mut App, root: Entity) -> f64 {
     let mesh = mesh_from_triangles(&quad, &[[0, 2, 1], [0, 3, 2]]);
     let mesh = app.world_mut().resource_mut::<Assets<Mesh>>().add(mesh);
     app.world_mut()
-        .spawn((Mesh3d(mesh), Transform::IDENTITY, Ground));
+        .spawn((Mesh3d(mesh), Transform::IDENTITY, GroundMesh));
     size
 }
 

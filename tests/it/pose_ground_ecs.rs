@@ -1,5 +1,5 @@
 //! `PoseGround` and `PoseBalance` through the pose plugin: a character grabbed by
-//! the head and pushed down into a `Ground` mesh stops at it, its feet planted.
+//! the head and pushed down into a `GroundMesh` stops at it, its feet planted.
 
 use std::time::Duration;
 
@@ -42,7 +42,7 @@ fn pushed_down(stand: bool) -> (f32, f32, usize) {
     app.world_mut().spawn((
         Mesh3d(plane),
         Transform::from_xyz(0.0, ground_y, 0.0),
-        Ground,
+        GroundMesh,
     ));
     app.world_mut().entity_mut(root).insert(Poseable {
         max_iterations: 8,
@@ -86,7 +86,7 @@ fn pushed_down(stand: bool) -> (f32, f32, usize) {
 #[test]
 fn a_character_pushed_into_the_ground_stops_at_it() {
     let (sunk, _, triangles) = pushed_down(false);
-    assert_eq!(triangles, 2, "the Ground plane is the scene's ground");
+    assert_eq!(triangles, 2, "the GroundMesh plane is the scene's ground");
     assert!(sunk < -0.1, "without PoseGround the push sinks it: {sunk}");
     let (deepest, size, _) = pushed_down(true);
     assert!(
@@ -120,7 +120,7 @@ fn a_character_placed_above_a_slope_stands_on_it() {
     app.world_mut().spawn((
         Mesh3d(plane),
         Transform::from_translation(at).with_rotation(tilt),
-        Ground,
+        GroundMesh,
     ));
     app.world_mut().entity_mut(root).insert((
         Poseable {
@@ -184,12 +184,12 @@ fn hips_pulled_onto_a_box_at_once(in_frame: bool) -> (f32, f32, f32) {
     app.world_mut().spawn((
         Mesh3d(plane),
         Transform::from_xyz(0.0, ground_y, 0.0),
-        Ground,
+        GroundMesh,
     ));
     app.world_mut().spawn((
         Mesh3d(cuboid),
         Transform::from_xyz(0.0, ground_y + 0.225, -0.4),
-        Ground,
+        GroundMesh,
     ));
     app.world_mut().entity_mut(root).insert((
         Poseable {

@@ -145,14 +145,14 @@ pub struct Deformable {
 }
 
 /// Keeps a [`Deformable`]'s bend on the game's ground ([`crate::ecs::SceneGround`]: the
-/// [`crate::ecs::Ground`] meshes or the game's own): no vertex goes below it, and a handle
+/// [`crate::ecs::GroundMesh`] meshes or the game's own): no vertex goes below it, and a handle
 /// dragged into it slides along it instead ([`crate::deform::obstacle`]).
 ///
 /// The ground under and around the mesh is sampled once into a height field (in the
 /// background, again when the mesh entity moves or the ground changes), across world +Y:
 /// `cells` samples along the mesh's rest bounding diagonal, `reach` diagonals of margin on
 /// every side. Between samples the ground is bilinear: a wall or a step is a slope one cell
-/// wide. A mesh that is itself [`crate::ecs::Ground`] stops at its own old shape: do not
+/// wide. A mesh that is itself [`crate::ecs::GroundMesh`] stops at its own old shape: do not
 /// mark it.
 #[derive(Component, Debug, Clone, Copy, PartialEq, Reflect)]
 #[reflect(Component, Default)]

@@ -1,4 +1,4 @@
-//! The game's ground for posing: mesh entities marked [`Ground`] make one [`SceneGround`]
+//! The game's ground for posing: mesh entities marked [`GroundMesh`] make one [`SceneGround`]
 //! (their triangles in world space, with a grid across gravity), which the pose plugin casts
 //! down on for characters with [`crate::ecs::PoseGround`]. Anything else — a physics engine's
 //! colliders, a height function — goes in as a [`SceneGround`] built from a closure
@@ -11,7 +11,7 @@ use std::sync::Arc;
 use bevy::prelude::*;
 use glam::DVec3;
 
-use crate::pose::{Ground as CoreGround, GroundPlane, TriangleGround};
+use crate::pose::{Ground, GroundPlane, TriangleGround};
 
 pub use plugin::GroundPlugin;
 
@@ -19,17 +19,17 @@ pub use plugin::GroundPlugin;
 /// `GlobalTransform`, join the [`SceneGround`].
 #[derive(Component, Debug, Clone, Copy, Default, PartialEq, Eq, Reflect)]
 #[reflect(Component, Default)]
-pub struct Ground;
+pub struct GroundMesh;
 
 /// The ground the pose plugin casts on, world space. Kept current by [`GroundPlugin`] from the
-/// [`Ground`] meshes (rebuilt when one is added, removed, moved or its mesh changes), or set by
+/// [`GroundMesh`] meshes (rebuilt when one is added, removed, moved or its mesh changes), or set by
 /// the game ([`SceneGround::custom`]).
 #[derive(Resource, Clone)]
 pub struct SceneGround {
-    source: Arc<dyn CoreGround + Send + Sync>,
+    source: Arc<dyn Ground + Send + Sync>,
     /// Triangles in the ground (0 for a custom one).
     pub triangles: usize,
-    /// Whether [`GroundPlugin`] keeps it current from [`Ground`] meshes (false: the game's).
+    /// Whether [`GroundPlugin`] keeps it current from [`GroundMesh`] meshes (false: the game's).
     pub from_meshes: bool,
 }
 
@@ -37,7 +37,7 @@ impl SceneGround {
     /// A ground from anything that answers a ray cast down (world space): a closure
     /// `(from, down, max_distance) → Option<GroundPlane>`, an infinite plane, a physics
     /// engine's spatial query. [`GroundPlugin`] leaves it alone.
-    pub fn custom(ground: impl CoreGround + Send + Sync + 'static) -> Self {
+    pub fn custom(ground: impl Ground + Send + Sync + 'static) -> Self {
         Self {
             source: Arc::new(ground),
             triangles: 0,

@@ -1,36 +1,36 @@
-//! Keeping [`SceneGround`] current from the [`Ground`] meshes.
+//! Keeping [`SceneGround`] current from the [`GroundMesh`] meshes.
 
 use bevy::mesh::{Indices, VertexAttributeValues};
 use bevy::prelude::*;
 use glam::DVec3;
 
-use super::{Ground, SceneGround};
+use super::{GroundMesh, SceneGround};
 use crate::pose::TriangleGround;
 
-/// Collects the [`Ground`] meshes into the [`SceneGround`] resource (in `PreUpdate`, so the
+/// Collects the [`GroundMesh`] meshes into the [`SceneGround`] resource (in `PreUpdate`, so the
 /// pose plugin's requests in `Update` see this frame's ground). Added by `PosePlugin`.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct GroundPlugin;
 
 impl Plugin for GroundPlugin {
     fn build(&self, app: &mut App) {
-        app.register_type::<Ground>()
+        app.register_type::<GroundMesh>()
             .add_systems(PreUpdate, collect_ground);
     }
 }
 
-/// A [`Ground`] entity moved or given another mesh.
+/// A [`GroundMesh`] entity moved or given another mesh.
 type MovedGround = (
-    With<Ground>,
+    With<GroundMesh>,
     Or<(Changed<GlobalTransform>, Changed<Mesh3d>)>,
 );
 
-/// Rebuilds the ground when a [`Ground`] mesh appears, goes, moves or its mesh asset changes.
+/// Rebuilds the ground when a [`GroundMesh`] mesh appears, goes, moves or its mesh asset changes.
 fn collect_ground(
     mut commands: Commands,
-    grounds: Query<(&Mesh3d, &GlobalTransform), With<Ground>>,
+    grounds: Query<(&Mesh3d, &GlobalTransform), With<GroundMesh>>,
     changed: Query<(), MovedGround>,
-    mut removed: RemovedComponents<Ground>,
+    mut removed: RemovedComponents<GroundMesh>,
     mut mesh_events: MessageReader<AssetEvent<Mesh>>,
     meshes: Res<Assets<Mesh>>,
     current: Option<Res<SceneGround>>,

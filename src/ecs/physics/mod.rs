@@ -4,11 +4,11 @@
 //!   [`Collider`] from the bent mesh after each settled solve: the shape is built on the async
 //!   compute pool and swapped in when ready, so the main thread only copies the mesh's
 //!   positions. Avian cannot edit a triangle mesh in place; a new collider is the way.
-//! - [`Ground`](crate::ecs::Ground) entities with a [`Collider`] become the scene's ground
+//! - [`GroundMesh`](crate::ecs::GroundMesh) entities with a [`Collider`] become the scene's ground
 //!   ([`SceneGround`](crate::ecs::SceneGround)) through Avian's ray casts against those
 //!   colliders, for characters with [`PoseGround`](crate::ecs::PoseGround) and meshes with
 //!   [`DeformGround`](crate::ecs::DeformGround). When at least one such collider exists, the
-//!   colliders are the ground and mesh-only `Ground` entities are not cast on.
+//!   colliders are the ground and mesh-only `GroundMesh` entities are not cast on.
 //!
 //! - [`PosedColliders`] on a [`Poseable`](crate::ecs::Poseable) character gives each bone a
 //!   kinematic capsule fitted to its skin ([`crate::pose::fit_bone_capsules`]), a child of the
@@ -24,7 +24,7 @@ use bevy::prelude::*;
 use bevy::tasks::Task;
 use glam::DVec3;
 
-use crate::pose::{Ground as CoreGround, GroundPlane};
+use crate::pose::{Ground, GroundPlane};
 
 pub use plugin::{DeformPhysicsPlugin, DeformPhysicsSystems};
 
@@ -116,7 +116,7 @@ impl ColliderGround {
     }
 }
 
-impl CoreGround for ColliderGround {
+impl Ground for ColliderGround {
     fn cast_down(&self, from: DVec3, down: DVec3, max: f64) -> Option<GroundPlane> {
         let (origin, dir) = (from.as_vec3(), down.normalize_or_zero().as_vec3());
         let end = origin + dir * max as f32;

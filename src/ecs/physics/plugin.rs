@@ -1,5 +1,5 @@
 //! Systems of [`DeformPhysicsPlugin`]: collider rebuilds after settled solves, the colliders
-//! marked [`Ground`] as the scene's ground, capsules on posed bones.
+//! marked [`GroundMesh`] as the scene's ground, capsules on posed bones.
 
 use avian3d::prelude::*;
 use bevy::prelude::*;
@@ -11,13 +11,15 @@ use super::{
     DeformColliderStatus, PosedColliders,
 };
 use crate::ecs::deform::mesh_positions;
-use crate::ecs::{DeformPhase, DeformStatus, DeformSystems, Ground, PosedSkeleton, SceneGround};
+use crate::ecs::{
+    DeformPhase, DeformStatus, DeformSystems, GroundMesh, PosedSkeleton, SceneGround,
+};
 use crate::pose::fit_bone_capsules;
 
 /// The systems of [`DeformPhysicsPlugin`].
 #[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum DeformPhysicsSystems {
-    /// `PreUpdate`: [`SceneGround`] from the [`Ground`] colliders.
+    /// `PreUpdate`: [`SceneGround`] from the [`GroundMesh`] colliders.
     Ground,
     /// `Update`, after [`DeformSystems::Writeback`]: start collider builds for settled bends,
     /// swap in the finished ones.
@@ -25,7 +27,7 @@ pub enum DeformPhysicsSystems {
 }
 
 /// Rebuilds the colliders of bent [`DeformCollider`] meshes and casts the ground on
-/// [`Ground`] colliders (module docs of [`crate::ecs::physics`]). Add it with Avian's
+/// [`GroundMesh`] colliders (module docs of [`crate::ecs::physics`]). Add it with Avian's
 /// `PhysicsPlugins` and the deform or pose plugins.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct DeformPhysicsPlugin;
@@ -196,9 +198,9 @@ fn fit_posed_colliders(
     }
 }
 
-/// A [`Ground`] collider moved, was added or got another shape.
+/// A [`GroundMesh`] collider moved, was added or got another shape.
 type ChangedGroundCollider = (
-    With<Ground>,
+    With<GroundMesh>,
     Or<(
         Changed<Collider>,
         Changed<GlobalTransform>,
@@ -206,10 +208,10 @@ type ChangedGroundCollider = (
     )>,
 );
 
-/// Keeps [`SceneGround`] on the [`Ground`] colliders while there are any.
+/// Keeps [`SceneGround`] on the [`GroundMesh`] colliders while there are any.
 fn collect_collider_ground(
     mut commands: Commands,
-    colliders: Query<(&Collider, &GlobalTransform, &ColliderAabb), With<Ground>>,
+    colliders: Query<(&Collider, &GlobalTransform, &ColliderAabb), With<GroundMesh>>,
     changed: Query<(), ChangedGroundCollider>,
     mut removed: RemovedComponents<Collider>,
     mut ours: Local<bool>,

@@ -4,7 +4,7 @@
 
 use bevy::prelude::*;
 
-/// Stands a character on the scene's ground ([`crate::ecs::SceneGround`], from [`crate::ecs::Ground`]
+/// Stands a character on the scene's ground ([`crate::ecs::SceneGround`], from [`crate::ecs::GroundMesh`]
 /// meshes or the game's own): its lowest joints (feet, paws, a prop's base) become contacts —
 /// cast down every solve, planted when they touch, released when the pose lifts them — and
 /// every skin vertex near the ground under it is kept above it, so a grab pushing the
