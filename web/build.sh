@@ -26,8 +26,8 @@ if [ ! -x web/node_modules/.bin/wasm-opt ] || [ ! -d web/node_modules/playwright
   (cd web && npm ci --no-audit --no-fund)
 fi
 
-# No hidapi in a browser.
-cargo build --profile web --target wasm32-unknown-unknown --no-default-features \
+# No hidapi in a browser: the default features but that one.
+cargo build --profile web --target wasm32-unknown-unknown --no-default-features --features bevy \
   --example playground --example character
 
 dist=web/dist
