@@ -126,15 +126,9 @@ pub fn pad_reports(data: &[u8]) {
     let [pick, split, rest @ ..] = data else {
         return;
     };
-    const KINDS: [ControllerKind; 6] = [
-        ControllerKind::DualSense,
-        ControllerKind::DualSenseEdge,
-        ControllerKind::DualShock4,
-        ControllerKind::SwitchPro,
-        ControllerKind::JoyConLeft,
-        ControllerKind::JoyConRight,
-    ];
-    let kind = KINDS[(*pick as usize % 12) / 2];
+    // The pads: every kind but the Wii Remote (first in the list).
+    let pads = &ControllerKind::ALL[1..];
+    let kind = pads[(*pick as usize % (2 * pads.len())) / 2];
     let link = if pick % 2 == 0 { Link::Usb } else { Link::Bluetooth };
     let (block, report) = rest.split_at((*split as usize).min(rest.len()));
     let Ok(mut decoder) = PadDecoder::new(kind, link) else {

@@ -113,15 +113,8 @@ fn main() {
     }
 
     let mut pads = Corpus::new(&out, "pad_reports");
-    let kinds = [
-        ControllerKind::DualSense,
-        ControllerKind::DualSenseEdge,
-        ControllerKind::DualShock4,
-        ControllerKind::SwitchPro,
-        ControllerKind::JoyConLeft,
-        ControllerKind::JoyConRight,
-    ];
-    for (k, kind) in kinds.into_iter().enumerate() {
+    // The pads, in the order the target's first byte picks them (every kind but the remote).
+    for (k, &kind) in ControllerKind::ALL[1..].iter().enumerate() {
         for (l, link) in [Link::Usb, Link::Bluetooth].into_iter().enumerate() {
             let mut pad = EmulatedPad::new(PadEmulatorConfig::new(kind, link));
             let mut feature = [0u8; 128];

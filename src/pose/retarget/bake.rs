@@ -383,6 +383,7 @@ impl Retargeter {
                 }
             }
         }
+        let gr = target.global_transforms(rest);
         for pose in poses {
             let skin = self.model.skin_welded(pose);
             for p in skin {
@@ -391,10 +392,7 @@ impl Retargeter {
                     .map_or(0.0, |hit| (hit.point - p).dot(up));
                 q.penetration_max = q.penetration_max.max(depth / self.size);
             }
-            let (gr, gp) = (
-                target.global_transforms(rest),
-                target.global_transforms(pose),
-            );
+            let gp = target.global_transforms(pose);
             for (j, joint) in target.joints().iter().enumerate() {
                 // The root (hips) moves by design; every other bone keeps its length.
                 if let Some(p) = joint.parent.filter(|_| j != map.root.1) {

@@ -80,6 +80,17 @@ pub(crate) fn json_of(bytes: &[u8]) -> Result<std::borrow::Cow<'_, [u8]>, GltfFi
     if !bytes.starts_with(b"glTF") {
         return Ok(std::borrow::Cow::Borrowed(bytes));
     }
+    check_glb_header(bytes)?;
+    gltf::Glb::from_slice(bytes)
+        .map(|glb| glb.json)
+        .map_err(|e| GltfFileError::Parse(e.to_string()))
+}
+
+/// Refuses a GLB whose header gives a total length shorter than the header (see [`json_of`]).
+fn check_glb_header(bytes: &[u8]) -> Result<(), GltfFileError> {
+    if !bytes.starts_with(b"glTF") {
+        return Ok(());
+    }
     const HEADER: usize = 12;
     let length = bytes
         .get(8..12)
@@ -90,19 +101,13 @@ pub(crate) fn json_of(bytes: &[u8]) -> Result<std::borrow::Cow<'_, [u8]>, GltfFi
             length.unwrap_or(0)
         )));
     }
-    gltf::Glb::from_slice(bytes)
-        .map(|glb| glb.json)
-        .map_err(|e| GltfFileError::Parse(e.to_string()))
+    Ok(())
 }
 
 /// Refuses a file whose mesh primitive names a `POSITION` accessor that does not exist:
 /// `gltf-json` 1.4's validation indexes the accessor list with it unchecked (and panics) before
 /// it reports the index as invalid. Everything else is left to the `gltf` crate's validation.
-fn check_position_accessors(bytes: &[u8]) -> Result<(), GltfFileError> {
-    let json = json_of(bytes)?;
-    let Ok(root) = gltf_json::deserialize::from_slice::<gltf_json::Root>(&json) else {
-        return Ok(());
-    };
+fn check_position_accessors(root: &gltf_json::Root) -> Result<(), GltfFileError> {
     let accessors = root.accessors.len();
     for (m, mesh) in root.meshes.iter().enumerate() {
         for (p, primitive) in mesh.primitives.iter().enumerate() {
@@ -155,10 +160,17 @@ impl GltfFile {
     /// Parses `bytes` (a `.gltf` or `.glb`) and reads its buffers: the GLB binary chunk, or
     /// files next to a `.gltf` in `folder` (the working directory when `None`).
     pub fn parse(bytes: &[u8], folder: Option<&Path>) -> Result<Self, GltfFileError> {
-        check_position_accessors(bytes)?;
-        let gltf =
-            gltf::Gltf::from_slice(bytes).map_err(|e| GltfFileError::Parse(e.to_string()))?;
-        check_channel_targets(gltf.document.as_json())?;
+        // Parsed once, checked for what the gltf crates would panic on, then validated.
+        let parse = |e: gltf::Error| GltfFileError::Parse(e.to_string());
+        check_glb_header(bytes)?;
+        let unchecked = gltf::Gltf::from_slice_without_validation(bytes).map_err(parse)?;
+        let root = unchecked.document.into_json();
+        check_position_accessors(&root)?;
+        check_channel_targets(&root)?;
+        let gltf = gltf::Gltf {
+            document: gltf::Document::from_json(root).map_err(parse)?,
+            blob: unchecked.blob,
+        };
         let buffers = gltf
             .document
             .buffers()
