@@ -18,14 +18,10 @@ use bevy::prelude::*;
 use bevy::world_serialization::WorldAssetRoot;
 use bevy_wii_deform::prelude::*;
 
-#[path = "common/cli.rs"]
-mod cli;
-#[path = "common/screenshot.rs"]
-mod screenshot;
-#[path = "common/springy_tails.rs"]
-mod springy_tails;
-#[path = "common/terrain.rs"]
-mod terrain;
+use bevy_wii_deform_examples::cli;
+use bevy_wii_deform_examples::screenshot;
+use bevy_wii_deform_examples::springy_tails;
+use bevy_wii_deform_examples::terrain;
 
 /// The Fox, relative to the asset folder.
 const FOX: &str = "models/Fox.glb";

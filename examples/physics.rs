@@ -19,10 +19,8 @@ use bevy_wii_deform::deform::synth;
 use bevy_wii_deform::ecs::physics::{DeformCollider, DeformPhysicsPlugin, PosedColliders};
 use bevy_wii_deform::prelude::*;
 
-#[path = "common/cli.rs"]
-mod cli;
-#[path = "common/screenshot.rs"]
-mod screenshot;
+use bevy_wii_deform_examples::cli;
+use bevy_wii_deform_examples::screenshot;
 
 use screenshot::{ScreenshotPlugin, UnattendedFrame};
 

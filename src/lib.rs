@@ -20,27 +20,29 @@ pub mod pose;
 /// core types a game touches. Listed by name, so nothing internal leaks in.
 #[cfg(feature = "bevy")]
 pub mod prelude {
-    pub use crate::controllers::wiimote::{
-        EmulatorConfig, EmulatorControls, FilterKind, RemoteProblem,
-    };
+    pub use crate::controllers::diagnosis::RemoteProblem;
+    pub use crate::controllers::emulation::EmulatorControls;
+    pub use crate::controllers::fusion::FilterKind;
+    pub use crate::controllers::wiimote::EmulatorConfig;
     pub use crate::deform::{
         ArapSolver, Constraints, InitialGuess, RigidTransform, SolveOptions, SolverSettings,
         Topology, TriMesh, WeldPolicy, arap_energy,
     };
     pub use crate::ecs::{
-        ConnectionState, DeformConfig, DeformDynamics, DeformError, DeformFailed, DeformGround,
-        DeformHandle, DeformPhase, DeformPlugin, DeformSolved, DeformStatus, DeformSystems,
-        Deformable, DeformableFrom, DeformableScene, FixedRegion, GrabButton, GrabEnd, GrabMove,
-        GrabPlugin, GrabStart, GrabTurn, GrabTwist, Grabbable, GroundContactState, GroundMesh,
-        InputSystems, JointMask, MissingSceneAssets, MouseControlPlugin, MouseHandleControl,
+        ConnectionState, ControllerButtonChanged, ControllerCalibration, ControllerConnected,
+        ControllerDisconnected, ControllerEmulators, ControllerFilter, ControllerLink,
+        ControllerOrientationChanged, ControllerPointer, ControllerPointerPlugin,
+        ControllerProblem, ControllerProblems, ControllerSettings, ControllerSource, DeformConfig,
+        DeformDynamics, DeformError, DeformFailed, DeformGround, DeformHandle, DeformPhase,
+        DeformPlugin, DeformSolved, DeformStatus, DeformSystems, Deformable, DeformableFrom,
+        DeformableScene, FixedRegion, GrabButton, GrabEnd, GrabMove, GrabPlugin, GrabStart,
+        GrabTurn, GrabTwist, Grabbable, GroundContactState, GroundMesh, InputSystems, JointMask,
+        MissingSceneAssets, MotionControlPlugin, MotionController, MotionControllerPlugin,
+        MotionControllerSystems, MotionHandleControl, MouseControlPlugin, MouseHandleControl,
         PinnedJoints, PoseAnchor, PoseBalance, PoseBlend, PoseBlendMode, PoseEffector,
         PoseEffectorKind, PoseFailed, PoseGround, PoseInFrame, PoseJointHandle, PoseLimits,
         PoseModels, PosePlugin, PoseSolved, PoseStatus, PoseStiffness, PoseSystems, PoseTimeline,
         Poseable, PoseableError, PosedSkeleton, SceneAssetsMissing, SceneGround, SymmetricEditing,
-        WiiDeformPlugins, Wiimote, WiimoteButtonChanged, WiimoteCalibration, WiimoteConnected,
-        WiimoteControlPlugin, WiimoteDisconnected, WiimoteEmulators, WiimoteFilter,
-        WiimoteHandleControl, WiimoteLink, WiimoteOrientationChanged, WiimotePlugin,
-        WiimotePointer, WiimotePointerPlugin, WiimoteProblem, WiimoteProblems, WiimoteSettings,
-        WiimoteSource, WiimoteSystems, mesh_from_triangles,
+        WiiDeformPlugins, mesh_from_triangles,
     };
 }

@@ -129,6 +129,6 @@ fn spawn_remote_handle(
         // World space (`space: None`), as every character handle.
         commands
             .entity(handle)
-            .insert(WiimoteHandleControl::default());
+            .insert(MotionHandleControl::default());
     }
 }

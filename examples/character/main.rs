@@ -42,26 +42,21 @@
 
 mod authoring;
 mod body;
-#[path = "../common/cli.rs"]
-mod cli;
+use bevy_wii_deform_examples::cli;
 mod files;
 mod grab;
 mod history;
 mod hud;
 mod library;
-#[path = "../common/missing_textures.rs"]
-mod missing_textures;
-#[path = "../common/remote_cursor.rs"]
-mod remote_cursor;
+use bevy_wii_deform_examples::missing_textures;
+use bevy_wii_deform_examples::remote_cursor;
 mod scene;
-#[path = "../common/springy_tails.rs"]
-mod springy_tails;
+use bevy_wii_deform_examples::springy_tails;
 mod standing;
 mod timeline;
 mod ui;
 mod unattended;
-#[path = "../common/undo_keys.rs"]
-mod undo_keys;
+use bevy_wii_deform_examples::undo_keys;
 
 use bevy::prelude::*;
 use bevy_wii_deform::controllers::ControllerKind;
@@ -77,7 +72,7 @@ pub struct Args {
     /// Frames before the screenshot.
     pub frames: u32,
     /// `--remote [emulated[=KIND]]`: drive a head handle with a motion controller.
-    pub remote: Option<WiimotePlugin>,
+    pub remote: Option<MotionControllerPlugin>,
     /// `--pointer [emulated[=KIND]]`: a motion controller as a pointer (a Wii Remote's IR
     /// camera with a sensor bar above a 42-inch screen seen from 2 m, a pad's gyro): point,
     /// hold A to grab, turn to turn, the clutch to turn only. `Some(Some(kind))`: an emulated
@@ -151,7 +146,7 @@ fn main() {
     let args = Args::parse();
     let mut app = App::new();
     if let Some(remote) = args.remote.clone() {
-        app.add_plugins((remote, WiimoteControlPlugin, grab::RemoteHeadPlugin));
+        app.add_plugins((remote, MotionControlPlugin, grab::RemoteHeadPlugin));
     } else if let Some(emulated) = args.pointer {
         app.add_plugins((
             remote_cursor::pointing_remote(emulated),

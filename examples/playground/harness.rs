@@ -1,7 +1,7 @@
 //! What the playground needs besides the game itself: its command line, a motion
 //! controller as a pointer (`--pointer [emulated[=KIND]]`: a Wii Remote's IR camera or a
 //! pad's gyro; point at a thing, hold A / Cross, move and turn the controller, release — the
-//! library's `WiimotePointerPlugin`, with a ring drawn where it points),
+//! library's `ControllerPointerPlugin`, with a ring drawn where it points),
 //! and the unattended run (`--screenshot PATH --frames N`: a scripted grab bends the bar, frame
 //! N is saved, the app exits).
 

@@ -15,15 +15,11 @@ use bevy::prelude::*;
 use bevy_wii_deform::deform::{TriMesh, synth};
 use bevy_wii_deform::prelude::*;
 
-#[path = "../common/cli.rs"]
-mod cli;
+use bevy_wii_deform_examples::cli;
 mod harness;
-#[path = "../common/missing_textures.rs"]
-mod missing_textures;
-#[path = "../common/remote_cursor.rs"]
-mod remote_cursor;
-#[path = "../common/screenshot.rs"]
-mod screenshot;
+use bevy_wii_deform_examples::missing_textures;
+use bevy_wii_deform_examples::remote_cursor;
+use bevy_wii_deform_examples::screenshot;
 
 fn main() {
     let options = harness::Options::parse();

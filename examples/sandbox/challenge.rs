@@ -197,7 +197,7 @@ fn track_progress(
     time: Res<Time>,
     model: Res<Model>,
     (meshes, mesh3d): (Res<Assets<Mesh>>, Query<&Mesh3d>),
-    input: Res<State<InputMethod>>,
+    (input, controllers): (Res<State<InputMethod>>, Query<&MotionController>),
     mut done: ResMut<NextState<ChallengeState>>,
     mut record: (ResMut<Results>, ResMut<StatusLine>),
 ) {
@@ -222,7 +222,15 @@ fn track_progress(
     let seconds = challenge.watch.elapsed_secs_f64();
     challenge.done = Some(seconds);
     done.set(ChallengeState::Done);
-    let input = input.get().name();
+    // A controller's row names its kind (a DualSense is not a Wii Remote): the first one
+    // connected, as the handle control drives it.
+    let input = match input.get() {
+        InputMethod::Controller => controllers
+            .iter()
+            .find(|c| c.connection == ConnectionState::Connected)
+            .map_or(InputMethod::Controller.name(), |c| c.kind.name()),
+        method => method.name(),
+    };
     let row = tasks::ResultRow {
         task: challenge.key.clone(),
         input: input.into(),

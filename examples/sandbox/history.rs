@@ -52,7 +52,7 @@ pub struct History(UndoStack<Snapshot>);
 fn record_drags(
     model: Res<Model>,
     selection: Res<Selection>,
-    controls: Query<(Option<&MouseHandleControl>, Option<&WiimoteHandleControl>)>,
+    controls: Query<(Option<&MouseHandleControl>, Option<&MotionHandleControl>)>,
     mut drag_start: Local<Option<Transform>>,
     mut history: ResMut<History>,
 ) {
@@ -62,7 +62,7 @@ fn record_drags(
         .and_then(|(mouse, wii)| {
             mouse
                 .and_then(MouseHandleControl::drag_start)
-                .or_else(|| wii.and_then(WiimoteHandleControl::grab_start))
+                .or_else(|| wii.and_then(MotionHandleControl::grab_start))
         });
     match (start, drag_start.take()) {
         (Some(start), _) => *drag_start = Some(start),

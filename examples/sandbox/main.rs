@@ -8,7 +8,7 @@
 //! ```
 //! Mouse: right-drag orbits, wheel zooms, middle-drag pans. In *Paint* mode left-drag paints
 //! with the brush; in *Pose* mode left-drag turns the handle with an arcball, Shift+left-drag
-//! moves it in the view plane. Wiimote: hold B and turn the remote (1:1), D-pad/+/− move,
+//! moves it in the view plane. MotionController: hold B and turn the remote (1:1), D-pad/+/− move,
 //! Home recentres. A DualSense, DualShock 4 or Switch pad works the same way (R2 / ZR the
 //! clutch, PS / Home recentres; `--emulate=dualsense` and the like emulate one). `--pointer`:
 //! the remote's IR camera (a pad's gyro) points too (a ring where it points,
@@ -34,33 +34,25 @@
 //! Remote) and `ChallengeState` (off, running, done).
 
 #[cfg(test)]
-#[path = "../../tests/it/fixtures/broken_gltf.rs"]
-mod broken_gltf;
+use bevy_wii_deform_examples::broken_gltf;
 mod camera;
 mod challenge;
-#[path = "../common/cli.rs"]
-mod cli;
+use bevy_wii_deform_examples::cli;
 mod files;
 #[cfg(test)]
-#[path = "../common/headless_gltf.rs"]
-#[allow(dead_code)] // the sandbox's tests use the plugins, not the loading helper
-mod headless_gltf;
+use bevy_wii_deform_examples::headless_gltf;
 mod history;
 mod loading;
-#[path = "../common/missing_textures.rs"]
-mod missing_textures;
-#[path = "../common/models.rs"]
-mod models;
+use bevy_wii_deform_examples::missing_textures;
+use bevy_wii_deform_examples::models;
 mod parts;
 mod posing;
-#[path = "../common/remote_cursor.rs"]
-mod remote_cursor;
+use bevy_wii_deform_examples::remote_cursor;
 mod scripted;
 mod selection;
 mod tasks;
 mod ui;
-#[path = "../common/undo_keys.rs"]
-mod undo_keys;
+use bevy_wii_deform_examples::undo_keys;
 
 use std::time::Duration;
 
@@ -100,16 +92,17 @@ enum InputMethod {
     /// The library's `MouseHandleControl` (arcball).
     #[default]
     Mouse,
-    /// The library's `WiimoteHandleControl`.
-    Wiimote,
+    /// The library's `MotionHandleControl`: a Wii Remote or a gyro pad.
+    Controller,
 }
 
 impl InputMethod {
-    /// The name used in the results table.
+    /// The name used in the results table for the mouse; a controller's row names its kind
+    /// ([`ControllerKind::name`](bevy_wii_deform::controllers::ControllerKind::name)).
     fn name(self) -> &'static str {
         match self {
             InputMethod::Mouse => "mouse",
-            InputMethod::Wiimote => "wiimote",
+            InputMethod::Controller => "controller",
         }
     }
 }
@@ -299,14 +292,14 @@ fn main() -> AppExit {
     app.add_plugins((
         DeformPlugin::default(),
         wiimote,
-        WiimoteControlPlugin,
+        MotionControlPlugin,
         MouseControlPlugin,
         MeshPickingPlugin,
         missing_textures::MissingTexturesPlugin,
     ))
     .init_state::<EditMode>()
     .insert_state(if args.demo {
-        InputMethod::Wiimote
+        InputMethod::Controller
     } else {
         InputMethod::Mouse
     })

@@ -1,5 +1,5 @@
 //! Which control drives the handle: the library's `MouseHandleControl` in Pose mode with the
-//! mouse, its `WiimoteHandleControl` with the remote. Switching keeps the pose.
+//! mouse, its `MotionHandleControl` with the remote. Switching keeps the pose.
 
 use bevy::prelude::*;
 use bevy_wii_deform::prelude::*;
@@ -12,7 +12,7 @@ pub struct PosingPlugin;
 impl Plugin for PosingPlugin {
     fn build(&self, app: &mut App) {
         app.add_systems(Update, gate_mouse_control.in_set(SandboxSet::Edit))
-            .add_systems(OnEnter(InputMethod::Wiimote), attach_remote)
+            .add_systems(OnEnter(InputMethod::Controller), attach_remote)
             .add_systems(OnEnter(InputMethod::Mouse), detach_remote);
     }
 }
@@ -43,13 +43,13 @@ fn attach_remote(mut commands: Commands, model: Res<Model>) {
     if let (Some(handle), Some(mesh)) = (model.handle, model.entity) {
         commands
             .entity(handle)
-            .insert(WiimoteHandleControl::default().with_space(mesh));
+            .insert(MotionHandleControl::default().with_space(mesh));
     }
 }
 
 /// The mouse takes the handle where it is.
 fn detach_remote(mut commands: Commands, model: Res<Model>) {
     if let Some(handle) = model.handle {
-        commands.entity(handle).remove::<WiimoteHandleControl>();
+        commands.entity(handle).remove::<MotionHandleControl>();
     }
 }

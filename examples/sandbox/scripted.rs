@@ -79,8 +79,8 @@ fn render_to_image(
 fn demo_script(
     unattended: Res<Unattended>,
     time: Res<Time>,
-    emulators: Option<Res<WiimoteEmulators>>,
-    remotes: Query<&Wiimote>,
+    emulators: Option<Res<ControllerEmulators>>,
+    remotes: Query<&MotionController>,
     mut started: Local<Option<f32>>,
 ) {
     if !unattended.demo {
@@ -91,7 +91,7 @@ fn demo_script(
     };
     let calibrated = remotes
         .iter()
-        .any(|w| matches!(w.calibration, WiimoteCalibration::Calibrated(_)));
+        .any(|w| matches!(w.calibration, ControllerCalibration::Calibrated(_)));
     if !calibrated {
         return;
     }

@@ -115,7 +115,7 @@ fn brush_ray(
     model: Res<Model>,
     mut ray_cast: MeshRayCast,
     buttons: Res<ButtonInput<MouseButton>>,
-    remotes: Query<&Wiimote>,
+    remotes: Query<&MotionController>,
     window: Query<&Window, With<PrimaryWindow>>,
     camera: Query<(&Camera, &GlobalTransform)>,
     mut hit_out: ResMut<BrushHit>,
@@ -305,8 +305,8 @@ pub fn spawn_regions(
             .with_enabled(false),
         Name::new("handle"),
     ));
-    if input == InputMethod::Wiimote {
-        e.insert(WiimoteHandleControl::default().with_space(mesh_entity));
+    if input == InputMethod::Controller {
+        e.insert(MotionHandleControl::default().with_space(mesh_entity));
     }
     model.handle = Some(e.id());
 }

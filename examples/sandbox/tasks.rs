@@ -218,10 +218,12 @@ pub fn read_results(path: &str) -> Vec<ResultRow> {
         .collect()
 }
 
-/// One row of Table 1: task, mean seconds with the mouse, with the Wiimote, speed-up in %.
+/// One row of Table 1: task, mean seconds with the mouse, with a motion controller (any kind),
+/// speed-up in %.
 pub type SummaryRow = (String, Option<f64>, Option<f64>, Option<f64>);
 
-/// Table 1: per task, mean seconds with mouse and Wiimote and the Wiimote's speed-up in %.
+/// Table 1: per task, mean seconds with the mouse and with motion controllers (every row that
+/// is not the mouse's: `wiimote`, `dualsense`, …) and the controllers' speed-up in %.
 pub fn summary(rows: &[ResultRow]) -> Vec<SummaryRow> {
     let mut tasks: Vec<String> = rows.iter().map(|r| r.task.clone()).collect();
     tasks.sort();
@@ -229,15 +231,15 @@ pub fn summary(rows: &[ResultRow]) -> Vec<SummaryRow> {
     tasks
         .into_iter()
         .map(|t| {
-            let mean = |input: &str| {
+            let mean = |mouse: bool| {
                 let v: Vec<f64> = rows
                     .iter()
-                    .filter(|r| r.task == t && r.input == input)
+                    .filter(|r| r.task == t && (r.input == "mouse") == mouse)
                     .map(|r| r.seconds)
                     .collect();
                 (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
             };
-            let (m, w) = (mean("mouse"), mean("wiimote"));
+            let (m, w) = (mean(true), mean(false));
             let speedup = match (m, w) {
                 (Some(m), Some(w)) if m > 0.0 => Some((m - w) / m * 100.0),
                 _ => None,
@@ -245,4 +247,40 @@ pub fn summary(rows: &[ResultRow]) -> Vec<SummaryRow> {
             (t, m, w, speedup)
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(task: &str, input: &str, seconds: f64) -> ResultRow {
+        ResultRow {
+            task: task.into(),
+            input: input.into(),
+            seconds,
+        }
+    }
+
+    /// Rows name the controller's kind; the table puts every kind in the controller column
+    /// and the mouse in its own.
+    #[test]
+    fn every_controller_kind_counts_as_a_controller_in_the_table() {
+        let rows = [
+            row("bend", "mouse", 10.0),
+            row("bend", "mouse", 20.0),
+            row("bend", "wiimote", 6.0),
+            row("bend", "dualsense", 12.0),
+            row("twist", "switch-pro", 4.0),
+        ];
+        let table = summary(&rows);
+        assert_eq!(table.len(), 2);
+        let (task, mouse, controller, speedup) = &table[0];
+        assert_eq!(task, "bend");
+        assert_eq!(*mouse, Some(15.0));
+        assert_eq!(*controller, Some(9.0));
+        assert!((speedup.unwrap() - 40.0).abs() < 1e-9);
+        let (task, mouse, controller, speedup) = &table[1];
+        assert_eq!(task, "twist");
+        assert_eq!((*mouse, *controller, *speedup), (None, Some(4.0), None));
+    }
 }

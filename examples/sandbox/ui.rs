@@ -4,8 +4,9 @@
 use bevy::ecs::system::SystemParam;
 use bevy::prelude::*;
 use bevy_egui::{EguiContexts, EguiPrimaryContextPass, egui};
+use bevy_wii_deform::controllers::manager::RemoteCommand;
 use bevy_wii_deform::controllers::wiimote::protocol::Buttons;
-use bevy_wii_deform::controllers::wiimote::{DemoMotion, RemoteCommand, Still};
+use bevy_wii_deform::controllers::wiimote::{DemoMotion, Still};
 use bevy_wii_deform::prelude::*;
 
 use crate::challenge::{CLOSE_ENOUGH, Challenge, ChallengeState, Results, TaskList};
@@ -154,11 +155,11 @@ fn edit_section(ui: &mut egui::Ui, p: &mut EditPanel) {
 struct RemotePanel<'w, 's> {
     input: Res<'w, State<InputMethod>>,
     next_input: ResMut<'w, NextState<InputMethod>>,
-    settings: ResMut<'w, WiimoteSettings>,
-    link: Option<Res<'w, WiimoteLink>>,
-    emulators: Option<Res<'w, WiimoteEmulators>>,
-    remotes: Query<'w, 's, &'static Wiimote>,
-    problems: Option<Res<'w, WiimoteProblems>>,
+    settings: ResMut<'w, ControllerSettings>,
+    link: Option<Res<'w, ControllerLink>>,
+    emulators: Option<Res<'w, ControllerEmulators>>,
+    remotes: Query<'w, 's, &'static MotionController>,
+    problems: Option<Res<'w, ControllerProblems>>,
 }
 
 fn input_section(ui: &mut egui::Ui, p: &mut RemotePanel) {
@@ -166,21 +167,21 @@ fn input_section(ui: &mut egui::Ui, p: &mut RemotePanel) {
     let mut input = *p.input.get();
     ui.horizontal(|ui| {
         ui.selectable_value(&mut input, InputMethod::Mouse, "Mouse (arcball)");
-        ui.selectable_value(&mut input, InputMethod::Wiimote, "Wii Remote");
+        ui.selectable_value(&mut input, InputMethod::Controller, "Wii Remote");
     });
     if input != *p.input.get() {
         p.next_input.set(input);
     }
-    if input != InputMethod::Wiimote {
+    if input != InputMethod::Controller {
         return;
     }
     let mut filter = p.settings.filter;
     ui.horizontal(|ui| {
         ui.label("Filter:");
-        ui.selectable_value(&mut filter, WiimoteFilter::Fusion, "ours");
-        ui.selectable_value(&mut filter, WiimoteFilter::Vqf, "VQF");
-        ui.selectable_value(&mut filter, WiimoteFilter::Paper, "paper");
-        ui.selectable_value(&mut filter, WiimoteFilter::Raw, "raw");
+        ui.selectable_value(&mut filter, ControllerFilter::Fusion, "ours");
+        ui.selectable_value(&mut filter, ControllerFilter::Vqf, "VQF");
+        ui.selectable_value(&mut filter, ControllerFilter::Paper, "paper");
+        ui.selectable_value(&mut filter, ControllerFilter::Raw, "raw");
     });
     if filter != p.settings.filter {
         p.settings.filter = filter;
@@ -202,7 +203,7 @@ fn input_section(ui: &mut egui::Ui, p: &mut RemotePanel) {
     }
 }
 
-fn remote_line(ui: &mut egui::Ui, w: &Wiimote, link: Option<&WiimoteLink>) {
+fn remote_line(ui: &mut egui::Ui, w: &MotionController, link: Option<&ControllerLink>) {
     ui.label(format!(
         "Remote {}: {:?} · MotionPlus {} · battery {}% · {:?}{}",
         w.id,
@@ -294,7 +295,7 @@ fn challenge_section(ui: &mut egui::Ui, p: &mut ChallengePanel) {
 fn results_table(ui: &mut egui::Ui, rows: &[tasks::ResultRow]) {
     let seconds = |v: Option<f64>| v.map(|v| format!("{v:.1}")).unwrap_or_else(|| "–".into());
     egui::Grid::new("results").striped(true).show(ui, |ui| {
-        for heading in ["task", "mouse s", "wiimote s", "speed-up"] {
+        for heading in ["task", "mouse s", "controller s", "speed-up"] {
             ui.label(heading);
         }
         ui.end_row();

@@ -4,10 +4,8 @@
 //! cargo run --release --example make_assets
 //! ```
 
-#[path = "../common/cli.rs"]
-mod cli;
-#[path = "../common/models.rs"]
-mod models;
+use bevy_wii_deform_examples::cli;
+use bevy_wii_deform_examples::models;
 
 const USAGE: &str = "usage: make_assets (writes assets/models/{bar,cactus,mannequin}.obj)";
 

@@ -13,8 +13,7 @@
 //! `{"summary": {…}}`. It exits 0 once its input is read, whatever the reports held; 2 for
 //! bad arguments.
 
-#[path = "../common/cli.rs"]
-mod cli;
+use bevy_wii_deform_examples::cli;
 
 use std::io::BufRead;
 

@@ -10,12 +10,15 @@
 //! kernel driver bound → the unbind line with the device's real HID id, or the blacklist
 //! line; Steam's controller support holding a pad; busy; no answer.
 
-#[path = "../common/cli.rs"]
-mod cli;
+use bevy_wii_deform_examples::cli;
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use bevy_wii_deform::controllers::diagnosis::LinuxDevices;
+use bevy_wii_deform::controllers::manager::{
+    ControllerManager, ManagerConfig, ManagerEvent, RemoteId, RemoteSource,
+};
 use bevy_wii_deform::controllers::pads::PadEmulatorConfig;
 use bevy_wii_deform::controllers::wiimote::protocol::Buttons;
 use bevy_wii_deform::controllers::wiimote::*;
@@ -192,7 +195,7 @@ fn main() {
     let Some(source) = remote_source(emulate.then_some(device)) else {
         return;
     };
-    let manager = WiimoteManager::start(ManagerConfig {
+    let manager = ControllerManager::start(ManagerConfig {
         source,
         session: SessionConfig {
             filter,

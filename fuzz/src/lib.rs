@@ -22,8 +22,8 @@ use bevy_wii_deform::controllers::{ControllerKind, Link, PadReport};
 use bevy_wii_deform::deform::{TriMesh, VertexSelection, parse_handle_transform};
 use bevy_wii_deform::pose::rig::synth_rig::{SyntheticRig, humanoid_rig};
 use bevy_wii_deform::pose::{
-    GltfCharacter, GltfFile, JointLimits, read_bvh, write_bvh, ModelSettings, PoseClip, PoseFile, PoseLibrary,
-    Skeleton, SkeletonPose, SpringRig, read_gltf_clip, read_vrm_springs,
+    GltfCharacter, GltfFile, JointLimits, ModelSettings, PoseClip, PoseFile, PoseLibrary, Skeleton,
+    SkeletonPose, SpringRig, read_bvh, read_gltf_clip, read_vrm_springs, write_bvh,
 };
 
 /// A fuzz target: bytes in, a panic on a finding.
@@ -59,7 +59,10 @@ pub fn run(name: &str, data: &[u8]) -> bool {
 /// extension id.
 pub fn wiimote_reports(data: &[u8]) {
     if let Ok(InputReport::Data {
-        accel, extension, ir: camera, ..
+        accel,
+        extension,
+        ir: camera,
+        ..
     }) = InputReport::decode(data)
     {
         if let Some(e) = extension {
@@ -85,7 +88,9 @@ pub fn wiimote_reports(data: &[u8]) {
     if let Some(calibration) = AccelCalibration::parse(data) {
         assert!(
             calibration
-                .to_g(bevy_wii_deform::controllers::wiimote::protocol::AccelRaw([512; 3]))
+                .to_g(bevy_wii_deform::controllers::wiimote::protocol::AccelRaw(
+                    [512; 3]
+                ))
                 .is_finite(),
             "a parsed accelerometer calibration gives non-finite accelerations"
         );
@@ -101,7 +106,10 @@ pub fn wiimote_reports(data: &[u8]) {
         let frame = MotionPlusFrame::decode(&[0x7f, 0x7f, 0x7f, 0xff, 0xff, 0xff]);
         if let Ok(frame) = frame {
             let rates = calibration.rates_deg(&frame);
-            assert!(rates.is_finite(), "a parsed MotionPlus calibration gives {rates}");
+            assert!(
+                rates.is_finite(),
+                "a parsed MotionPlus calibration gives {rates}"
+            );
         }
     }
 }
@@ -129,7 +137,11 @@ pub fn pad_reports(data: &[u8]) {
     // The pads: every kind but the Wii Remote (first in the list).
     let pads = &ControllerKind::ALL[1..];
     let kind = pads[(*pick as usize % (2 * pads.len())) / 2];
-    let link = if pick % 2 == 0 { Link::Usb } else { Link::Bluetooth };
+    let link = if pick % 2 == 0 {
+        Link::Usb
+    } else {
+        Link::Bluetooth
+    };
     let (block, report) = rest.split_at((*split as usize).min(rest.len()));
     let Ok(mut decoder) = PadDecoder::new(kind, link) else {
         return;
@@ -139,7 +151,9 @@ pub fn pad_reports(data: &[u8]) {
     }
     let calibration = match kind {
         ControllerKind::DualSense | ControllerKind::DualSenseEdge | ControllerKind::DualShock4 => {
-            SonyCalibration::parse(kind, link, block).map(PadCalibration::Sony).ok()
+            SonyCalibration::parse(kind, link, block)
+                .map(PadCalibration::Sony)
+                .ok()
         }
         _ => {
             let _ = bevy_wii_deform::controllers::switch::parse_reply(report);
@@ -220,7 +234,10 @@ pub fn gltf_character(data: &[u8]) {
             let skinned = model.skin_render(&character.rest);
             // Positions a file gives may be huge but finite; skinning them stays finite only
             // when the matrices are moderate, so only a NaN is a finding.
-            assert!(skinned.iter().all(|p| !p.is_nan()), "NaN in a skinned rest shape");
+            assert!(
+                skinned.iter().all(|p| !p.is_nan()),
+                "NaN in a skinned rest shape"
+            );
         }
     }
 }
@@ -267,7 +284,10 @@ pub fn gltf_clip(data: &[u8]) {
 pub fn vrm_springs(data: &[u8]) {
     let (skeleton, _) = skeleton_for(data);
     if let Ok(rig) = read_vrm_springs(data, &skeleton) {
-        assert!(rig.validate(&skeleton).is_ok(), "a read spring rig does not validate");
+        assert!(
+            rig.validate(&skeleton).is_ok(),
+            "a read spring rig does not validate"
+        );
     }
 }
 
@@ -281,12 +301,18 @@ pub fn ron_files(data: &[u8]) {
     if let Ok(file) = PoseFile::from_ron(text)
         && let Ok(pose) = file.apply(&rig.skeleton, &rig.rest)
     {
-        assert!(pose.local.iter().all(|t| t.is_valid()), "a pose file applied to an invalid pose");
+        assert!(
+            pose.local.iter().all(|t| t.is_valid()),
+            "a pose file applied to an invalid pose"
+        );
     }
     if let Ok(limits) = JointLimits::from_ron(text, &rig.skeleton, &rig.rest) {
         let mut pose = rig.rest.clone();
         limits.project(&mut pose);
-        assert!(pose.local.iter().all(|t| t.is_valid()), "limits project to an invalid pose");
+        assert!(
+            pose.local.iter().all(|t| t.is_valid()),
+            "limits project to an invalid pose"
+        );
     }
     if let Ok(springs) = SpringRig::from_ron(text, &rig.skeleton) {
         assert!(springs.validate(&rig.skeleton).is_ok());
@@ -312,8 +338,13 @@ pub fn bvh_files(data: &[u8]) {
     assert!(motion.rest.local.iter().all(|t| t.is_valid()));
     check_clip(&motion.clip);
     if motion.clip.keys().len() <= 64 {
-        let written = write_bvh(&motion.skeleton, &motion.rest, &motion.clip, motion.frame_time)
-            .expect("a clip read from BVH writes back");
+        let written = write_bvh(
+            &motion.skeleton,
+            &motion.rest,
+            &motion.clip,
+            motion.frame_time,
+        )
+        .expect("a clip read from BVH writes back");
         let again = read_bvh(&written).expect("a written BVH reads back");
         assert_eq!(again.clip.keys().len(), motion.clip.keys().len());
     }

@@ -18,7 +18,7 @@ pub enum TransportError {
         /// Device node.
         node: String,
         /// Why.
-        kind: crate::controllers::wiimote::diagnosis::OpenErrorKind,
+        kind: crate::controllers::diagnosis::OpenErrorKind,
     },
 }
 
@@ -62,44 +62,6 @@ mod hid {
     use web_time::Instant;
 
     use super::{Transport, TransportError};
-    use crate::controllers::wiimote::protocol::{
-        NAME_ORIGINAL, NAME_PLUS, PRODUCT_ID_ORIGINAL, PRODUCT_ID_PLUS, VENDOR_ID,
-    };
-
-    /// A remote found by [`discover`].
-    #[derive(Debug, Clone, PartialEq, Eq)]
-    pub struct DeviceInfo {
-        /// OS path (e.g. `/dev/hidraw3`).
-        pub path: String,
-        /// USB/Bluetooth product id.
-        pub product_id: u16,
-        /// Product string, if readable.
-        pub product: Option<String>,
-        /// Serial (Bluetooth address), if readable.
-        pub serial: Option<String>,
-    }
-
-    /// Lists Wii Remotes (by VID/PID and by product string, for clones).
-    pub fn discover() -> Result<Vec<DeviceInfo>, TransportError> {
-        let api = hidapi::HidApi::new().map_err(|e| TransportError::Io(e.to_string()))?;
-        let mut out: Vec<DeviceInfo> = Vec::new();
-        for d in api.device_list() {
-            let product = d.product_string().map(str::to_string);
-            let by_name = matches!(product.as_deref(), Some(NAME_ORIGINAL) | Some(NAME_PLUS));
-            let by_id = d.vendor_id() == VENDOR_ID
-                && (d.product_id() == PRODUCT_ID_ORIGINAL || d.product_id() == PRODUCT_ID_PLUS);
-            let path = d.path().to_string_lossy().into_owned();
-            if (by_name || by_id) && !out.iter().any(|o| o.path == path) {
-                out.push(DeviceInfo {
-                    path,
-                    product_id: d.product_id(),
-                    product,
-                    serial: d.serial_number().map(str::to_string),
-                });
-            }
-        }
-        Ok(out)
-    }
 
     /// A remote opened through hidapi.
     pub struct HidTransport {
@@ -113,8 +75,7 @@ mod hid {
         /// so the node is probed first).
         pub fn open(path: &str) -> Result<Self, TransportError> {
             #[cfg(target_os = "linux")]
-            if let Err(kind) =
-                crate::controllers::wiimote::diagnosis::probe_open(std::path::Path::new(path))
+            if let Err(kind) = crate::controllers::diagnosis::probe_open(std::path::Path::new(path))
             {
                 return Err(TransportError::Open {
                     node: path.to_string(),

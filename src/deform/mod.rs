@@ -1,6 +1,26 @@
 //! The deformation core: As-Rigid-As-Possible surface modelling (Sorkine & Alexa 2007) with the
 //! paper's uniform-Laplacian initial guess. Pure math on `glam` + `faer`; no Bevy.
 //!
+//! | file | what it answers |
+//! |---|---|
+//! | `mod.rs` | the types and docs of this folder (above) |
+//! | `anderson.rs` | Anderson acceleration (type II) of the local/global fixed-point map `y ↦ G(y)` on the free positions, after Peng et al. 2018. |
+//! | `constraints.rs` | Positional constraints: fixed vertices, rigid handles and free-form targets. |
+//! | `dynamics.rs` | Bends that wobble: the ARAP energy given inertia, stepped in time as projective dynamics does (Bouaziz et al. 2014). |
+//! | `energy.rs` | The normalised ARAP energy used to compare solvers. |
+//! | `factor.rs` | The Cholesky factor in the form the iterations use: compressed columns with 32-bit row indices, the inverted diagonal kept apart, and the three coordinates of a right-hand side interleaved, so one pass over `L` (and one over `Lᵀ`) solves for x, y and z together. |
+//! | `io.rs` | Reading OFF and OBJ triangle meshes (for tools, tests and benchmarks). |
+//! | `lbfgs.rs` | Limited-memory BFGS directions for the ARAP energy, with the factored cotangent Laplacian as the initial inverse Hessian, after Liu, Bouaziz & Kavan 2017, "Quasi-Newton Methods for Real-Time Simulation of Hyperelastic Materials". |
+//! | `obstacle.rs` | Surfaces a bend may not pass through (the game's ground under a [`Deformable`] mesh). |
+//! | `ordering.rs` | Fill-reducing elimination order for the Cholesky factor: geometric dissection on top, approximate minimum degree below. |
+//! | `parallel.rs` | The solver's data-parallel loops, run on rayon's pool for large meshes and on the calling thread for small ones. |
+//! | `preview.rs` | A first pose for a new constraint set without waiting for the whole mesh's factorization. |
+//! | `rotation.rs` | Best-fit rotations of 3×3 covariance matrices. |
+//! | `selection_io.rs` | Reading the vertex selections (`.sel`) and handle transforms (`.def`) of the deformation benchmark of Botsch and Sorkine ("On Linear Variational Surface Deformation Methods", 2008), the format the ARAP literature's test cases (the cactus, the bar) come in. |
+//! | `solver/` | The ARAP solver: precompute (weights, elimination, Cholesky factorization) and warm-startable local/global iterations. |
+//! | `synth.rs` | Synthetic meshes generated in code (for tests, benchmarks and the sandbox's assets). |
+//! | `topology/` | Welded mesh topology and cotangent edge weights. |
+//!
 //! ```
 //! use std::sync::Arc;
 //! use bevy_wii_deform::deform::*;

@@ -7,15 +7,16 @@
 //! | [`PosePlugin`] | posing rigged characters ([`Poseable`]): skinning-space ARAP solved for a skeleton pose, written to the joints, blended over clips ([`PoseBlend`]), clips authored on a [`PoseTimeline`] | [`PoseSystems`] (`Update`: Prepare → Request → Poll → Timeline after `DeformSystems::Request`; `PostUpdate`: Apply after `AnimationSystems`, before propagation) |
 //! | [`GrabPlugin`] | press, drag, release on [`Grabbable`] meshes and characters through bevy_picking | [`InputSystems`] (`Update`: StartGrabs before `DeformSystems::Prepare`, MoveHandles after it and before `DeformSystems::Request`) |
 //! | [`MouseControlPlugin`] | [`MouseHandleControl`]: arcball and view-plane drags of a handle | `Update`, in `InputSystems::MoveHandles` |
-//! | [`WiimotePointerPlugin`] | the Wii Remote's IR pointer as a bevy_picking pointer: A grabs, turning turns ([`GrabTurn`]) | `PreUpdate`, in bevy_picking's input set |
-//! | [`WiimotePlugin`], [`WiimoteControlPlugin`] | one entity per remote with a [`Wiimote`] component, messages; [`WiimoteHandleControl`] | [`WiimoteSystems`] (`PreUpdate`: Receive; `Update`: Control, part of `InputSystems::MoveHandles`) |
+//! | [`ControllerPointerPlugin`] | the Wii Remote's IR pointer as a bevy_picking pointer: A grabs, turning turns ([`GrabTurn`]) | `PreUpdate`, in bevy_picking's input set |
+//! | [`MotionControllerPlugin`], [`MotionControlPlugin`] | one entity per remote with a [`MotionController`] component, messages; [`MotionHandleControl`] | [`MotionControllerSystems`] (`PreUpdate`: Receive; `Update`: Control, part of `InputSystems::MoveHandles`) |
 //!
 //! The input plugins (mouse, remote, pointer grabs) live in one folder, `ecs/input`, over one
 //! piece of shared view math.
 //!
-//! [`WiiDeformPlugins`] adds them all except [`WiimotePointerPlugin`] (opt-in: it needs a sensor
-//! bar, [`WiimotePlugin::pointer`]).
+//! [`WiiDeformPlugins`] adds them all except [`ControllerPointerPlugin`] (opt-in: it needs a sensor
+//! bar, [`MotionControllerPlugin::pointer`]).
 
+mod controllers;
 mod deform;
 mod ground;
 mod input;
@@ -26,11 +27,17 @@ mod scene;
 mod space;
 mod springs;
 mod tasks;
-mod wiimote;
 
 use bevy::app::PluginGroupBuilder;
 use bevy::prelude::*;
 
+pub use controllers::{
+    ConnectionState, ControllerButtonChanged, ControllerCalibration, ControllerConnected,
+    ControllerDisconnected, ControllerEmulators, ControllerFilter, ControllerLink,
+    ControllerOrientationChanged, ControllerProblem, ControllerProblems, ControllerSettings,
+    ControllerSource, MotionController, MotionControllerPlugin, MotionControllerSystems,
+    remote_to_bevy, remote_vec_to_bevy,
+};
 pub use deform::{
     DeformConfig, DeformDynamics, DeformError, DeformFailed, DeformGround, DeformHandle,
     DeformPhase, DeformPlugin, DeformSolved, DeformState, DeformStatus, DeformSystems, Deformable,
@@ -38,9 +45,9 @@ pub use deform::{
 };
 pub use ground::{GroundMesh, GroundPlugin, SceneGround};
 pub use input::{
-    ActiveGrabs, GrabButton, GrabEnd, GrabHandle, GrabMove, GrabPlugin, GrabStart, GrabTurn,
-    GrabTwist, Grabbable, InputSystems, MouseControlPlugin, MouseHandleControl,
-    WiimoteControlPlugin, WiimoteHandleControl, WiimotePointer, WiimotePointerPlugin,
+    ActiveGrabs, ControllerPointer, ControllerPointerPlugin, GrabButton, GrabEnd, GrabHandle,
+    GrabMove, GrabPlugin, GrabStart, GrabTurn, GrabTwist, Grabbable, InputSystems,
+    MotionControlPlugin, MotionHandleControl, MouseControlPlugin, MouseHandleControl,
     arcball_rotation,
 };
 pub use pose::{
@@ -52,23 +59,17 @@ pub use pose::{
 };
 pub use scene::{MissingSceneAssets, SceneAssetsMissing, SceneRootPlugin};
 pub use springs::{SpringBones, SpringPlugin, SpringSource, SpringStatus, SpringSystems};
-pub use wiimote::{
-    ConnectionState, Wiimote, WiimoteButtonChanged, WiimoteCalibration, WiimoteConnected,
-    WiimoteDisconnected, WiimoteEmulators, WiimoteFilter, WiimoteLink, WiimoteOrientationChanged,
-    WiimotePlugin, WiimoteProblem, WiimoteProblems, WiimoteSettings, WiimoteSource, WiimoteSystems,
-    remote_to_bevy, remote_vec_to_bevy,
-};
 
-/// Every plugin: [`DeformPlugin`], [`PosePlugin`], [`GrabPlugin`], [`WiimotePlugin`],
-/// [`WiimoteControlPlugin`] and [`MouseControlPlugin`]. Leave one out with Bevy's plugin-group
+/// Every plugin: [`DeformPlugin`], [`PosePlugin`], [`GrabPlugin`], [`MotionControllerPlugin`],
+/// [`MotionControlPlugin`] and [`MouseControlPlugin`]. Leave one out with Bevy's plugin-group
 /// API, e.g. `WiiDeformPlugins::default().build().disable::<GrabPlugin>()` for an app that
 /// grabs nothing with the pointer.
 #[derive(Debug, Clone, Default)]
 pub struct WiiDeformPlugins {
     /// Deformation settings.
     pub deform: DeformPlugin,
-    /// Wiimote settings.
-    pub wiimote: WiimotePlugin,
+    /// MotionController settings.
+    pub wiimote: MotionControllerPlugin,
 }
 
 impl PluginGroup for WiiDeformPlugins {
@@ -78,7 +79,7 @@ impl PluginGroup for WiiDeformPlugins {
             .add(PosePlugin)
             .add(GrabPlugin)
             .add(self.wiimote)
-            .add(WiimoteControlPlugin)
+            .add(MotionControlPlugin)
             .add(MouseControlPlugin)
     }
 }

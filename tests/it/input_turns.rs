@@ -201,7 +201,7 @@ fn the_remote_moves_and_turns_a_handle_in_a_scaled_space_at_world_speed() {
     app.insert_resource(bevy::time::TimeUpdateStrategy::ManualDuration(
         Duration::from_millis(10),
     ));
-    app.add_plugins(WiimoteControlPlugin);
+    app.add_plugins(MotionControlPlugin);
     app.world_mut()
         .spawn((Camera3d::default(), Transform::IDENTITY));
     let space_transform =
@@ -209,7 +209,7 @@ fn the_remote_moves_and_turns_a_handle_in_a_scaled_space_at_world_speed() {
     let space = app.world_mut().spawn(space_transform).id();
     let remote = app
         .world_mut()
-        .spawn(Wiimote {
+        .spawn(MotionController {
             connection: ConnectionState::Connected,
             ..default()
         })
@@ -218,11 +218,11 @@ fn the_remote_moves_and_turns_a_handle_in_a_scaled_space_at_world_speed() {
         .world_mut()
         .spawn((
             Transform::default(),
-            WiimoteHandleControl::default().with_space(space),
+            MotionHandleControl::default().with_space(space),
         ))
         .id();
     let set = |app: &mut App, orientation: Quat, buttons: u16| {
-        let mut w = app.world_mut().get_mut::<Wiimote>(remote).unwrap();
+        let mut w = app.world_mut().get_mut::<MotionController>(remote).unwrap();
         w.orientation = orientation;
         w.buttons = buttons;
     };
@@ -237,7 +237,7 @@ fn the_remote_moves_and_turns_a_handle_in_a_scaled_space_at_world_speed() {
     }
     let t = *app.world().get::<Transform>(handle).unwrap();
     let world_motion = space_transform.transform_point(t.translation) - space_transform.translation;
-    let expected = Vec3::X * WiimoteHandleControl::default().speed * 0.1;
+    let expected = Vec3::X * MotionHandleControl::default().speed * 0.1;
     assert!(
         (world_motion - expected).length() < 0.01 * expected.length(),
         "moved {world_motion} in the world, expected {expected}"

@@ -1,6 +1,7 @@
 //! The layers of the source tree: `src/pose`'s folders import only the folders below them
 //! (rig ← ground ← constraints ← solver; animation on rig; springs on rig and constraints;
-//! retarget on all but springs),
+//! retarget on all but springs), `src/controllers`' device folders import the shared layer and
+//! never each other (the pads' session imports its two families; the manager every device),
 //! and no core imports the ECS layer. Read from the `use` lines and paths of the sources
 //! themselves (test modules inside a file are left out: tests may reach anywhere).
 
@@ -251,6 +252,89 @@ fn an_import_against_the_order_is_found() {
     assert_eq!(bad.len(), 2, "{bad:?}");
     assert!(bad[0].contains("rig → solver"), "{bad:?}");
     assert!(bad[1].contains("root re-export"), "{bad:?}");
+}
+
+/// The tier of `src/controllers` a path below it names: `shared` for the layer every
+/// controller uses (its files, `session/`, `emulation/`, `fusion/` and the root's
+/// re-exports), else the device folder (`wiimote`, `sony`, `switch`), `pads` or `manager`.
+fn controller_tier(segment: &str) -> &str {
+    match segment {
+        "wiimote" | "sony" | "switch" | "pads" | "manager" => segment,
+        _ => "shared",
+    }
+}
+
+/// Which tiers of `src/controllers` each tier may import.
+fn controller_tiers_allowed() -> BTreeMap<&'static str, &'static [&'static str]> {
+    BTreeMap::from([
+        ("shared", &["shared"][..]),
+        ("wiimote", &["shared"][..]),
+        ("sony", &["shared"][..]),
+        ("switch", &["shared"][..]),
+        ("pads", &["shared", "sony", "switch"][..]),
+        ("manager", &["shared", "wiimote", "pads"][..]),
+    ])
+}
+
+/// The imports between `src/controllers`' tiers against [`controller_tiers_allowed`], as
+/// `file: tier → tier (path)`.
+fn controller_layer_violations(src: &Path) -> Vec<String> {
+    let allowed = controller_tiers_allowed();
+    let mut bad = Vec::new();
+    for file in rust_files(&src.join("controllers")) {
+        let module = module_of(src, &file);
+        let from = module.get(1).map_or("shared", |s| controller_tier(s));
+        let code = code_of(&std::fs::read_to_string(&file).expect("a source file"));
+        for path in paths_named(&code, &module) {
+            if path.first().is_none_or(|p| p != "controllers") || path.len() < 2 {
+                continue;
+            }
+            let to = controller_tier(&path[1]);
+            if to != from && !allowed[from].contains(&to) {
+                bad.push(format!(
+                    "{}: {from} → {to} ({})",
+                    file.display(),
+                    path.join("::")
+                ));
+            }
+        }
+    }
+    bad
+}
+
+/// The controllers' device folders import the shared layer, never each other; the shared
+/// layer imports no device.
+#[test]
+fn controller_devices_import_only_the_shared_layer() {
+    let bad = controller_layer_violations(&src_dir());
+    assert!(
+        bad.is_empty(),
+        "imports between controller tiers:\n{}",
+        bad.join("\n")
+    );
+}
+
+/// The checker finds a device importing another device and the shared layer importing a
+/// device, in a source tree made for the purpose.
+#[test]
+fn an_import_between_controller_devices_is_found() {
+    let dir = ScratchDir::new("controller_layering");
+    let sony = dir.join("controllers").join("sony");
+    std::fs::create_dir_all(&sony).unwrap();
+    std::fs::write(
+        sony.join("mod.rs"),
+        "use crate::controllers::wiimote::Buttons;\nuse super::session::SessionEvent;\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("controllers").join("transport.rs"),
+        "use crate::controllers::{ControllerKind, pads::PadSession};\n",
+    )
+    .unwrap();
+    let bad = controller_layer_violations(&dir);
+    assert_eq!(bad.len(), 2, "{bad:?}");
+    assert!(bad.iter().any(|b| b.contains("sony → wiimote")), "{bad:?}");
+    assert!(bad.iter().any(|b| b.contains("shared → pads")), "{bad:?}");
 }
 
 /// No core layer (deform, pose, controllers, history) imports the ECS layer or Bevy.

@@ -34,19 +34,19 @@ fn pads_app(kinds: &[ControllerKind], gyro_pointer: Option<GyroPointerSettings>)
         })
         .collect();
     app.add_plugins((
-        WiimotePlugin {
-            source: WiimoteSource::Emulator(source),
+        MotionControllerPlugin {
+            source: ControllerSource::Emulator(source),
             gyro_pointer,
             ..default()
         },
-        WiimoteControlPlugin,
+        MotionControlPlugin,
     ));
     app
 }
 
-fn controllers(app: &mut App) -> Vec<(Entity, Wiimote)> {
-    let mut q = app.world_mut().query::<(Entity, &Wiimote)>();
-    let mut all: Vec<(Entity, Wiimote)> =
+fn controllers(app: &mut App) -> Vec<(Entity, MotionController)> {
+    let mut q = app.world_mut().query::<(Entity, &MotionController)>();
+    let mut all: Vec<(Entity, MotionController)> =
         q.iter(app.world()).map(|(e, w)| (e, w.clone())).collect();
     all.sort_by_key(|(_, w)| w.id);
     all
@@ -58,7 +58,7 @@ fn calibrated(app: &mut App, n: usize) {
         all.len() == n
             && all.iter().all(|(_, w)| {
                 w.connection == ConnectionState::Connected
-                    && matches!(w.calibration, WiimoteCalibration::Calibrated(_))
+                    && matches!(w.calibration, ControllerCalibration::Calibrated(_))
             })
     });
 }
@@ -92,18 +92,18 @@ fn each_pad_gets_an_entity_with_its_kind_and_battery() {
 #[test]
 fn an_emulated_dualsense_turns_a_handle_40_degrees_for_40() {
     let mut app = pads_app(&[ControllerKind::DualSense], None);
-    let controls = app.world().resource::<WiimoteEmulators>().0[0].clone();
+    let controls = app.world().resource::<ControllerEmulators>().0[0].clone();
     controls.set_motion(Arc::new(Still(DQuat::IDENTITY)));
     calibrated(&mut app, 1);
     let handle = app
         .world_mut()
-        .spawn((Transform::default(), WiimoteHandleControl::default()))
+        .spawn((Transform::default(), MotionHandleControl::default()))
         .id();
     // R2 is the clutch (B to the emulator).
     controls.set_buttons(Buttons(Buttons::B));
     common::update_until(&mut app, "the grab", |a| {
         a.world()
-            .get::<WiimoteHandleControl>(handle)
+            .get::<MotionHandleControl>(handle)
             .unwrap()
             .is_grabbing()
     });
@@ -132,7 +132,7 @@ fn the_gyro_pointer_moves_by_its_sensitivity_and_recentres() {
         aspect: 16.0 / 9.0,
     };
     let mut app = pads_app(&[ControllerKind::SwitchPro], Some(settings));
-    let controls = app.world().resource::<WiimoteEmulators>().0[0].clone();
+    let controls = app.world().resource::<ControllerEmulators>().0[0].clone();
     controls.set_motion(Arc::new(Still(DQuat::IDENTITY)));
     calibrated(&mut app, 1);
     let start = controllers(&mut app)[0].1.pointer.unwrap();

@@ -352,7 +352,7 @@ fn the_fox_from_bevys_gltf_loader_is_poseable() {
 fn the_wii_remote_turns_a_character_handle_one_to_one() {
     use bevy_wii_deform::controllers::wiimote::protocol::Buttons;
     let mut app = app();
-    app.add_plugins(WiimoteControlPlugin);
+    app.add_plugins(MotionControlPlugin);
     app.world_mut()
         .spawn((Camera3d::default(), Transform::default()));
     let rig = bar_rig(3, 12, 40);
@@ -370,16 +370,16 @@ fn the_wii_remote_turns_a_character_handle_one_to_one() {
     let top: Vec<u32> = (0..rig.mesh.positions.len() as u32)
         .filter(|&i| rig.mesh.positions[i as usize].y > 0.8)
         .collect();
-    let (handle, _) = spawn_handle(&mut app, root, top, WiimoteHandleControl::default());
+    let (handle, _) = spawn_handle(&mut app, root, top, MotionHandleControl::default());
     let remote = app
         .world_mut()
-        .spawn(Wiimote {
+        .spawn(MotionController {
             connection: ConnectionState::Connected,
             ..default()
         })
         .id();
     let set = |app: &mut App, orientation: Quat, buttons: u16| {
-        let mut w = app.world_mut().get_mut::<Wiimote>(remote).unwrap();
+        let mut w = app.world_mut().get_mut::<MotionController>(remote).unwrap();
         w.orientation = orientation;
         w.buttons = buttons;
     };

@@ -17,7 +17,7 @@ fn registry_app() -> App {
         PosePlugin,
         GrabPlugin,
         MouseControlPlugin,
-        WiimoteControlPlugin,
+        MotionControlPlugin,
     ));
     app
 }
@@ -54,7 +54,7 @@ fn a_scene_round_trip_keeps_handles_pins_and_controls_pointing_at_the_right_enti
             MouseHandleControl::default()
                 .with_camera(camera)
                 .with_space(mesh),
-            WiimoteHandleControl::default()
+            MotionHandleControl::default()
                 .with_remote(remote)
                 .with_camera(camera)
                 .with_space(mesh),
@@ -91,7 +91,7 @@ fn a_scene_round_trip_keeps_handles_pins_and_controls_pointing_at_the_right_enti
         (mouse.camera, mouse.space),
         (Some(new(camera)), Some(new(mesh)))
     );
-    let wii = w.get::<WiimoteHandleControl>(new(handle)).unwrap();
+    let wii = w.get::<MotionHandleControl>(new(handle)).unwrap();
     assert_eq!(
         (wii.remote, wii.camera, wii.space),
         (Some(new(remote)), Some(new(camera)), Some(new(mesh)))

@@ -5,8 +5,10 @@ use std::sync::Arc;
 
 use crate::common::shared;
 
+use bevy_wii_deform::controllers::diagnosis::{self, LinuxDevices, OpenErrorKind, RemoteProblem};
 use bevy_wii_deform::controllers::wiimote::protocol::*;
 use bevy_wii_deform::controllers::wiimote::*;
+use bevy_wii_deform_examples::drift;
 use glam::{DQuat, DVec3};
 use proptest::prelude::*;
 

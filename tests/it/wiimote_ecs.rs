@@ -1,4 +1,4 @@
-//! `WiimotePlugin` + `WiimoteControlPlugin` headless with emulated remotes paced by the app's
+//! `MotionControllerPlugin` + `MotionControlPlugin` headless with emulated remotes paced by the app's
 //! clock: turning a handle 1:1 in camera space, disconnects, a remote that cannot be opened,
 //! two remotes each on its own handle, Home's recentre.
 
@@ -28,29 +28,29 @@ fn two_remotes() -> (App, [Entity; 2], [EmulatorControls; 2], [Entity; 2]) {
         ..default()
     };
     app.add_plugins((
-        WiimotePlugin {
-            source: WiimoteSource::Emulator(vec![config().into(), config().into()]),
+        MotionControllerPlugin {
+            source: ControllerSource::Emulator(vec![config().into(), config().into()]),
             ..default()
         },
-        WiimoteControlPlugin,
+        MotionControlPlugin,
     ));
-    let controls = app.world().resource::<WiimoteEmulators>().0.clone();
+    let controls = app.world().resource::<ControllerEmulators>().0.clone();
     for c in &controls {
         c.set_motion(Arc::new(Still(DQuat::IDENTITY)));
     }
     common::update_until(&mut app, "two calibrated remotes", |a| {
-        let mut q = a.world_mut().query::<&Wiimote>();
+        let mut q = a.world_mut().query::<&MotionController>();
         q.iter(a.world())
             .filter(|w| {
                 w.connection == ConnectionState::Connected
-                    && matches!(w.calibration, WiimoteCalibration::Calibrated(_))
+                    && matches!(w.calibration, ControllerCalibration::Calibrated(_))
             })
             .count()
             == 2
     });
     // Which entity is which emulator: yaw the first emulator and see which remote turns.
     let remotes: Vec<(Entity, u32)> = {
-        let mut q = app.world_mut().query::<(Entity, &Wiimote)>();
+        let mut q = app.world_mut().query::<(Entity, &MotionController)>();
         let mut v: Vec<(Entity, u32)> = q.iter(app.world()).map(|(e, w)| (e, w.id)).collect();
         v.sort_by_key(|r| r.1);
         v
@@ -60,7 +60,7 @@ fn two_remotes() -> (App, [Entity; 2], [EmulatorControls; 2], [Entity; 2]) {
         app.world_mut()
             .spawn((
                 Transform::default(),
-                WiimoteHandleControl::default().with_remote(remote),
+                MotionHandleControl::default().with_remote(remote),
             ))
             .id()
     });
@@ -74,7 +74,11 @@ fn two_remotes() -> (App, [Entity; 2], [EmulatorControls; 2], [Entity; 2]) {
 
 /// The remote's time now, seconds.
 fn remote_time(app: &App, remote: Entity) -> f64 {
-    app.world().get::<Wiimote>(remote).unwrap().timestamp_us as f64 * 1e-6
+    app.world()
+        .get::<MotionController>(remote)
+        .unwrap()
+        .timestamp_us as f64
+        * 1e-6
 }
 
 /// Steps until both remotes have delivered samples up to `t` seconds.
@@ -116,7 +120,8 @@ fn emulator_order(
     let t0 = remote_time(app, remotes[0]) + 0.05;
     controls[0].set_motion(yaw_from(t0, 20.0));
     run_until(app, remotes, t0 + 1.2);
-    let turned = |e: Entity| yaw_degrees(app.world().get::<Wiimote>(e).unwrap().orientation).abs();
+    let turned =
+        |e: Entity| yaw_degrees(app.world().get::<MotionController>(e).unwrap().orientation).abs();
     if turned(remotes[0]) > turned(remotes[1]) {
         [0, 1]
     } else {
@@ -170,24 +175,37 @@ fn home_recentres_only_the_remote_it_is_pressed_on() {
     let t0 = remote_time(&app, remotes[0]) + 0.05;
     controls[1].set_motion(yaw_from(t0, 20.0));
     run_until(&mut app, remotes, t0 + 1.2);
-    let yaw =
-        |app: &App, e: Entity| yaw_degrees(app.world().get::<Wiimote>(e).unwrap().orientation);
+    let yaw = |app: &App, e: Entity| {
+        yaw_degrees(app.world().get::<MotionController>(e).unwrap().orientation)
+    };
     // (The 6-axis filter reads a yaw within ~2° of the emulated one.)
     assert!((yaw(&app, remotes[0]).abs() - 20.0).abs() < 2.5);
     assert!((yaw(&app, remotes[1]).abs() - 20.0).abs() < 2.5);
-    let other_before = app.world().get::<Wiimote>(remotes[1]).unwrap().orientation;
+    let other_before = app
+        .world()
+        .get::<MotionController>(remotes[1])
+        .unwrap()
+        .orientation;
     // Home on the first: it reads identity from here, the second keeps its 20°.
     controls[order[0]].set_buttons(Buttons(Buttons::HOME));
     run_for(&mut app, remotes, 0.2);
     controls[order[0]].set_buttons(Buttons(0));
     run_for(&mut app, remotes, 0.2);
-    let after = app.world().get::<Wiimote>(remotes[0]).unwrap().orientation;
+    let after = app
+        .world()
+        .get::<MotionController>(remotes[0])
+        .unwrap()
+        .orientation;
     assert!(
         after.angle_between(Quat::IDENTITY).to_degrees() < 1.0,
         "the recentred remote reads {}°",
         after.angle_between(Quat::IDENTITY).to_degrees()
     );
-    let other = app.world().get::<Wiimote>(remotes[1]).unwrap().orientation;
+    let other = app
+        .world()
+        .get::<MotionController>(remotes[1])
+        .unwrap()
+        .orientation;
     assert!(
         other.angle_between(other_before).to_degrees() < 0.5,
         "Home moved the other remote by {}°",
@@ -220,8 +238,8 @@ fn wiimote_app() -> (App, Entity, Entity) {
     let clock = bevy_wii_deform::controllers::wiimote::EmulatorClock::new();
     app.add_plugins((
         DeformPlugin::default(),
-        WiimotePlugin {
-            source: WiimoteSource::Emulator(vec![
+        MotionControllerPlugin {
+            source: ControllerSource::Emulator(vec![
                 EmulatorConfig {
                     clock: Some(clock),
                     ..default()
@@ -230,18 +248,18 @@ fn wiimote_app() -> (App, Entity, Entity) {
             ]),
             ..default()
         },
-        WiimoteControlPlugin,
+        MotionControlPlugin,
     ));
     let (e, handle, _) = spawn_bar(&mut app);
     app.world_mut()
         .entity_mut(handle)
-        .insert(WiimoteHandleControl::default());
+        .insert(MotionHandleControl::default());
     (app, e, handle)
 }
 
 /// The remote entity's state, once there is one.
-fn remote_state(app: &mut App) -> Option<Wiimote> {
-    let mut q = app.world_mut().query::<&Wiimote>();
+fn remote_state(app: &mut App) -> Option<MotionController> {
+    let mut q = app.world_mut().query::<&MotionController>();
     q.iter(app.world()).next().cloned()
 }
 
@@ -255,18 +273,20 @@ fn update_until_sample(app: &mut App, t: f64) {
 #[test]
 fn an_emulated_remote_turns_a_handle_and_a_disconnect_keeps_the_pose() {
     let (mut app, e, handle) = wiimote_app();
-    let controls = app.world().resource::<WiimoteEmulators>().0[0].clone();
+    let controls = app.world().resource::<ControllerEmulators>().0[0].clone();
     controls.set_motion(Arc::new(Still(DQuat::IDENTITY)));
     // Connect and calibrate at rest.
     common::update_until(&mut app, "a calibrated remote", |a| {
         remote_state(a).is_some_and(|w| {
             w.connection == ConnectionState::Connected
                 && w.motion_plus
-                && matches!(w.calibration, WiimoteCalibration::Calibrated(_))
+                && matches!(w.calibration, ControllerCalibration::Calibrated(_))
         })
     });
     let remote = {
-        let mut q = app.world_mut().query_filtered::<Entity, With<Wiimote>>();
+        let mut q = app
+            .world_mut()
+            .query_filtered::<Entity, With<MotionController>>();
         q.single(app.world()).expect("one remote entity")
     };
     // Grab with B, then yaw the remote (about its top axis = Bevy +Y) by 40° over 1 s of its
@@ -274,7 +294,7 @@ fn an_emulated_remote_turns_a_handle_and_a_disconnect_keeps_the_pose() {
     controls.set_buttons(Buttons(Buttons::B));
     common::update_until(&mut app, "the grab", |a| {
         a.world()
-            .get::<WiimoteHandleControl>(handle)
+            .get::<MotionHandleControl>(handle)
             .unwrap()
             .is_grabbing()
     });
@@ -304,7 +324,11 @@ fn an_emulated_remote_turns_a_handle_and_a_disconnect_keeps_the_pose() {
     // Disconnect mid-drag (B still held): the state shows it, the last pose is kept.
     controls.set_connected(false);
     common::update_until(&mut app, "the disconnect", |a| {
-        a.world().get::<Wiimote>(remote).unwrap().connection == ConnectionState::Disconnected
+        a.world()
+            .get::<MotionController>(remote)
+            .unwrap()
+            .connection
+            == ConnectionState::Disconnected
     });
     let before = app.world().get::<Transform>(handle).unwrap().rotation;
     for _ in 0..50 {
@@ -316,7 +340,7 @@ fn an_emulated_remote_turns_a_handle_and_a_disconnect_keeps_the_pose() {
     );
     assert!(
         !app.world()
-            .get::<WiimoteHandleControl>(handle)
+            .get::<MotionHandleControl>(handle)
             .unwrap()
             .is_grabbing()
     );
@@ -326,23 +350,28 @@ fn an_emulated_remote_turns_a_handle_and_a_disconnect_keeps_the_pose() {
     // It comes back on the same entity.
     controls.set_connected(true);
     common::update_until(&mut app, "the reconnect", |a| {
-        a.world().get::<Wiimote>(remote).unwrap().connection == ConnectionState::Connected
+        a.world()
+            .get::<MotionController>(remote)
+            .unwrap()
+            .connection
+            == ConnectionState::Connected
     });
 }
 
 #[derive(Resource, Default)]
-struct SeenProblems(Vec<WiimoteProblem>);
+struct SeenProblems(Vec<ControllerProblem>);
 
-fn collect_problems(mut reader: MessageReader<WiimoteProblem>, mut seen: ResMut<SeenProblems>) {
+fn collect_problems(mut reader: MessageReader<ControllerProblem>, mut seen: ResMut<SeenProblems>) {
     seen.0.extend(reader.read().cloned());
 }
 
 #[test]
 fn a_remote_that_cannot_be_opened_reaches_a_message_and_its_entity() {
-    use bevy_wii_deform::controllers::wiimote::{EmulatorConfig, OpenErrorKind, RemoteProblem};
+    use bevy_wii_deform::controllers::diagnosis::{OpenErrorKind, RemoteProblem};
+    use bevy_wii_deform::controllers::wiimote::EmulatorConfig;
     let mut app = app();
-    app.add_plugins(WiimotePlugin {
-        source: WiimoteSource::Emulator(vec![
+    app.add_plugins(MotionControllerPlugin {
+        source: ControllerSource::Emulator(vec![
             EmulatorConfig {
                 open_error: Some(OpenErrorKind::PermissionDenied),
                 ..Default::default()
@@ -359,7 +388,7 @@ fn a_remote_that_cannot_be_opened_reaches_a_message_and_its_entity() {
     // The manager's thread reports at once; updates (no sleeping) until the message is read.
     let deadline = Instant::now() + Duration::from_secs(10);
     while app.world().resource::<SeenProblems>().0.is_empty() {
-        assert!(Instant::now() < deadline, "no WiimoteProblem message");
+        assert!(Instant::now() < deadline, "no ControllerProblem message");
         app.update();
         std::thread::yield_now();
     }
@@ -370,11 +399,14 @@ fn a_remote_that_cannot_be_opened_reaches_a_message_and_its_entity() {
     let entity = seen[0]
         .entity
         .expect("the problem names its remote's entity");
-    let remote = app.world().get::<Wiimote>(entity).expect("remote entity");
+    let remote = app
+        .world()
+        .get::<MotionController>(entity)
+        .expect("remote entity");
     assert_eq!(remote.connection, ConnectionState::Unusable);
     assert_eq!(remote.problems, vec![expected.clone()]);
     assert_eq!(
-        app.world().resource::<WiimoteProblems>().0,
+        app.world().resource::<ControllerProblems>().0,
         vec![expected.clone()]
     );
     assert!(expected.to_string().contains("udev"), "{expected}");
@@ -387,7 +419,7 @@ fn the_remote_turns_a_handle_one_to_one_in_camera_space_and_translates_only_whil
     app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_millis(
         10,
     )));
-    app.add_plugins(WiimoteControlPlugin);
+    app.add_plugins(MotionControlPlugin);
     // A camera turned 90° about Y (its right is world −Z): the remote's motion is mapped
     // through the camera's frame, so this checks that mapping too.
     let camera_rotation = Quat::from_rotation_y(std::f32::consts::FRAC_PI_2);
@@ -398,7 +430,7 @@ fn the_remote_turns_a_handle_one_to_one_in_camera_space_and_translates_only_whil
     let start = Quat::from_rotation_x(0.3);
     let remote = app
         .world_mut()
-        .spawn(Wiimote {
+        .spawn(MotionController {
             connection: ConnectionState::Connected,
             orientation: start,
             ..default()
@@ -406,10 +438,10 @@ fn the_remote_turns_a_handle_one_to_one_in_camera_space_and_translates_only_whil
         .id();
     let handle = app
         .world_mut()
-        .spawn((Transform::default(), WiimoteHandleControl::default()))
+        .spawn((Transform::default(), MotionHandleControl::default()))
         .id();
     let set = |app: &mut App, orientation: Quat, buttons: u16| {
-        let mut w = app.world_mut().get_mut::<Wiimote>(remote).unwrap();
+        let mut w = app.world_mut().get_mut::<MotionController>(remote).unwrap();
         w.orientation = orientation;
         w.buttons = buttons;
     };
@@ -459,7 +491,7 @@ fn the_remote_turns_a_handle_one_to_one_in_camera_space_and_translates_only_whil
         app.update();
     }
     let moved = app.world().get::<Transform>(handle).unwrap().translation;
-    let speed = WiimoteHandleControl::default().speed;
+    let speed = MotionHandleControl::default().speed;
     let expected = camera_rotation * Vec3::X * speed * 0.1;
     assert!(
         (moved - expected).length() < 0.01 * expected.length(),
@@ -470,7 +502,7 @@ fn the_remote_turns_a_handle_one_to_one_in_camera_space_and_translates_only_whil
     app.update();
     assert!(
         !app.world()
-            .get::<WiimoteHandleControl>(handle)
+            .get::<MotionHandleControl>(handle)
             .unwrap()
             .is_grabbing()
     );
@@ -491,8 +523,8 @@ fn the_plugin_points_with_the_ir_camera() {
     let position = glam::DVec3::new(-0.2, 0.4, 0.0);
     let spot = glam::DVec2::new(0.7, 0.35);
     let aim = crate::wiimote_ir::aiming(position, setup.screen_point(spot), 25f64.to_radians());
-    app.add_plugins(WiimotePlugin {
-        source: WiimoteSource::Emulator(vec![
+    app.add_plugins(MotionControllerPlugin {
+        source: ControllerSource::Emulator(vec![
             EmulatorConfig {
                 clock: Some(EmulatorClock::new()),
                 sensor_bar: Some(EmulatedBar {
@@ -507,10 +539,10 @@ fn the_plugin_points_with_the_ir_camera() {
         pointer: Some(setup),
         ..default()
     });
-    let controls = app.world().resource::<WiimoteEmulators>().0[0].clone();
+    let controls = app.world().resource::<ControllerEmulators>().0[0].clone();
     controls.set_motion(Arc::new(Still(aim)));
     let pointer = |a: &mut App| {
-        let mut q = a.world_mut().query::<&Wiimote>();
+        let mut q = a.world_mut().query::<&MotionController>();
         q.iter(a.world()).next().and_then(|w| w.pointer)
     };
     common::update_until(&mut app, "the IR pointer", |a| pointer(a).is_some());
@@ -520,12 +552,12 @@ fn the_plugin_points_with_the_ir_camera() {
         "aimed at {spot}, the pointer is at {at}"
     );
     let dots = {
-        let mut q = app.world_mut().query::<&Wiimote>();
+        let mut q = app.world_mut().query::<&MotionController>();
         q.single(app.world()).unwrap().ir_dots.len()
     };
     assert_eq!(dots, 2, "the bar's two clusters");
     let held = |a: &mut App| {
-        let mut q = a.world_mut().query::<&Wiimote>();
+        let mut q = a.world_mut().query::<&MotionController>();
         q.single(a.world()).unwrap().heading_from_bar
     };
     assert!(
@@ -541,7 +573,7 @@ fn the_plugin_points_with_the_ir_camera() {
 }
 
 /// A headless app with a bendable bar in front of a camera, and an emulated remote that sees
-/// the sensor bar of `setup` from `position` and is a picking pointer (`WiimotePointerPlugin`).
+/// the sensor bar of `setup` from `position` and is a picking pointer (`ControllerPointerPlugin`).
 fn remote_pointer_app(
     setup: bevy_wii_deform::controllers::wiimote::ir::PointerSetup,
     position: glam::DVec3,
@@ -557,8 +589,8 @@ fn remote_pointer_app(
         MeshPickingPlugin,
         DeformPlugin::default(),
         GrabPlugin,
-        WiimotePlugin {
-            source: WiimoteSource::Emulator(vec![
+        MotionControllerPlugin {
+            source: ControllerSource::Emulator(vec![
                 EmulatorConfig {
                     clock: Some(EmulatorClock::new()),
                     sensor_bar: Some(EmulatedBar {
@@ -573,7 +605,7 @@ fn remote_pointer_app(
             pointer: Some(setup),
             ..default()
         },
-        WiimotePointerPlugin,
+        ControllerPointerPlugin,
     ));
     app.insert_resource(bevy::time::TimeUpdateStrategy::ManualDuration(
         Duration::from_millis(10),
@@ -619,13 +651,13 @@ fn the_remote_points_at_a_mesh_and_a_grabs_it() {
     let on_screen = common::to_screen(&mut app, camera, Vec3::new(0.0, 0.8, 0.1));
     let spot = (on_screen / Vec2::new(1280.0, 720.0)).as_dvec2();
     let aim = crate::wiimote_ir::aiming(position, setup.screen_point(spot), 0.0);
-    let controls = app.world().resource::<WiimoteEmulators>().0[0].clone();
+    let controls = app.world().resource::<ControllerEmulators>().0[0].clone();
     controls.set_motion(Arc::new(Still(aim)));
     let remote_id = |a: &mut App| {
-        let mut q = a.world_mut().query::<&Wiimote>();
+        let mut q = a.world_mut().query::<&MotionController>();
         q.iter(a.world())
             .find(|w| w.pointer.is_some())
-            .map(|w| WiimotePointer::id(w.id))
+            .map(|w| ControllerPointer::id(w.id))
     };
     common::update_until(&mut app, "the remote's pointer", |a| {
         let Some(id) = remote_id(a) else {
@@ -637,9 +669,9 @@ fn the_remote_points_at_a_mesh_and_a_grabs_it() {
     let id = remote_id(&mut app).unwrap();
     // As a player holds the remote still at start-up until its gyro is calibrated.
     common::update_until(&mut app, "the remote's calibration", |a| {
-        let mut q = a.world_mut().query::<&Wiimote>();
+        let mut q = a.world_mut().query::<&MotionController>();
         q.iter(a.world())
-            .any(|w| matches!(w.calibration, WiimoteCalibration::Calibrated(_)))
+            .any(|w| matches!(w.calibration, ControllerCalibration::Calibrated(_)))
     });
     assert_eq!(app.world().resource::<ActiveGrabs>().len(), 0);
     controls.set_buttons(Buttons(Buttons::A));
@@ -665,12 +697,12 @@ fn the_remote_points_at_a_mesh_and_a_grabs_it() {
     }
     let before = *app.world().get::<Transform>(handle).unwrap();
     let reported = |a: &mut App| {
-        let mut q = a.world_mut().query::<&Wiimote>();
+        let mut q = a.world_mut().query::<&MotionController>();
         q.iter(a.world()).next().unwrap().orientation
     };
     let remote_before = reported(&mut app);
     let now = |a: &mut App| {
-        let mut q = a.world_mut().query::<&Wiimote>();
+        let mut q = a.world_mut().query::<&MotionController>();
         q.iter(a.world()).next().unwrap().timestamp_us as f64 * 1e-6
     };
     let t0 = now(&mut app) + 0.05;

@@ -383,8 +383,8 @@ fn an_emulated_remote_streams_the_bar_in_report_0x37_and_points_where_it_aims() 
 /// view, and each time the bar leaves the view the heading does not jump by 0.5°.
 #[test]
 fn the_bar_holds_the_heading_and_losing_it_does_not_jump() {
-    use bevy_wii_deform::controllers::wiimote::drift;
     use bevy_wii_deform::controllers::wiimote::{FilterKind, FusionFilter, SensorModel};
+    use bevy_wii_deform_examples::drift;
     let rec = drift::record_pointing(SensorModel::default(), 3, 600.0, 0.5);
     let share = rec.in_view_share();
     assert!((0.4..0.65).contains(&share), "bar in view {share}");

@@ -158,17 +158,20 @@ fn main() {
     // glTF: the Fox (skin and clips), the static alien and the shared sphere, and a clip of
     // the generated humanoid written by the crate's own writer.
     let rig = humanoid_rig(2);
-    let keys = [0.0f64, 0.4, -0.3].into_iter().enumerate().map(|(k, angle)| {
-        let mut pose = rig.rest.clone();
-        for t in pose.local.iter_mut().skip(1).step_by(3) {
-            t.rotation *= glam::DQuat::from_rotation_x(angle);
-        }
-        PoseKey {
-            time: k as f32 * 0.5,
-            pose,
-            interpolation: KeyInterpolation::Linear,
-        }
-    });
+    let keys = [0.0f64, 0.4, -0.3]
+        .into_iter()
+        .enumerate()
+        .map(|(k, angle)| {
+            let mut pose = rig.rest.clone();
+            for t in pose.local.iter_mut().skip(1).step_by(3) {
+                t.rotation *= glam::DQuat::from_rotation_x(angle);
+            }
+            PoseKey {
+                time: k as f32 * 0.5,
+                pose,
+                interpolation: KeyInterpolation::Linear,
+            }
+        });
     let clip = PoseClip::from_keys(keys.collect()).expect("three valid keys");
     let paths: Vec<Vec<String>> = rig
         .skeleton
@@ -194,10 +197,18 @@ fn main() {
     if let Ok(text) = PoseFile::from_pose(&rig.skeleton, &rig.rest).to_ron() {
         ron.add(text.as_bytes());
     }
-    for entry in std::fs::read_dir(root.join("assets/tasks")).into_iter().flatten().flatten() {
+    for entry in std::fs::read_dir(root.join("assets/tasks"))
+        .into_iter()
+        .flatten()
+        .flatten()
+    {
         ron.add_file(&entry.path());
     }
-    let names = |k: usize| rig.skeleton.joints()[k.min(rig.skeleton.len() - 1)].name.clone();
+    let names = |k: usize| {
+        rig.skeleton.joints()[k.min(rig.skeleton.len() - 1)]
+            .name
+            .clone()
+    };
     ron.add(
         format!(
             "(joints: {{ {:?}: Hinge(axis: (1.0, 0.0, 0.0), min_deg: 0.0, max_deg: 150.0), \

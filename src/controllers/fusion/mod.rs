@@ -1,6 +1,16 @@
 //! Orientation filters: gyro integration with drift control, one trait, three methods. What
 //! each is and what limits it: `docs/design/filters.md`.
 //!
+//! | file | what it answers |
+//! |---|---|
+//! | `mod.rs` | the types and docs of this folder (above) |
+//! | `heading.rs` | The sensor bar as a heading reference: a 6-axis filter knows its tilt from gravity but has nothing to hold its heading (rotation about the vertical), whose error grows with the remaining vertical gyro bias. |
+//! | `ours.rs` | [`FusionFilter`]: ours — VQF's inclination filter and motion-time bias estimation with our stillness detector, and the sensor bar as a heading reference. |
+//! | `paper.rs` | [`PaperFilter`]: exactly the paper's method (`PROTOCOL.md` §12.2). |
+//! | `raw.rs` | [`RawIntegration`]: the calibrated rates integrated as they are (a reference only). |
+//! | `stillness.rs` | [`StillnessBias`]: the gyro bias from still periods, gated so that a slow steady turn is not taken for stillness. |
+//! | `vqf.rs` | [`VqfFilter`]: VQF (Laidig & Seel, "VQF: Highly accurate IMU orientation estimation with bias estimation and magnetic disturbance rejection", Information Fusion 2023) in its 6-axis mode, behind the crate's [`OrientationFilter`] trait. |
+//!
 //! * [`RawIntegration`] — integrates the calibrated rates, no bias removal (reference only).
 //! * [`PaperFilter`] — exactly the paper's method (`PROTOCOL.md` §12.2): bias from the first
 //!   300 samples at rest, a 0.5 deg/s dead zone, integration by local increments, and tilt

@@ -6,13 +6,12 @@ use std::collections::VecDeque;
 
 use glam::DVec3;
 
+use crate::controllers::emulation::{EmulatorClock, EmulatorControls, Pacing};
 use crate::controllers::motion::{self, Motion};
 use crate::controllers::rng::Rng;
 use crate::controllers::sony::{self, emulate::SonyUnit};
 use crate::controllers::switch::{self, emulate::SwitchUnit};
 use crate::controllers::transport::{Transport, TransportError};
-use crate::controllers::wiimote::emulator::Pacing;
-use crate::controllers::wiimote::{EmulatorClock, EmulatorControls};
 use crate::controllers::{ControllerKind, Link};
 
 use super::roles_from_wii;

@@ -1,13 +1,19 @@
 //! Game pads with a gyro — DualSense, DualShock 4, Switch Pro, Joy-Con — run like a Wii
 //! Remote: a [`PadDecoder`] for their reports, a [`PadSession`] that runs the start
 //! sequence and the fusion filter and speaks the Wii Remote session's events
-//! ([`SessionEvent`](crate::controllers::wiimote::SessionEvent)), and an [`EmulatedPad`]
+//! ([`SessionEvent`](crate::controllers::session::SessionEvent)), and an [`EmulatedPad`]
 //! that answers byte for byte like the hardware, driven by a motion script with each
 //! device's rate, quantisation, noise and bias ([`PadSensorModel`]).
 //!
+//! | file | what it answers |
+//! |---|---|
+//! | `mod.rs` | the types and docs of this folder (above) |
+//! | `emulator.rs` | [`EmulatedPad`]: a DualSense, DualShock 4, Switch Pro or Joy-Con that answers the host's start sequence and calibration reads and streams its reports from a motion script, byte for byte, with the device's rate, quantisation, noise and bias. |
+//! | `session.rs` | [`PadSession`]: a pad's start sequence, then its reports through the decoder and the orientation filter, out as the Wii Remote session's events. |
+//!
 //! ```
 //! use bevy_wii_deform::controllers::pads::{EmulatedPad, PadEmulatorConfig, PadSession};
-//! use bevy_wii_deform::controllers::wiimote::{SessionConfig, SessionEvent};
+//! use bevy_wii_deform::controllers::session::{SessionConfig, SessionEvent};
 //! use bevy_wii_deform::controllers::{ControllerKind, Link};
 //!
 //! let pad = EmulatedPad::new(PadEmulatorConfig::new(ControllerKind::DualSense, Link::Bluetooth));
@@ -26,9 +32,9 @@ mod session;
 pub use emulator::{EmulatedPad, PadEmulatorConfig, PadSensorModel};
 pub use session::{PadInfo, PadSession};
 
+use super::session::Buttons;
 use super::sony::{self, SonyCalibration};
 use super::switch::{self, SwitchCalibration};
-use super::wiimote::protocol::Buttons;
 use super::{ControllerKind, DecodeError, Link, PadButtons, PadReport};
 
 /// A device's calibration, whichever family it belongs to.

@@ -4,10 +4,10 @@
 use std::collections::VecDeque;
 
 use crate::controllers::fusion::{FilterKind, OrientationFilter};
+use crate::controllers::session::{OrientationSample, SessionConfig, SessionError, SessionEvent};
 use crate::controllers::sony::{self, SonyCalibration};
 use crate::controllers::switch::{self, CalibrationSource, StartStep, SwitchCalibration};
 use crate::controllers::transport::{Transport, TransportError};
-use crate::controllers::wiimote::{OrientationSample, SessionConfig, SessionError, SessionEvent};
 use crate::controllers::{ControllerKind, DecodeError, Link, PadButtons, PadReport};
 
 use super::{PadCalibration, PadDecoder, PadSensorModel, roles_to_wii};

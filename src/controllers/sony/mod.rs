@@ -1,6 +1,12 @@
 //! Sony pads: DualSense, DualSense Edge and DualShock 4, over USB and Bluetooth
 //! (`docs/PROTOCOL-SONY.md`).
 //!
+//! | file | what it answers |
+//! |---|---|
+//! | `mod.rs` | the types and docs of this folder (above) |
+//! | `emulate.rs` | What an emulated Sony pad sends: its factory calibration report and its input reports, byte for byte in the layouts [`super::decode`] reads. |
+//! | `output.rs` | Sony output reports: rumble, the light bar and the player lights — what the session writes after the start sequence (the player's number and colour, as a Wii Remote lights its LEDs) and on a rumble command. |
+//!
 //! * **Start sequence.** Reading the calibration feature report is the whole handshake: over
 //!   Bluetooth it is also what switches the pad from its reduced report 0x01 (buttons and
 //!   sticks only) to the full report (0x31 DualSense, 0x11 DualShock 4).

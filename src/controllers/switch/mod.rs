@@ -1,6 +1,11 @@
 //! Nintendo Switch controllers: Pro Controller and Joy-Con (L)/(R), over Bluetooth and (the
 //! Pro Controller) USB (`docs/PROTOCOL-SWITCH.md`).
 //!
+//! | file | what it answers |
+//! |---|---|
+//! | `mod.rs` | the types and docs of this folder (above) |
+//! | `emulate.rs` | What an emulated Switch controller sends: subcommand replies (SPI flash reads included), USB handshake replies, and full reports with three IMU samples. |
+//!
 //! * **Start sequence** ([`start_sequence`]): over USB the `0x80` handshake that makes the Pro
 //!   Controller talk HID; then subcommands in output report 0x01 — input report mode 0x30
 //!   (full, 60–67 Hz), IMU on, and two SPI flash reads for the factory and user IMU

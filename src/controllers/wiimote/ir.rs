@@ -25,6 +25,8 @@ use glam::{DQuat, DVec2, DVec3};
 
 use super::protocol::{InputReport, ProtocolError};
 
+pub use crate::controllers::session::inputs::{IrDot, IrDots, IrSensitivity};
+
 /// Width of the camera's reported image, pixels.
 pub const IR_WIDTH: u16 = 1024;
 /// Height of the camera's reported image, pixels.
@@ -106,44 +108,24 @@ impl IrMode {
     }
 }
 
-/// Camera sensitivity: the two register blocks. Levels 1–5 are the console's settings (level 3
-/// is its default); `Max` the highest sensitivity documented by WiiBrew.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum IrSensitivity {
-    /// Wii level 1 (least sensitive).
-    Level1,
-    /// Wii level 2.
-    Level2,
-    /// Wii level 3, the console's default.
-    #[default]
-    Level3,
-    /// Wii level 4.
-    Level4,
-    /// Wii level 5.
-    Level5,
-    /// The highest sensitivity (longer range, more stray light).
-    Max,
-}
-
-impl IrSensitivity {
-    /// Sensitivity block 1 (9 bytes at 0xB00000) and block 2 (2 bytes at 0xB0001A).
-    pub fn blocks(self) -> ([u8; 9], [u8; 2]) {
-        // Bytes 6, 8 and block 2 set the gain and the brightness threshold.
-        let (b6, b8, tail) = match self {
-            IrSensitivity::Level1 => (0x64, 0xFE, [0xFD, 0x05]),
-            IrSensitivity::Level2 => (0x96, 0xB4, [0xB3, 0x04]),
-            IrSensitivity::Level3 => (0xAA, 0x64, [0x63, 0x03]),
-            IrSensitivity::Level4 => (0xC8, 0x36, [0x35, 0x03]),
-            IrSensitivity::Level5 => (0x72, 0x20, [0x1F, 0x03]),
-            IrSensitivity::Max => return ([0, 0, 0, 0, 0, 0, 0x90, 0, 0x41], [0x40, 0x00]),
-        };
-        let first = if self == IrSensitivity::Level5 {
-            0x07
-        } else {
-            0x02
-        };
-        ([first, 0, 0, 0x71, 0x01, 0, b6, 0, b8], tail)
-    }
+/// The camera's register bytes for `sensitivity`: block 1 (9 bytes at 0xB00000) and block 2
+/// (2 bytes at 0xB0001A).
+pub fn sensitivity_blocks(sensitivity: IrSensitivity) -> ([u8; 9], [u8; 2]) {
+    // Bytes 6, 8 and block 2 set the gain and the brightness threshold.
+    let (b6, b8, tail) = match sensitivity {
+        IrSensitivity::Level1 => (0x64, 0xFE, [0xFD, 0x05]),
+        IrSensitivity::Level2 => (0x96, 0xB4, [0xB3, 0x04]),
+        IrSensitivity::Level3 => (0xAA, 0x64, [0x63, 0x03]),
+        IrSensitivity::Level4 => (0xC8, 0x36, [0x35, 0x03]),
+        IrSensitivity::Level5 => (0x72, 0x20, [0x1F, 0x03]),
+        IrSensitivity::Max => return ([0, 0, 0, 0, 0, 0, 0x90, 0, 0x41], [0x40, 0x00]),
+    };
+    let first = if sensitivity == IrSensitivity::Level5 {
+        0x07
+    } else {
+        0x02
+    };
+    ([first, 0, 0, 0x71, 0x01, 0, b6, 0, b8], tail)
 }
 
 /// One step of turning the camera on.
@@ -167,7 +149,7 @@ pub enum IrInitStep {
 /// sensitivity blocks, the mode, control 0x08 again. After it the host selects a data report
 /// that carries IR (0x37 with the MotionPlus: basic mode).
 pub fn ir_init_sequence(mode: IrMode, sensitivity: IrSensitivity) -> Vec<IrInitStep> {
-    let (block1, block2) = sensitivity.blocks();
+    let (block1, block2) = sensitivity_blocks(sensitivity);
     vec![
         IrInitStep::Enable { report: 0x13 },
         IrInitStep::Enable { report: 0x1A },
@@ -193,27 +175,6 @@ pub fn ir_init_sequence(mode: IrMode, sensitivity: IrSensitivity) -> Vec<IrInitS
         },
     ]
 }
-
-/// One tracked IR blob.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct IrDot {
-    /// Image x, 0..1024 (see the module's conventions).
-    pub x: u16,
-    /// Image y, 0..768.
-    pub y: u16,
-    /// Blob size 0..15 (extended and full modes; `None` in basic mode).
-    pub size: Option<u8>,
-}
-
-impl IrDot {
-    /// The dot's position as floating-point pixels.
-    pub fn position(&self) -> DVec2 {
-        DVec2::new(self.x as f64, self.y as f64)
-    }
-}
-
-/// Up to four dots, in the camera's slots (an empty slot is `None`).
-pub type IrDots = [Option<IrDot>; 4];
 
 fn checked(x: u16, y: u16, size: Option<u8>) -> Result<Option<IrDot>, IrError> {
     if x == 0x3FF && y == 0x3FF {

@@ -1,5 +1,17 @@
 //! The ARAP solver: precompute (weights, elimination, Cholesky factorization) and
 //! warm-startable local/global iterations.
+//!
+//! | file | what it answers |
+//! |---|---|
+//! | `mod.rs` | the types and docs of this folder (above) |
+//! | `budget.rs` | [`SlicedSolve`]: one solve spread over several calls, each running at most a budget of iterations — how a frame bounds its solving where the solve cannot leave the frame's thread (the web: Bevy's task pools run on the browser's main thread). |
+//! | `contacts.rs` | Free vertices kept above an [`Obstacle`]: after each global step, the free positions are projected onto the half-spaces of the vertices that went below, in the norm of the factored Laplacian `L`. |
+//! | `iterate.rs` | The iterations of a solve: plain or Anderson-accelerated local/global, and L-BFGS on the energy. |
+//! | `layout.rs` | The mesh in the solvers' memory order, shared by every constraint set of a topology; which cells a set fits; pinning of components no constraint reaches. |
+//! | `newton.rs` | Truncated Newton on the ARAP energy: each step solves `H d = −g` by conjugate gradients preconditioned with the factored Laplacian (stopping at negative curvature, Steihaug), then line-searches `d`. |
+//! | `precompute.rs` | Precompute: a constraint set's free vertices, their elimination order and factor. |
+//! | `solve.rs` | A solve: the starting state, the iterations of the chosen acceleration, the result. |
+//! | `system.rs` | The free vertices' Laplacian systems: assembly in elimination order and numeric factorization (now, or on first use). |
 
 use std::sync::Arc;
 

@@ -1,4 +1,11 @@
 //! Welded mesh topology and cotangent edge weights.
+//!
+//! | file | what it answers |
+//! |---|---|
+//! | `mod.rs` | the types and docs of this folder (above) |
+//! | `geodesic.rs` | Distances along the mesh surface (edge paths): grab patches and regions of interest. |
+//! | `rebase.rs` | A topology carried over to new rest positions: same weld and adjacency, new weights. |
+//! | `weld.rs` | Welding: which coincident render vertices become one solver vertex. |
 
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;

@@ -4,6 +4,11 @@
 //! (latest wins) and writes positions, normals and tangents back to the mesh asset; the
 //! math is [`crate::deform`]. This file holds the data types; `plugin.rs` the plugin, its
 //! system sets and systems.
+//!
+//! | file | what it answers |
+//! |---|---|
+//! | `mod.rs` | the types and docs of this folder (above) |
+//! | `plugin/` | The deformation plugin: its system sets, and the systems that prepare meshes, start solves, collect them and write them back. |
 
 mod plugin;
 
@@ -93,14 +98,14 @@ pub struct DeformConfig {
     /// than this fraction of the mesh's bounding diagonal from rest (a loaded pose, a scripted
     /// jump), from the paper's uniform-Laplacian guess; otherwise from the rest pose itself (a
     /// pointer grab starts at rest, and the Laplacian guess would cost a second factorization
-    /// for the same pose: 26k armadillo, press → first pose 69 → 52 ms median). A constraint
+    /// for the same pose; `docs/design/solver.md`). A constraint
     /// set that changes mid-edit always continues from the displayed pose.
     pub laplacian_start_displacement: f32,
     /// A new constraint set on a mesh with more vertices than the region's `max_vertices` is
     /// first shown as a *preview*: only the vertices near the handles are solved (the rest
     /// held where they are shown), which takes a frame or two where the whole mesh's
-    /// factorization takes several (26k armadillo: ~12 against ~45 ms; 104k: ~35–45
-    /// against ~200 ms, see docs/benchmarks.md). The whole mesh is then factored in the background and solved
+    /// factorization takes several (today's figures: `arap_interaction` in
+    /// `docs/benchmarks.md`). The whole mesh is then factored in the background and solved
     /// on from the preview. `None`: always wait for the whole mesh. Not used on a
     /// [`Deformable`] with its own region of interest.
     #[reflect(remote = OptionalPreviewReflect)]

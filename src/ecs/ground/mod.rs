@@ -3,6 +3,11 @@
 //! down on for characters with [`crate::ecs::PoseGround`]. Anything else — a physics engine's
 //! colliders, a height function — goes in as a [`SceneGround`] built from a closure
 //! ([`SceneGround::custom`]).
+//!
+//! | file | what it answers |
+//! |---|---|
+//! | `mod.rs` | the types and docs of this folder (above) |
+//! | `plugin.rs` | Keeping [`SceneGround`] current from the [`GroundMesh`] meshes. |
 
 mod plugin;
 

@@ -1,8 +1,16 @@
 //! Input: everything that moves handles and grabs from a device — the mouse
-//! ([`MouseHandleControl`]), the Wii Remote's MotionPlus ([`WiimoteHandleControl`]) and its IR
-//! pointer ([`WiimotePointerPlugin`]), and pointer grabs through bevy_picking
+//! ([`MouseHandleControl`]), the Wii Remote's MotionPlus ([`MotionHandleControl`]) and its IR
+//! pointer ([`ControllerPointerPlugin`]), and pointer grabs through bevy_picking
 //! ([`GrabPlugin`]) — over one piece of shared view math (`view.rs`: the arcball, turning in the
 //! camera's frame, the rotation of a scaled space, motion in the view plane).
+//!
+//! | file | what it answers |
+//! |---|---|
+//! | `mod.rs` | the types and docs of this folder (above) |
+//! | `control/` | Handle controls: input devices that move [`DeformHandle`](crate::ecs::DeformHandle)s (or any entity with a `Transform`). |
+//! | `grab/` | Pointer grabs: press on a [`Grabbable`] deformable, drag, release — the surface under the pointer follows it, and the pose stays. |
+//! | `remote_pointer.rs` | The remote's IR pointer as a bevy_picking pointer: where a [`MotionController`] points ([`MotionController::pointer`], from its camera) moves a pointer of its own on the primary window, and A presses and releases its primary button — so hovering, `Pointer<Press>` observers and [`GrabPlugin`](crate::ecs::GrabPlugin) grabs work with the remote as with the mouse. |
+//! | `view.rs` | The view math every input shares: the arcball, turning a handle by a rotation given in the camera's frame, the rotation of an affine space (scale divided out), and motion in the view plane. |
 //!
 //! All of it runs in `Update` in the [`InputSystems`] sets, before
 //! [`DeformSystems::Request`](crate::ecs::DeformSystems) (and so before the pose plugin's
@@ -16,18 +24,18 @@ mod remote_pointer;
 pub(crate) mod view;
 
 pub use control::{
-    MouseControlPlugin, MouseHandleControl, WiimoteControlPlugin, WiimoteHandleControl,
+    MotionControlPlugin, MotionHandleControl, MouseControlPlugin, MouseHandleControl,
 };
 pub use grab::{
     ActiveGrabs, GrabButton, GrabEnd, GrabHandle, GrabMove, GrabPlugin, GrabStart, GrabTurn,
     GrabTwist, Grabbable,
 };
-pub use remote_pointer::{WiimotePointer, WiimotePointerPlugin};
+pub use remote_pointer::{ControllerPointer, ControllerPointerPlugin};
 pub use view::arcball_rotation;
 
 use bevy::prelude::*;
 
-use crate::ecs::{DeformSystems, WiimoteSystems};
+use crate::ecs::{DeformSystems, MotionControllerSystems};
 
 /// Where input moves handles and grabs, in `Update`, in this order.
 #[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -36,7 +44,7 @@ pub enum InputSystems {
     /// starts preparing again in the same frame).
     StartGrabs,
     /// Handles move: grabs in progress, the mouse and the remote's handle controls
-    /// ([`WiimoteSystems::Control`] is part of it). After [`DeformSystems::Prepare`] (a rest
+    /// ([`MotionControllerSystems::Control`] is part of it). After [`DeformSystems::Prepare`] (a rest
     /// pose may have become ready this frame) and before [`DeformSystems::Request`].
     MoveHandles,
 }
@@ -51,7 +59,7 @@ pub(crate) fn configure_input_sets(app: &mut App) {
             InputSystems::MoveHandles
                 .after(DeformSystems::Prepare)
                 .before(DeformSystems::Request),
-            WiimoteSystems::Control.in_set(InputSystems::MoveHandles),
+            MotionControllerSystems::Control.in_set(InputSystems::MoveHandles),
         ),
     );
 }

@@ -1,5 +1,5 @@
-//! The remote's IR pointer as a bevy_picking pointer: where a [`Wiimote`] points
-//! ([`Wiimote::pointer`], from its camera) moves a pointer of its own on the primary window,
+//! The remote's IR pointer as a bevy_picking pointer: where a [`MotionController`] points
+//! ([`MotionController::pointer`], from its camera) moves a pointer of its own on the primary window,
 //! and A presses and releases its primary button — so hovering, `Pointer<Press>` observers and
 //! [`GrabPlugin`](crate::ecs::GrabPlugin) grabs work with the remote as with the mouse. While A
 //! holds a grab, turning the remote turns it 1:1 ([`GrabTurn`]) and pointing elsewhere moves it
@@ -11,17 +11,17 @@ use bevy::picking::pointer::{Location, PointerAction, PointerButton, PointerId, 
 use bevy::prelude::*;
 use bevy::window::{PrimaryWindow, WindowRef};
 
-use crate::controllers::wiimote::protocol::Buttons;
+use crate::controllers::session::Buttons;
 use crate::ecs::GrabTurn;
-use crate::ecs::wiimote::{Wiimote, WiimoteSystems};
+use crate::ecs::controllers::{MotionController, MotionControllerSystems};
 
-/// Gives every [`Wiimote`] with a pointer ([`WiimotePlugin::pointer`](crate::ecs::WiimotePlugin::pointer))
-/// a bevy_picking pointer ([`WiimotePointer::id`]) on the primary window; A is its primary
+/// Gives every [`MotionController`] with a pointer ([`MotionControllerPlugin::pointer`](crate::ecs::MotionControllerPlugin::pointer))
+/// a bevy_picking pointer ([`ControllerPointer::id`]) on the primary window; A is its primary
 /// button. Add it with bevy_picking and the Wii Remote plugin.
 #[derive(Debug, Clone, Default)]
-pub struct WiimotePointerPlugin;
+pub struct ControllerPointerPlugin;
 
-impl Plugin for WiimotePointerPlugin {
+impl Plugin for ControllerPointerPlugin {
     fn build(&self, app: &mut App) {
         app.add_message::<PointerInput>()
             .add_message::<GrabTurn>()
@@ -29,15 +29,15 @@ impl Plugin for WiimotePointerPlugin {
                 PreUpdate,
                 drive_remote_pointers
                     .in_set(PickingSystems::Input)
-                    .after(WiimoteSystems::Receive),
+                    .after(MotionControllerSystems::Receive),
             );
     }
 }
 
 /// On a remote's picking pointer entity (with its [`PointerId`]): which remote drives it.
 #[derive(Component, Debug, Clone, Copy, PartialEq)]
-pub struct WiimotePointer {
-    /// The [`Wiimote`] entity.
+pub struct ControllerPointer {
+    /// The [`MotionController`] entity.
     #[entities]
     pub remote: Entity,
     /// Where it was last put (window coordinates), whether A holds a press, and the remote's
@@ -47,7 +47,7 @@ pub struct WiimotePointer {
     turned_from: Option<Quat>,
 }
 
-impl WiimotePointer {
+impl ControllerPointer {
     /// The picking pointer id of the remote with manager id `id` (stable across reconnects).
     pub fn id(id: u32) -> PointerId {
         PointerId::Custom(Uuid::from_u128(
@@ -58,8 +58,8 @@ impl WiimotePointer {
 
 fn drive_remote_pointers(
     mut commands: Commands,
-    remotes: Query<(Entity, &Wiimote)>,
-    mut pointers: Query<(&PointerId, &mut WiimotePointer)>,
+    remotes: Query<(Entity, &MotionController)>,
+    mut pointers: Query<(&PointerId, &mut ControllerPointer)>,
     window: Query<(Entity, &Window), With<PrimaryWindow>>,
     mut input: MessageWriter<PointerInput>,
     mut turns: MessageWriter<GrabTurn>,
@@ -77,8 +77,8 @@ fn drive_remote_pointers(
         let Some((&id, mut pointer)) = pointers.iter_mut().find(|(_, p)| p.remote == remote) else {
             if w.pointer.is_some() {
                 commands.spawn((
-                    WiimotePointer::id(w.id),
-                    WiimotePointer {
+                    ControllerPointer::id(w.id),
+                    ControllerPointer {
                         remote,
                         last: None,
                         pressed: false,
@@ -124,7 +124,7 @@ fn drive_remote_pointers(
             pointer.turned_from = press.then_some(w.orientation);
         }
         // While pressed, the remote's turn since the last frame turns the grab 1:1 (in the
-        // camera's frame, as `WiimoteHandleControl` maps it).
+        // camera's frame, as `MotionHandleControl` maps it).
         if pointer.pressed
             && let Some(from) = pointer.turned_from
         {

@@ -1,5 +1,10 @@
 //! Avian physics for bent meshes and posed characters (cargo feature `avian`, avian3d 0.8).
 //!
+//! | file | what it answers |
+//! |---|---|
+//! | `mod.rs` | the types and docs of this folder (above) |
+//! | `plugin.rs` | Systems of [`DeformPhysicsPlugin`]: collider rebuilds after settled solves, the colliders marked [`GroundMesh`] as the scene's ground, capsules on posed bones. |
+//!
 //! - [`DeformCollider`] on a [`Deformable`](crate::ecs::Deformable) rebuilds its Avian
 //!   [`Collider`] from the bent mesh after each settled solve: the shape is built on the async
 //!   compute pool and swapped in when ready, so the main thread only copies the mesh's

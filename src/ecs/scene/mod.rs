@@ -4,6 +4,11 @@
 //! frames after its asset loads), why a scene failed to load (a missing or malformed file: the
 //! loader's message), and what it misses.
 //!
+//! | file | what it answers |
+//! |---|---|
+//! | `mod.rs` | the types and docs of this folder (above) |
+//! | `plugin.rs` | [`SceneRootPlugin`]: scene roots marked spawned, missing dependencies reported. |
+//!
 //! A scene whose own file loads but one of whose dependencies does not — typically a texture
 //! whose image file was not copied beside the model (`"uri": "default.bmp"`) — is *not* a
 //! failure: its geometry, skin and animations are all in the file. It spawns, deforms and
@@ -11,7 +16,7 @@
 //! [`SceneAssetsMissing`] message is written and a warning logged, and the pose and deform
 //! statuses carry it as their `warning`. Drawing such a model needs a material without the
 //! missing texture (Bevy draws nothing for a material whose image failed): the examples'
-//! `examples/common/missing_textures.rs` shows the few lines that swap it out.
+//! `examples/common/src/missing_textures.rs` shows the few lines that swap it out.
 //!
 //! This file holds the components; `plugin.rs` the systems and [`SceneRootPlugin`], which
 //! [`DeformPlugin`](crate::ecs::DeformPlugin) and [`PosePlugin`](crate::ecs::PosePlugin) add.

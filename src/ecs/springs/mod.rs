@@ -2,6 +2,11 @@
 //! [`SpringBones`] on a [`Poseable`](crate::ecs::Poseable) swings its chains after the pose
 //! and the animation, before transforms propagate, every frame.
 //!
+//! | file | what it answers |
+//! |---|---|
+//! | `mod.rs` | the types and docs of this folder (above) |
+//! | `plugin.rs` | The spring systems: resolve [`SpringBones`] against prepared characters, then step them in `PostUpdate` after the pose is applied and before transforms propagate. |
+//!
 //! ```no_run
 //! use bevy::prelude::*;
 //! use bevy_wii_deform::ecs::{SpringBones, SpringPlugin};

@@ -11,8 +11,7 @@
 //! is a poor guess: the layer was solved against last frame's animation, and the clip moves the
 //! stance leg on (at its own speed, on flat ground), so the start puts a planted paw 1–2 % of
 //! the model's size off the points it is held at, and the solve spends its iterations bringing
-//! it back (measured on the walking crowd: median 1.2 % of the size off at the start, 1.35 of
-//! its 4.5 iterations a solve past the budget only to meet the holds).
+//! it back (the figures are in `docs/design/ground.md`).
 //!
 //! [`ContactTracker::carry_planted_limbs`] starts a planted limb where the last solve left it
 //! instead — its joints' rotations as solved — and re-aims it at its holds as the character

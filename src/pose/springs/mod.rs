@@ -2,6 +2,12 @@
 //! following the update rule of VRM 1.0's `VRMC_springBone` (read with [`read_vrm_springs`];
 //! rigs without the extension: [`SpringRig::from_names`], [`SpringRig::from_ron`]).
 //!
+//! | file | what it answers |
+//! |---|---|
+//! | `mod.rs` | the types and docs of this folder (above) |
+//! | `ron_file.rs` | Spring rigs in RON, joints by name, for rigs without a VRM extension ([`SpringRig::from_ron`]). |
+//! | `vrm.rs` | Reading VRM 1.0's `VRMC_springBone` extension from a glTF document. |
+//!
 //! Each joint of a chain but the last carries a bone to the next; the bone's *tail* (the next
 //! joint's position) is a point mass integrated in world space (or in the chain's centre
 //! joint's space):

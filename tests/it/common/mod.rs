@@ -2,8 +2,7 @@
 #![allow(dead_code)] // each test crate uses some of them
 
 pub mod bar;
-#[path = "../../../examples/common/headless_gltf.rs"]
-pub mod headless_gltf;
+pub use bevy_wii_deform_examples::headless_gltf;
 pub mod scratch;
 pub mod shared;
 

@@ -1,6 +1,6 @@
 //! What is emulated: the remote's variant, its sensor error model and the emulator's settings.
 
-use super::EmulatorClock;
+use crate::controllers::emulation::EmulatorClock;
 
 /// Which remote is emulated.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -123,7 +123,7 @@ pub struct EmulatorConfig {
     pub sensors: SensorModel,
     /// Emulates a remote the OS lists but refuses to open (the manager reports this as a
     /// [`crate::controllers::wiimote::RemoteProblem`] and retries); `None` opens normally.
-    pub open_error: Option<crate::controllers::wiimote::OpenErrorKind>,
+    pub open_error: Option<crate::controllers::diagnosis::OpenErrorKind>,
     /// The IR camera (I2C device 0xB0) answers register writes and reads (`PROTOCOL.md` §17);
     /// `false` emulates a unit whose camera does not answer (error 7, as for an absent device).
     pub camera: bool,

@@ -4,34 +4,39 @@
 //! virtual clock, in real time (demos), or paced by an [`EmulatorClock`] the app advances
 //! (tests that step time by hand).
 //!
+//! | file | what it answers |
+//! |---|---|
+//! | `mod.rs` | the types and docs of this folder (above) |
+//! | `config.rs` | What is emulated: the remote's variant, its sensor error model and the emulator's settings. |
+//! | `reports.rs` | How the emulated remote answers the host: output reports, register reads and writes, the MotionPlus activation sequence, status reports and acknowledgements (`PROTOCOL.md`). |
+//! | `sensors.rs` | The emulated sensors: per-unit constants drawn from the seed and the gyro, accelerometer and data reports synthesised from the ground-truth motion with the error model of `PROTOCOL.md` §13.3. |
+//!
 //! Where things are: `mod.rs` — the remote, its timeline and the [`Transport`] side;
 //! `config.rs` — variant, sensor error model, settings; `sensors.rs` — per-unit constants and
 //! the synthesised gyro/accelerometer data reports; `reports.rs` — answering output reports,
-//! registers and the MotionPlus activation; `controls.rs` — buttons, hot-plug, power from
-//! outside; `clock.rs` — pacing by the app's time.
+//! registers and the MotionPlus activation. Buttons, hot-plug and power from outside
+//! ([`EmulatorControls`]) and pacing by the app's time ([`EmulatorClock`]) are shared with
+//! the pads' emulators: `crate::controllers::emulation`.
 //!
-//! [`Motion`]: crate::controllers::wiimote::Motion
+//! [`Motion`]: crate::controllers::motion::Motion
+//! [`EmulatorClock`]: crate::controllers::emulation::EmulatorClock
 
 use std::collections::VecDeque;
 
 use glam::{DQuat, DVec3};
 
 use super::protocol::{AccelCalibration, Buttons, MotionPlusCalibration};
+use crate::controllers::emulation::{EmulatorControls, Pacing};
 use crate::controllers::rng::Rng;
 use crate::controllers::transport::{Transport, TransportError};
 use reports::{EEPROM_SIZE, MpPhase, PendingRead};
 use sensors::Unit;
 
-mod clock;
 mod config;
-mod controls;
 mod reports;
 mod sensors;
 
-pub use clock::EmulatorClock;
-pub(crate) use clock::Pacing;
 pub use config::{EmulatedBar, EmulatorConfig, SensorModel, Variant};
-pub use controls::EmulatorControls;
 
 /// The emulated remote. Implements [`Transport`]; give it to a session like a hidapi device.
 pub struct EmulatedRemote {

@@ -10,7 +10,7 @@ use crate::controllers::motion::{self, Motion};
 use crate::controllers::rng::Rng;
 use crate::controllers::wiimote::ir::{IR_MODE_REGISTER, IrCamera, encode_basic, encode_extended};
 use crate::controllers::wiimote::protocol::{
-    AccelCalibration, AccelRaw, GyroRange, MotionPlusCalibration, MotionPlusFrame,
+    self, AccelCalibration, AccelRaw, GyroRange, MotionPlusCalibration, MotionPlusFrame,
     encode_buttons_accel,
 };
 
@@ -203,14 +203,14 @@ impl EmulatedRemote {
                     g
                 } else if passthrough {
                     nunchuk
-                        .map(|n| n.encode_passthrough(true))
+                        .map(|n| protocol::nunchuk_passthrough_bytes(&n, true))
                         .unwrap_or([0; 6])
                 } else {
                     gyro.encode()
                 }
             }
             _ => match nunchuk {
-                Some(n) if self.ext_initialized => n.encode_direct(),
+                Some(n) if self.ext_initialized => protocol::nunchuk_direct_bytes(&n),
                 _ => [0xFF; 6],
             },
         };

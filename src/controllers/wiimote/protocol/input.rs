@@ -3,6 +3,7 @@
 //! (`PROTOCOL.md` §5–§6).
 
 use super::*;
+pub use crate::controllers::session::inputs::NunchukFrame;
 
 /// Status report body (0x20).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -55,19 +56,6 @@ pub struct MotionPlusFrame {
     pub extension_connected: bool,
 }
 
-/// A decoded pass-through Nunchuk frame (MotionPlus mode 0x05, E5 bit1 = 0).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct NunchukFrame {
-    /// Stick X (≈128 centre).
-    pub stick_x: u8,
-    /// Stick Y (≈128 centre).
-    pub stick_y: u8,
-    /// C button.
-    pub c: bool,
-    /// Z button.
-    pub z: bool,
-}
-
 /// Extension bytes of a data report, classified.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ExtensionData {
@@ -115,38 +103,38 @@ impl MotionPlusFrame {
     }
 }
 
-impl NunchukFrame {
-    /// Encodes as a pass-through frame (E5 bit1 = 0), accelerometer bytes left neutral.
-    pub fn encode_passthrough(&self, extension_connected: bool) -> [u8; 6] {
-        [
-            self.stick_x,
-            self.stick_y,
-            0x80,
-            0x80,
-            0x80 | extension_connected as u8,
-            ((!self.c) as u8) << 3 | ((!self.z) as u8) << 2,
-        ]
-    }
+/// Encodes a Nunchuk frame as a pass-through frame (E5 bit1 = 0), accelerometer bytes left
+/// neutral.
+pub fn nunchuk_passthrough_bytes(frame: &NunchukFrame, extension_connected: bool) -> [u8; 6] {
+    [
+        frame.stick_x,
+        frame.stick_y,
+        0x80,
+        0x80,
+        0x80 | extension_connected as u8,
+        ((!frame.c) as u8) << 3 | ((!frame.z) as u8) << 2,
+    ]
+}
 
-    /// Encodes as a plain Nunchuk report (MotionPlus inactive), accelerometer neutral.
-    pub fn encode_direct(&self) -> [u8; 6] {
-        [
-            self.stick_x,
-            self.stick_y,
-            0x80,
-            0x80,
-            0x80,
-            ((!self.c) as u8) << 1 | (!self.z) as u8,
-        ]
-    }
+/// Encodes a Nunchuk frame as a plain Nunchuk report (MotionPlus inactive), accelerometer
+/// neutral.
+pub fn nunchuk_direct_bytes(frame: &NunchukFrame) -> [u8; 6] {
+    [
+        frame.stick_x,
+        frame.stick_y,
+        0x80,
+        0x80,
+        0x80,
+        ((!frame.c) as u8) << 1 | (!frame.z) as u8,
+    ]
+}
 
-    fn decode_passthrough(e: &[u8]) -> Self {
-        Self {
-            stick_x: e[0],
-            stick_y: e[1],
-            c: e[5] & 0x08 == 0,
-            z: e[5] & 0x04 == 0,
-        }
+fn nunchuk_from_passthrough(e: &[u8]) -> NunchukFrame {
+    NunchukFrame {
+        stick_x: e[0],
+        stick_y: e[1],
+        c: e[5] & 0x08 == 0,
+        z: e[5] & 0x04 == 0,
     }
 }
 
@@ -302,6 +290,6 @@ pub fn classify_extension(e: &[u8; 6], motion_plus_active: bool) -> ExtensionDat
     }
     match MotionPlusFrame::decode(e) {
         Ok(f) => ExtensionData::MotionPlus(f),
-        Err(_) => ExtensionData::Nunchuk(NunchukFrame::decode_passthrough(e)),
+        Err(_) => ExtensionData::Nunchuk(nunchuk_from_passthrough(e)),
     }
 }

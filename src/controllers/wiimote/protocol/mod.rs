@@ -1,5 +1,13 @@
 //! Typed encode/decode of Wii Remote HID reports (see `PROTOCOL.md` §2–§8).
 //!
+//! | file | what it answers |
+//! |---|---|
+//! | `mod.rs` | the types and docs of this folder (above) |
+//! | `calibration.rs` | Calibration records: the accelerometer's zero and gravity points and the MotionPlus gyroscope's scales, read from the remote's memory (`PROTOCOL.md` §7). |
+//! | `extension.rs` | Extension identification (`PROTOCOL.md` §8). |
+//! | `input.rs` | Input reports (remote → host): status, read replies, acknowledgements and data reports with buttons, accelerometer and extension bytes (MotionPlus, Nunchuk), decoded by report ID (`PROTOCOL.md` §5–§6). |
+//! | `output.rs` | Output reports (host → remote): LEDs, report mode, status request, memory and register writes and reads (`PROTOCOL.md` §3–§4). |
+//!
 //! Bytes are as `hidapi` sees them: report ID first. Input reports are parsed by ID, never by
 //! length (Windows pads every report to 22 bytes); any short or unknown input is a typed
 //! [`ProtocolError`], never a panic.
@@ -44,49 +52,7 @@ pub enum ProtocolError {
     NotGyroFrame,
 }
 
-/// Core buttons (bit layout of `BB BB`, mask applied).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
-pub struct Buttons(pub u16);
-
-impl Buttons {
-    /// D-pad left.
-    pub const LEFT: u16 = 0x0001;
-    /// D-pad right.
-    pub const RIGHT: u16 = 0x0002;
-    /// D-pad down.
-    pub const DOWN: u16 = 0x0004;
-    /// D-pad up.
-    pub const UP: u16 = 0x0008;
-    /// Plus.
-    pub const PLUS: u16 = 0x0010;
-    /// Two.
-    pub const TWO: u16 = 0x0100;
-    /// One.
-    pub const ONE: u16 = 0x0200;
-    /// B (trigger).
-    pub const B: u16 = 0x0400;
-    /// A.
-    pub const A: u16 = 0x0800;
-    /// Minus.
-    pub const MINUS: u16 = 0x1000;
-    /// Home.
-    pub const HOME: u16 = 0x8000;
-
-    /// Decodes the two core-button bytes.
-    pub fn from_bytes(b0: u8, b1: u8) -> Self {
-        Self(((b0 & 0x1F) as u16) | (((b1 & 0x9F) as u16) << 8))
-    }
-
-    /// Encodes to the two core-button bytes (accelerometer low bits zero).
-    pub fn to_bytes(self) -> [u8; 2] {
-        [(self.0 & 0x1F) as u8, ((self.0 >> 8) & 0x9F) as u8]
-    }
-
-    /// True when `button` (one of the constants) is held.
-    pub fn pressed(self, button: u16) -> bool {
-        self.0 & button != 0
-    }
-}
+pub use crate::controllers::session::inputs::Buttons;
 
 mod calibration;
 mod extension;

@@ -183,7 +183,7 @@ impl<T: Transport> Session<T> {
         if gyro.is_some() {
             self.last_gyro_s = sampled;
         }
-        let sample = ImuSample {
+        let sample = crate::controllers::fusion::ImuSample {
             timestamp_us: now,
             dt,
             gyro_dps: gyro,

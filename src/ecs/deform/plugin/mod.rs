@@ -1,5 +1,16 @@
 //! The deformation plugin: its system sets, and the systems that prepare meshes, start
 //! solves, collect them and write them back.
+//!
+//! | file | what it answers |
+//! |---|---|
+//! | `mod.rs` | the types and docs of this folder (above) |
+//! | `ancestors.rs` | [`Deformable`] on an ancestor: a glTF `WorldAssetRoot` or any node of a hierarchy. |
+//! | `dynamics.rs` | [`DeformDynamics`]: meshes stepped in time instead of solved to rest. |
+//! | `ground.rs` | The ground under a [`DeformGround`] mesh, for its solves: the scene's ground sampled into a height field by the first solve that needs it (off the main thread), seen from the mesh's own coordinates. |
+//! | `poll.rs` | Collecting landed solves (the pose handed to write-back, settling continued) and the whole mesh's factorization that follows a preview. |
+//! | `prepare.rs` | Preparing deformables: finding meshes (on the entity or below a scene), welding and precomputing topology in the background, rest poses and regions of interest. |
+//! | `request.rs` | Requesting solves: constraints from handles and regions, background solves (latest wins) with a preview of a large mesh first, settling a released pose. |
+//! | `writeback.rs` | Writing solved poses back to the mesh asset: positions, normals (repaired where a file's were missing or broken) and tangents. |
 
 mod ancestors;
 mod dynamics;

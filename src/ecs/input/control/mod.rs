@@ -1,7 +1,12 @@
 //! Handle controls: input devices that move [`DeformHandle`](crate::ecs::DeformHandle)s (or
 //! any entity with a `Transform`).
 //!
-//! * [`WiimoteHandleControl`]: the paper's interaction — the handle turns 1:1 with the remote
+//! | file | what it answers |
+//! |---|---|
+//! | `mod.rs` | the types and docs of this folder (above) |
+//! | `plugin.rs` | The handle-control plugins and the systems that apply remote motion and mouse drags to controlled handles. |
+//!
+//! * [`MotionHandleControl`]: the paper's interaction — the handle turns 1:1 with the remote
 //!   (relative to the moment of grabbing, in camera space), with a clutch on B and
 //!   translation at the same time.
 //! * [`MouseHandleControl`]: the paper's mouse baseline — an arcball (Shoemake) that turns the
@@ -13,7 +18,7 @@ mod plugin;
 
 use bevy::prelude::*;
 
-pub use plugin::{MouseControlPlugin, WiimoteControlPlugin};
+pub use plugin::{MotionControlPlugin, MouseControlPlugin};
 
 /// Drive this handle (`DeformHandle` entity, or any entity with a `Transform`) with a remote.
 ///
@@ -28,7 +33,7 @@ pub use plugin::{MouseControlPlugin, WiimoteControlPlugin};
 /// the mesh's local space); pass that entity as `space` so camera-space motion maps correctly.
 #[derive(Component, Debug, Clone, Reflect)]
 #[reflect(Component)]
-pub struct WiimoteHandleControl {
+pub struct MotionHandleControl {
     /// Which remote (its entity); `None` = the first connected remote.
     #[entities]
     pub remote: Option<Entity>,
@@ -55,7 +60,7 @@ struct Grab {
     start: Transform,
 }
 
-impl Default for WiimoteHandleControl {
+impl Default for MotionHandleControl {
     fn default() -> Self {
         Self {
             remote: None,
@@ -68,7 +73,7 @@ impl Default for WiimoteHandleControl {
     }
 }
 
-impl WiimoteHandleControl {
+impl MotionHandleControl {
     /// Controlled by `remote` (its entity).
     pub fn with_remote(mut self, remote: Entity) -> Self {
         self.remote = Some(remote);
@@ -112,7 +117,7 @@ impl WiimoteHandleControl {
 /// * **Shift + left-drag**: translation in the view plane, at the handle's depth (the handle
 ///   stays under the cursor).
 ///
-/// As for [`crate::ecs::WiimoteHandleControl`], the handle's `Transform` is in the space of
+/// As for [`crate::ecs::MotionHandleControl`], the handle's `Transform` is in the space of
 /// `space` (for `DeformHandle`: the mesh entity); that entity's whole `GlobalTransform` —
 /// translation, rotation and scale — maps screen motion into it.
 #[derive(Component, Debug, Clone, Reflect)]

@@ -4,24 +4,27 @@
 use bevy::prelude::*;
 use bevy::window::PrimaryWindow;
 
-use super::{Grab, MouseHandleControl, WiimoteHandleControl};
-use crate::controllers::wiimote::RemoteCommand;
-use crate::controllers::wiimote::protocol::Buttons;
-use crate::ecs::WiimoteSystems;
+use super::{Grab, MotionHandleControl, MouseHandleControl};
+use crate::controllers::manager::RemoteCommand;
+use crate::controllers::session::Buttons;
+use crate::ecs::MotionControllerSystems;
+use crate::ecs::controllers::{ConnectionState, ControllerLink, MotionController};
 use crate::ecs::input::view::{
     arcball_rotation, rotation_of_space, turned_in_space, view_plane_motion,
 };
 use crate::ecs::input::{InputSystems, configure_input_sets};
-use crate::ecs::wiimote::{ConnectionState, Wiimote, WiimoteLink};
 
-/// Adds [`WiimoteHandleControl`] (requires [`WiimotePlugin`](crate::ecs::WiimotePlugin)).
+/// Adds [`MotionHandleControl`] (requires [`MotionControllerPlugin`](crate::ecs::MotionControllerPlugin)).
 #[derive(Debug, Clone, Default)]
-pub struct WiimoteControlPlugin;
+pub struct MotionControlPlugin;
 
-impl Plugin for WiimoteControlPlugin {
+impl Plugin for MotionControlPlugin {
     fn build(&self, app: &mut App) {
-        app.register_type::<WiimoteHandleControl>();
-        app.add_systems(Update, drive_handles.in_set(WiimoteSystems::Control));
+        app.register_type::<MotionHandleControl>();
+        app.add_systems(
+            Update,
+            drive_handles.in_set(MotionControllerSystems::Control),
+        );
         configure_input_sets(app);
     }
 }
@@ -45,11 +48,11 @@ impl Plugin for MouseControlPlugin {
 /// Applies remote motion to controlled handles.
 pub fn drive_handles(
     time: Res<Time>,
-    link: Option<Res<WiimoteLink>>,
-    remotes: Query<(Entity, &Wiimote)>,
+    link: Option<Res<ControllerLink>>,
+    remotes: Query<(Entity, &MotionController)>,
     cameras: Query<(Entity, &GlobalTransform), With<Camera3d>>,
     spaces: Query<&GlobalTransform>,
-    mut handles: Query<(&mut WiimoteHandleControl, &mut Transform)>,
+    mut handles: Query<(&mut MotionHandleControl, &mut Transform)>,
 ) {
     for (mut control, mut transform) in &mut handles {
         let remote = match control.remote {

@@ -1,6 +1,11 @@
 //! Pointer grabs: press on a [`Grabbable`] deformable, drag, release — the surface under the
 //! pointer follows it, and the pose stays. How a grab behaves is documented on
 //! [`GrabPlugin`]. This file holds the data types; `plugin.rs` the plugin and its systems.
+//!
+//! | file | what it answers |
+//! |---|---|
+//! | `mod.rs` | the types and docs of this folder (above) |
+//! | `plugin.rs` | The grab plugin: picking and pointer input to grab messages, and the systems that start, place, move and end grabs. |
 
 mod plugin;
 
@@ -26,8 +31,8 @@ pub struct Grabbable {
     pub region_radius: f32,
     /// At most this many vertices of the region move, the nearest along the surface: the
     /// grab's first pose waits for the region's factorization, so on a dense mesh the region
-    /// shrinks rather than the grab stalling (16 384: a first pose in ~20 ms on 2 cores, see
-    /// docs/benchmarks.md).
+    /// shrinks rather than the grab stalling (16 384 by default; the first pose's cost is
+    /// `plugin_bench --grab` in `docs/benchmarks.md`).
     pub max_region_vertices: u32,
 }
 

@@ -3,6 +3,15 @@
 //! centroid to a point) and reference stiffness (each joint pulled towards a reference pose's
 //! rotation). Each is a weighted least-squares term; see [`crate::pose::constraints::effectors`] for what
 //! the weights mean.
+//!
+//! | file | what it answers |
+//! |---|---|
+//! | `mod.rs` | the types and docs of this folder (above) |
+//! | `floor_groups.rs` | The floor's vertices in groups that share one bound on how far their joints moved them: a group certainly well above its ground passes its vertices in one test. |
+//! | `ground.rs` | The ground's terms of a pose solve: contacts (patch vertices kept above their ground, a planted contact's joint's up turned to the ground's normal; the weight of its holds, which `holds.rs` folds into the solve's `Q`), the floor, and balance — built from [`PoseConstraints`], one-sided where they are inequalities. |
+//! | `moments.rs` | The one-number terms (a vertex under or near its ground, along the ground's normal `n`) summed by their moments instead of pair by pair of parameters. |
+//! | `raised_floor.rs` | Non-penetration as an augmented Lagrangian: a vertex the ground's penalty cannot get out of the ground is kept above a plane raised by its depth. |
+//! | `system.rs` | The Gauss–Newton system of the extra terms: each active term's Jacobian blocks (for the parameters that move it only), summed as `2 w JᵀJ` and `2 w Jᵀr` into the solver's system. |
 
 use glam::{DAffine3, DMat3, DVec3, DVec4};
 
