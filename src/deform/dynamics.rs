@@ -76,14 +76,14 @@ impl DynamicsSettings {
 /// A mesh in motion: positions, velocities and the last step's solution (its rotations start
 /// the next step), and the frame time not yet stepped.
 #[derive(Debug, Clone)]
-pub struct Motion {
+pub struct MeshMotion {
     positions: Vec<DVec3>,
     velocities: Vec<DVec3>,
     last: Option<Solution>,
     accumulated: f64,
 }
 
-impl Motion {
+impl MeshMotion {
     /// Still, at `positions` (welded).
     pub fn at_rest(positions: Vec<DVec3>) -> Self {
         Self {

@@ -59,7 +59,7 @@ pub mod synth;
 mod topology;
 
 pub use constraints::{ConstraintError, Constraints, Handle, RigidTransform};
-pub use dynamics::{DynamicsSettings, Motion};
+pub use dynamics::{DynamicsSettings, MeshMotion};
 pub use energy::arap_energy;
 pub use io::{MeshIoError, TriMesh, bounding_box, centroid, glb_container};
 pub use obstacle::{HeightField, HeightFieldError, Obstacle, PlaneObstacle, SurfaceSample};

@@ -65,7 +65,7 @@ fn tip_path(
 ) -> Vec<f64> {
     let (topology, held, top, bent) = bent_bar();
     let solver = dynamic_solver(&topology, &held, &settings);
-    let mut motion = Motion::from_solution(bent);
+    let mut motion = MeshMotion::from_solution(bent);
     let mut path = Vec::new();
     for frame in 0..(seconds * fps).round() as usize {
         let dt = if Some(frame) == hitch_at {
@@ -85,7 +85,7 @@ fn a_released_bar_overshoots_rings_down_and_settles_at_rest() {
     let settings = DynamicsSettings::default();
     let (topology, held, top, bent) = bent_bar();
     let solver = dynamic_solver(&topology, &held, &settings);
-    let mut motion = Motion::from_solution(bent);
+    let mut motion = MeshMotion::from_solution(bent);
     let mut path = Vec::new();
     for _ in 0..12 * 60 {
         motion

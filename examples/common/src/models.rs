@@ -26,7 +26,9 @@ fn union(parts: &[f64], k: f64) -> f64 {
         .unwrap_or(f64::MAX)
 }
 
-fn cactus() -> TriMesh {
+/// The cactus (`assets/models/cactus.obj` is this mesh written out): a ribbed trunk with two
+/// arms in a pot, welded from one signed distance function.
+pub fn cactus() -> TriMesh {
     let v = DVec3::new;
     let f = |p: DVec3| {
         let theta = p.z.atan2(p.x);

@@ -9,7 +9,7 @@ use std::sync::Arc;
 use bevy::tasks::{AsyncComputeTaskPool, Task};
 
 use super::*;
-use crate::deform::{DynamicsSettings, Motion};
+use crate::deform::{DynamicsSettings, MeshMotion};
 
 /// The motion of one [`DeformDynamics`] mesh (runtime state, not reflected).
 #[derive(Component, Default)]
@@ -18,10 +18,10 @@ pub(super) struct DynamicsRuntime {
     solver: Option<(Arc<ArapSolver>, DynamicsSettings, Constraints)>,
     /// A factorization under way, for these settings and sets.
     factoring: Option<Factoring>,
-    motion: Option<Motion>,
+    motion: Option<MeshMotion>,
     /// A batch of steps on the compute pool (large meshes): the motion after it, the pose it
     /// makes and its milliseconds per step.
-    stepping: Option<Task<(Motion, Stepped)>>,
+    stepping: Option<Task<(MeshMotion, Stepped)>>,
     /// Frame time not yet handed to a step batch.
     waiting: f64,
 }
@@ -51,7 +51,7 @@ type Stepped = Result<Option<Steps>, SolveError>;
 
 /// Runs the steps `dt` holds (above the ground when `ground` is given: handles lifted onto
 /// it, vertices kept above it) and builds what the frame shows.
-fn run_steps(motion: &mut Motion, job: &StepJob, dt: f64) -> Stepped {
+fn run_steps(motion: &mut MeshMotion, job: &StepJob, dt: f64) -> Stepped {
     let t0 = web_time::Instant::now();
     let positions = job.rest.topology.positions();
     let obstacle = job.ground.as_ref().and_then(|g| g.obstacle(positions));
@@ -190,8 +190,8 @@ pub(super) fn step_dynamics(
             continue;
         };
         let start = || match &state.last {
-            Some(last) => Motion::from_solution((**last).clone()),
-            None => Motion::at_rest(rest.topology.positions().to_vec()),
+            Some(last) => MeshMotion::from_solution((**last).clone()),
+            None => MeshMotion::at_rest(rest.topology.positions().to_vec()),
         };
         let job = StepJob {
             solver,
