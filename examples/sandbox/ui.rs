@@ -167,7 +167,7 @@ fn input_section(ui: &mut egui::Ui, p: &mut RemotePanel) {
     let mut input = *p.input.get();
     ui.horizontal(|ui| {
         ui.selectable_value(&mut input, InputMethod::Mouse, "Mouse (arcball)");
-        ui.selectable_value(&mut input, InputMethod::Controller, "Wii Remote");
+        ui.selectable_value(&mut input, InputMethod::Controller, "Wii Remote / pad");
     });
     if input != *p.input.get() {
         p.next_input.set(input);

@@ -23,6 +23,8 @@
 pub mod broken_gltf;
 pub mod cli;
 pub mod drift;
+// Headless apps (tests, benchmarks) run natively only.
+#[cfg(not(target_arch = "wasm32"))]
 pub mod headless_gltf;
 pub mod missing_textures;
 pub mod models;
