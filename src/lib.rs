@@ -6,6 +6,14 @@
 //! listed in [`ecs`]. The guide below covers the layers, deforming meshes, posing characters and
 //! the core without Bevy.
 //!
+//! | question | module (folder) |
+//! |---|---|
+//! | how a mesh is bent As-Rigid-As-Possibly (no Bevy) | [`deform`] (`deform/`) |
+//! | how a rigged character is posed, stood on the ground, retargeted (no Bevy) | [`pose`] (`pose/`) |
+//! | how a Wii Remote or a gyro pad becomes an orientation (no Bevy) | [`controllers`] (`controllers/`) |
+//! | how an editor's undo works (no Bevy) | [`history`] (`history.rs`) |
+//! | what the plugins add to a Bevy app | `ecs` (`ecs/`, feature `bevy`) |
+//!
 #![doc = include_str!("../docs/guide.md")]
 #![warn(missing_docs)]
 

@@ -30,6 +30,7 @@
 //! | why a controller cannot be opened on Linux | `diagnosis.rs` (`docs/wiimote-linux.md`) |
 //! | the hidapi side | `transport.rs` |
 //! | a sample's body frame, a controller's kind, a report's link | `sample.rs`, `report.rs` |
+//! | the emulators' reproducible noise | `rng.rs` |
 
 pub mod crc;
 pub mod diagnosis;

@@ -1,5 +1,5 @@
 //! The ECS layer: components, messages, systems and plugins. Thin glue over
-//! [`crate::deform`] and [`crate::controllers::wiimote`].
+//! [`crate::deform`], [`crate::pose`] and [`crate::controllers`].
 //!
 //! | plugin | what it adds | system sets |
 //! |---|---|---|
@@ -15,6 +15,19 @@
 //!
 //! [`WiiDeformPlugins`] adds them all except [`ControllerPointerPlugin`] (opt-in: it needs a sensor
 //! bar, [`MotionControllerPlugin::pointer`]).
+//!
+//! | question | where |
+//! |---|---|
+//! | how a mesh is made deformable, solved in the background and written back | `deform/` |
+//! | how a rigged character is posed, stood on the ground, blended over clips | `pose/` |
+//! | how motion controllers become entities and messages | `controllers/` |
+//! | how the mouse, a controller or a pointer grab moves a handle | `input/` |
+//! | which meshes are the ground, and the ground every plugin reads | `ground/` |
+//! | how spring bones swing after the pose | `springs/` |
+//! | how scene roots are marked spawned and missing assets reported | `scene/` |
+//! | how bent meshes get Avian colliders (feature `avian`) | `physics/` |
+//! | the background-solve pattern the deform and pose plugins share | `tasks.rs` |
+//! | the space math input controls and pose effectors share | `space.rs` |
 
 mod controllers;
 mod deform;

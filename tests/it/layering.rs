@@ -359,3 +359,47 @@ fn the_cores_import_neither_the_ecs_layer_nor_bevy() {
     }
     assert!(bad.is_empty(), "{}", bad.join("\n"));
 }
+
+/// Every folder's `mod.rs` (and `lib.rs` for `src/`) names each of its files and subfolders in
+/// its opening documentation (as `` `file.rs` ``, `folder/` or a link to the module): the map a
+/// newcomer reads first is complete.
+#[test]
+fn every_folder_map_names_its_files() {
+    let src = src_dir();
+    let mut missing = Vec::new();
+    let mut stack = vec![src.clone()];
+    while let Some(dir) = stack.pop() {
+        let map = if dir == src { "lib.rs" } else { "mod.rs" };
+        let Ok(text) = std::fs::read_to_string(dir.join(map)) else {
+            continue;
+        };
+        let doc: String = text
+            .lines()
+            .filter(|l| l.starts_with("//!"))
+            .collect::<Vec<_>>()
+            .join("\n");
+        for entry in std::fs::read_dir(&dir).expect("a source folder") {
+            let path = entry.expect("a folder entry").path();
+            let name = path.file_name().unwrap().to_string_lossy().into_owned();
+            let stem = name.trim_end_matches(".rs");
+            let linked = doc.contains(&format!("[`{stem}`]"));
+            let named = if path.is_dir() {
+                stack.push(path.clone());
+                linked || doc.contains(&format!("{name}/"))
+            } else {
+                name == map
+                    || !name.ends_with(".rs")
+                    || linked
+                    || doc.contains(&format!("`{name}`"))
+            };
+            if !named {
+                missing.push(format!("{}: {name}", dir.join(map).display()));
+            }
+        }
+    }
+    assert!(
+        missing.is_empty(),
+        "not in the folder's map:\n{}",
+        missing.join("\n")
+    );
+}
