@@ -18,10 +18,11 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
 
-use bevy_wii_deform::pose::retarget::{RetargetSettings, Retargeter, SkeletonMap};
+use bevy_wii_deform::pose::retarget::{
+    RetargetSettings, Retargeter, SkeletonMap, read_source_motion,
+};
 use bevy_wii_deform::pose::{
-    GltfCharacter, GltfFile, GroundPlane, Joint, ModelSettings, PoseClip, Skeleton, SkeletonPose,
-    SkinnedMesh, read_bvh, read_gltf_clip,
+    GltfCharacter, GroundPlane, Joint, ModelSettings, PoseClip, Skeleton, SkeletonPose, SkinnedMesh,
 };
 use glam::{DAffine3, DVec3};
 
@@ -78,27 +79,9 @@ fn args() -> Args {
 
 /// The source's skeleton, rest pose and clip: a BVH file, or a glTF character's animation.
 fn read_source(args: &Args) -> Result<(Skeleton, SkeletonPose, PoseClip), String> {
-    let is_bvh = args
-        .source
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("bvh"));
-    if is_bvh {
-        let text = std::fs::read_to_string(&args.source).map_err(|e| e.to_string())?;
-        let motion = read_bvh(&text).map_err(|e| e.to_string())?;
-        return Ok((motion.skeleton, motion.rest, motion.clip));
-    }
-    let bytes = std::fs::read(&args.source).map_err(|e| e.to_string())?;
-    let file = GltfFile::parse(&bytes, args.source.parent()).map_err(|e| e.to_string())?;
-    let character = GltfCharacter::from_file(&file).map_err(|e| e.to_string())?;
-    let clip = read_gltf_clip(
-        &bytes,
-        args.source.parent(),
-        args.clip.as_deref(),
-        &character.skeleton,
-        &character.rest,
-    )
-    .map_err(|e| e.to_string())?;
-    Ok((character.skeleton, character.rest, clip))
+    let motion =
+        read_source_motion(&args.source, args.clip.as_deref()).map_err(|e| e.to_string())?;
+    Ok((motion.skeleton, motion.rest, motion.clip))
 }
 
 /// The character with the joints of `legs` (each chain's joints after its first) moved `factor`

@@ -6,6 +6,7 @@
 //! | [`DeformPlugin`] | ARAP on [`Deformable`] meshes moved by [`DeformHandle`]s, solved in the `AsyncComputeTaskPool`, written back to the mesh asset | [`DeformSystems`] (`Update`: Prepare → Request → Poll → Writeback) |
 //! | [`PosePlugin`] | posing rigged characters ([`Poseable`]): skinning-space ARAP solved for a skeleton pose, written to the joints, blended over clips ([`PoseBlend`]), clips authored on a [`PoseTimeline`] | [`PoseSystems`] (`Update`: Prepare → Request → Poll → Timeline after `DeformSystems::Request`; `PostUpdate`: Apply after `AnimationSystems`, before propagation) |
 //! | [`GrabPlugin`] | press, drag, release on [`Grabbable`] meshes and characters through bevy_picking | [`InputSystems`] (`Update`: StartGrabs before `DeformSystems::Prepare`, MoveHandles after it and before `DeformSystems::Request`) |
+//! | [`RetargetPlugin`] | [`Retarget`]: a clip made for another skeleton (BVH, another glTF character) baked onto a posed character, feet planted, as an `AnimationClip` ([`RetargetStatus`]) | [`RetargetSystems`] (`Update`, after `PoseSystems::Poll`) |
 //! | [`MouseControlPlugin`] | [`MouseHandleControl`]: arcball and view-plane drags of a handle | `Update`, in `InputSystems::MoveHandles` |
 //! | [`ControllerPointerPlugin`] | the Wii Remote's IR pointer as a bevy_picking pointer: A grabs, turning turns ([`GrabTurn`]) | `PreUpdate`, in bevy_picking's input set |
 //! | [`MotionControllerPlugin`], [`MotionControlPlugin`] | one entity per remote with a [`MotionController`] component, messages; [`MotionHandleControl`] | [`MotionControllerSystems`] (`PreUpdate`: Receive; `Update`: Control, part of `InputSystems::MoveHandles`) |
@@ -23,6 +24,7 @@
 //! | how motion controllers become entities and messages | `controllers/` |
 //! | how the mouse, a controller or a pointer grab moves a handle | `input/` |
 //! | which meshes are the ground, and the ground every plugin reads | `ground/` |
+//! | how a clip made for another skeleton becomes the character's `AnimationClip` | `retarget/` |
 //! | how spring bones swing after the pose | `springs/` |
 //! | how scene roots are marked spawned and missing assets reported | `scene/` |
 //! | how bent meshes get Avian colliders (feature `avian`) | `physics/` |
@@ -36,6 +38,7 @@ mod input;
 #[cfg(feature = "avian")]
 pub mod physics;
 mod pose;
+mod retarget;
 mod scene;
 mod space;
 mod springs;
@@ -69,6 +72,10 @@ pub use pose::{
     PoseInFrame, PoseJointHandle, PoseLimits, PoseModels, PosePlugin, PoseSolved, PoseStatus,
     PoseStiffness, PoseSystems, PoseTimeline, Poseable, PoseableError, PosedSkeleton,
     SymmetricEditing,
+};
+pub use retarget::{
+    Retarget, RetargetFailed, RetargetLoadError, RetargetPhase, RetargetPlugin, RetargetReady,
+    RetargetStatus, RetargetSystems,
 };
 pub use scene::{MissingSceneAssets, SceneAssetsMissing, SceneRootPlugin};
 pub use springs::{SpringBones, SpringPlugin, SpringSource, SpringStatus, SpringSystems};

@@ -36,6 +36,7 @@ mod pose_ground_ecs;
 mod pose_planted_start;
 mod pose_springs;
 mod retarget;
+mod retarget_ecs;
 mod scene_roundtrip;
 mod springs_ecs;
 mod wiimote_device;

@@ -1,5 +1,5 @@
 //! Conversions between Bevy's transforms and the pose core's (f32 → f64), one home for the
-//! stages that need them.
+//! stages that need them (and the retarget plugin's clips).
 
 use bevy::prelude::*;
 use glam::DAffine3;
@@ -39,6 +39,15 @@ pub(super) fn composed_global(
         }
     }
     Some(GlobalTransform::from(global))
+}
+
+/// The core's joint transform as a Bevy `Transform` (its rotation normalised).
+pub(crate) fn bevy_transform(t: &JointTransform) -> Transform {
+    Transform {
+        translation: t.translation.as_vec3(),
+        rotation: t.rotation.as_quat().normalize(),
+        scale: t.scale.as_vec3(),
+    }
 }
 
 /// A joint's local `Transform` as the core's (its rotation normalised).

@@ -41,7 +41,7 @@
 //! pose; the next solve starts from it.
 
 mod blend;
-mod convert;
+pub(crate) mod convert;
 mod plugin;
 pub(crate) use plugin::resolve_limits;
 mod posed_skeleton;

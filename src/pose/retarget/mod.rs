@@ -7,6 +7,7 @@
 //! | which target joints follow which source joints: humanoids by role, anything by chains in RON | `mapping.rs` ([`SkeletonMap`]) |
 //! | one source pose carried over: rotations relative to each rest pose, bones re-aimed, the root scaled by the legs | `transfer.rs` ([`PoseTransfer`]) |
 //! | where the source's feet are planted, read off the clip (height and speed thresholds) | `contacts.rs` ([`detect_contacts`]) |
+//! | reading a source: a BVH file or a glTF character's animation | `source.rs` ([`read_source_motion`]) |
 //! | a whole clip baked through the solver (feet held, skin above the ground), and how well it went | `bake.rs` ([`Retargeter`], [`RetargetQuality`]) |
 //!
 //! The top layer of [`crate::pose`]: it uses the rig, the ground, the constraints, the solver
@@ -30,11 +31,13 @@
 mod bake;
 mod contacts;
 mod mapping;
+mod source;
 mod transfer;
 
 pub use bake::{RetargetQuality, RetargetSettings, RetargetedClip, Retargeter};
 pub use contacts::{ContactThresholds, SourceContacts, detect_contacts};
 pub use mapping::{ChainFile, ChainMapFile, ChainPair, SkeletonMap, Which};
+pub use source::{SourceError, SourceMotion, read_source_motion};
 pub use transfer::{PoseTransfer, RootMotion};
 
 use crate::pose::animation::clip::ClipError;

@@ -4,6 +4,7 @@
 use bevy::prelude::*;
 
 use super::super::blend::BlendMemory;
+use super::super::convert::bevy_transform;
 use super::super::{PoseBlend, Poseable, PosedSkeleton};
 use crate::pose::{SkeletonPose, blend_pose};
 
@@ -75,11 +76,7 @@ fn write_pose(
         let Ok(mut transform) = joints.get_mut(j) else {
             continue;
         };
-        let new = Transform {
-            translation: t.translation.as_vec3(),
-            rotation: t.rotation.as_quat().normalize(),
-            scale: t.scale.as_vec3(),
-        };
+        let new = bevy_transform(t);
         if *transform != new {
             *transform = new;
         }

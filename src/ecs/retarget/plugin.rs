@@ -1,0 +1,245 @@
+//! The retarget systems: the character's rest remembered once it is prepared, a bake started
+//! on Bevy's compute pool when a [`Retarget`] is added or changed (the latest wins), and a
+//! landed bake turned into an `AnimationClip` on the character's joints.
+
+use std::sync::Arc;
+
+use bevy::animation::animated_field;
+use bevy::animation::animation_curves::{AnimatableCurve, AnimatableKeyframeCurve};
+use bevy::animation::{AnimationClip, AnimationTargetId};
+use bevy::prelude::*;
+use bevy::tasks::{AsyncComputeTaskPool, Task, block_on, futures_lite::future};
+
+use super::{
+    Retarget, RetargetFailed, RetargetLoadError, RetargetPhase, RetargetReady, RetargetStatus,
+};
+use crate::ecs::pose::convert::bevy_transform;
+use crate::ecs::{PoseSystems, PosedSkeleton};
+use crate::pose::retarget::{Retargeter, SkeletonMap, read_source_motion};
+use crate::pose::{PoseClip, SkeletonPose, SkinnedModel};
+
+/// The retarget systems, in `Update` after [`PoseSystems::Poll`].
+#[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum RetargetSystems {
+    /// Remember rests, start bakes, collect landed ones.
+    Bake,
+}
+
+/// Plays clips made for other skeletons on posed characters ([`Retarget`]); needs
+/// [`PosePlugin`](crate::ecs::PosePlugin) and Bevy's animation plugin for the clips to play.
+pub struct RetargetPlugin;
+
+impl Plugin for RetargetPlugin {
+    fn build(&self, app: &mut App) {
+        app.init_asset::<AnimationClip>()
+            .register_type::<super::RetargetPhase>()
+            .add_message::<RetargetReady>()
+            .add_message::<RetargetFailed>()
+            .configure_sets(Update, RetargetSystems::Bake.after(PoseSystems::Poll))
+            .add_systems(
+                Update,
+                (remember_rest, start_bakes, finish_bakes)
+                    .chain()
+                    .in_set(RetargetSystems::Bake),
+            );
+    }
+}
+
+/// The character's pose when it was prepared (its rest): what its retargets are relative to.
+#[derive(Component)]
+struct RetargetRest(SkeletonPose);
+
+/// A bake running in the background (replacing it drops, and so cancels, the old one).
+#[derive(Component)]
+struct RetargetTask(Task<Result<Baked, RetargetLoadError>>);
+
+/// What a bake hands back.
+struct Baked {
+    clip: PoseClip,
+    failed_solves: usize,
+    unmapped: Vec<String>,
+    planted_share: Vec<(String, f32)>,
+}
+
+/// Characters with a retarget whose rest is not remembered yet.
+type WithoutRest = (With<Retarget>, Without<RetargetRest>);
+
+fn remember_rest(mut commands: Commands, characters: Query<(Entity, &PosedSkeleton), WithoutRest>) {
+    for (entity, posed) in &characters {
+        commands
+            .entity(entity)
+            .try_insert(RetargetRest(posed.pose.clone()));
+    }
+}
+
+fn start_bakes(
+    mut commands: Commands,
+    mut characters: Query<(
+        Entity,
+        Ref<Retarget>,
+        &PosedSkeleton,
+        &RetargetRest,
+        &mut RetargetStatus,
+    )>,
+) {
+    for (entity, retarget, posed, rest, mut status) in &mut characters {
+        if status.phase != RetargetPhase::Waiting && !retarget.is_changed() {
+            continue;
+        }
+        let (retarget, model, rest) = (
+            Retarget::clone(&retarget),
+            posed.model.clone(),
+            rest.0.clone(),
+        );
+        let task = AsyncComputeTaskPool::get().spawn(async move { bake(&retarget, model, &rest) });
+        commands.entity(entity).try_insert(RetargetTask(task));
+        *status = RetargetStatus {
+            phase: RetargetPhase::Baking,
+            ..default()
+        };
+    }
+}
+
+/// Reads the source and the map, and bakes the clip onto `model` at `rest`.
+fn bake(
+    retarget: &Retarget,
+    model: Arc<SkinnedModel>,
+    rest: &SkeletonPose,
+) -> Result<Baked, RetargetLoadError> {
+    let source = read_source_motion(&retarget.source, retarget.animation.as_deref())?;
+    let (from, to) = ((&source.skeleton, &source.rest), (model.skeleton(), rest));
+    let map = match &retarget.map {
+        Some(path) => {
+            let text = std::fs::read_to_string(path).map_err(|e| RetargetLoadError::MapFile {
+                path: path.clone(),
+                message: e.to_string(),
+            })?;
+            SkeletonMap::from_ron(&text, from, to)?
+        }
+        None => SkeletonMap::humanoid(from, to)?,
+    };
+    let name = |j: usize| model.skeleton().joints()[j].name.clone();
+    let unmapped = map.unmapped.iter().map(|&j| name(j)).collect();
+    let feet: Vec<String> = map.feet.iter().map(|&(_, foot)| name(foot)).collect();
+    let retargeter = Retargeter::new(from, model.clone(), rest, map, retarget.settings)?;
+    let baked = retargeter.bake(&source.clip, &retargeter.rest_ground())?;
+    let planted_share = feet
+        .into_iter()
+        .zip(&baked.source_contacts.planted)
+        .map(|(foot, frames)| {
+            let planted = frames.iter().filter(|&&p| p).count();
+            (foot, planted as f32 / frames.len().max(1) as f32)
+        })
+        .collect();
+    Ok(Baked {
+        clip: baked.clip,
+        failed_solves: baked.failed_solves,
+        unmapped,
+        planted_share,
+    })
+}
+
+fn finish_bakes(
+    mut commands: Commands,
+    mut characters: Query<(
+        Entity,
+        &mut RetargetTask,
+        &mut RetargetStatus,
+        &PosedSkeleton,
+    )>,
+    targets: Query<&AnimationTargetId>,
+    mut clips: ResMut<Assets<AnimationClip>>,
+    mut ready: MessageWriter<RetargetReady>,
+    mut failed: MessageWriter<RetargetFailed>,
+) {
+    for (entity, mut task, mut status, posed) in &mut characters {
+        let Some(result) = block_on(future::poll_once(&mut task.0)) else {
+            continue;
+        };
+        commands.entity(entity).remove::<RetargetTask>();
+        let result = result.and_then(|baked| {
+            let clip = animation_clip(&baked.clip, &posed.joints, &targets)
+                .ok_or(RetargetLoadError::NoAnimationTargets)?;
+            Ok((baked, clip))
+        });
+        match result {
+            Ok((baked, clip)) => {
+                let clip = clips.add(clip);
+                *status = RetargetStatus {
+                    phase: RetargetPhase::Ready,
+                    clip: Some(clip.clone()),
+                    error: None,
+                    frames: baked.clip.keys().len(),
+                    failed_solves: baked.failed_solves,
+                    unmapped: baked.unmapped,
+                    planted_share: baked.planted_share,
+                };
+                ready.write(RetargetReady { entity, clip });
+            }
+            Err(error) => {
+                warn!("Retarget on {entity}: {error}");
+                *status = RetargetStatus {
+                    phase: RetargetPhase::Failed,
+                    error: Some(error.clone()),
+                    ..default()
+                };
+                failed.write(RetargetFailed { entity, error });
+            }
+        }
+    }
+}
+
+/// The clip as Bevy's: per joint that has an `AnimationTargetId`, its translation, rotation
+/// and scale keyed at the clip's times and sampled linearly (a clip of one key holds it for
+/// an instant). `None` when no joint can be addressed.
+fn animation_clip(
+    clip: &PoseClip,
+    joints: &[Entity],
+    targets: &Query<&AnimationTargetId>,
+) -> Option<AnimationClip> {
+    let keys = clip.keys();
+    let mut times: Vec<f32> = keys.iter().map(|k| k.time).collect();
+    if times.len() == 1 {
+        times.push(times[0] + crate::pose::KEY_TIME_EPSILON * 2.0);
+    }
+    let at = |i: usize| &keys[i.min(keys.len() - 1)].pose;
+    let mut out = AnimationClip::default();
+    let mut any = false;
+    for (j, &entity) in joints.iter().enumerate() {
+        let Ok(&target) = targets.get(entity) else {
+            continue;
+        };
+        let keyed = |f: &dyn Fn(&SkeletonPose) -> Transform| -> Vec<(f32, Transform)> {
+            times
+                .iter()
+                .enumerate()
+                .map(|(i, &t)| (t, f(at(i))))
+                .collect()
+        };
+        let frames = keyed(&|pose| bevy_transform(&pose.local[j]));
+        let translations = frames.iter().map(|(t, f)| (*t, f.translation));
+        let rotations = frames.iter().map(|(t, f)| (*t, f.rotation));
+        let scales = frames.iter().map(|(t, f)| (*t, f.scale));
+        let (Ok(translation), Ok(rotation), Ok(scale)) = (
+            AnimatableKeyframeCurve::new(translations),
+            AnimatableKeyframeCurve::new(rotations),
+            AnimatableKeyframeCurve::new(scales),
+        ) else {
+            continue;
+        };
+        out.add_curve_to_target(
+            target,
+            AnimatableCurve::new(animated_field!(Transform::translation), translation),
+        );
+        out.add_curve_to_target(
+            target,
+            AnimatableCurve::new(animated_field!(Transform::rotation), rotation),
+        );
+        out.add_curve_to_target(
+            target,
+            AnimatableCurve::new(animated_field!(Transform::scale), scale),
+        );
+        any = true;
+    }
+    any.then_some(out)
+}
