@@ -55,14 +55,21 @@ fn spawn_hud(mut commands: Commands) {
     ));
 }
 
+/// What the HUD reads of the character.
+type HudReads = (
+    &'static PoseStatus,
+    Option<&'static PinnedJoints>,
+    Option<&'static RetargetStatus>,
+);
+
 fn update_hud(
     mut text: Single<&mut Text, With<Hud>>,
-    character: Query<(&PoseStatus, Option<&PinnedJoints>), With<Character>>,
+    character: Query<HudReads, With<Character>>,
     message: Res<LastMessage>,
     credits: Res<Credits>,
     args: Res<Args>,
 ) {
-    let Some((status, pins)) = character.iter().next() else {
+    let Some((status, pins, retarget)) = character.iter().next() else {
         return;
     };
     let pinned = pins.map_or(0, |p| p.0.len());
@@ -73,6 +80,10 @@ fn update_hud(
     );
     if let Some(error) = &status.error {
         line.push_str(&format!("\n{}: {error}", args.model));
+    }
+    if let Some(clip) = super::clip::clip_line(&args, retarget) {
+        line.push('\n');
+        line.push_str(&clip);
     }
     if let Some(warning) = &status.warning {
         line.push_str(&format!("\nmissing, drawn without it: {warning}"));

@@ -27,6 +27,9 @@
 //!   camera, a DualSense, DualShock 4 or Switch pad with its gyro (a ring where it points):
 //!   hold A (Cross) on the character to grab there, point elsewhere to drag, turn the
 //!   controller to turn the grab 1:1, add the clutch (B, R2, ZR) to turn without moving.
+//! * **`--clip PATH [--animation NAME] [--map FILE]`**: a clip made for another skeleton (a
+//!   BVH, or another glTF character's animation) retargeted onto the character with its feet
+//!   kept planted (the library's `RetargetPlugin`) and played by its `AnimationPlayer`.
 //! * **`--remote [emulated[=KIND]]`**: a motion controller drives a handle on the head: hold
 //!   the clutch and turn it to turn the head 1:1, D-pad to move it (`emulated=dualsense` and
 //!   the like for the built-in emulators).
@@ -42,6 +45,7 @@
 
 mod authoring;
 mod body;
+mod clip;
 use bevy_wii_deform_examples::cli;
 mod files;
 mod grab;
@@ -83,11 +87,26 @@ pub struct Args {
     /// `--ground`: stand on the stage with contacts and balance from the start (G and B
     /// toggle them).
     pub ground: bool,
+    /// `--clip PATH [--animation NAME] [--map FILE]`: a clip made for another skeleton,
+    /// retargeted onto the character and played.
+    pub clip: Option<ClipArgs>,
+}
+
+/// The `--clip` options.
+#[derive(Debug, Clone)]
+pub struct ClipArgs {
+    /// A `.bvh` file, or a glTF/GLB character whose animation is the clip.
+    pub source: std::path::PathBuf,
+    /// The glTF animation by name (the first without it).
+    pub animation: Option<String>,
+    /// A chain map (RON) for skeletons that are not humanoids by their joints' names.
+    pub map: Option<std::path::PathBuf>,
 }
 
 const USAGE: &str = "\
 usage: character [MODEL.glb] [--model MODEL.glb] [--remote [emulated[=KIND]]] [--pointer [emulated[=KIND]]]
                  [--screenshot PATH [--frames N]] [--author-demo OUT.glb] [--ground]
+                 [--clip PATH [--animation NAME] [--map FILE]]
 
   MODEL.glb             a rigged glTF (default: the Fox, assets/models/Fox.glb); a path
                         relative to the working directory, to assets/, or absolute
@@ -98,7 +117,10 @@ usage: character [MODEL.glb] [--model MODEL.glb] [--remote [emulated[=KIND]]] [-
   --screenshot PATH     script a grab, save frame N to PATH, exit
   --frames N            the frame to save (default 120)
   --author-demo OUT.glb author a three-key clip by script, export it, play it back, exit
-  --ground              stand on the stage with contacts and balance (G, B toggle them)";
+  --ground              stand on the stage with contacts and balance (G, B toggle them)
+  --clip PATH           play a clip made for another skeleton (a .bvh, or a glTF character's
+                        animation: --animation NAME), retargeted with the feet kept planted;
+                        --map FILE maps non-humanoid skeletons by chains (assets/retarget/)";
 
 impl Args {
     fn parse() -> Self {
@@ -110,7 +132,9 @@ impl Args {
             pointer: None,
             author_demo: None,
             ground: false,
+            clip: None,
         };
+        let (mut animation, mut map) = (None, None);
         let mut parser = cli::Parser::from_env();
         while let Some(arg) = cli::next(&mut parser, USAGE) {
             match arg {
@@ -125,6 +149,15 @@ impl Args {
                 }
                 cli::Arg::Long("frames") => args.frames = cli::value(&mut parser, USAGE),
                 cli::Arg::Long("ground") => args.ground = true,
+                cli::Arg::Long("clip") => {
+                    args.clip = Some(ClipArgs {
+                        source: cli::string(&mut parser, USAGE).into(),
+                        animation: None,
+                        map: None,
+                    })
+                }
+                cli::Arg::Long("animation") => animation = Some(cli::string(&mut parser, USAGE)),
+                cli::Arg::Long("map") => map = Some(cli::string(&mut parser, USAGE).into()),
                 cli::Arg::Long("author-demo") => {
                     args.author_demo = Some(cli::string(&mut parser, USAGE))
                 }
@@ -137,6 +170,13 @@ impl Args {
                 }
                 other => cli::unexpected(other, USAGE),
             }
+        }
+        match &mut args.clip {
+            Some(clip) => (clip.animation, clip.map) = (animation, map),
+            None if animation.is_some() || map.is_some() => {
+                cli::fail("--animation and --map go with --clip", USAGE)
+            }
+            None => {}
         }
         args
     }
@@ -178,6 +218,7 @@ fn main() {
         missing_textures::MissingTexturesPlugin,
         standing::StandingPlugin,
         springy_tails::SpringyTailsPlugin,
+        clip::ClipFromFilePlugin,
     ))
     .run();
 }
