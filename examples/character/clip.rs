@@ -53,9 +53,9 @@ fn play_the_clip(
         let Ok(mut poseable) = characters.get_mut(message.entity) else {
             continue;
         };
-        let below =
+        let mut below =
             std::iter::once(message.entity).chain(children.iter_descendants(message.entity));
-        let Some(player) = below.into_iter().find(|e| players.contains(*e)) else {
+        let Some(player) = below.find(|e| players.contains(*e)) else {
             warn!("--clip: the character has no AnimationPlayer to play the clip");
             continue;
         };

@@ -209,14 +209,9 @@ fn animation_clip(
         let Ok(&target) = targets.get(entity) else {
             continue;
         };
-        let keyed = |f: &dyn Fn(&SkeletonPose) -> Transform| -> Vec<(f32, Transform)> {
-            times
-                .iter()
-                .enumerate()
-                .map(|(i, &t)| (t, f(at(i))))
-                .collect()
-        };
-        let frames = keyed(&|pose| bevy_transform(&pose.local[j]));
+        let frames: Vec<(f32, Transform)> = (times.iter().enumerate())
+            .map(|(i, &t)| (t, bevy_transform(&at(i).local[j])))
+            .collect();
         let translations = frames.iter().map(|(t, f)| (*t, f.translation));
         let rotations = frames.iter().map(|(t, f)| (*t, f.rotation));
         let scales = frames.iter().map(|(t, f)| (*t, f.scale));
