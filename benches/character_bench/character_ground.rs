@@ -29,6 +29,16 @@ pub enum GroundKind {
     Steps,
 }
 
+/// What a drag stands the character on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Standing {
+    /// Nothing: the handle's drag alone (no ground, contacts, floor or balance), the price
+    /// the grounded drag is compared with.
+    Bare,
+    /// The ground by contacts and the floor, with or without balance.
+    Ground { balance: bool },
+}
+
 /// What one drag measured.
 struct Run {
     ms: Vec<f64>,
@@ -123,8 +133,10 @@ fn drag(
     pose: &SkeletonPose,
     handle: &[u32],
     ground: &dyn Ground,
-    (along, reach, balance): (DVec3, f64, bool),
+    (along, reach, standing): (DVec3, f64, Standing),
 ) -> Run {
+    let grounded = standing != Standing::Bare;
+    let balance = standing == Standing::Ground { balance: true };
     let size = model.topology().bounding_diagonal();
     let down = DVec3::NEG_Y;
     let feet = lowest_joints(model, pose, down, 0.04 * size);
@@ -176,15 +188,22 @@ fn drag(
         }
         let support = tracker.support();
         let reached = reach * frame as f64 / 30.0;
-        let constraints = PoseConstraints {
-            handles: vec![drag_to(reached)],
-            contacts: tracker.active(),
-            floor: Some(Floor::cast(&model.skin_welded(now), ground, &sampling).0),
-            balance: (balance && !support.is_empty()).then(|| Balance {
-                margin: 0.01 * size,
-                ..Balance::over(support.clone())
-            }),
-            ..Default::default()
+        let constraints = if grounded {
+            PoseConstraints {
+                handles: vec![drag_to(reached)],
+                contacts: tracker.active(),
+                floor: Some(Floor::cast(&model.skin_welded(now), ground, &sampling).0),
+                balance: (balance && !support.is_empty()).then(|| Balance {
+                    margin: 0.01 * size,
+                    ..Balance::over(support.clone())
+                }),
+                ..Default::default()
+            }
+        } else {
+            PoseConstraints {
+                handles: vec![drag_to(reached)],
+                ..Default::default()
+            }
         };
         // Frame 0 stands the character on the ground (its contacts just planted) to
         // convergence, as a game settles a character it places; the drag frames get 3.
@@ -203,7 +222,8 @@ fn drag(
             .expect("a solve");
         if std::env::var("GROUND_DEBUG").is_ok() {
             eprintln!(
-                "frame {frame} balance {balance}: boost {:.5}, {} rejected steps, ms total {:.3} local {:.3} system {:.3} global {:.3} energies {:?}",
+                "frame {frame} {standing:?}: {} its, boost {:.5}, {} rejected steps, ms total {:.3} local {:.3} system {:.3} global {:.3} energies {:?}",
+                solved.stats.iterations,
                 solved.balance_boost / size,
                 solved.stats.rejected_steps,
                 solved.stats.total_s * 1e3,
@@ -325,7 +345,13 @@ pub fn run(
         .flat_map(|&r| directions.iter().map(move |&d| (d, r * size)));
     let mut tried = None;
     for (along, reach) in drags {
-        let without = drag(model, pose, handle, ground.as_ref(), (along, reach, false));
+        let without = drag(
+            model,
+            pose,
+            handle,
+            ground.as_ref(),
+            (along, reach, Standing::Ground { balance: false }),
+        );
         let topples = without.supported < without.with_support;
         tried = Some((along, reach, without));
         if topples {
@@ -338,8 +364,21 @@ pub fn run(
         pose,
         handle,
         ground.as_ref(),
-        (along, reach, balance),
+        (along, reach, Standing::Ground { balance }),
     );
+    // The same drag with nothing under it, side by side in this process.
+    let bare = drag(
+        model,
+        pose,
+        handle,
+        ground.as_ref(),
+        (along, reach, Standing::Bare),
+    );
+    let bare_ms = {
+        let mut ms = bare.ms.clone();
+        ms.sort_by(f64::total_cmp);
+        ms[ms.len() / 2]
+    };
     let mut ms = with.ms.clone();
     ms.sort_by(f64::total_cmp);
     let mut errors = with.sole_errors_deg.clone();
@@ -357,6 +396,8 @@ pub fn run(
         "drag_direction": [along.x, along.y, along.z],
         "drag_reach": reach / size,
         "constrained_ms_per_solve": pick(&ms, 0.5),
+        "bare_ms_per_solve": bare_ms,
+        "ground_cost_ratio": pick(&ms, 0.5) / bare_ms,
         "penetration_max": with.penetration_max,
         "sole_normal_error_deg_p95": pick(&errors, 0.95),
         "soles_at_limit_share": errors.iter().filter(|e| **e > 3.0).count() as f64

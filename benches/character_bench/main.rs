@@ -43,7 +43,9 @@
 //!   `sole_normal_error_deg_p95` (planted joints' up against their ground's normal),
 //!   `soles_at_limit_share` (planted soles more than 3° off the normal), `planted_slide_max`
 //!   (/ size per frame), `com_supported_share`, `com_margin_min` (/ size), the same share
-//!   without balance, `replants`.
+//!   without balance, `replants`; `bare_ms_per_solve` (the same drag with no ground,
+//!   contacts, floor or balance, in the same process) and `ground_cost_ratio` (the first
+//!   over it).
 //!
 //! The last stdout line is the JSON object.
 

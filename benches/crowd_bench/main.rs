@@ -42,7 +42,10 @@
 //! unsupported), `planted_per_character` (at the end), `replants` (plants after the first
 //! stance, all characters) and `iterations_per_solve_mean` (each character's last solve each
 //! frame: the budget, the iterations past it while skin is in the ground or a planted paw off
-//! its holds, and the passes with the floor cast where the skin ended).
+//! its holds, and the passes with the floor cast where the skin ended). Then the same crowd,
+//! clip and frames again with no ground, contacts, floor or balance — as `--playing`, a
+//! bobbing effector on each paw — in the same process: `solver_ms_per_frame_median_no_ground`,
+//! and `ground_cost_ratio` (the grounded median over it).
 
 use bevy_wii_deform_examples::cli;
 use bevy_wii_deform_examples::headless_gltf;
@@ -61,6 +64,7 @@ use bevy::world_serialization::WorldAssetRoot;
 use bevy_wii_deform::prelude::*;
 
 /// Command-line settings.
+#[derive(Clone)]
 struct Args {
     characters: usize,
     frames: usize,
@@ -139,6 +143,34 @@ struct Bob {
 
 fn main() {
     let args = args();
+    // On the terrain the characters walk: the file's "Walk" clip when it has one.
+    let prefer = args.terrain.then_some("Walk");
+    let mut report = run(&args, prefer);
+    if args.terrain {
+        // The same crowd, clip and frames with nothing under it — no ground, contacts, floor
+        // or balance: `--playing`, a bobbing effector on each paw — side by side in this
+        // process: the ground's price.
+        let playing = Args {
+            terrain: false,
+            playing: true,
+            ..args.clone()
+        };
+        let bare = run(&playing, prefer);
+        let median = |r: &serde_json::Value| r["solver_ms_per_frame_median"].as_f64();
+        let (with, without) = (median(&report), median(&bare));
+        if let (Some(fields), Some(with), Some(without)) = (report.as_object_mut(), with, without) {
+            fields.insert(
+                "solver_ms_per_frame_median_no_ground".into(),
+                without.into(),
+            );
+            fields.insert("ground_cost_ratio".into(), (with / without).into());
+        }
+    }
+    println!("{report}");
+}
+
+/// One crowd run, playing the clip named `prefer` when the file has it.
+fn run(args: &Args, prefer: Option<&str>) -> serde_json::Value {
     let path = std::path::Path::new(&args.model);
     let (Some(dir), Some(file)) = (path.parent(), path.file_name()) else {
         eprintln!("--model needs a file path");
@@ -151,8 +183,6 @@ fn main() {
     // Bevy resolves a relative asset folder against the executable's; make it absolute.
     let dir = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
     let mut app = headless_app(&dir, args.springs);
-    // On the terrain the characters walk: the file's "Walk" clip when it has one.
-    let prefer = args.terrain.then_some("Walk");
     let (scene, clip) = load_scene(&mut app, &file.to_string_lossy(), prefer);
     if args.playing && clip.is_none() {
         eprintln!("--playing: {} has no animation", path.display());
@@ -315,7 +345,7 @@ fn main() {
         fields.extend(ground_report.into_iter().flatten());
         fields.extend(spring_report.into_iter().flatten());
     }
-    println!("{report}");
+    report
 }
 
 /// A histogram of positive durations on a log scale (0.1 µs to 10 s, 0.23 % wide bins):

@@ -3,12 +3,13 @@
 //! | file | what it answers |
 //! |---|---|
 //! | `mod.rs` | the types and docs of this folder (above) |
+//! | `builder.rs` | The collider builder: one long-lived background thread at the lowest priority that builds bent meshes' colliders and frees the ones they replace, handed its work over a channel. |
 //! | `plugin.rs` | Systems of [`DeformPhysicsPlugin`]: collider rebuilds after settled solves, the colliders marked [`GroundMesh`] as the scene's ground, capsules on posed bones. |
 //!
 //! - [`DeformCollider`] on a [`Deformable`](crate::ecs::Deformable) rebuilds its Avian
-//!   [`Collider`] from the bent mesh after each settled solve: the shape is built on the async
-//!   compute pool and swapped in when ready, so the main thread only copies the mesh's
-//!   positions. Avian cannot edit a triangle mesh in place; a new collider is the way.
+//!   [`Collider`] from the bent mesh after each settled solve: the shape is built on a
+//!   background thread of its own and swapped in when ready, so the main thread only copies
+//!   the mesh's positions. Avian cannot edit a triangle mesh in place; a new collider is the way.
 //! - [`GroundMesh`](crate::ecs::GroundMesh) entities with a [`Collider`] become the scene's ground
 //!   ([`SceneGround`](crate::ecs::SceneGround)) through Avian's ray casts against those
 //!   colliders, for characters with [`PoseGround`](crate::ecs::PoseGround) and meshes with
@@ -22,11 +23,11 @@
 //!
 //! Add [`DeformPhysicsPlugin`] beside Avian's `PhysicsPlugins`.
 
+mod builder;
 mod plugin;
 
 use avian3d::prelude::*;
 use bevy::prelude::*;
-use bevy::tasks::Task;
 use glam::DVec3;
 
 use crate::pose::{Ground, GroundPlane};
@@ -66,10 +67,10 @@ pub struct DeformColliderStatus {
     pub error: Option<String>,
 }
 
-/// A collider being built in the background.
+/// A collider being built in the background ([`builder`]).
 #[derive(Component)]
 pub(crate) struct ColliderBuild {
-    task: Task<Result<Collider, String>>,
+    result: crossbeam_channel::Receiver<builder::BuildResult>,
     solve: u64,
 }
 

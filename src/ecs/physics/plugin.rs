@@ -3,12 +3,12 @@
 
 use avian3d::prelude::*;
 use bevy::prelude::*;
-use bevy::tasks::AsyncComputeTaskPool;
-use bevy::tasks::futures::check_ready;
+use crossbeam_channel::TryRecvError;
 
+use super::builder::ColliderBuilder;
 use super::{
-    BoneCollider, ColliderBuild, ColliderGround, ColliderShape, DeformCollider,
-    DeformColliderStatus, PosedColliders,
+    BoneCollider, ColliderBuild, ColliderGround, DeformCollider, DeformColliderStatus,
+    PosedColliders,
 };
 use crate::ecs::deform::mesh_positions;
 use crate::ecs::{
@@ -34,7 +34,8 @@ pub struct DeformPhysicsPlugin;
 
 impl Plugin for DeformPhysicsPlugin {
     fn build(&self, app: &mut App) {
-        app.register_type::<DeformCollider>()
+        app.init_resource::<ColliderBuilder>()
+            .register_type::<DeformCollider>()
             .register_type::<DeformColliderStatus>()
             .register_type::<PosedColliders>()
             .register_type::<BoneCollider>()
@@ -63,6 +64,7 @@ impl Plugin for DeformPhysicsPlugin {
 /// settled (its status idle) and is newer than its collider.
 fn start_collider_builds(
     mut commands: Commands,
+    mut builder: ResMut<ColliderBuilder>,
     meshes: Res<Assets<Mesh>>,
     bent: Query<
         (
@@ -93,46 +95,19 @@ fn start_collider_builds(
                 i.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect()
             })
             .unwrap_or_default();
-        let shape = wanted.shape;
-        let task =
-            AsyncComputeTaskPool::get().spawn(async move { build(shape, positions, triangles) });
+        let result = builder.build(wanted.shape, positions, triangles);
         commands.entity(entity).try_insert(ColliderBuild {
-            task,
+            result,
             solve: status.solves,
         });
     }
 }
 
-/// The collider of `shape` over the bent mesh; a readable reason when it cannot be built.
-fn build(
-    shape: ColliderShape,
-    positions: Vec<Vec3>,
-    triangles: Vec<[u32; 3]>,
-) -> Result<Collider, String> {
-    if !positions.iter().all(|p| p.is_finite()) {
-        return Err("the bent mesh has non-finite positions".into());
-    }
-    match shape {
-        ColliderShape::Trimesh => {
-            if triangles.is_empty() {
-                return Err("the mesh has no triangles".into());
-            }
-            Collider::try_trimesh_with_config(
-                positions,
-                triangles,
-                TrimeshFlags::MERGE_DUPLICATE_VERTICES,
-            )
-            .map_err(|e| format!("no triangle mesh collider: {e:?}"))
-        }
-        ColliderShape::ConvexHull => Collider::convex_hull(&positions)
-            .ok_or_else(|| "no convex hull (the vertices are flat or too few)".to_string()),
-    }
-}
-
 /// Swaps finished colliders in (the old one stays when a build failed). The old shape is
-/// freed on the compute pool: a large triangle mesh takes milliseconds to free.
+/// freed by the builder thread: a large triangle mesh takes milliseconds to free.
 fn swap_built_colliders(
     mut commands: Commands,
+    mut builder: ResMut<ColliderBuilder>,
     mut builds: Query<(
         Entity,
         &mut ColliderBuild,
@@ -140,9 +115,12 @@ fn swap_built_colliders(
         Option<&Collider>,
     )>,
 ) {
-    for (entity, mut build, mut status, old) in &mut builds {
-        let Some(result) = check_ready(&mut build.task) else {
-            continue;
+    for (entity, build, mut status, old) in &mut builds {
+        let result = match build.result.try_recv() {
+            Ok(result) => result,
+            Err(TryRecvError::Empty) => continue,
+            // The builder thread is gone (it panicked): the old collider stays.
+            Err(TryRecvError::Disconnected) => Err("the collider builder stopped".into()),
         };
         status.built_from_solve = build.solve;
         let mut entity = commands.entity(entity);
@@ -150,9 +128,7 @@ fn swap_built_colliders(
         match result {
             Ok(collider) => {
                 if let Some(old) = old.cloned() {
-                    AsyncComputeTaskPool::get()
-                        .spawn(async move { drop(old) })
-                        .detach();
+                    builder.free(old);
                 }
                 entity.try_insert(collider);
                 status.rebuilds += 1;
