@@ -103,8 +103,8 @@ pub use rig::skeleton::{
 };
 pub use rig::skeleton::{max_bone_length_error, rotation_angle};
 pub use solver::{
-    OFF_THE_HOLD, PoseSolution, PoseSolveOptions, PoseSolveStats, PoseSolver, PoseSolverSettings,
-    PoseStart, THROUGH_THE_GROUND,
+    CONTACT_SKIN, OFF_THE_HOLD, PoseSolution, PoseSolveOptions, PoseSolveStats, PoseSolver,
+    PoseSolverSettings, PoseStart, THROUGH_THE_GROUND,
 };
 pub use springs::{
     SpringChain, SpringCollider, SpringColliderShape, SpringError, SpringJoint, SpringRig,

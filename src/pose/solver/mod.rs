@@ -88,6 +88,12 @@ pub const THROUGH_THE_GROUND: f64 = 1e-3;
 /// ([`PoseSolveOptions::ground_iterations`]).
 pub const OFF_THE_HOLD: f64 = 1e-3;
 
+/// The contact skin, a share of the model's size: the one-sided terms that keep skin above
+/// the ground act from this height above it (the penalty balances a push at a depth, so a
+/// pushed vertex comes to rest on the surface, not under it), and a planted patch vertex is
+/// held this far above the point where it touched, along the ground's normal.
+pub const CONTACT_SKIN: f64 = 1e-3;
+
 impl Default for PoseSolveOptions {
     fn default() -> Self {
         Self {

@@ -8,15 +8,22 @@
 //! blocks it adds to (those of the few joints that skin a sole, already coupled by the shape
 //! energy) — as a per-vertex effector term it cost a Jacobian block per joint above it, for
 //! every vertex and every iteration (a walking crowd's largest single cost).
+//!
+//! The held point is where the vertex touched, lifted along the ground's normal by the
+//! contact skin ([`contact_skin`]): the one-sided term that keeps the patch above its ground
+//! acts from that skin, so a hold at the touching point itself pulled every patch vertex into
+//! the skin against that term — two stiff terms at odds in every planted frame, the patch
+//! resting 0.9 skins above its point (just under [`OFF_THE_HOLD`](crate::pose::solver::OFF_THE_HOLD)'s
+//! extra iterations), its soles turned by the fight.
 
 use std::borrow::Cow;
 
-use glam::{DAffine3, DMat4};
+use glam::{DAffine3, DMat4, DVec3};
 
 use crate::pose::ground::contact::Contact;
 use crate::pose::rig::model::add_outer4x3;
 use crate::pose::solver::PoseSolver;
-use crate::pose::solver::terms::contact_hold_weight;
+use crate::pose::solver::terms::{contact_hold_weight, contact_skin};
 
 /// The 4 × 4 blocks `(k, l, Q_kl)` of a solve's `Q`.
 pub(crate) type QBlocks = [(usize, usize, DMat4)];
@@ -31,16 +38,14 @@ impl PoseSolver {
         b: &mut [f64],
         constant: &mut f64,
     ) -> Cow<'a, QBlocks> {
-        let planted = contacts
-            .iter()
-            .filter_map(|c| c.planted.as_ref().map(|at| (&c.patch, at)));
+        let planted = self.held_points(contacts);
         let weight = contact_hold_weight(self.joint_weight);
         let joints = self.model.skeleton().len();
         // The solver's blocks, copied at the first planted contact, and where each (k, l)
         // block is in them.
         let mut list: Vec<(usize, usize, DMat4)> = Vec::new();
         let mut index: Vec<Option<usize>> = Vec::new();
-        for (patch, at) in planted {
+        for (patch, at, lift) in planted {
             if index.is_empty() {
                 index = vec![None; joints * joints];
                 for (i, &(k, l, _)) in self.q_blocks.iter().enumerate() {
@@ -48,7 +53,8 @@ impl PoseSolver {
                 }
                 list = self.q_blocks.clone();
             }
-            for (&v, &target) in patch.iter().zip(at) {
+            for (&v, &touched) in patch.iter().zip(at) {
+                let target = touched + lift;
                 for (j, mj) in self.model.row(v as usize) {
                     add_outer4x3(b, j, mj * weight, target);
                     for (k, mk) in self.model.row(v as usize) {
@@ -78,12 +84,24 @@ impl PoseSolver {
     pub(crate) fn farthest_off_hold(&self, contacts: &[Contact], skin: &[DAffine3]) -> f64 {
         let skins = self.model.vertex_skins();
         let skinned = |v: u32| skins[v as usize].skinned(skin);
-        contacts
-            .iter()
-            .filter_map(|c| c.planted.as_ref().map(|at| (&c.patch, at)))
-            .flat_map(|(patch, at)| patch.iter().zip(at))
-            .map(|(&v, &target)| skinned(v).distance(target))
+        self.held_points(contacts)
+            .flat_map(|(patch, at, lift)| patch.iter().zip(at).map(move |(&v, &t)| (v, t + lift)))
+            .map(|(v, target)| skinned(v).distance(target))
             .fold(0.0, f64::max)
+    }
+
+    /// Each planted contact's patch, the points its vertices touched, and the lift of its
+    /// holds above them (the contact skin along its ground's normal).
+    fn held_points<'c>(
+        &self,
+        contacts: &'c [Contact],
+    ) -> impl Iterator<Item = (&'c [u32], &'c [DVec3], DVec3)> + 'c {
+        let skin = contact_skin(self.length_scale);
+        contacts.iter().filter_map(move |c| {
+            c.planted
+                .as_ref()
+                .map(|at| (&c.patch[..], &at[..], c.ground.normal * skin))
+        })
     }
 }
 
@@ -148,10 +166,12 @@ mod tests {
         let folded = quadratic(&qx, &b, constant) - quadratic(&plain.qx, &vec![0.0; dim], 0.0);
         let skinned = model.skin_welded(&pose);
         let weight = crate::pose::solver::terms::contact_hold_weight(solver.joint_weight);
+        // Each hold is lifted off the touching point by the contact skin, along the normal.
+        let lift = DVec3::Y * crate::pose::solver::terms::contact_skin(solver.length_scale);
         let direct: f64 = patch
             .iter()
             .zip(&held)
-            .map(|(&v, t)| weight * (skinned[v as usize] - *t).length_squared())
+            .map(|(&v, t)| weight * (skinned[v as usize] - (*t + lift)).length_squared())
             .sum();
         assert!(direct > 0.0);
         assert!(

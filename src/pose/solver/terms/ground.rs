@@ -11,6 +11,7 @@ use crate::pose::ground::GroundPlane;
 use crate::pose::ground::balance::SupportPolygon;
 use crate::pose::ground::floor::Floor;
 use crate::pose::rig::skin::{JointSums, VertexSkin, VertexSums, centroid_of};
+use crate::pose::solver::CONTACT_SKIN;
 use crate::pose::solver::terms::{EFFECTOR_STRENGTH, ExtraInputs, ExtraTerms, Term, strength};
 
 /// Balance at weight 1 against a position effector at weight 1: the body leans out only where
@@ -25,8 +26,6 @@ const CONTACT_STRENGTH: f64 = 100.0;
 const ABOVE_OVER_HOLD: f64 = 10.0;
 /// A planted sole's turn to the ground's normal against a position effector at weight 1.
 const SOLE_TURN: f64 = 3.0;
-/// The contact skin, as a share of the model's size ([`ExtraTerms::skin`]).
-const CONTACT_SKIN: f64 = 1e-3;
 /// A vertex less than this share of the model's size above its ground's skin is near contact
 /// ([`ExtraTerms::near_contact`]).
 pub(super) const NEAR_CONTACT: f64 = 5e-3;
@@ -86,6 +85,12 @@ pub(crate) fn validate_ground(
         }
     }
     Ok(())
+}
+
+/// [`CONTACT_SKIN`] in world units for a model of size `length_scale`
+/// ([`ExtraTerms::skin`]; a planted vertex's hold is lifted by it).
+pub(crate) fn contact_skin(length_scale: f64) -> f64 {
+    CONTACT_SKIN * length_scale
 }
 
 /// A planted contact's hold on each of its patch vertices (`joint_weight`: a pinned joint's
@@ -159,7 +164,7 @@ impl ExtraTerms<'_> {
     /// balances a push at a depth proportional to it, so the term acts from a thin skin above
     /// the surface and a pushed vertex comes to rest on the surface, not under it.
     fn skin(&self) -> f64 {
-        CONTACT_SKIN * self.length_scale
+        contact_skin(self.length_scale)
     }
 
     /// How far inside its support polygon (of three corners or more) the centre of mass is

@@ -33,7 +33,9 @@ use crate::pose::rig::skeleton::rotation_of;
 use crate::pose::rig::skeleton::{Skeleton, VertexInfluences};
 pub(crate) use crate::pose::rig::skin::VertexSkin;
 use crate::pose::rig::skin::{VertexSums, apply, centroid_of, joint_sums};
-pub(crate) use crate::pose::solver::terms::ground::{contact_hold_weight, validate_ground};
+pub(crate) use crate::pose::solver::terms::ground::{
+    contact_hold_weight, contact_skin, validate_ground,
+};
 
 /// An effector of weight 1 weighs this many joint pins.
 const EFFECTOR_STRENGTH: f64 = 100.0;
