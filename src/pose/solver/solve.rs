@@ -128,7 +128,7 @@ impl PoseSolver {
         let mut last = f64::NAN;
         // Past the budget only while the skin is through the ground or a planted patch is off
         // its holds.
-        let size = self.model.topology().bounding_diagonal();
+        let size = self.length_scale;
         // How far each vertex kept above the ground has its plane raised (`raised_floor.rs`).
         let mut raised = Vec::new();
         for it in 0..options
