@@ -1060,3 +1060,112 @@ fn the_feet_found_are_paws_and_soles_not_the_hocks_above_them() {
         assert_eq!(feet, paws, "the Fox's feet within {tolerance} of its size");
     }
 }
+
+/// A body pulled down to kneel — hips lowered 45 % of its height, both knee joints pulled to
+/// 2 % of its height over the floor, so the knees' and shins' skin reaches it, not only the
+/// feet — keeps every skin vertex within 1e-3 of the size of the floor (cast under each
+/// vertex, solved with the default ground iterations). Without the floor the knees' skin
+/// ends well inside it (the test says so, so it can fail), and with it the shins do touch.
+#[test]
+fn a_kneeling_body_keeps_its_knees_and_shins_out_of_the_floor() {
+    const LEFT_KNEE: usize = 8;
+    const RIGHT_KNEE: usize = 14;
+    let s = scene();
+    let ground = s.flat_ground();
+    let joints = joint_positions(&s.rig.skeleton, &s.rig.rest);
+    let kneel = |with_floor: bool| {
+        let solver = s.solver(&PoseConstraints {
+            effectors: vec![
+                Effector {
+                    joint: HIPS,
+                    goal: EffectorGoal::Position(joints[HIPS]),
+                    weight: 1.0,
+                },
+                Effector {
+                    joint: LEFT_KNEE,
+                    goal: EffectorGoal::Position(joints[LEFT_KNEE]),
+                    weight: 1.0,
+                },
+                Effector {
+                    joint: RIGHT_KNEE,
+                    goal: EffectorGoal::Position(joints[RIGHT_KNEE]),
+                    weight: 1.0,
+                },
+            ],
+            floor: Some(s.flat_floor()),
+            ..Default::default()
+        });
+        let sampling = FloorSampling::for_size(s.size, 0.3, DVec3::NEG_Y);
+        let mut last: Option<PoseSolution> = None;
+        for frame in 1..=12 {
+            let t = frame as f64 / 12.0;
+            let now = last.as_ref().map_or(&s.rig.rest, |l| &l.pose);
+            let knee_goal = |j: usize| {
+                let down = joints[j].y - (s.lowest + 0.02 * s.size);
+                joints[j] - DVec3::Y * down * t + DVec3::Z * 0.1 * s.size * t
+            };
+            let constraints = PoseConstraints {
+                effectors: vec![
+                    Effector {
+                        joint: HIPS,
+                        goal: EffectorGoal::Position(joints[HIPS] - DVec3::Y * 0.45 * s.size * t),
+                        weight: 1.0,
+                    },
+                    Effector {
+                        joint: LEFT_KNEE,
+                        goal: EffectorGoal::Position(knee_goal(LEFT_KNEE)),
+                        weight: 1.0,
+                    },
+                    Effector {
+                        joint: RIGHT_KNEE,
+                        goal: EffectorGoal::Position(knee_goal(RIGHT_KNEE)),
+                        weight: 1.0,
+                    },
+                ],
+                floor: with_floor.then(|| Floor::cast(&s.skinned(now), &ground, &sampling).0),
+                ..Default::default()
+            };
+            let start = match &last {
+                Some(l) => PoseStart::Warm(l),
+                None => PoseStart::Pose(&s.rig.rest),
+            };
+            let options = PoseSolveOptions {
+                max_iterations: 20,
+                ..Default::default()
+            };
+            last = Some(
+                solver
+                    .solve(&constraints, &options, start, &|| false)
+                    .unwrap(),
+            );
+        }
+        s.skinned(&last.unwrap().pose)
+    };
+    // The shins' and knees' skin: between the ankles and the thighs in the bind pose.
+    let bind = s.model.bind_positions();
+    let shin = |p: &DVec3| p.y > s.lowest + 0.1 * s.size && p.y < s.lowest + 0.35 * s.size;
+    let lowest_of = |skin: &[DVec3], keep: &dyn Fn(usize) -> bool| {
+        skin.iter()
+            .enumerate()
+            .filter(|(v, _)| keep(*v))
+            .map(|(_, p)| (p.y - s.lowest) / s.size)
+            .fold(f64::INFINITY, f64::min)
+    };
+    let free = kneel(false);
+    let sunk = lowest_of(&free, &|v| shin(&bind[v]));
+    assert!(
+        sunk < -5e-3,
+        "without the floor the knees' skin goes into it: {sunk}"
+    );
+    let knelt = kneel(true);
+    let deepest = lowest_of(&knelt, &|_| true);
+    assert!(
+        deepest >= -1e-3,
+        "a vertex is {deepest} of the size under the floor"
+    );
+    let shins = lowest_of(&knelt, &|v| shin(&bind[v]));
+    assert!(
+        shins < 1e-2,
+        "the knees and shins reach the floor: their lowest is {shins} of the size over it"
+    );
+}
