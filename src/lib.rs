@@ -50,8 +50,8 @@ pub mod prelude {
         PinnedJoints, PoseAnchor, PoseBalance, PoseBlend, PoseBlendMode, PoseEffector,
         PoseEffectorKind, PoseFailed, PoseGround, PoseInFrame, PoseJointHandle, PoseLimits,
         PoseModels, PosePlugin, PoseSolved, PoseStatus, PoseStiffness, PoseSystems, PoseTimeline,
-        Poseable, PoseableError, PosedSkeleton, Retarget, RetargetFailed, RetargetLoadError,
-        RetargetPhase, RetargetPlugin, RetargetReady, RetargetStatus, SceneAssetsMissing,
-        SceneGround, SymmetricEditing, WiiDeformPlugins, mesh_from_triangles,
+        Poseable, PoseableError, PosedSkeleton, Retarget, RetargetFailed, RetargetFoot,
+        RetargetLoadError, RetargetPhase, RetargetPlugin, RetargetReady, RetargetStatus,
+        SceneAssetsMissing, SceneGround, SymmetricEditing, WiiDeformPlugins, mesh_from_triangles,
     };
 }

@@ -74,8 +74,8 @@ pub use pose::{
     SymmetricEditing,
 };
 pub use retarget::{
-    Retarget, RetargetFailed, RetargetLoadError, RetargetPhase, RetargetPlugin, RetargetReady,
-    RetargetStatus, RetargetSystems,
+    Retarget, RetargetFailed, RetargetFoot, RetargetLoadError, RetargetPhase, RetargetPlugin,
+    RetargetReady, RetargetStatus, RetargetSystems,
 };
 pub use scene::{MissingSceneAssets, SceneAssetsMissing, SceneRootPlugin};
 pub use springs::{SpringBones, SpringPlugin, SpringSource, SpringStatus, SpringSystems};

@@ -52,6 +52,19 @@ fn a_retargeted_clip_plays_through_the_animation_player() {
     assert_eq!(status.frames, 18, "a key per source key");
     // The map's four paws are reported (the Fox's Walk is in place, so none is planted).
     assert_eq!(status.planted_share.len(), 4, "{:?}", status.planted_share);
+    // Each foot names the character's joint entity, as the shares do, with no planted span.
+    let posed_joints = app
+        .world()
+        .get::<PosedSkeleton>(root)
+        .unwrap()
+        .joints
+        .clone();
+    assert_eq!(status.feet.len(), 4);
+    for (foot, (name, _)) in status.feet.iter().zip(&status.planted_share) {
+        assert_eq!(&foot.name, name);
+        assert!(posed_joints.contains(&foot.joint), "{foot:?}");
+        assert!(foot.planted.is_empty() && !foot.planted_at(0.5));
+    }
     let clip = status.clip.expect("a ready retarget has a clip");
 
     // The same bake by the core.

@@ -102,6 +102,30 @@ pub struct RetargetStatus {
     pub unmapped: Vec<String>,
     /// Per foot of the map (target joint name), the share of the source's frames it was planted.
     pub planted_share: Vec<(String, f32)>,
+    /// Per foot of the map, when the source's foot is planted in the clip (what the bake holds
+    /// the character's foot to, with contacts on): to show contacts beside the playing clip.
+    pub feet: Vec<RetargetFoot>,
+}
+
+/// One foot of a retarget: the character's foot joint and the clip's times the source's foot
+/// is planted.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RetargetFoot {
+    /// The character's foot joint entity.
+    pub joint: Entity,
+    /// Its name.
+    pub name: String,
+    /// The clip's time spans (seconds, start and end) while the source's foot is planted.
+    pub planted: Vec<(f32, f32)>,
+}
+
+impl RetargetFoot {
+    /// Whether the source's foot is planted at `time` (clip seconds).
+    pub fn planted_at(&self, time: f32) -> bool {
+        self.planted
+            .iter()
+            .any(|&(start, end)| (start..=end).contains(&time))
+    }
 }
 
 /// Why a [`Retarget`] failed.

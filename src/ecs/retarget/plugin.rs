@@ -11,7 +11,8 @@ use bevy::prelude::*;
 use bevy::tasks::{AsyncComputeTaskPool, Task, block_on, futures_lite::future};
 
 use super::{
-    Retarget, RetargetFailed, RetargetLoadError, RetargetPhase, RetargetReady, RetargetStatus,
+    Retarget, RetargetFailed, RetargetFoot, RetargetLoadError, RetargetPhase, RetargetReady,
+    RetargetStatus,
 };
 use crate::ecs::pose::convert::bevy_transform;
 use crate::ecs::{PoseSystems, PosedSkeleton};
@@ -59,6 +60,8 @@ struct Baked {
     failed_solves: usize,
     unmapped: Vec<String>,
     planted_share: Vec<(String, f32)>,
+    /// Per foot: its joint (skeleton index), name, and the planted time spans.
+    feet: Vec<(usize, String, Vec<(f32, f32)>)>,
 }
 
 /// Characters with a retarget whose rest is not remembered yet.
@@ -120,23 +123,50 @@ fn bake(
     };
     let name = |j: usize| model.skeleton().joints()[j].name.clone();
     let unmapped = map.unmapped.iter().map(|&j| name(j)).collect();
-    let feet: Vec<String> = map.feet.iter().map(|&(_, foot)| name(foot)).collect();
+    let feet: Vec<usize> = map.feet.iter().map(|&(_, foot)| foot).collect();
     let retargeter = Retargeter::new(from, model.clone(), rest, map, retarget.settings)?;
     let baked = retargeter.bake(&source.clip, &retargeter.rest_ground())?;
     let planted_share = feet
-        .into_iter()
+        .iter()
         .zip(&baked.source_contacts.planted)
-        .map(|(foot, frames)| {
+        .map(|(&foot, frames)| {
             let planted = frames.iter().filter(|&&p| p).count();
-            (foot, planted as f32 / frames.len().max(1) as f32)
+            (name(foot), planted as f32 / frames.len().max(1) as f32)
         })
+        .collect();
+    let times: Vec<f32> = baked.clip.keys().iter().map(|k| k.time).collect();
+    let feet = feet
+        .iter()
+        .zip(&baked.source_contacts.planted)
+        .map(|(&foot, frames)| (foot, name(foot), planted_spans(frames, &times)))
         .collect();
     Ok(Baked {
         clip: baked.clip,
         failed_solves: baked.failed_solves,
         unmapped,
         planted_share,
+        feet,
     })
+}
+
+/// The time spans of the runs of planted frames (`times`: each frame's time).
+fn planted_spans(planted: &[bool], times: &[f32]) -> Vec<(f32, f32)> {
+    let mut spans = Vec::new();
+    let mut start = None;
+    for (f, (&down, &time)) in planted.iter().zip(times).enumerate() {
+        match (down, start) {
+            (true, None) => start = Some(time),
+            (false, Some(from)) => {
+                spans.push((from, times[f.saturating_sub(1)]));
+                start = None;
+            }
+            _ => {}
+        }
+    }
+    if let (Some(from), Some(&last)) = (start, times.last()) {
+        spans.push((from, last));
+    }
+    spans
 }
 
 fn finish_bakes(
@@ -173,6 +203,17 @@ fn finish_bakes(
                     failed_solves: baked.failed_solves,
                     unmapped: baked.unmapped,
                     planted_share: baked.planted_share,
+                    feet: baked
+                        .feet
+                        .into_iter()
+                        .filter_map(|(joint, name, planted)| {
+                            Some(RetargetFoot {
+                                joint: *posed.joints.get(joint)?,
+                                name,
+                                planted,
+                            })
+                        })
+                        .collect(),
                 };
                 ready.write(RetargetReady { entity, clip });
             }
@@ -237,4 +278,27 @@ fn animation_clip(
         any = true;
     }
     any.then_some(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::planted_spans;
+
+    /// Runs of planted frames become spans from their first frame's time to their last's;
+    /// a run reaching the clip's end ends at its last time. (Fails with a span ending at the
+    /// first unplanted frame.)
+    #[test]
+    fn planted_runs_become_time_spans() {
+        let times = [0.0, 0.1, 0.2, 0.3, 0.4, 0.5];
+        let planted = [true, true, false, false, true, true];
+        assert_eq!(
+            planted_spans(&planted, &times),
+            vec![(0.0, 0.1), (0.4, 0.5)]
+        );
+        assert_eq!(planted_spans(&[false; 6], &times), Vec::new());
+        assert_eq!(
+            planted_spans(&[false, true, false, false, false, false], &times),
+            vec![(0.1, 0.1)]
+        );
+    }
 }
