@@ -1,9 +1,13 @@
 //! `--clip PATH`: a clip made for another skeleton — a BVH file, or another glTF character's
 //! animation — retargeted onto the character by the library's `RetargetPlugin` (feet kept
 //! planted and on the ground) and played by the character's own `AnimationPlayer`, looping.
-//! The HUD says how the retarget went.
+//! The HUD says how the retarget went. Each foot shows its contact while the clip plays: a
+//! green ring round the character's foot joint while the source's foot is planted (where the
+//! bake holds it), a grey one while it swings; **K** bakes the clip again with contacts off (the
+//! joint rotations carried over alone) or back on, to compare.
 
 use bevy::prelude::*;
+use bevy::transform::TransformSystems;
 use bevy_wii_deform::prelude::*;
 
 use super::Args;
@@ -14,8 +18,15 @@ pub struct ClipFromFilePlugin;
 
 impl Plugin for ClipFromFilePlugin {
     fn build(&self, app: &mut App) {
-        app.add_plugins(RetargetPlugin)
-            .add_systems(Update, (ask_for_the_clip, play_the_clip));
+        app.add_plugins(RetargetPlugin).add_systems(
+            Update,
+            (
+                ask_for_the_clip,
+                play_the_clip,
+                toggle_contacts,
+                draw_contacts.after(TransformSystems::Propagate),
+            ),
+        );
     }
 }
 
@@ -70,8 +81,55 @@ fn play_the_clip(
     }
 }
 
+/// **K**: the retarget baked again with its contacts switched off or on.
+fn toggle_contacts(keys: Res<ButtonInput<KeyCode>>, mut retargets: Query<&mut Retarget>) {
+    if !keys.just_pressed(KeyCode::KeyK) {
+        return;
+    }
+    for mut retarget in &mut retargets {
+        retarget.settings.contacts = !retarget.settings.contacts;
+    }
+}
+
+/// A ring round each foot joint of the character while its retarget plays: green while the source's
+/// foot is planted at the clip's time (orange with contacts off: the bake does not hold it
+/// then), grey while it swings; 4 % of the character's size across.
+fn draw_contacts(
+    characters: Query<
+        (&RetargetStatus, &Retarget, &PosedSkeleton, &GlobalTransform),
+        With<Character>,
+    >,
+    players: Query<&AnimationPlayer>,
+    joints: Query<&GlobalTransform>,
+    mut gizmos: Gizmos,
+) {
+    let Some(time) = players
+        .iter()
+        .find_map(|p| p.playing_animations().next().map(|(_, a)| a.seek_time()))
+    else {
+        return;
+    };
+    let flat = Quat::from_rotation_x(-std::f32::consts::FRAC_PI_2);
+    for (status, retarget, posed, root) in &characters {
+        let size = posed.model.topology().bounding_diagonal() as f32 * root.scale().max_element();
+        for foot in &status.feet {
+            let Ok(at) = joints.get(foot.joint) else {
+                continue;
+            };
+            let planted = foot.planted_at(time);
+            let colour = match (planted, retarget.settings.contacts) {
+                (true, true) => Color::srgb(0.2, 0.9, 0.3),
+                (true, false) => Color::srgb(0.95, 0.6, 0.1),
+                (false, _) => Color::srgb(0.6, 0.6, 0.6),
+            };
+            let radius = if planted { 0.04 } else { 0.025 } * size;
+            gizmos.circle(Isometry3d::new(at.translation(), flat), radius, colour);
+        }
+    }
+}
+
 /// The HUD's line about the `--clip` retarget (`None` without one).
-pub fn clip_line(args: &Args, status: Option<&RetargetStatus>) -> Option<String> {
+pub fn clip_line(args: &Args, status: Option<&RetargetStatus>, contacts: bool) -> Option<String> {
     let clip = args.clip.as_ref()?;
     let name = clip.source.display();
     Some(match status {
@@ -79,8 +137,9 @@ pub fn clip_line(args: &Args, status: Option<&RetargetStatus>) -> Option<String>
         Some(s) => match s.phase {
             RetargetPhase::Waiting | RetargetPhase::Baking => format!("clip {name}: retargeting…"),
             RetargetPhase::Ready => format!(
-                "clip {name}: {} frames{}{}",
+                "clip {name}: {} frames, contacts {} (K){}{}",
                 s.frames,
+                if contacts { "on" } else { "off" },
                 if s.unmapped.is_empty() {
                     String::new()
                 } else {

@@ -60,6 +60,7 @@ type HudReads = (
     &'static PoseStatus,
     Option<&'static PinnedJoints>,
     Option<&'static RetargetStatus>,
+    Option<&'static Retarget>,
 );
 
 fn update_hud(
@@ -69,7 +70,7 @@ fn update_hud(
     credits: Res<Credits>,
     args: Res<Args>,
 ) {
-    let Some((status, pins, retarget)) = character.iter().next() else {
+    let Some((status, pins, retarget, asked)) = character.iter().next() else {
         return;
     };
     let pinned = pins.map_or(0, |p| p.0.len());
@@ -81,7 +82,8 @@ fn update_hud(
     if let Some(error) = &status.error {
         line.push_str(&format!("\n{}: {error}", args.model));
     }
-    if let Some(clip) = super::clip::clip_line(&args, retarget) {
+    let contacts = asked.is_none_or(|r| r.settings.contacts);
+    if let Some(clip) = super::clip::clip_line(&args, retarget, contacts) {
         line.push('\n');
         line.push_str(&clip);
     }

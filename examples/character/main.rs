@@ -29,7 +29,9 @@
 //!   controller to turn the grab 1:1, add the clutch (B, R2, ZR) to turn without moving.
 //! * **`--clip PATH [--animation NAME] [--map FILE]`**: a clip made for another skeleton (a
 //!   BVH, or another glTF character's animation) retargeted onto the character with its feet
-//!   kept planted (the library's `RetargetPlugin`) and played by its `AnimationPlayer`.
+//!   kept planted (the library's `RetargetPlugin`) and played by its `AnimationPlayer`; a
+//!   ring round each foot shows the source's contacts, **K** bakes it again with contacts off
+//!   (or on) to compare.
 //! * **`--remote [emulated[=KIND]]`**: a motion controller drives a handle on the head: hold
 //!   the clutch and turn it to turn the head 1:1, D-pad to move it (`emulated=dualsense` and
 //!   the like for the built-in emulators).
