@@ -60,8 +60,16 @@ struct Baked {
     failed_solves: usize,
     unmapped: Vec<String>,
     planted_share: Vec<(String, f32)>,
-    /// Per foot: its joint (skeleton index), name, and the planted time spans.
-    feet: Vec<(usize, String, Vec<(f32, f32)>)>,
+    /// Per foot: its joint, name and planted time spans.
+    feet: Vec<BakedFoot>,
+}
+
+/// A foot of a bake: its joint (skeleton index), name, and the clip's spans while the source's
+/// foot is planted.
+struct BakedFoot {
+    joint: usize,
+    name: String,
+    planted: Vec<(f32, f32)>,
 }
 
 /// Characters with a retarget whose rest is not remembered yet.
@@ -138,7 +146,11 @@ fn bake(
     let feet = feet
         .iter()
         .zip(&baked.source_contacts.planted)
-        .map(|(&foot, frames)| (foot, name(foot), planted_spans(frames, &times)))
+        .map(|(&joint, frames)| BakedFoot {
+            joint,
+            name: name(joint),
+            planted: planted_spans(frames, &times),
+        })
         .collect();
     Ok(Baked {
         clip: baked.clip,
@@ -206,11 +218,11 @@ fn finish_bakes(
                     feet: baked
                         .feet
                         .into_iter()
-                        .filter_map(|(joint, name, planted)| {
+                        .filter_map(|foot| {
                             Some(RetargetFoot {
-                                joint: *posed.joints.get(joint)?,
-                                name,
-                                planted,
+                                joint: *posed.joints.get(foot.joint)?,
+                                name: foot.name,
+                                planted: foot.planted,
                             })
                         })
                         .collect(),
