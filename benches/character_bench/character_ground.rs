@@ -374,13 +374,10 @@ pub fn run(
         ground.as_ref(),
         (along, reach, Standing::Bare),
     );
-    let bare_ms = {
-        let mut ms = bare.ms.clone();
-        ms.sort_by(f64::total_cmp);
-        ms[ms.len() / 2]
-    };
     let mut ms = with.ms.clone();
     ms.sort_by(f64::total_cmp);
+    let mut bare_ms = bare.ms;
+    bare_ms.sort_by(f64::total_cmp);
     let mut errors = with.sole_errors_deg.clone();
     errors.sort_by(f64::total_cmp);
     let pick = |v: &[f64], p: f64| {
@@ -396,8 +393,8 @@ pub fn run(
         "drag_direction": [along.x, along.y, along.z],
         "drag_reach": reach / size,
         "constrained_ms_per_solve": pick(&ms, 0.5),
-        "bare_ms_per_solve": bare_ms,
-        "ground_cost_ratio": pick(&ms, 0.5) / bare_ms,
+        "bare_ms_per_solve": pick(&bare_ms, 0.5),
+        "ground_cost_ratio": pick(&ms, 0.5) / pick(&bare_ms, 0.5),
         "penetration_max": with.penetration_max,
         "sole_normal_error_deg_p95": pick(&errors, 0.95),
         "soles_at_limit_share": errors.iter().filter(|e| **e > 3.0).count() as f64

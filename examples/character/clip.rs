@@ -96,11 +96,18 @@ fn toggle_contacts(keys: Res<ButtonInput<KeyCode>>, mut retargets: Query<&mut Re
 /// then), grey while it swings; 4 % of the character's size across.
 fn draw_contacts(
     characters: Query<
-        (&RetargetStatus, &Retarget, &PosedSkeleton, &GlobalTransform),
+        (
+            Entity,
+            &RetargetStatus,
+            &Retarget,
+            &PosedSkeleton,
+            &GlobalTransform,
+        ),
         With<Character>,
     >,
     players: Query<&AnimationPlayer>,
     joints: Query<&GlobalTransform>,
+    mut sizes: Local<std::collections::HashMap<Entity, f32>>,
     mut gizmos: Gizmos,
 ) {
     let Some(time) = players
@@ -110,8 +117,12 @@ fn draw_contacts(
         return;
     };
     let flat = Quat::from_rotation_x(-std::f32::consts::FRAC_PI_2);
-    for (status, retarget, posed, root) in &characters {
-        let size = posed.model.topology().bounding_diagonal() as f32 * root.scale().max_element();
+    for (entity, status, retarget, posed, root) in &characters {
+        // The model's size is a pass over its vertices: once per character.
+        let model_size = *sizes
+            .entry(entity)
+            .or_insert_with(|| posed.model.topology().bounding_diagonal() as f32);
+        let size = model_size * root.scale().max_element();
         for foot in &status.feet {
             let Ok(at) = joints.get(foot.joint) else {
                 continue;

@@ -61,29 +61,25 @@ impl ColliderBuilder {
         self.send(Job::Free(collider));
     }
 
-    /// Hands `job` to the thread (started on first use); where no thread can be started or
-    /// it has gone, runs it here.
-    fn send(&mut self, job: Job) {
-        let job = match &self.jobs {
-            Some(jobs) => match jobs.send(job) {
+    /// Hands `job` to the thread (started on first use, and again if it has gone); where no
+    /// thread can be started, runs it here.
+    fn send(&mut self, mut job: Job) {
+        for _ in 0..2 {
+            if self.jobs.is_none() {
+                self.jobs = spawn_thread();
+            }
+            let Some(jobs) = &self.jobs else {
+                break;
+            };
+            match jobs.send(job) {
                 Ok(()) => return,
-                Err(returned) => returned.0,
-            },
-            None => job,
-        };
-        match spawn_thread() {
-            Some(jobs) => {
-                let job = match jobs.send(job) {
-                    Ok(()) => None,
-                    Err(returned) => Some(returned.0),
-                };
-                self.jobs = Some(jobs);
-                if let Some(job) = job {
-                    run(job);
+                Err(returned) => {
+                    job = returned.0;
+                    self.jobs = None;
                 }
             }
-            None => run(job),
         }
+        run(job);
     }
 }
 

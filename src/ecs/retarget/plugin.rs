@@ -134,24 +134,21 @@ fn bake(
     let feet: Vec<usize> = map.feet.iter().map(|&(_, foot)| foot).collect();
     let retargeter = Retargeter::new(from, model.clone(), rest, map, retarget.settings)?;
     let baked = retargeter.bake(&source.clip, &retargeter.rest_ground())?;
-    let planted_share = feet
-        .iter()
-        .zip(&baked.source_contacts.planted)
-        .map(|(&foot, frames)| {
-            let planted = frames.iter().filter(|&&p| p).count();
-            (name(foot), planted as f32 / frames.len().max(1) as f32)
-        })
-        .collect();
     let times: Vec<f32> = baked.clip.keys().iter().map(|k| k.time).collect();
-    let feet = feet
+    let (planted_share, feet) = feet
         .iter()
         .zip(&baked.source_contacts.planted)
-        .map(|(&joint, frames)| BakedFoot {
-            joint,
-            name: name(joint),
-            planted: planted_spans(frames, &times),
+        .map(|(&joint, frames)| {
+            let planted = frames.iter().filter(|&&p| p).count();
+            let share = (name(joint), planted as f32 / frames.len().max(1) as f32);
+            let foot = BakedFoot {
+                joint,
+                name: name(joint),
+                planted: planted_spans(frames, &times),
+            };
+            (share, foot)
         })
-        .collect();
+        .unzip();
     Ok(Baked {
         clip: baked.clip,
         failed_solves: baked.failed_solves,
