@@ -240,6 +240,7 @@ fn main() {
         "bake_ms_per_frame": ms,
         "failed_solves": baked.failed_solves,
         "source_planted_share": baked.source_contacts.planted_share(),
+        "source_ground_speed": baked.source_contacts.treadmill.length(),
         "foot_slide_max": quality.foot_slide_max,
         "penetration_max": quality.penetration_max,
         "limb_direction_error_deg_p95": quality.limb_direction_error_deg_p95,

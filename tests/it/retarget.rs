@@ -1,8 +1,9 @@
 //! Retargeting (`pose::retarget`) on generated figures that differ the way real skeletons do
 //! (names, rest poses, proportions, a root above the hips), with a walk whose feet truly stand:
 //! a clip comes back unchanged on its own skeleton, arm directions survive a T-pose to A-pose
-//! change, planted feet stay put on longer legs only with the contacts, the skin stays out of a
-//! sloped ground, and what cannot be mapped is a typed error.
+//! change, planted feet stay put on longer legs only with the contacts (and move with the
+//! ground under a walk made in place), the skin stays out of a sloped ground, and what cannot
+//! be mapped is a typed error.
 
 use std::sync::Arc;
 
@@ -11,8 +12,8 @@ use bevy_wii_deform::pose::retarget::{
 };
 use bevy_wii_deform::pose::rig::synth_rig::{FigureNames, FigureSpec, SyntheticRig, figure_rig};
 use bevy_wii_deform::pose::{
-    GroundPlane, PoseClip, SkeletonPose, read_bvh, read_gltf_clip, rotation_angle, write_bvh,
-    write_gltf_clip,
+    GroundPlane, PoseClip, PoseKey, SkeletonPose, read_bvh, read_gltf_clip, rotation_angle,
+    write_bvh, write_gltf_clip,
 };
 use glam::DVec3;
 
@@ -227,6 +228,123 @@ fn planted_feet_stay_put_on_longer_legs_only_with_the_contacts() {
     assert!(
         (tt / ts - ratio).abs() < 0.05,
         "the root travels {tt} for the source's {ts}"
+    );
+}
+
+/// `clip` made in place, as most game clips are: every frame moved back by the walk's mean
+/// velocity (its hips' travel over its length), so the body stays and each stance foot slides
+/// back under it at that velocity. Returns the clip and the velocity taken out.
+fn made_in_place(rig: &SyntheticRig, clip: &PoseClip) -> (PoseClip, DVec3) {
+    let keys = clip.keys();
+    let hips = joint(rig, "Hips");
+    let at = |k: &PoseKey| rig.skeleton.global_transforms(&k.pose)[hips].translation;
+    let (first, last) = (&keys[0], &keys[keys.len() - 1]);
+    let travel = at(last) - at(first);
+    let velocity = DVec3::new(travel.x, 0.0, travel.z) / f64::from(last.time - first.time);
+    let root = (0..rig.skeleton.joints().len())
+        .find(|&j| rig.skeleton.joints()[j].parent.is_none())
+        .unwrap();
+    let frame = rig.skeleton.joints()[root].parent_frame;
+    let keys = keys
+        .iter()
+        .map(|k| {
+            let mut key = k.clone();
+            let back = -velocity * f64::from(k.time - first.time);
+            key.pose.local[root].translation += frame.inverse().transform_vector3(back);
+            key
+        })
+        .collect();
+    (PoseClip::from_keys(keys).unwrap(), velocity)
+}
+
+/// The walk made in place onto the longer legs: the ground's speed under it is found (the
+/// walk's, backwards), the same feet are planted as in the walk that travels, and the target's
+/// planted feet move with the ground — they slide on it by no more than 2e-3 of the height a
+/// frame with the contacts, and more without; the target stays in place.
+#[test]
+fn a_walk_made_in_place_keeps_its_feet_moving_with_the_ground() {
+    let source = figure(FigureSpec::default());
+    let base = FigureSpec::default();
+    let target = figure(FigureSpec {
+        thigh: base.thigh * 1.5,
+        shin: base.shin * 1.1,
+        names: FigureNames::Unreal,
+        ..base
+    });
+    let travelling = mixamo_walk(&source);
+    let (clip, velocity) = made_in_place(&source, &travelling);
+    let with = retargeter(&source, &target, RetargetSettings::default());
+    let ground = with.rest_ground();
+    let reference = with.bake(&travelling, &ground).unwrap();
+    let baked = with.bake(&clip, &ground).unwrap();
+    let contacts = &baked.source_contacts;
+    assert_eq!(reference.source_contacts.treadmill, DVec3::ZERO);
+    assert!(
+        (contacts.treadmill + velocity).length() <= 0.05 * velocity.length(),
+        "the ground moves at {} under a walk of {velocity}",
+        contacts.treadmill
+    );
+    let pairs: Vec<(bool, bool)> = contacts
+        .planted
+        .iter()
+        .flatten()
+        .zip(reference.source_contacts.planted.iter().flatten())
+        .map(|(a, b)| (*a, *b))
+        .collect();
+    let agree = pairs.iter().filter(|(a, b)| a == b).count() as f64 / pairs.len() as f64;
+    assert!(
+        agree >= 0.9 && contacts.planted_share() > 0.5,
+        "planted in place {} against {} travelling, {agree} of the pairs agree",
+        contacts.planted_share(),
+        reference.source_contacts.planted_share()
+    );
+    assert_eq!(baked.failed_solves, 0);
+    let q = with.quality(&frames(&clip), &frames(&baked.clip), contacts, &ground);
+    let without = retargeter(
+        &source,
+        &target,
+        RetargetSettings {
+            contacts: false,
+            ..RetargetSettings::default()
+        },
+    );
+    let bare = without.bake(&clip, &ground).unwrap();
+    let q0 = without.quality(
+        &frames(&clip),
+        &frames(&bare.clip),
+        &bare.source_contacts,
+        &ground,
+    );
+    eprintln!("in place, with contacts {q:?}\nwithout {q0:?}");
+    assert!(
+        q.foot_slide_max <= 2e-3,
+        "slide on the ground with contacts {}",
+        q.foot_slide_max
+    );
+    assert!(
+        q0.foot_slide_max > 2.0 * q.foot_slide_max.max(1e-3),
+        "without contacts the feet slide only {}",
+        q0.foot_slide_max
+    );
+    assert!(
+        q.penetration_max <= 1e-3,
+        "penetration {}",
+        q.penetration_max
+    );
+    let hips = joint(&target, "pelvis");
+    let travel = |c: &PoseClip| {
+        let at = |k: &PoseKey| {
+            target.skeleton.global_transforms(&k.pose)[hips]
+                .translation
+                .z
+        };
+        at(&c.keys()[c.keys().len() - 1]) - at(&c.keys()[0])
+    };
+    assert!(
+        travel(&baked.clip).abs() < 0.05 * travel(&reference.clip).abs(),
+        "the target travels {} in place, {} with the walk that travels",
+        travel(&baked.clip),
+        travel(&reference.clip)
     );
 }
 

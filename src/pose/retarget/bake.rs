@@ -180,9 +180,14 @@ impl Retargeter {
         let mut out = Vec::with_capacity(keys.len());
         let mut failed = 0;
         if self.settings.contacts {
+            // Under a clip made in place the ground moves, and a planted foot's hold with it.
+            let ground_step = self.ground_step(&contacts);
             let mut holds: Vec<Option<DVec3>> = vec![None; map.feet.len()];
             let mut last: Option<PoseSolution> = None;
             for (f, pose) in carried.iter().enumerate() {
+                if f > 0 {
+                    holds.iter_mut().flatten().for_each(|h| *h += ground_step);
+                }
                 let planted: Vec<bool> = contacts.planted.iter().map(|p| p[f]).collect();
                 match self.solve_frame(pose, &planted, &mut holds, ground, last.as_ref()) {
                     Ok(solution) => {
@@ -214,6 +219,12 @@ impl Retargeter {
             source_contacts: contacts,
             failed_solves: failed,
         })
+    }
+
+    /// How far the target's ground moves from one frame to the next under a clip made in
+    /// place (zero under one that travels): the source's treadmill carried over.
+    fn ground_step(&self, contacts: &SourceContacts) -> DVec3 {
+        self.transfer.carry_ground_velocity(contacts.treadmill) * contacts.frame_time
     }
 
     /// One frame: the carried-over `pose` solved with the planted feet held (a foot's hold is
@@ -338,7 +349,8 @@ fn source_leg(skeleton: &Skeleton, pose: &SkeletonPose, map: &SkeletonMap) -> f6
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct RetargetQuality {
     /// The largest horizontal move of a target foot joint from one frame to the next while its
-    /// source foot is planted in both, over the target's height.
+    /// source foot is planted in both, over the target's height: against its ground, which
+    /// moves under a clip made in place ([`SourceContacts::treadmill`]).
     pub foot_slide_max: f64,
     /// The deepest target skin vertex below the ground, over the model's size (0 when none is
     /// below).
@@ -374,11 +386,14 @@ impl Retargeter {
         let mut q = RetargetQuality::default();
         let tg: Vec<_> = poses.iter().map(|p| target.global_transforms(p)).collect();
         let horizontal = |v: DVec3| v - up * v.dot(up);
+        let ground_step = self.ground_step(contacts);
         for (k, &(_, foot)) in map.feet.iter().enumerate() {
             for f in 1..poses.len().min(contacts.planted[k].len()) {
                 if contacts.planted[k][f] && contacts.planted[k][f - 1] {
-                    let moved =
-                        horizontal(tg[f][foot].translation - tg[f - 1][foot].translation).length();
+                    let moved = horizontal(
+                        tg[f][foot].translation - tg[f - 1][foot].translation - ground_step,
+                    )
+                    .length();
                     q.foot_slide_max = q.foot_slide_max.max(moved / height);
                 }
             }

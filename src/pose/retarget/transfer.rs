@@ -276,6 +276,20 @@ impl PoseTransfer {
         )
     }
 
+    /// A horizontal velocity of the source's world (its ground's, under a clip made in place:
+    /// [`crate::pose::retarget::SourceContacts::treadmill`]) in the target's world: turned into
+    /// its axes and scaled as the root's horizontal motion is.
+    pub fn carry_ground_velocity(&self, velocity: DVec3) -> DVec3 {
+        let up_s = self.map.axes[0].0.normalize_or(DVec3::Y);
+        let horizontal = velocity - up_s * velocity.dot(up_s);
+        let scale = if self.root_motion.scale_horizontal {
+            self.leg_ratio
+        } else {
+            1.0
+        };
+        self.align * horizontal * scale
+    }
+
     /// The target's rest pose.
     pub fn target_rest(&self) -> &SkeletonPose {
         &self.target_rest
