@@ -231,6 +231,48 @@ fn planted_feet_stay_put_on_longer_legs_only_with_the_contacts() {
     );
 }
 
+/// Carried over onto longer legs (thighs ×1.5, shins ×1.1), the target's lowest foot is as
+/// high over its rest height as the source's, scaled by the legs, in every frame (the walk
+/// keeps a foot down throughout, so on the ground): the body is placed by its feet. The hips' height scaled alone is right only for legs that hang
+/// straight below the hips joint; the rest of the way down (hips to thigh) is not scaled.
+#[test]
+fn carried_over_onto_longer_legs_the_lowest_foot_keeps_its_height() {
+    let source = figure(FigureSpec::default());
+    let base = FigureSpec::default();
+    let target = figure(FigureSpec {
+        thigh: base.thigh * 1.5,
+        shin: base.shin * 1.1,
+        names: FigureNames::Unreal,
+        ..base
+    });
+    let clip = mixamo_walk(&source);
+    let retargeter = retargeter(&source, &target, RetargetSettings::default());
+    let transfer = retargeter.transfer();
+    let feet = transfer.map().feet.clone();
+    let lowest = |rig: &SyntheticRig, pose: &SkeletonPose, side: fn(&(usize, usize)) -> usize| {
+        let g = rig.skeleton.global_transforms(pose);
+        feet.iter()
+            .map(|f| g[side(f)].translation.y)
+            .fold(f64::INFINITY, f64::min)
+    };
+    let (source_side, target_side): (fn(&(usize, usize)) -> usize, fn(&(usize, usize)) -> usize) =
+        (|f| f.0, |f| f.1);
+    let rest_s = lowest(&source, &source.rest, source_side);
+    let rest_t = lowest(&target, &target.rest, target_side);
+    let size = size_of(&target);
+    let mut worst = 0.0f64;
+    for pose in frames(&clip) {
+        let carried = transfer.transfer(&pose);
+        let want = (lowest(&source, &pose, source_side) - rest_s) * transfer.leg_ratio();
+        let got = lowest(&target, &carried, target_side) - rest_t;
+        worst = worst.max((got - want).abs() / size);
+    }
+    assert!(
+        worst < 1e-9,
+        "the lowest foot is {worst} of the size off its height"
+    );
+}
+
 /// `clip` made in place, as most game clips are: every frame moved back by the walk's mean
 /// velocity (its hips' travel over its length), so the body stays and each stance foot slides
 /// back under it at that velocity. Returns the clip and the velocity taken out.

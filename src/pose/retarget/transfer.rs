@@ -316,7 +316,11 @@ impl PoseTransfer {
 
     /// The target pose for `source_pose`. The target's root goes where the source's is, in
     /// the target's axes, scaled by the legs' ratio: horizontally about the world origin, and
-    /// its height over the ground.
+    /// its height over the ground — then, with the vertical motion scaled and feet in the map,
+    /// lifted or lowered so that the target's lowest foot is as high over its ground as the
+    /// source's, scaled (the hips' height scaled alone puts the feet right only for legs that
+    /// hang straight below the hips joint: the way from hips to thigh is not scaled, and a
+    /// quadruped's hind paws went 1 % of its size into the ground on legs made 30 % longer).
     pub fn transfer(&self, source_pose: &SkeletonPose) -> SkeletonPose {
         let sg = self.source.global_transforms(source_pose);
         let deltas: Vec<DQuat> = sg
@@ -363,6 +367,28 @@ impl PoseTransfer {
         let local = parent_global.inverse().transform_point3(world_root);
         if local.is_finite() {
             pose.local[root_t].translation = local;
+        }
+        if self.root_motion.scale_vertical && !self.map.feet.is_empty() {
+            // The root's height scaled by the legs is right only for legs hanging straight
+            // below it; lift the body so the lowest foot is as high over the ground as the
+            // source's, scaled.
+            let lowest = |g: &[DAffine3], up: DVec3, side: usize| {
+                self.map
+                    .feet
+                    .iter()
+                    .map(|f| g[if side == 0 { f.0 } else { f.1 }].translation.dot(up))
+                    .fold(f64::INFINITY, f64::min)
+            };
+            let placed = self.target.global_transforms(&pose);
+            let wanted = self.target_foot_height
+                + (lowest(&sg, up_s, 0) - self.source_foot_height) * self.leg_ratio;
+            let lift = wanted - lowest(&placed, up_t, 1);
+            let local = parent_global
+                .inverse()
+                .transform_point3(world_root + up_t * lift);
+            if local.is_finite() {
+                pose.local[root_t].translation = local;
+            }
         }
         pose
     }
