@@ -249,22 +249,21 @@ fn carried_over_onto_longer_legs_the_lowest_foot_keeps_its_height() {
     let retargeter = retargeter(&source, &target, RetargetSettings::default());
     let transfer = retargeter.transfer();
     let feet = transfer.map().feet.clone();
-    let lowest = |rig: &SyntheticRig, pose: &SkeletonPose, side: fn(&(usize, usize)) -> usize| {
+    // Each foot's joint on one side of the map: the source's (0) or the target's (1).
+    let lowest = |rig: &SyntheticRig, pose: &SkeletonPose, side: usize| {
         let g = rig.skeleton.global_transforms(pose);
         feet.iter()
-            .map(|f| g[side(f)].translation.y)
+            .map(|f| g[if side == 0 { f.0 } else { f.1 }].translation.y)
             .fold(f64::INFINITY, f64::min)
     };
-    let (source_side, target_side): (fn(&(usize, usize)) -> usize, fn(&(usize, usize)) -> usize) =
-        (|f| f.0, |f| f.1);
-    let rest_s = lowest(&source, &source.rest, source_side);
-    let rest_t = lowest(&target, &target.rest, target_side);
+    let rest_s = lowest(&source, &source.rest, 0);
+    let rest_t = lowest(&target, &target.rest, 1);
     let size = size_of(&target);
     let mut worst = 0.0f64;
     for pose in frames(&clip) {
         let carried = transfer.transfer(&pose);
-        let want = (lowest(&source, &pose, source_side) - rest_s) * transfer.leg_ratio();
-        let got = lowest(&target, &carried, target_side) - rest_t;
+        let want = (lowest(&source, &pose, 0) - rest_s) * transfer.leg_ratio();
+        let got = lowest(&target, &carried, 1) - rest_t;
         worst = worst.max((got - want).abs() / size);
     }
     assert!(
