@@ -1,7 +1,8 @@
 //! Retargeting a clip from one skeleton onto another through the pose solver
 //! (`pose::retarget`): the source a glTF/GLB character's clip or a BVH file, the target any
-//! rigged glTF. Bakes the clip with the contacts kept and again without, in one process, and
-//! prints what was mapped, the bake's cost and its quality as JSON (the last line).
+//! rigged glTF. Bakes the clip with the contacts kept and again without, in one process,
+//! streams the same frames through the live path one at a time, and prints what was mapped,
+//! the bake's and a live frame's cost and the bake's quality as JSON (the last line).
 //!
 //! ```sh
 //! cargo run --release --example retarget_bench -- --source assets/models/Fox.glb --clip Walk \
@@ -223,10 +224,23 @@ fn main() {
         let ms = started.elapsed().as_secs_f64() * 1e3 / frames.len().max(1) as f64;
         let poses: Vec<SkeletonPose> = baked.clip.keys().iter().map(|k| k.pose.clone()).collect();
         let quality = retargeter.quality(&frames, &poses, &baked.source_contacts, &ground);
-        (ms, baked, quality)
+        // The same frames streamed one at a time (the live path), a frame's wall time each.
+        let mut live = retargeter.live();
+        let mut live_ms: Vec<f64> = clip
+            .keys()
+            .iter()
+            .filter_map(|key| {
+                let started = Instant::now();
+                live.frame(&key.pose, f64::from(key.time), &ground).ok()?;
+                Some(started.elapsed().as_secs_f64() * 1e3)
+            })
+            .collect();
+        live_ms.sort_by(f64::total_cmp);
+        let live_ms = live_ms.get(live_ms.len() / 2).copied().unwrap_or(f64::NAN);
+        (ms, live_ms, baked, quality)
     };
-    let (ms, baked, quality) = run(args.contacts);
-    let (_, _, bare) = run(false);
+    let (ms, live_ms, baked, quality) = run(args.contacts);
+    let (_, _, _, bare) = run(false);
     let report = serde_json::json!({
         "source": args.source.display().to_string(),
         "target": args.target.display().to_string(),
@@ -238,6 +252,7 @@ fn main() {
         "unmapped": map.unmapped.iter().map(|&j| skeleton.joints()[j].name.clone()).collect::<Vec<_>>(),
         "frames": frames.len(),
         "bake_ms_per_frame": ms,
+        "live_ms_per_frame_median": live_ms,
         "failed_solves": baked.failed_solves,
         "source_planted_share": baked.source_contacts.planted_share(),
         "source_ground_speed": baked.source_contacts.treadmill.length(),

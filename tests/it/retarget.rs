@@ -8,7 +8,7 @@
 use std::sync::Arc;
 
 use bevy_wii_deform::pose::retarget::{
-    RetargetError, RetargetSettings, Retargeter, SkeletonMap, Which,
+    RetargetError, RetargetSettings, Retargeter, SkeletonMap, SourceContacts, Which,
 };
 use bevy_wii_deform::pose::rig::synth_rig::{FigureNames, FigureSpec, SyntheticRig, figure_rig};
 use bevy_wii_deform::pose::{
@@ -270,6 +270,90 @@ fn carried_over_onto_longer_legs_the_lowest_foot_keeps_its_height() {
         worst < 1e-9,
         "the lowest foot is {worst} of the size off its height"
     );
+}
+
+/// The walk streamed frame by frame onto the longer legs (a live source: no clip to read the
+/// contacts from): the same feet planted as the bake finds for nearly every frame, planted feet
+/// that stay put, no skin below the ground, the limbs following the source's; a malformed frame
+/// is a typed error that leaves the stream as it was.
+#[test]
+fn a_live_source_retargeted_frame_by_frame_keeps_its_feet_planted() {
+    let source = figure(FigureSpec::default());
+    let base = FigureSpec::default();
+    let target = figure(FigureSpec {
+        thigh: base.thigh * 1.5,
+        shin: base.shin * 1.1,
+        names: FigureNames::Unreal,
+        ..base
+    });
+    let clip = mixamo_walk(&source);
+    let retargeter = retargeter(&source, &target, RetargetSettings::default());
+    let ground = retargeter.rest_ground();
+    let baked = retargeter.bake(&clip, &ground).unwrap();
+    let mut live = retargeter.live();
+    let mut poses = Vec::new();
+    let mut planted = vec![Vec::new(); retargeter.transfer().map().feet.len()];
+    for key in clip.keys() {
+        let frame = live.frame(&key.pose, f64::from(key.time), &ground).unwrap();
+        for (k, p) in frame.planted.iter().enumerate() {
+            planted[k].push(*p);
+        }
+        poses.push(frame.pose);
+    }
+    let contacts = SourceContacts {
+        planted,
+        planted_height: baked.source_contacts.planted_height.clone(),
+        treadmill: DVec3::ZERO,
+        frame_time: f64::from(FRAME_TIME),
+    };
+    let pairs = contacts
+        .planted
+        .iter()
+        .flatten()
+        .zip(baked.source_contacts.planted.iter().flatten());
+    let agree = pairs.filter(|(a, b)| a == b).count() as f64
+        / contacts.planted.iter().map(Vec::len).sum::<usize>() as f64;
+    assert!(
+        agree >= 0.9,
+        "live planted {} against the bake's {}: {agree} agree",
+        contacts.planted_share(),
+        baked.source_contacts.planted_share()
+    );
+    let q = retargeter.quality(&frames(&clip), &poses, &contacts, &ground);
+    eprintln!("live {q:?}");
+    assert!(q.foot_slide_max <= 2e-3, "slide {}", q.foot_slide_max);
+    assert!(
+        q.penetration_max <= 1e-3,
+        "penetration {}",
+        q.penetration_max
+    );
+    assert!(
+        q.limb_direction_error_deg_p95 <= 10.0,
+        "limbs {}",
+        q.limb_direction_error_deg_p95
+    );
+
+    // A frame with a joint that is not a number, and one of the wrong length, in the middle
+    // of the stream: typed errors, and the frames after come out as they would have.
+    let mut interrupted = retargeter.live();
+    let keys = clip.keys();
+    for (f, key) in keys.iter().enumerate().take(12) {
+        if f == 6 {
+            let mut bad = key.pose.clone();
+            bad.local[0].rotation.x = f64::NAN;
+            let error = interrupted.frame(&bad, f64::from(key.time), &ground);
+            assert!(matches!(error, Err(RetargetError::Pose(_))), "{error:?}");
+            let short = SkeletonPose {
+                local: key.pose.local[1..].to_vec(),
+            };
+            let error = interrupted.frame(&short, f64::from(key.time), &ground);
+            assert!(matches!(error, Err(RetargetError::Pose(_))), "{error:?}");
+        }
+        let frame = interrupted
+            .frame(&key.pose, f64::from(key.time), &ground)
+            .unwrap();
+        assert_eq!(frame.pose, poses[f], "frame {f}");
+    }
 }
 
 /// `clip` made in place, as most game clips are: every frame moved back by the walk's mean

@@ -76,6 +76,8 @@ pub struct Retargeter {
     size: f64,
     /// Per foot of the map, the target's sole (welded vertices), found at rest.
     soles: Vec<Vec<u32>>,
+    /// The source's rest pose.
+    source_rest: SkeletonPose,
 }
 
 impl Retargeter {
@@ -112,6 +114,7 @@ impl Retargeter {
             .collect();
         Ok(Self {
             soles,
+            source_rest: source.1.clone(),
             transfer,
             model,
             solver,
@@ -123,6 +126,16 @@ impl Retargeter {
     /// The rotation carry-over (map, legs' ratio).
     pub fn transfer(&self) -> &PoseTransfer {
         &self.transfer
+    }
+
+    /// How it retargets.
+    pub fn settings(&self) -> &RetargetSettings {
+        &self.settings
+    }
+
+    /// The source's rest pose.
+    pub fn source_rest(&self) -> &SkeletonPose {
+        &self.source_rest
     }
 
     /// The flat ground the target stands on at rest: through its lowest skin vertex, normal
@@ -230,7 +243,7 @@ impl Retargeter {
     /// One frame: the carried-over `pose` solved with the planted feet held (a foot's hold is
     /// set where it is when its source foot plants, on the ground) and the skin above the
     /// ground.
-    fn solve_frame(
+    pub(super) fn solve_frame(
         &self,
         pose: &SkeletonPose,
         planted: &[bool],
@@ -320,7 +333,7 @@ impl Retargeter {
 }
 
 /// The source's leg length in `pose` (its chains to the feet), or 1.
-fn source_leg(skeleton: &Skeleton, pose: &SkeletonPose, map: &SkeletonMap) -> f64 {
+pub(super) fn source_leg(skeleton: &Skeleton, pose: &SkeletonPose, map: &SkeletonMap) -> f64 {
     let g = skeleton.global_transforms(pose);
     let lengths: Vec<f64> = map
         .feet

@@ -9,6 +9,7 @@
 //! | where the source's feet are planted, read off the clip (height and speed thresholds) | `contacts.rs` ([`detect_contacts`]) |
 //! | reading a source: a BVH file or a glTF character's animation | `source.rs` ([`read_source_motion`]) |
 //! | a whole clip baked through the solver (feet held, skin above the ground), and how well it went | `bake.rs` ([`Retargeter`], [`RetargetQuality`]) |
+//! | a live source retargeted frame by frame, its contacts read as the frames come | `live.rs` ([`LiveRetarget`]) |
 //!
 //! The top layer of [`crate::pose`]: it uses the rig, the ground, the constraints, the solver
 //! and the animation layers, and none of them uses it.
@@ -30,12 +31,14 @@
 
 mod bake;
 mod contacts;
+mod live;
 mod mapping;
 mod source;
 mod transfer;
 
 pub use bake::{RetargetQuality, RetargetSettings, RetargetedClip, Retargeter};
 pub use contacts::{ContactThresholds, SourceContacts, detect_contacts};
+pub use live::{LiveFrame, LiveRetarget};
 pub use mapping::{ChainFile, ChainMapFile, ChainPair, SkeletonMap, Which};
 pub use source::{SourceError, SourceMotion, read_source_motion};
 pub use transfer::{PoseTransfer, RootMotion};
