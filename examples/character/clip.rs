@@ -1,32 +1,122 @@
-//! `--clip PATH`: a clip made for another skeleton — a BVH file, or another glTF character's
-//! animation — retargeted onto the character by the library's `RetargetPlugin` (feet kept
-//! planted and on the ground) and played by the character's own `AnimationPlayer`, looping.
-//! The HUD says how the retarget went. Each foot shows its contact while the clip plays: a
-//! green ring round the character's foot joint while the source's foot is planted (where the
-//! bake holds it), a grey one while it swings; **K** bakes the clip again with contacts off (the
-//! joint rotations carried over alone) or back on, to compare.
+//! A clip made for another skeleton — a BVH file, or another glTF character's animation —
+//! retargeted onto the character by the library's `RetargetPlugin` (feet kept planted and on
+//! the ground) and played by the character's own `AnimationPlayer`, looping: named by
+//! `--clip PATH` or in the panel's "Clip from a file" section (a path, the animation's name,
+//! a chain map). The HUD says how the retarget went. Each foot shows its contact while the
+//! clip plays: a green ring round the character's foot joint while the source's foot is
+//! planted (where the bake holds it), a grey one while it swings; **K** bakes the clip again
+//! with contacts off (the joint rotations carried over alone) or back on, to compare.
 
+use bevy::ecs::system::SystemParam;
 use bevy::prelude::*;
 use bevy::transform::TransformSystems;
+use bevy_egui::egui;
 use bevy_wii_deform::prelude::*;
 
 use super::Args;
 use super::scene::Character;
 
-/// Retargets `--clip` onto the character and plays it.
+/// Retargets `--clip` (or the panel's file) onto the character and plays it.
 pub struct ClipFromFilePlugin;
 
 impl Plugin for ClipFromFilePlugin {
     fn build(&self, app: &mut App) {
-        app.add_plugins(RetargetPlugin).add_systems(
-            Update,
-            (
-                ask_for_the_clip,
-                play_the_clip,
-                toggle_contacts,
-                draw_contacts.after(TransformSystems::Propagate),
-            ),
-        );
+        app.add_plugins(RetargetPlugin)
+            .init_resource::<ClipForm>()
+            .add_systems(
+                Update,
+                (
+                    ask_for_the_clip,
+                    play_the_clip,
+                    toggle_contacts,
+                    draw_contacts.after(TransformSystems::Propagate),
+                ),
+            );
+    }
+}
+
+/// The panel's clip fields, filled from `--clip` when it is given.
+#[derive(Resource)]
+pub struct ClipForm {
+    source: String,
+    animation: String,
+    map: String,
+}
+
+impl FromWorld for ClipForm {
+    fn from_world(world: &mut World) -> Self {
+        let clip = world.get_resource::<Args>().and_then(|a| a.clip.clone());
+        let text =
+            |p: Option<&std::path::Path>| p.map_or(String::new(), |p| p.display().to_string());
+        Self {
+            source: text(clip.as_ref().map(|c| c.source.as_path())),
+            animation: clip
+                .as_ref()
+                .and_then(|c| c.animation.clone())
+                .unwrap_or_default(),
+            map: text(clip.as_ref().and_then(|c| c.map.as_deref())),
+        }
+    }
+}
+
+/// What the panel's clip section reads and edits.
+#[derive(SystemParam)]
+pub struct ClipPanel<'w, 's> {
+    form: ResMut<'w, ClipForm>,
+    character: Query<'w, 's, (Entity, Option<&'static mut Retarget>), ClipTarget>,
+    commands: Commands<'w, 's>,
+}
+
+/// The character, once poseable.
+type ClipTarget = (With<Character>, With<PosedSkeleton>);
+
+/// The panel's clip section: the source file, its animation (a glTF source's; empty: the
+/// first), a chain map (empty: humanoids by name), and a button that retargets it onto the
+/// character — again, with the fields changed, over a clip already playing.
+pub fn clip_ui(ui: &mut egui::Ui, p: &mut ClipPanel) {
+    let form = &mut *p.form;
+    egui::Grid::new("clip").num_columns(2).show(ui, |ui| {
+        ui.label("file");
+        ui.text_edit_singleline(&mut form.source)
+            .on_hover_text("a .bvh, or a .glb/.gltf character whose animation is the clip");
+        ui.end_row();
+        ui.label("animation");
+        ui.text_edit_singleline(&mut form.animation)
+            .on_hover_text("a glTF source's animation by name (empty: the first)");
+        ui.end_row();
+        ui.label("map");
+        ui.text_edit_singleline(&mut form.map)
+            .on_hover_text("a chain map (.ron) for skeletons that are not humanoids by name");
+        ui.end_row();
+    });
+    let source = form.source.trim();
+    let asked = ui
+        .add_enabled(
+            !source.is_empty(),
+            egui::Button::new("Retarget onto the character"),
+        )
+        .clicked();
+    if !asked {
+        return;
+    }
+    let optional = |s: &str| Some(s.trim()).filter(|s| !s.is_empty()).map(str::to_string);
+    let (animation, map) = (optional(&form.animation), optional(&form.map));
+    let source = std::path::PathBuf::from(source);
+    for (entity, retarget) in &mut p.character {
+        match retarget {
+            // Changing the asked retarget bakes it again (the plugin watches for changes).
+            Some(mut retarget) => {
+                retarget.source.clone_from(&source);
+                retarget.animation.clone_from(&animation);
+                retarget.map = map.clone().map(Into::into);
+            }
+            None => {
+                let mut retarget = Retarget::new(&source);
+                retarget.animation.clone_from(&animation);
+                retarget.map = map.clone().map(Into::into);
+                p.commands.entity(entity).insert(retarget);
+            }
+        }
     }
 }
 
@@ -139,12 +229,24 @@ fn draw_contacts(
     }
 }
 
-/// The HUD's line about the `--clip` retarget (`None` without one).
-pub fn clip_line(args: &Args, status: Option<&RetargetStatus>, contacts: bool) -> Option<String> {
-    let clip = args.clip.as_ref()?;
-    let name = clip.source.display();
+/// The HUD's line about the clip's retarget: `asked` the character's `Retarget`, `status` how
+/// it went; while `--clip` waits for the character, says so (`None` without either).
+pub fn clip_line(
+    args: &Args,
+    asked: Option<&Retarget>,
+    status: Option<&RetargetStatus>,
+) -> Option<String> {
+    let Some(asked) = asked else {
+        let clip = args.clip.as_ref()?;
+        return Some(format!(
+            "clip {}: waiting for the character",
+            clip.source.display()
+        ));
+    };
+    let name = asked.source.display();
+    let contacts = asked.settings.contacts;
     Some(match status {
-        None => format!("clip {name}: waiting for the character"),
+        None => format!("clip {name}: retargeting…"),
         Some(s) => match s.phase {
             RetargetPhase::Waiting | RetargetPhase::Baking => format!("clip {name}: retargeting…"),
             RetargetPhase::Ready => format!(

@@ -82,8 +82,7 @@ fn update_hud(
     if let Some(error) = &status.error {
         line.push_str(&format!("\n{}: {error}", args.model));
     }
-    let contacts = asked.is_none_or(|r| r.settings.contacts);
-    if let Some(clip) = super::clip::clip_line(&args, retarget, contacts) {
+    if let Some(clip) = super::clip::clip_line(&args, asked, retarget) {
         line.push('\n');
         line.push_str(&clip);
     }

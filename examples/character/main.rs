@@ -31,7 +31,8 @@
 //!   BVH, or another glTF character's animation) retargeted onto the character with its feet
 //!   kept planted (the library's `RetargetPlugin`) and played by its `AnimationPlayer`; a
 //!   ring round each foot shows the source's contacts, **K** bakes it again with contacts off
-//!   (or on) to compare.
+//!   (or on) to compare. The panel's "Clip from a file" section does the same for a file
+//!   named there.
 //! * **`--remote [emulated[=KIND]]`**: a motion controller drives a handle on the head: hold
 //!   the clutch and turn it to turn the head 1:1, D-pad to move it (`emulated=dualsense` and
 //!   the like for the built-in emulators).

@@ -1,10 +1,11 @@
 //! The egui panels: the timeline along the bottom; undo/redo, the body settings (limits,
-//! mirror, planted feet) and the pose library on the right. Presses on a panel do not reach the character (bevy_egui's picking).
+//! mirror, planted feet), the pose library and a clip from a file on the right. Presses on a panel do not reach the character (bevy_egui's picking).
 
 use bevy::prelude::*;
 use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
 
 use crate::body::{BodyPanel, body_ui};
+use crate::clip::{ClipPanel, clip_ui};
 use crate::history::HistoryCommand;
 use crate::library::{LibraryPanel, library_ui};
 use crate::timeline::{TimelinePanel, timeline_ui};
@@ -22,7 +23,7 @@ impl Plugin for UiPlugin {
 fn panels(
     mut contexts: EguiContexts,
     // The timeline reads the character, the library writes its pose: one at a time.
-    mut panels: ParamSet<(TimelinePanel, LibraryPanel, BodyPanel)>,
+    mut panels: ParamSet<(TimelinePanel, LibraryPanel, BodyPanel, ClipPanel)>,
     mut history: MessageWriter<HistoryCommand>,
 ) -> Result {
     let ctx = contexts.ctx_mut()?.clone();
@@ -53,6 +54,9 @@ fn panels(
             ui.separator();
             ui.heading("Poses");
             library_ui(ui, &mut panels.p1());
+            ui.separator();
+            ui.heading("Clip from a file");
+            clip_ui(ui, &mut panels.p3());
         });
     Ok(())
 }
