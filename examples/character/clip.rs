@@ -2,16 +2,20 @@
 //! retargeted onto the character by the library's `RetargetPlugin` (feet kept planted and on
 //! the ground) and played by the character's own `AnimationPlayer`, looping: named by
 //! `--clip PATH` or in the panel's "Clip from a file" section (a path, the animation's name,
-//! a chain map). The HUD says how the retarget went. Each foot shows its contact while the
+//! a chain map). The HUD says how the retarget went. Each foot shows its contacts while the
 //! clip plays: a green ring round the character's foot joint while the source's foot is
-//! planted (where the bake holds it), a grey one while it swings; **K** bakes the clip again
-//! with contacts off (the joint rotations carried over alone) or back on, to compare.
+//! planted (where the bake holds it), a grey one while it swings; a white cross on the ground
+//! under the character's sole while it stands on it, red while it is below. **K** bakes the
+//! clip again with contacts off (the joint rotations carried over alone) or back on, to
+//! compare.
 
 use bevy::ecs::system::SystemParam;
 use bevy::prelude::*;
 use bevy::transform::TransformSystems;
 use bevy_egui::egui;
+use bevy_wii_deform::pose::sole_patch;
 use bevy_wii_deform::prelude::*;
+use glam::DVec3;
 
 use super::Args;
 use super::scene::Character;
@@ -23,15 +27,10 @@ impl Plugin for ClipFromFilePlugin {
     fn build(&self, app: &mut App) {
         app.add_plugins(RetargetPlugin)
             .init_resource::<ClipForm>()
-            .add_systems(
-                Update,
-                (
-                    ask_for_the_clip,
-                    play_the_clip,
-                    toggle_contacts,
-                    draw_contacts.after(TransformSystems::Propagate),
-                ),
-            );
+            .add_systems(Update, (ask_for_the_clip, play_the_clip, toggle_contacts))
+            // The clip moves the joints in PostUpdate: read them once it has, and they are
+            // propagated, or the marks trail the feet by a frame.
+            .add_systems(PostUpdate, draw_contacts.after(TransformSystems::Propagate));
     }
 }
 
@@ -181,9 +180,22 @@ fn toggle_contacts(keys: Res<ButtonInput<KeyCode>>, mut retargets: Query<&mut Re
     }
 }
 
-/// A ring round each foot joint of the character while its retarget plays: green while the source's
-/// foot is planted at the clip's time (orange with contacts off: the bake does not hold it
-/// then), grey while it swings; 4 % of the character's size across.
+/// What the contacts display keeps of a character: its size, its ground's height (its lowest
+/// skin vertex in the pose it was first seen in, where the bake's ground is) and each foot's
+/// sole (welded vertices, by the feet of its retarget status).
+struct ContactsView {
+    size: f64,
+    ground: f64,
+    soles: Vec<Vec<u32>>,
+}
+
+/// The source's and the target's contacts while the character's retarget plays.
+///
+/// * The source's: a ring round each foot joint, green while the source's foot is planted at
+///   the clip's time (orange with contacts off: the bake does not hold it then), grey while it
+///   swings; 4 % of the character's size across.
+/// * The target's: a cross on the ground under each foot whose sole is on it (within 0.5 % of
+///   the size), red where the sole is below it by more.
 fn draw_contacts(
     characters: Query<
         (
@@ -196,8 +208,8 @@ fn draw_contacts(
         With<Character>,
     >,
     players: Query<&AnimationPlayer>,
-    joints: Query<&GlobalTransform>,
-    mut sizes: Local<std::collections::HashMap<Entity, f32>>,
+    joints: Query<(&GlobalTransform, &Transform)>,
+    mut views: Local<std::collections::HashMap<Entity, ContactsView>>,
     mut gizmos: Gizmos,
 ) {
     let Some(time) = players
@@ -208,13 +220,15 @@ fn draw_contacts(
     };
     let flat = Quat::from_rotation_x(-std::f32::consts::FRAC_PI_2);
     for (entity, status, retarget, posed, root) in &characters {
-        // The model's size is a pass over its vertices: once per character.
-        let model_size = *sizes
+        // Sizes, soles and the ground are passes over the vertices: once per character.
+        let view = views
             .entry(entity)
-            .or_insert_with(|| posed.model.topology().bounding_diagonal() as f32);
-        let size = model_size * root.scale().max_element();
-        for foot in &status.feet {
-            let Ok(at) = joints.get(foot.joint) else {
+            .or_insert_with(|| contacts_view(posed, status));
+        let scale = f64::from(root.scale().max_element());
+        let size = (view.size * scale) as f32;
+        let shown = posed.shown_pose(|j| joints.get(j).ok().map(|(_, local)| *local));
+        for (foot, sole) in status.feet.iter().zip(&view.soles) {
+            let Ok((at, _)) = joints.get(foot.joint) else {
                 continue;
             };
             let planted = foot.planted_at(time);
@@ -225,7 +239,51 @@ fn draw_contacts(
             };
             let radius = if planted { 0.04 } else { 0.025 } * size;
             gizmos.circle(Isometry3d::new(at.translation(), flat), radius, colour);
+            // The target's sole against the ground.
+            let skin = posed.to_world(posed.model.skin_vertices(&shown, sole));
+            let Some(lowest) = skin.iter().copied().min_by(|a, b| a.y.total_cmp(&b.y)) else {
+                continue;
+            };
+            let depth = (view.ground - lowest.y) / (view.size * scale).max(1e-12);
+            if depth < -0.005 {
+                continue;
+            }
+            let colour = if depth > 0.005 {
+                Color::srgb(0.95, 0.2, 0.2)
+            } else {
+                Color::WHITE
+            };
+            let on_ground = Vec3::new(lowest.x as f32, view.ground as f32, lowest.z as f32);
+            let arm = 0.015 * size;
+            gizmos.line(on_ground - Vec3::X * arm, on_ground + Vec3::X * arm, colour);
+            gizmos.line(on_ground - Vec3::Z * arm, on_ground + Vec3::Z * arm, colour);
         }
+    }
+}
+
+/// A character's [`ContactsView`], from its held pose.
+fn contacts_view(posed: &PosedSkeleton, status: &RetargetStatus) -> ContactsView {
+    let model = &posed.model;
+    let size = model.topology().bounding_diagonal();
+    let ground = posed
+        .skin_welded_world()
+        .iter()
+        .map(|p| p.y)
+        .fold(f64::INFINITY, f64::min);
+    let soles = status
+        .feet
+        .iter()
+        .map(|foot| {
+            let joint = posed.joints.iter().position(|&j| j == foot.joint);
+            joint.map_or_else(Vec::new, |j| {
+                sole_patch(model, &posed.pose, j, DVec3::NEG_Y, 0.01 * size)
+            })
+        })
+        .collect();
+    ContactsView {
+        size,
+        ground,
+        soles,
     }
 }
 

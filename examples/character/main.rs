@@ -30,7 +30,8 @@
 //! * **`--clip PATH [--animation NAME] [--map FILE]`**: a clip made for another skeleton (a
 //!   BVH, or another glTF character's animation) retargeted onto the character with its feet
 //!   kept planted (the library's `RetargetPlugin`) and played by its `AnimationPlayer`; a
-//!   ring round each foot shows the source's contacts, **K** bakes it again with contacts off
+//!   ring round each foot shows the source's contacts and a cross under each sole on the
+//!   ground the character's own, **K** bakes it again with contacts off
 //!   (or on) to compare. The panel's "Clip from a file" section does the same for a file
 //!   named there.
 //! * **`--remote [emulated[=KIND]]`**: a motion controller drives a handle on the head: hold
