@@ -15,7 +15,7 @@ use bevy_wii_deform::pose::{
     GroundPlane, PoseClip, PoseKey, SkeletonPose, read_bvh, read_gltf_clip, rotation_angle,
     write_bvh, write_gltf_clip,
 };
-use glam::DVec3;
+use glam::{DQuat, DVec3};
 
 use crate::fixtures::walk::{FRAME_TIME, walk};
 
@@ -64,10 +64,26 @@ fn frames(clip: &PoseClip) -> Vec<SkeletonPose> {
     clip.keys().iter().map(|k| k.pose.clone()).collect()
 }
 
+/// A clip on its own skeleton comes back unchanged — the hips turning about the vertical as a
+/// captured body's do (the walk's own hips face ahead), so the root's rotation is carried too.
+/// (A lean would move the feet off the rest's ground, and the bake grounds them.)
 #[test]
 fn a_clip_on_its_own_skeleton_comes_back_unchanged() {
     let rig = figure(FigureSpec::default());
-    let clip = mixamo_walk(&rig);
+    let hips = joint(&rig, "Hips");
+    let keys = mixamo_walk(&rig)
+        .keys()
+        .iter()
+        .map(|k| {
+            let mut key = k.clone();
+            let t = f64::from(k.time);
+            let turn = DQuat::from_rotation_y(0.6 * (2.0 * t).sin());
+            let local = &mut key.pose.local[hips].rotation;
+            *local = (turn * *local).normalize();
+            key
+        })
+        .collect();
+    let clip = PoseClip::from_keys(keys).unwrap();
     let off = RetargetSettings {
         contacts: false,
         ..RetargetSettings::default()
@@ -639,5 +655,50 @@ fn a_baked_clip_round_trips_through_gltf_and_its_source_through_bvh() {
             assert!(rotation_angle(x.rotation, y.rotation) < 1e-5);
             assert!((x.translation - y.translation).length() < 1e-5);
         }
+    }
+}
+
+/// The Fox's clips through the chain map the repository ships, onto the Fox itself with the
+/// contacts off: each comes back as it was — every mapped joint's rotation within 1e-6 rad.
+#[test]
+fn the_fox_s_clips_through_its_chain_map_come_back_unchanged() {
+    use bevy_wii_deform::pose::retarget::read_source_motion;
+    use bevy_wii_deform::pose::{GltfCharacter, ModelSettings};
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let file = root.join("assets/models/Fox.glb");
+    let fox = GltfCharacter::read(&file).unwrap();
+    let model = Arc::new(fox.model(ModelSettings::default()).unwrap());
+    let ron = std::fs::read_to_string(root.join("assets/retarget/fox.ron")).unwrap();
+    for name in ["Survey", "Walk", "Run"] {
+        let motion = read_source_motion(&file, Some(name)).unwrap();
+        let from = (&motion.skeleton, &motion.rest);
+        let map = SkeletonMap::from_ron(&ron, from, (&fox.skeleton, &fox.rest)).unwrap();
+        let unmapped = map.unmapped.clone();
+        let off = RetargetSettings {
+            contacts: false,
+            ..RetargetSettings::default()
+        };
+        let r = Retargeter::new(from, model.clone(), &fox.rest, map, off).unwrap();
+        let baked = r.bake(&motion.clip, &r.rest_ground()).unwrap();
+        let mut worst = (0.0f64, 0, 0.0f32);
+        for (a, b) in motion.clip.keys().iter().zip(baked.clip.keys()) {
+            for (j, (x, y)) in a.pose.local.iter().zip(&b.pose.local).enumerate() {
+                if unmapped.contains(&j) {
+                    continue;
+                }
+                let angle = rotation_angle(x.rotation, y.rotation);
+                if angle > worst.0 {
+                    worst = (angle, j, a.time);
+                }
+            }
+        }
+        assert!(
+            worst.0 < 1e-6,
+            "{name}: joint {} ({}) is {} rad off at {} s",
+            worst.1,
+            fox.skeleton.joints()[worst.1].name,
+            worst.0,
+            worst.2
+        );
     }
 }

@@ -197,6 +197,18 @@ impl PoseTransfer {
                 });
             }
         }
+        // The root (the hips) turns as the source's does, relative to each rest. It is in no
+        // chain (its bones go to the spine, each thigh, a tail: no one direction to re-aim),
+        // and a root left at rest would hold the whole body at the rest's attitude.
+        let (root_s, root_t) = map.root;
+        if follow[root_t].is_none() {
+            follow[root_t] = Some(Follow {
+                a: root_s,
+                b: root_s,
+                w: 0.0,
+                correction: DQuat::IDENTITY,
+            });
+        }
         let (up_s, up_t) = (
             map.axes[0].0.normalize_or(DVec3::Y),
             map.axes[1].0.normalize_or(DVec3::Y),
