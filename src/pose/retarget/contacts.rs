@@ -15,14 +15,14 @@
 //! each stance foot slides back under it, as on a treadmill) have no still foot. Their ground
 //! moves: its velocity, the *treadmill*, is the velocity most of the low feet share — among
 //! the (foot, frame) pairs within the height threshold, the velocity with the most others
-//! within the speed threshold of it, their median (axis by axis). A clip that travels over a still
-//! ground has its stance feet at rest, so that velocity is zero (and one within the speed
-//! threshold of zero is taken as zero). Under a clip made in place a low foot is planted
+//! within the speed threshold of it, their median (axis by axis). A clip that travels over a
+//! still ground has its stance feet at rest, so that velocity is zero (and one within the
+//! speed threshold of zero is taken as zero). Under a clip made in place a low foot is planted
 //! while it moves back with the ground at a quarter of its speed or more, and across it
 //! within the speed threshold: artists' stance feet slide unevenly under the body (the
 //! Fox's Walk from 0.3 to 2.5 times the mean speed), so a speed band about the mean would cut
 //! stances in pieces; a low foot moving forward is landing or lifting off. The target's held
-//! feet move with the ground at its mean speed.
+//! feet move with the ground at that one velocity, an even pace.
 
 use glam::DVec3;
 
