@@ -8,7 +8,8 @@
 use std::sync::Arc;
 
 use bevy_wii_deform::pose::retarget::{
-    RetargetError, RetargetSettings, Retargeter, SkeletonMap, SourceContacts, Which,
+    RetargetError, RetargetQuality, RetargetSettings, Retargeter, SkeletonMap, SourceContacts,
+    Which,
 };
 use bevy_wii_deform::pose::rig::synth_rig::{FigureNames, FigureSpec, SyntheticRig, figure_rig};
 use bevy_wii_deform::pose::{
@@ -54,6 +55,43 @@ fn retargeter(
         settings,
     )
     .unwrap()
+}
+
+/// The Unreal-named figure with legs 30 % longer than the default's (thighs ×1.5, shins
+/// ×1.1).
+fn longer_legs() -> SyntheticRig {
+    let base = FigureSpec::default();
+    figure(FigureSpec {
+        thigh: base.thigh * 1.5,
+        shin: base.shin * 1.1,
+        names: FigureNames::Unreal,
+        ..base
+    })
+}
+
+/// How well `clip` carries over from `source` onto `target` on `ground` with the contacts
+/// off (the joint rotations carried over alone).
+fn quality_without_contacts(
+    source: &SyntheticRig,
+    target: &SyntheticRig,
+    clip: &PoseClip,
+    ground: &GroundPlane,
+) -> RetargetQuality {
+    let without = retargeter(
+        source,
+        target,
+        RetargetSettings {
+            contacts: false,
+            ..RetargetSettings::default()
+        },
+    );
+    let bare = without.bake(clip, ground).unwrap();
+    without.quality(
+        &frames(clip),
+        &frames(&bare.clip),
+        &bare.source_contacts,
+        ground,
+    )
 }
 
 fn size_of(rig: &SyntheticRig) -> f64 {
@@ -160,13 +198,7 @@ fn a_horizontal_arm_of_a_t_pose_source_is_horizontal_on_an_a_pose_target() {
 #[test]
 fn planted_feet_stay_put_on_longer_legs_only_with_the_contacts() {
     let source = figure(FigureSpec::default());
-    let base = FigureSpec::default();
-    let target = figure(FigureSpec {
-        thigh: base.thigh * 1.5,
-        shin: base.shin * 1.1,
-        names: FigureNames::Unreal,
-        ..base
-    });
+    let target = longer_legs();
     let clip = mixamo_walk(&source);
     let with = retargeter(&source, &target, RetargetSettings::default());
     let ground = with.rest_ground();
@@ -185,21 +217,7 @@ fn planted_feet_stay_put_on_longer_legs_only_with_the_contacts() {
         &baked.source_contacts,
         &ground,
     );
-    let without = retargeter(
-        &source,
-        &target,
-        RetargetSettings {
-            contacts: false,
-            ..RetargetSettings::default()
-        },
-    );
-    let bare = without.bake(&clip, &ground).unwrap();
-    let q0 = without.quality(
-        &frames(&clip),
-        &frames(&bare.clip),
-        &bare.source_contacts,
-        &ground,
-    );
+    let q0 = quality_without_contacts(&source, &target, &clip, &ground);
     eprintln!("with contacts {q:?}\nwithout {q0:?}");
     assert!(
         q.foot_slide_max <= 2e-3,
@@ -254,13 +272,7 @@ fn planted_feet_stay_put_on_longer_legs_only_with_the_contacts() {
 #[test]
 fn carried_over_onto_longer_legs_the_lowest_foot_keeps_its_height() {
     let source = figure(FigureSpec::default());
-    let base = FigureSpec::default();
-    let target = figure(FigureSpec {
-        thigh: base.thigh * 1.5,
-        shin: base.shin * 1.1,
-        names: FigureNames::Unreal,
-        ..base
-    });
+    let target = longer_legs();
     let clip = mixamo_walk(&source);
     let retargeter = retargeter(&source, &target, RetargetSettings::default());
     let transfer = retargeter.transfer();
@@ -295,13 +307,7 @@ fn carried_over_onto_longer_legs_the_lowest_foot_keeps_its_height() {
 #[test]
 fn a_live_source_retargeted_frame_by_frame_keeps_its_feet_planted() {
     let source = figure(FigureSpec::default());
-    let base = FigureSpec::default();
-    let target = figure(FigureSpec {
-        thigh: base.thigh * 1.5,
-        shin: base.shin * 1.1,
-        names: FigureNames::Unreal,
-        ..base
-    });
+    let target = longer_legs();
     let clip = mixamo_walk(&source);
     let retargeter = retargeter(&source, &target, RetargetSettings::default());
     let ground = retargeter.rest_ground();
@@ -405,13 +411,7 @@ fn made_in_place(rig: &SyntheticRig, clip: &PoseClip) -> (PoseClip, DVec3) {
 #[test]
 fn a_walk_made_in_place_keeps_its_feet_moving_with_the_ground() {
     let source = figure(FigureSpec::default());
-    let base = FigureSpec::default();
-    let target = figure(FigureSpec {
-        thigh: base.thigh * 1.5,
-        shin: base.shin * 1.1,
-        names: FigureNames::Unreal,
-        ..base
-    });
+    let target = longer_legs();
     let travelling = mixamo_walk(&source);
     let (clip, velocity) = made_in_place(&source, &travelling);
     let with = retargeter(&source, &target, RetargetSettings::default());
@@ -441,21 +441,7 @@ fn a_walk_made_in_place_keeps_its_feet_moving_with_the_ground() {
     );
     assert_eq!(baked.failed_solves, 0);
     let q = with.quality(&frames(&clip), &frames(&baked.clip), contacts, &ground);
-    let without = retargeter(
-        &source,
-        &target,
-        RetargetSettings {
-            contacts: false,
-            ..RetargetSettings::default()
-        },
-    );
-    let bare = without.bake(&clip, &ground).unwrap();
-    let q0 = without.quality(
-        &frames(&clip),
-        &frames(&bare.clip),
-        &bare.source_contacts,
-        &ground,
-    );
+    let q0 = quality_without_contacts(&source, &target, &clip, &ground);
     eprintln!("in place, with contacts {q:?}\nwithout {q0:?}");
     assert!(
         q.foot_slide_max <= 2e-3,

@@ -207,7 +207,7 @@ fn shared_velocity(velocities: &[DVec3], tolerance: f64) -> DVec3 {
         .step_by(stride)
         .map(|&c| (near(c).count(), c))
         .max_by(|a, b| a.0.cmp(&b.0).then(b.1.length().total_cmp(&a.1.length())));
-    let Some((count, candidate)) = best.filter(|(count, _)| *count > 0) else {
+    let Some((_, candidate)) = best.filter(|(count, _)| *count > 0) else {
         return DVec3::ZERO;
     };
     // Their median, axis by axis: the frames where a foot starts to lift or land are near the
@@ -219,7 +219,6 @@ fn shared_velocity(velocities: &[DVec3], tolerance: f64) -> DVec3 {
         *values.select_nth_unstable_by(middle, f64::total_cmp).1
     };
     let shared = DVec3::new(median(|v| v.x), median(|v| v.y), median(|v| v.z));
-    debug_assert_eq!(inliers.len(), count);
     if shared.length() <= tolerance || !shared.is_finite() {
         DVec3::ZERO
     } else {

@@ -38,7 +38,6 @@ pub struct LiveRetarget<'a> {
     transfer: PoseTransfer,
     up: DVec3,
     leg: f64,
-    ground_height: f64,
     previous: Option<(f64, Vec<DVec3>)>,
     planted: Vec<bool>,
     holds: Vec<Option<DVec3>>,
@@ -51,22 +50,9 @@ impl Retargeter {
         let transfer = self.transfer().clone();
         let map = transfer.map();
         let up = map.axes[0].0.normalize_or(DVec3::Y);
-        let source = transfer.source();
-        let rest = self.source_rest();
-        let g = source.global_transforms(rest);
-        let ground_height = map
-            .feet
-            .iter()
-            .map(|f| g[f.0].translation.dot(up))
-            .fold(f64::INFINITY, f64::min);
         let feet = map.feet.len();
         LiveRetarget {
-            leg: source_leg(source, rest, map),
-            ground_height: if ground_height.is_finite() {
-                ground_height
-            } else {
-                0.0
-            },
+            leg: source_leg(transfer.source(), self.source_rest(), map),
             up,
             transfer,
             previous: None,
@@ -82,10 +68,7 @@ impl LiveRetarget<'_> {
     /// Sets the height (along the source's up) of the source's ground: its feet's joints when
     /// planted. The target's feet stand on its ground when the source's are this high.
     pub fn set_source_ground(&mut self, height: f64) {
-        if height.is_finite() {
-            self.ground_height = height;
-            self.transfer.set_source_foot_height(height);
-        }
+        self.transfer.set_source_foot_height(height);
     }
 
     /// Forgets the holds, the previous frame and the last solve (a cut in the stream).
@@ -118,6 +101,9 @@ impl LiveRetarget<'_> {
             .map(|f| g[f.0].translation)
             .collect();
         let thresholds = self.retargeter.settings().thresholds;
+        // The rest's lowest foot unless set (the transfer stands the target's feet on its
+        // ground when the source's are this high).
+        let ground_height = self.transfer.source_foot_height();
         let dt = self
             .previous
             .as_ref()
@@ -127,7 +113,7 @@ impl LiveRetarget<'_> {
             .iter()
             .enumerate()
             .map(|(k, &at)| {
-                let low = at.dot(up) - self.ground_height <= thresholds.height * self.leg;
+                let low = at.dot(up) - ground_height <= thresholds.height * self.leg;
                 let slow = match (dt, &self.previous) {
                     (Some(dt), Some((_, before))) => {
                         let moved = at - before[k];

@@ -114,6 +114,19 @@ fn bone_direction(
     (globals[to].translation - globals[j].translation).try_normalize()
 }
 
+/// The height along `up` of the lowest of the map's feet in `globals`: the source's feet
+/// (`side` 0) or the target's (1). Infinite when the map has no feet.
+fn lowest_foot(map: &SkeletonMap, globals: &[DAffine3], up: DVec3, side: usize) -> f64 {
+    map.feet
+        .iter()
+        .map(|f| {
+            globals[if side == 0 { f.0 } else { f.1 }]
+                .translation
+                .dot(up)
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
 /// The length of the legs: the mean over the feet of the chain from its first joint to the foot.
 fn leg_length(map: &SkeletonMap, globals: &[DAffine3], which: usize) -> Option<f64> {
     let lengths: Vec<f64> = map
@@ -213,16 +226,6 @@ impl PoseTransfer {
             map.axes[0].0.normalize_or(DVec3::Y),
             map.axes[1].0.normalize_or(DVec3::Y),
         );
-        let lowest_foot = |globals: &[DAffine3], up: DVec3, which: usize| {
-            map.feet
-                .iter()
-                .map(|f| {
-                    globals[if which == 0 { f.0 } else { f.1 }]
-                        .translation
-                        .dot(up)
-                })
-                .fold(f64::INFINITY, f64::min)
-        };
         let (ls, lt) = (leg_length(&map, &sg, 0), leg_length(&map, &tg, 1));
         let hips_height = |g: &[DAffine3], root: usize, up: DVec3| {
             let lowest = g
@@ -240,14 +243,14 @@ impl PoseTransfer {
                 .map(|x| x.translation.dot(up_s))
                 .fold(f64::INFINITY, f64::min)
         } else {
-            lowest_foot(&sg, up_s, 0)
+            lowest_foot(&map, &sg, up_s, 0)
         };
         let target_foot_height = if map.feet.is_empty() {
             tg.iter()
                 .map(|x| x.translation.dot(up_t))
                 .fold(f64::INFINITY, f64::min)
         } else {
-            lowest_foot(&tg, up_t, 1)
+            lowest_foot(&map, &tg, up_t, 1)
         };
         Self {
             source_rest_rotations: world_rotations(&sg),
@@ -314,6 +317,12 @@ impl PoseTransfer {
         if height.is_finite() {
             self.source_foot_height = height;
         }
+    }
+
+    /// The source's foot height over its ground (along its up): see
+    /// [`PoseTransfer::set_source_foot_height`].
+    pub fn source_foot_height(&self) -> f64 {
+        self.source_foot_height
     }
 
     /// The source skeleton.
@@ -384,17 +393,10 @@ impl PoseTransfer {
             // The root's height scaled by the legs is right only for legs hanging straight
             // below it; lift the body so the lowest foot is as high over the ground as the
             // source's, scaled.
-            let lowest = |g: &[DAffine3], up: DVec3, side: usize| {
-                self.map
-                    .feet
-                    .iter()
-                    .map(|f| g[if side == 0 { f.0 } else { f.1 }].translation.dot(up))
-                    .fold(f64::INFINITY, f64::min)
-            };
             let placed = self.target.global_transforms(&pose);
             let wanted = self.target_foot_height
-                + (lowest(&sg, up_s, 0) - self.source_foot_height) * self.leg_ratio;
-            let lift = wanted - lowest(&placed, up_t, 1);
+                + (lowest_foot(&self.map, &sg, up_s, 0) - self.source_foot_height) * self.leg_ratio;
+            let lift = wanted - lowest_foot(&self.map, &placed, up_t, 1);
             let local = parent_global
                 .inverse()
                 .transform_point3(world_root + up_t * lift);
