@@ -4,10 +4,24 @@
 //! Why not the async compute pool: on a machine with few cores, a build spawned there woke a
 //! pool thread that took a core from the frame's own systems, and the main thread's time in
 //! the frame it started went from 0.2 to 2.5–4.8 ms (`plugin_bench --collider`). The builder
-//! thread is already running (no wake of a sleeping pool), and on Linux it runs at the
-//! lowest CPU priority (nice 19), so the frame's threads preempt it rather than the other
-//! way round. Where threads cannot be made (the web) the build runs where it is asked for.
+//! thread is already running (no wake of a sleeping pool), and on Linux it is in the idle
+//! scheduling class (`SCHED_IDLE`; nice 19 where that is refused).
+//!
+//! A low priority is not enough on its own. Kernels that preempt lazily (`PREEMPT_NONE` or
+//! `PREEMPT_LAZY`, as on many servers, VMs and newer distributions) let a running thread keep
+//! its core until the next scheduler tick, 4 ms at 250 Hz, even when a thread of the frame
+//! wakes for it; a 3 ms triangle-mesh build held the frame up for its whole length. So the
+//! builder's work comes in short pieces:
+//! - **a bent triangle mesh is refitted, not rebuilt**: when the collider it replaces is a
+//!   triangle mesh of the same triangles over as many vertices (a bend moves vertices and keeps
+//!   the topology), its copy gets the new positions and its bounding-volume tree is refitted
+//!   in place (the tree keeps the structure it was built with for the first shape), a tenth of
+//!   a build;
+//! - the thread yields its core between the pieces of a job.
+//!
+//! Where threads cannot be made (the web) the build runs where it is asked for.
 
+use avian3d::parry::shape::SharedShape;
 use avian3d::prelude::*;
 use bevy::prelude::*;
 use crossbeam_channel::{Receiver, Sender};
@@ -24,6 +38,9 @@ enum Job {
         shape: ColliderShape,
         positions: Vec<Vec3>,
         triangles: Vec<[u32; 3]>,
+        /// The collider this one will replace: a triangle mesh of the same triangles is
+        /// refitted instead of built.
+        previous: Option<Collider>,
         reply: Sender<BuildResult>,
     },
     /// Free a replaced collider (a large triangle mesh takes milliseconds to free).
@@ -38,19 +55,21 @@ pub(crate) struct ColliderBuilder {
 }
 
 impl ColliderBuilder {
-    /// Builds a `shape` collider over the mesh in the background; its result arrives on the
-    /// returned channel.
+    /// Builds a `shape` collider over the mesh in the background (refitting `previous`, the
+    /// collider it will replace, when that is a triangle mesh of the same triangles); its
+    /// result arrives on the returned channel.
     pub(crate) fn build(
         &mut self,
         shape: ColliderShape,
-        positions: Vec<Vec3>,
-        triangles: Vec<[u32; 3]>,
+        (positions, triangles): (Vec<Vec3>, Vec<[u32; 3]>),
+        previous: Option<Collider>,
     ) -> Receiver<BuildResult> {
         let (reply, result) = crossbeam_channel::bounded(1);
         self.send(Job::Build {
             shape,
             positions,
             triangles,
+            previous,
             reply,
         });
         result
@@ -101,14 +120,18 @@ fn spawn_thread() -> Option<Sender<Job>> {
     Some(jobs)
 }
 
-/// The calling thread at the lowest CPU priority (Linux, where a thread has its own nice
-/// value; elsewhere `setpriority` would lower the whole process, so it is left alone).
+/// The calling thread at the lowest CPU priority: on Linux the idle scheduling class
+/// (`SCHED_IDLE`: it runs on a core nothing else wants), or nice 19 where that is refused.
+/// Elsewhere `setpriority` would lower the whole process, so it is left alone.
 fn lower_priority() {
     #[cfg(target_os = "linux")]
-    // SAFETY: `setpriority` with `PRIO_PROCESS` and id 0 only changes the calling thread's
-    // nice value on Linux; it reads and writes no memory of ours.
+    // SAFETY: `sched_setscheduler` and `setpriority` with id 0 only change the calling
+    // thread's scheduling on Linux; the parameter is a local the call only reads.
     unsafe {
-        libc::setpriority(libc::PRIO_PROCESS, 0, 19);
+        let idle = libc::sched_param { sched_priority: 0 };
+        if libc::sched_setscheduler(0, libc::SCHED_IDLE, &idle) != 0 {
+            libc::setpriority(libc::PRIO_PROCESS, 0, 19);
+        }
     }
 }
 
@@ -119,16 +142,25 @@ fn run(job: Job) {
             shape,
             positions,
             triangles,
+            previous,
             reply,
         } => {
-            let _ = reply.send(build(shape, positions, triangles));
+            let _ = reply.send(build(shape, positions, triangles, previous));
         }
         Job::Free(collider) => drop(collider),
     }
 }
 
-/// The collider of `shape` over the bent mesh; a readable reason when it cannot be built.
-fn build(shape: ColliderShape, positions: Vec<Vec3>, triangles: Vec<[u32; 3]>) -> BuildResult {
+/// The collider of `shape` over the bent mesh (`previous` refitted when it is a triangle mesh
+/// of the same triangles over as many vertices); a readable reason when it cannot be built.
+/// The mesh's vertices are kept as they are (seam copies too), so that the next bend of the
+/// same mesh finds the same vertex list to refit.
+fn build(
+    shape: ColliderShape,
+    positions: Vec<Vec3>,
+    triangles: Vec<[u32; 3]>,
+    previous: Option<Collider>,
+) -> BuildResult {
     if !positions.iter().all(|p| p.is_finite()) {
         return Err("the bent mesh has non-finite positions".into());
     }
@@ -137,12 +169,21 @@ fn build(shape: ColliderShape, positions: Vec<Vec3>, triangles: Vec<[u32; 3]>) -
             if triangles.is_empty() {
                 return Err("the mesh has no triangles".into());
             }
-            Collider::try_trimesh_with_config(
-                positions,
-                triangles,
-                TrimeshFlags::MERGE_DUPLICATE_VERTICES,
-            )
-            .map_err(|e| format!("no triangle mesh collider: {e:?}"))
+            let refittable = previous
+                .as_ref()
+                .and_then(|c| c.shape().as_trimesh())
+                .filter(|mesh| {
+                    mesh.vertices().len() == positions.len() && mesh.indices() == triangles
+                });
+            if let Some(mesh) = refittable {
+                let mut mesh = mesh.clone();
+                drop(previous);
+                std::thread::yield_now();
+                mesh.set_vertices(&positions);
+                return Ok(Collider::from(SharedShape::new(mesh)));
+            }
+            Collider::try_trimesh_with_config(positions, triangles, TrimeshFlags::empty())
+                .map_err(|e| format!("no triangle mesh collider: {e:?}"))
         }
         ColliderShape::ConvexHull => Collider::convex_hull(&positions)
             .ok_or_else(|| "no convex hull (the vertices are flat or too few)".to_string()),
@@ -165,16 +206,80 @@ mod tests {
         };
         let square = vec![Vec3::ZERO, Vec3::X, Vec3::Z, Vec3::X + Vec3::Z];
         let triangles = vec![[0, 1, 2], [1, 3, 2]];
-        let first = builder.build(ColliderShape::Trimesh, square.clone(), triangles.clone());
+        let first = builder.build(
+            ColliderShape::Trimesh,
+            (square.clone(), triangles.clone()),
+            None,
+        );
         let collider = wait(first).expect("a collider of two triangles");
         builder.free(collider);
         let mut bent = square;
         bent[3].y = f32::NAN;
-        let error = wait(builder.build(ColliderShape::Trimesh, bent, triangles))
+        let error = wait(builder.build(ColliderShape::Trimesh, (bent, triangles), None))
             .expect_err("a non-finite position");
         assert!(error.contains("non-finite"), "{error}");
-        let empty = wait(builder.build(ColliderShape::Trimesh, vec![Vec3::ZERO], Vec::new()));
+        let empty =
+            wait(builder.build(ColliderShape::Trimesh, (vec![Vec3::ZERO], Vec::new()), None));
         assert!(empty.is_err());
         assert!(builder.jobs.is_some(), "the thread serves every job");
+    }
+
+    /// A bent triangle mesh with the same triangles as the collider it replaces is that
+    /// collider refitted: the new shape has the bent vertices, a tree that bounds them (a ray
+    /// finds the moved triangle where it moved to, and no longer where it was), and the old
+    /// shape is untouched. Other triangles, or another vertex count, are built anew.
+    #[test]
+    fn a_bend_of_the_same_triangles_is_the_previous_mesh_refitted() {
+        let square = vec![Vec3::ZERO, Vec3::X, Vec3::Z, Vec3::X + Vec3::Z];
+        let triangles = vec![[0, 1, 2], [1, 3, 2]];
+        let flat = build(
+            ColliderShape::Trimesh,
+            square.clone(),
+            triangles.clone(),
+            None,
+        )
+        .expect("a flat square");
+        let lifted: Vec<Vec3> = square.iter().map(|p| *p + Vec3::Y * 2.0).collect();
+        let refitted = build(
+            ColliderShape::Trimesh,
+            lifted.clone(),
+            triangles.clone(),
+            Some(flat.clone()),
+        )
+        .expect("the square lifted");
+        let mesh = refitted.shape().as_trimesh().expect("a triangle mesh");
+        assert_eq!(mesh.vertices(), lifted.as_slice());
+        assert_eq!(mesh.indices(), triangles.as_slice());
+        let down = |from: Vec3| avian3d::parry::query::Ray::new(from, Vec3::NEG_Y);
+        use avian3d::parry::query::RayCast;
+        let hit = |mesh: &avian3d::parry::shape::TriMesh, from: Vec3| {
+            mesh.cast_local_ray(&down(from), 10.0, false)
+        };
+        let above = Vec3::new(0.4, 5.0, 0.4);
+        assert!(
+            (hit(mesh, above).expect("the lifted square is under the ray") - 3.0).abs() < 1e-5,
+            "the tree bounds the lifted triangles"
+        );
+        let between = Vec3::new(0.4, 1.0, 0.4);
+        assert_eq!(
+            hit(mesh, between),
+            None,
+            "nothing is left where the square was"
+        );
+        let old = flat.shape().as_trimesh().unwrap();
+        assert_eq!(
+            old.vertices(),
+            square.as_slice(),
+            "the replaced shape is untouched"
+        );
+        // Fewer vertices (the last one dropped, a triangle too): built, not refitted.
+        let smaller = build(
+            ColliderShape::Trimesh,
+            lifted[..3].to_vec(),
+            vec![[0, 1, 2]],
+            Some(flat),
+        )
+        .expect("one triangle");
+        assert_eq!(smaller.shape().as_trimesh().unwrap().num_triangles(), 1);
     }
 }

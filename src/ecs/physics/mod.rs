@@ -3,13 +3,16 @@
 //! | file | what it answers |
 //! |---|---|
 //! | `mod.rs` | the types and docs of this folder (above) |
-//! | `builder.rs` | The collider builder: one long-lived background thread at the lowest priority that builds bent meshes' colliders and frees the ones they replace, handed its work over a channel. |
+//! | `builder.rs` | The collider builder: one long-lived background thread at the lowest priority that builds bent meshes' colliders (refitting the replaced triangle mesh when the triangles are the same) and frees the ones they replace, handed its work over a channel. |
 //! | `plugin.rs` | Systems of [`DeformPhysicsPlugin`]: collider rebuilds after settled solves, the colliders marked [`GroundMesh`] as the scene's ground, capsules on posed bones. |
 //!
 //! - [`DeformCollider`] on a [`Deformable`](crate::ecs::Deformable) rebuilds its Avian
 //!   [`Collider`] from the bent mesh after each settled solve: the shape is built on a
 //!   background thread of its own and swapped in when ready, so the main thread only copies
-//!   the mesh's positions. Avian cannot edit a triangle mesh in place; a new collider is the way.
+//!   the mesh's positions. Avian's triangle meshes are shared and read-only, so a bend gets a
+//!   new collider: a copy of the old triangle mesh with the bent positions and its tree refitted
+//!   when the triangles are the same (most bends), else one built anew. It replaces the old
+//!   one in place, and Avian picks up the changed collider in its next step.
 //! - [`GroundMesh`](crate::ecs::GroundMesh) entities with a [`Collider`] become the scene's ground
 //!   ([`SceneGround`](crate::ecs::SceneGround)) through Avian's ray casts against those
 //!   colliders, for characters with [`PoseGround`](crate::ecs::PoseGround) and meshes with

@@ -60,24 +60,26 @@ impl Plugin for DeformPhysicsPlugin {
     }
 }
 
+/// A [`DeformCollider`] mesh: what its collider build reads (its collider now is the one the
+/// build replaces).
+type BentMesh<'a> = (
+    Entity,
+    &'a DeformCollider,
+    &'a DeformStatus,
+    &'a DeformColliderStatus,
+    &'a Mesh3d,
+    Option<&'a Collider>,
+);
+
 /// Starts a background collider build for every [`DeformCollider`] mesh whose last solve has
 /// settled (its status idle) and is newer than its collider.
 fn start_collider_builds(
     mut commands: Commands,
     mut builder: ResMut<ColliderBuilder>,
     meshes: Res<Assets<Mesh>>,
-    bent: Query<
-        (
-            Entity,
-            &DeformCollider,
-            &DeformStatus,
-            &DeformColliderStatus,
-            &Mesh3d,
-        ),
-        Without<ColliderBuild>,
-    >,
+    bent: Query<BentMesh, Without<ColliderBuild>>,
 ) {
-    for (entity, wanted, status, built, mesh) in &bent {
+    for (entity, wanted, status, built, mesh, previous) in &bent {
         let settled = status.phase == DeformPhase::Idle && status.error.is_none();
         if !settled || status.solves == 0 || status.solves == built.built_from_solve {
             continue;
@@ -95,7 +97,7 @@ fn start_collider_builds(
                 i.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect()
             })
             .unwrap_or_default();
-        let result = builder.build(wanted.shape, positions, triangles);
+        let result = builder.build(wanted.shape, (positions, triangles), previous.cloned());
         commands.entity(entity).try_insert(ColliderBuild {
             result,
             solve: status.solves,
@@ -104,7 +106,10 @@ fn start_collider_builds(
 }
 
 /// Swaps finished colliders in (the old one stays when a build failed). The old shape is
-/// freed by the builder thread: a large triangle mesh takes milliseconds to free.
+/// taken out of the entity and handed to the builder thread, which then holds its last
+/// reference and frees it (a large triangle mesh takes milliseconds to free). The collider is
+/// replaced in place: Avian's systems pick up a changed collider (its scale, mass properties
+/// and bounding box) in the next physics step.
 fn swap_built_colliders(
     mut commands: Commands,
     mut builder: ResMut<ColliderBuilder>,
@@ -112,10 +117,10 @@ fn swap_built_colliders(
         Entity,
         &mut ColliderBuild,
         &mut DeformColliderStatus,
-        Option<&Collider>,
+        Option<&mut Collider>,
     )>,
 ) {
-    for (entity, build, mut status, old) in &mut builds {
+    for (entity, build, mut status, current) in &mut builds {
         let result = match build.result.try_recv() {
             Ok(result) => result,
             Err(TryRecvError::Empty) => continue,
@@ -127,10 +132,12 @@ fn swap_built_colliders(
         entity.try_remove::<ColliderBuild>();
         match result {
             Ok(collider) => {
-                if let Some(old) = old.cloned() {
-                    builder.free(old);
+                match current {
+                    Some(mut current) => builder.free(std::mem::replace(&mut *current, collider)),
+                    None => {
+                        entity.try_insert(collider);
+                    }
                 }
-                entity.try_insert(collider);
                 status.rebuilds += 1;
                 status.error = None;
             }
