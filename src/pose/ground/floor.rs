@@ -19,6 +19,11 @@
 //!
 //! The floor is built from the pose a solve starts from, so `band` has to cover the motion of
 //! a solve (a paw that starts far above and ends below is in it).
+//!
+//! What the coarse grid does not see: a vertex more than `near` above its coarse ground is
+//! kept above the coarse plane, which the grid's nodes alone make, so a ridge or rail
+//! narrower than `spacing` and taller than `near` between two nodes is not under it (a vertex
+//! can end inside it).
 
 use glam::DVec3;
 
