@@ -1169,3 +1169,93 @@ fn a_kneeling_body_keeps_its_knees_and_shins_out_of_the_floor() {
         "the knees and shins reach the floor: their lowest is {shins} of the size over it"
     );
 }
+
+/// The mannequin lowered onto a ridge a hundredth of its height wide — far narrower than the
+/// floor's grid of casts (6 % of its size), so no cast of the grid lands on it — that runs
+/// under its left foot, 0.02 of its height below the sole, with the rest of the ground 0.12
+/// below: its hips pulled 0.06 of its height down over 8 frames, the floor cast under the
+/// pose each frame starts from. No skin vertex ends more than 1e-3 of the size under the
+/// ground, because the mesh ground says how high it rises over each cell of the grid and the
+/// vertices near that get a cast of their own. The same ground seen only through its casts
+/// (a closure, which cannot say) lets the foot into the ridge (the test says so, so it can
+/// fail).
+#[test]
+fn a_foot_lowered_onto_a_ridge_between_the_floors_casts_stays_on_it() {
+    let s = scene();
+    let rest = s.skinned(&s.rig.rest);
+    let sole_x = s.sole.iter().map(|&v| rest[v as usize].x).sum::<f64>() / s.sole.len() as f64;
+    let (half, width) = (2.0 * s.size, 0.01 * s.size);
+    let (base, top) = (s.lowest - 0.12 * s.size, s.lowest - 0.02 * s.size);
+    let p = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
+    let (a, b) = (sole_x - width / 2.0, sole_x + width / 2.0);
+    let ground = TriangleGround::new(
+        vec![
+            p(-half, base, -half),
+            p(half, base, -half),
+            p(half, base, half),
+            p(-half, base, half),
+            p(a, top, -half),
+            p(b, top, -half),
+            p(b, top, half),
+            p(a, top, half),
+        ],
+        vec![[0, 2, 1], [0, 3, 2], [4, 6, 5], [4, 7, 6]],
+        DVec3::NEG_Y,
+    );
+    let casts_only = |from: DVec3, down: DVec3, max: f64| ground.cast_down(from, down, max);
+    let sampling = FloorSampling::for_size(s.size, 0.3, DVec3::NEG_Y);
+    let hips = joint_positions(&s.rig.skeleton, &s.rig.rest)[HIPS];
+    let lower = |seen_by: &dyn Ground| {
+        let mut last: Option<PoseSolution> = None;
+        for frame in 1..=8 {
+            let now = last.as_ref().map_or(&s.rig.rest, |l| &l.pose);
+            let down = 0.06 * s.size * frame as f64 / 8.0;
+            let constraints = PoseConstraints {
+                effectors: vec![Effector {
+                    joint: HIPS,
+                    goal: EffectorGoal::Position(hips - DVec3::Y * down),
+                    weight: 1.0,
+                }],
+                floor: Some(Floor::cast(&s.skinned(now), seen_by, &sampling).0),
+                ..Default::default()
+            };
+            let start = match &last {
+                Some(l) => PoseStart::Warm(l),
+                None => PoseStart::Pose(&s.rig.rest),
+            };
+            last = Some(s.solve(&constraints, start, 20).unwrap());
+        }
+        last.unwrap().pose
+    };
+    // The deepest skin vertex under the ground right under it, over the size.
+    let deepest = |pose: &SkeletonPose| {
+        s.skinned(pose)
+            .iter()
+            .filter_map(|q| {
+                let hit = ground.cast_down(*q + DVec3::Y * s.size, DVec3::NEG_Y, 4.0 * s.size)?;
+                Some((q.y - hit.point.y) / s.size)
+            })
+            .fold(f64::INFINITY, f64::min)
+    };
+    let unseen = deepest(&lower(&casts_only));
+    assert!(
+        unseen < -5e-3,
+        "seen by its casts alone, the ridge lets the foot in: {unseen}"
+    );
+    let seen = lower(&ground);
+    let deepest_seen = deepest(&seen);
+    assert!(
+        deepest_seen >= -1e-3,
+        "a vertex is {deepest_seen} of the size under the ridge"
+    );
+    // The foot does stand on the ridge: the sole's lowest vertex is near its top.
+    let sole_lowest = s
+        .sole_at(&seen)
+        .iter()
+        .map(|q| (q.y - top) / s.size)
+        .fold(f64::INFINITY, f64::min);
+    assert!(
+        sole_lowest < 0.01,
+        "the sole rests on the ridge: {sole_lowest} of the size over it"
+    );
+}

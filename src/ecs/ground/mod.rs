@@ -68,6 +68,12 @@ impl SceneGround {
     pub fn cast_down(&self, from: DVec3, down: DVec3, max: f64) -> Option<GroundPlane> {
         self.source.cast_down(from, down, max)
     }
+
+    /// How high the ground rises within `radius` of `centre` across `down` (world space,
+    /// [`Ground::highest_within`]); `None` when it cannot say.
+    pub fn highest_within(&self, centre: DVec3, radius: f64, down: DVec3) -> Option<f64> {
+        self.source.highest_within(centre, radius, down)
+    }
 }
 
 impl std::fmt::Debug for SceneGround {

@@ -15,15 +15,20 @@
 //!    step's edge the upper level wins: the floor errs on the side of lifting);
 //! 3. a vertex within `band` of its coarse ground is in the floor; within `near` of it, the
 //!    ground right under it is cast (one ray each: the exact triangle, the step's own edge),
-//!    and the coarse plane is its fallback when that cast misses.
+//!    and the coarse plane is its fallback when that cast misses;
+//! 4. a vertex further up is cast under too when the ground rises somewhere over its cell more
+//!    than `near` above the coarse ground and to within `near` of the vertex
+//!    ([`Ground::highest_within`]: a ridge or a rail between two nodes, a step's edge), and is
+//!    in the floor if that ground is within `band`.
 //!
 //! The floor is built from the pose a solve starts from, so `band` has to cover the motion of
 //! a solve (a paw that starts far above and ends below is in it).
 //!
-//! What the coarse grid does not see: a vertex more than `near` above its coarse ground is
-//! kept above the coarse plane, which the grid's nodes alone make, so a ridge or rail
-//! narrower than `spacing` and taller than `near` between two nodes is not under it (a vertex
-//! can end inside it).
+//! A ground that cannot bound its height over a cell (the default of
+//! [`Ground::highest_within`]: closures, custom grounds) is trusted at the nodes alone: a
+//! ridge or rail narrower than `spacing` and taller than `near` between two nodes is then not
+//! under a vertex more than `near` above the coarse ground (a vertex can end inside it).
+//! [`crate::pose::TriangleGround`] and the scene's ground of meshes bound it.
 
 use glam::DVec3;
 
@@ -109,6 +114,9 @@ impl Floor {
             .map(|k| cast(grid.node(k, top), 2.0 * sampling.band))
             .collect();
         stats.grid_casts = nodes.len();
+        // Per grid cell, asked when a vertex over it first needs it: how high the ground rises
+        // over the cell (`None`: the ground cannot say).
+        let mut rises: Vec<Option<Option<f64>>> = vec![None; grid.nodes()];
         let mut under = Vec::new();
         for (v, p) in positions.iter().enumerate() {
             if !p.is_finite() {
@@ -123,17 +131,34 @@ impl Floor {
                     (coarse, height) = (Some(plane), h);
                 }
             }
-            if coarse.is_some() && height >= sampling.band {
+            // Well above the coarse ground: unless the ground rises between the nodes more
+            // than `near` over the coarse ground (a ridge, a step's edge; lower rises are
+            // what `near` is for) and to within `near` of this vertex.
+            let far = coarse.is_some() && height >= sampling.near;
+            let rise_under = far && {
+                let (cell, centre) = grid.cell_of(*p);
+                let rise = *rises[cell]
+                    .get_or_insert_with(|| ground.highest_within(centre, grid.cell_radius(), down));
+                let elevation = -p.dot(down);
+                rise.is_some_and(|top| {
+                    top > elevation - height + sampling.near && elevation < top + sampling.near
+                })
+            };
+            if far && !rise_under && height >= sampling.band {
                 continue;
             }
-            let exact = (coarse.is_none() || height < sampling.near)
+            let exact = (!far || rise_under)
                 .then(|| {
                     stats.vertex_casts += 1;
                     cast(*p - down * sampling.band, 2.0 * sampling.band)
                 })
                 .flatten();
-            if let Some(plane) = exact.or(coarse) {
-                under.push((v as u32, plane));
+            match (exact, coarse) {
+                // Cast for a rise between the nodes: kept if the ground under it is near.
+                (Some(plane), _) if rise_under && plane.height(*p) >= sampling.band => {}
+                (Some(plane), _) => under.push((v as u32, plane)),
+                (None, Some(plane)) if height < sampling.band => under.push((v as u32, plane)),
+                (None, _) => {}
             }
         }
         stats.vertices = under.len();
@@ -244,13 +269,36 @@ impl CoarseGrid {
             - self.down * height
     }
 
-    /// The (up to four) nodes around `p`.
-    fn around(&self, p: DVec3) -> impl Iterator<Item = usize> + '_ {
+    /// The cell `p` is over: its first node's `(i, j)`.
+    fn cell_ij(&self, p: DVec3) -> (usize, usize) {
         let cell = |along: f64, origin: f64, n: usize| {
             (((along - origin) / self.spacing).floor().max(0.0) as usize).min(n.saturating_sub(2))
         };
-        let i = cell(p.dot(self.axes.0), self.origin.0, self.size.0);
-        let j = cell(p.dot(self.axes.1), self.origin.1, self.size.1);
+        (
+            cell(p.dot(self.axes.0), self.origin.0, self.size.0),
+            cell(p.dot(self.axes.1), self.origin.1, self.size.1),
+        )
+    }
+
+    /// The cell `p` is over, as the index of its first node, and the cell's centre (at the
+    /// height of `p`).
+    fn cell_of(&self, p: DVec3) -> (usize, DVec3) {
+        let (i, j) = self.cell_ij(p);
+        let centre = self.axes.0 * (self.origin.0 + (i as f64 + 0.5) * self.spacing)
+            + self.axes.1 * (self.origin.1 + (j as f64 + 0.5) * self.spacing)
+            + self.down * p.dot(self.down);
+        (j * self.size.0 + i, centre)
+    }
+
+    /// Half the side of a square about a cell's centre that holds the cell (and the
+    /// footprint's edge beyond it, where a vertex on the edge is counted to the last cell).
+    fn cell_radius(&self) -> f64 {
+        self.spacing
+    }
+
+    /// The (up to four) nodes around `p`.
+    fn around(&self, p: DVec3) -> impl Iterator<Item = usize> + '_ {
+        let (i, j) = self.cell_ij(p);
         [(0, 0), (1, 0), (0, 1), (1, 1)]
             .into_iter()
             .map(move |(di, dj)| (i + di, j + dj))

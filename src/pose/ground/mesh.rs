@@ -31,6 +31,9 @@ pub struct TriangleGround {
     /// Triangle indices per cell, cell after cell (`starts` has one more entry than cells).
     cells: Vec<u32>,
     starts: Vec<u32>,
+    /// Per cell, the highest corner (elevation against gravity) of its triangles (`-∞` for
+    /// none): [`Ground::highest_within`] reads these.
+    tops: Vec<f64>,
 }
 
 /// A triangle seen along gravity: its first corner and two edges across gravity, the inverse
@@ -171,6 +174,16 @@ impl TriangleGround {
             cells.extend(c);
             starts.push(cells.len() as u32);
         }
+        let tops = starts
+            .windows(2)
+            .map(|w| {
+                cells[w[0] as usize..w[1] as usize]
+                    .iter()
+                    .flat_map(|&k| corners[k as usize].iter())
+                    .map(|c| -c.dot(down))
+                    .fold(f64::NEG_INFINITY, f64::max)
+            })
+            .collect();
         Self {
             corners,
             shadows,
@@ -181,6 +194,7 @@ impl TriangleGround {
             size,
             cells,
             starts,
+            tops,
         }
     }
 
@@ -254,6 +268,34 @@ impl Ground for TriangleGround {
         } else {
             self.cast_every_triangle(from, down, max)
         }
+    }
+
+    /// The highest corner of the triangles in the grid cells the square about `centre` of
+    /// half-side `radius` touches (along this ground's gravity only: `None` for another), read
+    /// from each cell's highest corner kept at construction.
+    fn highest_within(&self, centre: DVec3, radius: f64, down: DVec3) -> Option<f64> {
+        if !(centre.is_finite() && radius.is_finite()) || down.dot(self.down) <= 1.0 - 1e-9 {
+            return None;
+        }
+        let f = self.flat(centre);
+        let cell = |g: DVec2| ((g - self.origin) / self.cell).floor();
+        let (lo, hi) = (
+            cell(f - DVec2::splat(radius)),
+            cell(f + DVec2::splat(radius)),
+        );
+        let last = (self.size.0 as f64 - 1.0, self.size.1 as f64 - 1.0);
+        if hi.x < 0.0 || hi.y < 0.0 || lo.x > last.0 || lo.y > last.1 {
+            return Some(f64::NEG_INFINITY);
+        }
+        let range = |a: f64, b: f64, last: f64| (a.max(0.0) as usize)..=(b.min(last) as usize);
+        let mut highest = f64::NEG_INFINITY;
+        for j in range(lo.y, hi.y, last.1) {
+            let row = &self.tops[j * self.size.0..(j + 1) * self.size.0];
+            for i in range(lo.x, hi.x, last.0) {
+                highest = highest.max(row[i]);
+            }
+        }
+        Some(highest)
     }
 }
 

@@ -44,6 +44,14 @@ pub trait Ground {
     /// The first surface below `from` along `down` (unit), within `max` (world units), as the
     /// hit point and the surface's normal there (facing against `down`).
     fn cast_down(&self, from: DVec3, down: DVec3, max: f64) -> Option<GroundPlane>;
+
+    /// A bound on how high the ground rises against `down` (unit) within `radius` of `centre`
+    /// across it, as an elevation `-p·down` (`-∞` where there is no ground); `None` when the
+    /// ground cannot say. [`floor::Floor::cast`] uses it to find ridges and steps between
+    /// its casts; the default says nothing, and the floor then trusts its casts alone.
+    fn highest_within(&self, _centre: DVec3, _radius: f64, _down: DVec3) -> Option<f64> {
+        None
+    }
 }
 
 impl Ground for GroundPlane {

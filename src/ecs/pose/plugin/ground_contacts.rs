@@ -6,8 +6,8 @@ use glam::{DAffine3, DVec3};
 use super::super::{GroundContactState, PoseBalance, PoseGround, PoseStatus, PosedSkeleton};
 use crate::ecs::SceneGround;
 use crate::pose::{
-    Balance, ContactTracker, Floor, FloorSampling, GroundPlane, PoseConstraints, SkeletonPose,
-    SkinnedModel, SupportPolygon, THROUGH_THE_GROUND, centre_of_mass, lowest_joints,
+    Balance, ContactTracker, Floor, FloorSampling, Ground, GroundPlane, PoseConstraints,
+    SkeletonPose, SkinnedModel, SupportPolygon, THROUGH_THE_GROUND, centre_of_mass, lowest_joints,
 };
 
 /// Adds to `constraints` (character space) the character's ground contacts — found on the
@@ -277,8 +277,28 @@ impl<'a> CharacterGround<'a> {
     /// diagonal): every vertex within `settings`' band of the ground under it
     /// ([`Floor::cast`]).
     fn floor_under(&self, skinned: &[DVec3], settings: &PoseGround, size: f64) -> Floor {
-        let cast = |from: DVec3, along: DVec3, max: f64| self.cast(from, along, max);
         let sampling = FloorSampling::for_size(size, f64::from(settings.floor_band), self.down);
-        Floor::cast(skinned, &cast, &sampling).0
+        Floor::cast(skinned, self, &sampling).0
+    }
+}
+
+impl Ground for CharacterGround<'_> {
+    fn cast_down(&self, from: DVec3, down: DVec3, max: f64) -> Option<GroundPlane> {
+        self.cast(from, down, max)
+    }
+
+    /// The scene's bound, asked in the world and brought back to character space.
+    fn highest_within(&self, centre: DVec3, radius: f64, down: DVec3) -> Option<f64> {
+        let world_down = (self.to_world.matrix3 * down).try_normalize()?;
+        let world_centre = self.to_world.transform_point3(centre);
+        let top = self
+            .ground
+            .highest_within(world_centre, radius * self.scale, world_down)?;
+        if !top.is_finite() {
+            return Some(top);
+        }
+        // The point over the centre at that height, seen from the character.
+        let over = world_centre - world_down * (top + world_centre.dot(world_down));
+        Some(-self.to_character.transform_point3(over).dot(down))
     }
 }
