@@ -87,14 +87,25 @@ impl Scene {
     /// The hips pulled down 0.1 a frame for 12 frames (20 iterations each, warm), with the
     /// floor `floor` gives for the pose each frame starts from; the last pose.
     fn drag_hips_down(&self, floor: impl Fn(&SkeletonPose) -> Option<Floor>) -> SkeletonPose {
+        self.lower_hips(0.1, 12, floor)
+    }
+
+    /// The hips pulled down `step` a frame for `frames` frames (20 iterations each, warm),
+    /// with the floor `floor` gives for the pose each frame starts from; the last pose.
+    fn lower_hips(
+        &self,
+        step: f64,
+        frames: u32,
+        floor: impl Fn(&SkeletonPose) -> Option<Floor>,
+    ) -> SkeletonPose {
         let hips = joint_positions(&self.rig.skeleton, &self.rig.rest)[HIPS];
         let mut last: Option<PoseSolution> = None;
-        for frame in 1..=12 {
+        for frame in 1..=frames {
             let now = last.as_ref().map_or(&self.rig.rest, |l| &l.pose);
             let constraints = PoseConstraints {
                 effectors: vec![Effector {
                     joint: HIPS,
-                    goal: EffectorGoal::Position(hips - DVec3::Y * 0.1 * frame as f64),
+                    goal: EffectorGoal::Position(hips - DVec3::Y * step * f64::from(frame)),
                     weight: 1.0,
                 }],
                 floor: floor(now),
@@ -1204,28 +1215,10 @@ fn a_foot_lowered_onto_a_ridge_between_the_floors_casts_stays_on_it() {
     );
     let casts_only = |from: DVec3, down: DVec3, max: f64| ground.cast_down(from, down, max);
     let sampling = FloorSampling::for_size(s.size, 0.3, DVec3::NEG_Y);
-    let hips = joint_positions(&s.rig.skeleton, &s.rig.rest)[HIPS];
     let lower = |seen_by: &dyn Ground| {
-        let mut last: Option<PoseSolution> = None;
-        for frame in 1..=8 {
-            let now = last.as_ref().map_or(&s.rig.rest, |l| &l.pose);
-            let down = 0.06 * s.size * frame as f64 / 8.0;
-            let constraints = PoseConstraints {
-                effectors: vec![Effector {
-                    joint: HIPS,
-                    goal: EffectorGoal::Position(hips - DVec3::Y * down),
-                    weight: 1.0,
-                }],
-                floor: Some(Floor::cast(&s.skinned(now), seen_by, &sampling).0),
-                ..Default::default()
-            };
-            let start = match &last {
-                Some(l) => PoseStart::Warm(l),
-                None => PoseStart::Pose(&s.rig.rest),
-            };
-            last = Some(s.solve(&constraints, start, 20).unwrap());
-        }
-        last.unwrap().pose
+        s.lower_hips(0.06 * s.size / 8.0, 8, |now| {
+            Some(Floor::cast(&s.skinned(now), seen_by, &sampling).0)
+        })
     };
     // The deepest skin vertex under the ground right under it, over the size.
     let deepest = |pose: &SkeletonPose| {

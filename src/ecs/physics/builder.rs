@@ -61,7 +61,8 @@ impl ColliderBuilder {
     pub(crate) fn build(
         &mut self,
         shape: ColliderShape,
-        (positions, triangles): (Vec<Vec3>, Vec<[u32; 3]>),
+        positions: Vec<Vec3>,
+        triangles: Vec<[u32; 3]>,
         previous: Option<Collider>,
     ) -> Receiver<BuildResult> {
         let (reply, result) = crossbeam_channel::bounded(1);
@@ -177,7 +178,6 @@ fn build(
                 });
             if let Some(mesh) = refittable {
                 let mut mesh = mesh.clone();
-                drop(previous);
                 std::thread::yield_now();
                 mesh.set_vertices(&positions);
                 return Ok(Collider::from(SharedShape::new(mesh)));
@@ -192,6 +192,9 @@ fn build(
 
 #[cfg(test)]
 mod tests {
+    use avian3d::parry::query::{Ray, RayCast};
+    use avian3d::parry::shape::TriMesh;
+
     use super::*;
 
     /// The builder thread answers each build on its own channel, keeps answering after
@@ -208,18 +211,18 @@ mod tests {
         let triangles = vec![[0, 1, 2], [1, 3, 2]];
         let first = builder.build(
             ColliderShape::Trimesh,
-            (square.clone(), triangles.clone()),
+            square.clone(),
+            triangles.clone(),
             None,
         );
         let collider = wait(first).expect("a collider of two triangles");
         builder.free(collider);
         let mut bent = square;
         bent[3].y = f32::NAN;
-        let error = wait(builder.build(ColliderShape::Trimesh, (bent, triangles), None))
+        let error = wait(builder.build(ColliderShape::Trimesh, bent, triangles, None))
             .expect_err("a non-finite position");
         assert!(error.contains("non-finite"), "{error}");
-        let empty =
-            wait(builder.build(ColliderShape::Trimesh, (vec![Vec3::ZERO], Vec::new()), None));
+        let empty = wait(builder.build(ColliderShape::Trimesh, vec![Vec3::ZERO], Vec::new(), None));
         assert!(empty.is_err());
         assert!(builder.jobs.is_some(), "the thread serves every job");
     }
@@ -250,10 +253,9 @@ mod tests {
         let mesh = refitted.shape().as_trimesh().expect("a triangle mesh");
         assert_eq!(mesh.vertices(), lifted.as_slice());
         assert_eq!(mesh.indices(), triangles.as_slice());
-        let down = |from: Vec3| avian3d::parry::query::Ray::new(from, Vec3::NEG_Y);
-        use avian3d::parry::query::RayCast;
-        let hit = |mesh: &avian3d::parry::shape::TriMesh, from: Vec3| {
-            mesh.cast_local_ray(&down(from), 10.0, false)
+        // How far down from `from` the mesh is (a ray through its tree).
+        let hit = |mesh: &TriMesh, from: Vec3| {
+            mesh.cast_local_ray(&Ray::new(from, Vec3::NEG_Y), 10.0, false)
         };
         let above = Vec3::new(0.4, 5.0, 0.4);
         assert!(

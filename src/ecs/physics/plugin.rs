@@ -97,7 +97,7 @@ fn start_collider_builds(
                 i.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect()
             })
             .unwrap_or_default();
-        let result = builder.build(wanted.shape, (positions, triangles), previous.cloned());
+        let result = builder.build(wanted.shape, positions, triangles, previous.cloned());
         commands.entity(entity).try_insert(ColliderBuild {
             result,
             solve: status.solves,

@@ -136,9 +136,11 @@ impl Floor {
             // what `near` is for) and to within `near` of this vertex.
             let far = coarse.is_some() && height >= sampling.near;
             let rise_under = far && {
-                let (cell, centre) = grid.cell_of(*p);
-                let rise = *rises[cell]
-                    .get_or_insert_with(|| ground.highest_within(centre, grid.cell_radius(), down));
+                let (i, j) = grid.cell_ij(*p);
+                let k = j * grid.size.0 + i;
+                let rise = *rises[k].get_or_insert_with(|| {
+                    ground.highest_within(grid.cell_centre(k), grid.cell_radius(), down)
+                });
                 let elevation = -p.dot(down);
                 rise.is_some_and(|top| {
                     top > elevation - height + sampling.near && elevation < top + sampling.near
@@ -280,14 +282,9 @@ impl CoarseGrid {
         )
     }
 
-    /// The cell `p` is over, as the index of its first node, and the cell's centre (at the
-    /// height of `p`).
-    fn cell_of(&self, p: DVec3) -> (usize, DVec3) {
-        let (i, j) = self.cell_ij(p);
-        let centre = self.axes.0 * (self.origin.0 + (i as f64 + 0.5) * self.spacing)
-            + self.axes.1 * (self.origin.1 + (j as f64 + 0.5) * self.spacing)
-            + self.down * p.dot(self.down);
-        (j * self.size.0 + i, centre)
+    /// The centre of the cell whose first node is node `k` (at height 0).
+    fn cell_centre(&self, k: usize) -> DVec3 {
+        self.node(k, 0.0) + (self.axes.0 + self.axes.1) * (0.5 * self.spacing)
     }
 
     /// Half the side of a square about a cell's centre that holds the cell (and the
