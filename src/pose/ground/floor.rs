@@ -32,6 +32,7 @@
 
 use glam::DVec3;
 
+use crate::deform::bounding_box;
 use crate::pose::ground::Ground;
 use crate::pose::ground::GroundPlane;
 
@@ -181,6 +182,50 @@ impl Floor {
                 .filter_map(|(v, plane)| positions.get(*v as usize).map(|p| plane.height(*p)))
                 .fold(f64::INFINITY, f64::min),
         }
+    }
+
+    /// Whether a vertex of `positions` (welded, in the ground's space) may be more than
+    /// `depth` under `ground`: `false` only when each is certainly less deep — above the
+    /// ground's own bound over its column ([`Ground::highest_within`], asked once for the
+    /// whole footprint and then per vertex below that), or else above the ground a cast
+    /// under it finds (from `band` above, as [`Floor::cast`] casts a vertex). Much cheaper
+    /// than casting the floor to read [`Floor::deepest`]: after a solve most skin is above
+    /// every ground near it and needs no cast. A ground that cannot bound its height
+    /// answers `true` (cast the floor to know).
+    pub fn may_be_under(
+        positions: &[DVec3],
+        ground: &dyn Ground,
+        sampling: &FloorSampling,
+        depth: f64,
+    ) -> bool {
+        let Some(down) = sampling.down.try_normalize() else {
+            return true;
+        };
+        let (lo, hi) = bounding_box(positions);
+        if positions.is_empty() {
+            return false;
+        }
+        // A square about the box's centre as wide as the box's diagonal holds its footprint.
+        let Some(top) = ground.highest_within((lo + hi) * 0.5, 0.5 * (hi - lo).length(), down)
+        else {
+            return true;
+        };
+        let band = sampling.band;
+        positions
+            .iter()
+            .filter(|p| p.is_finite())
+            .filter(|p| -p.dot(down) + depth < top)
+            .any(|p| {
+                let elevation = -p.dot(down);
+                match ground.highest_within(*p, 0.0, down) {
+                    Some(over) if over <= elevation + depth => false,
+                    None => true,
+                    Some(_) => ground
+                        .cast_down(*p - down * band, down, 2.0 * band)
+                        .and_then(|hit| GroundPlane::new(hit.point, hit.normal))
+                        .is_some_and(|plane| plane.height(*p) < -depth),
+                }
+            })
     }
 
     /// Whether the numbers can be used (vertex indices are checked by the solver).
@@ -347,6 +392,37 @@ mod tests {
         assert_eq!(floor, Floor::Under(Vec::new()));
         let (floor, _) = Floor::cast(&[], &ground, &sampling);
         assert_eq!(floor, Floor::Under(Vec::new()));
+    }
+
+    /// `may_be_under`: skin above both levels is seen to be so (the lower level's paw over a
+    /// cell the upper level also crosses, by its cast); a vertex sunk into the upper level by
+    /// more than the depth is found, one sunk by less is not; a ground that cannot bound its
+    /// height always answers that it may be. (Fails if the bound alone decides: the paw over
+    /// the step's cell is under that cell's top.)
+    #[test]
+    fn skin_under_the_ground_is_found_without_casting_a_floor() {
+        let ground = crate::pose::ground::mesh::two_levels(0.0, 3.0);
+        let sampling = FloorSampling {
+            down: DVec3::NEG_Y,
+            band: 0.5,
+            near: 0.1,
+            spacing: 0.4,
+        };
+        let mut skin = vec![
+            DVec3::new(-0.5, 0.02, 0.0),
+            DVec3::new(0.5, 0.32, 0.0),
+            DVec3::new(0.0, 1.5, 0.0),
+        ];
+        assert_eq!(ground.highest_within(skin[0], 0.0, DVec3::NEG_Y), Some(0.3));
+        assert!(!Floor::may_be_under(&skin, &ground, &sampling, 0.01));
+        skin.push(DVec3::new(1.0, 0.29, 0.5));
+        assert!(!Floor::may_be_under(&skin, &ground, &sampling, 0.02));
+        assert!(Floor::may_be_under(&skin, &ground, &sampling, 0.005));
+        skin[3].y = 0.1;
+        assert!(Floor::may_be_under(&skin, &ground, &sampling, 0.02));
+        let plane = GroundPlane::new(DVec3::ZERO, DVec3::Y).unwrap();
+        assert!(Floor::may_be_under(&skin[..3], &plane, &sampling, 0.01));
+        assert!(!Floor::may_be_under(&[], &ground, &sampling, 0.01));
     }
 
     /// `deepest`: the vertex deepest under its own plane (a listed vertex the positions lack

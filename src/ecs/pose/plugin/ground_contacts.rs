@@ -150,8 +150,13 @@ impl FloorRecast {
         let at = CharacterGround::new(&self.ground, self.placement);
         let size = model.topology().bounding_diagonal();
         let skinned = model.skin_welded(solved);
+        let through = THROUGH_THE_GROUND * size;
+        // Most solves end with all their skin above the ground: seen without casting a floor.
+        if !Floor::may_be_under(&skinned, &at, &at.sampling(&self.settings, size), through) {
+            return None;
+        }
         let floor = at.floor_under(&skinned, &self.settings, size);
-        (floor.deepest(&skinned) < -THROUGH_THE_GROUND * size).then_some(floor)
+        (floor.deepest(&skinned) < -through).then_some(floor)
     }
 }
 
@@ -277,8 +282,12 @@ impl<'a> CharacterGround<'a> {
     /// diagonal): every vertex within `settings`' band of the ground under it
     /// ([`Floor::cast`]).
     fn floor_under(&self, skinned: &[DVec3], settings: &PoseGround, size: f64) -> Floor {
-        let sampling = FloorSampling::for_size(size, f64::from(settings.floor_band), self.down);
-        Floor::cast(skinned, self, &sampling).0
+        Floor::cast(skinned, self, &self.sampling(settings, size)).0
+    }
+
+    /// How the floor under a character of `size` is sampled on this ground.
+    fn sampling(&self, settings: &PoseGround, size: f64) -> FloorSampling {
+        FloorSampling::for_size(size, f64::from(settings.floor_band), self.down)
     }
 }
 
