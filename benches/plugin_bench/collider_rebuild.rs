@@ -3,7 +3,8 @@
 //! counts the frames from a settled solve to its collider swapped in, and the main thread's
 //! time in the deform and collider systems (and the whole frame, Avian's step included): over
 //! every frame (`main_ms_*`), and over the frames that start a collider build or swap one in
-//! (`collider_main_ms_max`).
+//! (`collider_main_ms_max`); then, for as long, how late a thread that only sleeps wakes
+//! (`idle_wake_late_ms_*`: the machine's floor under `main_ms_max`).
 
 use std::time::{Duration, Instant};
 
@@ -119,14 +120,21 @@ pub fn run(seconds: f64, fps: f64) {
         }
         pace(frame, f0);
     }
-    let mut main_ms = app.world().resource::<Timing>().frames_ms.clone();
+    let rebuilt = rebuilds(&app, plank) - rebuilds0;
+    let timing = app
+        .world_mut()
+        .remove_resource::<Timing>()
+        .unwrap_or_default();
+    drop(app);
+    let late = idle_wake_lateness(seconds);
+    let mut main_ms = timing.frames_ms;
     main_ms.sort_by(f64::total_cmp);
     frame_ms.sort_by(f64::total_cmp);
     to_collider.sort_by(f64::total_cmp);
     let report = object(serde_json::json!({
         "triangles": tri.triangles.len(),
         "frames": n,
-        "rebuilds": rebuilds(&app, plank) - rebuilds0,
+        "rebuilds": rebuilt,
         "collider_frames_median": percentile(&to_collider, 0.5),
         "collider_frames_max": to_collider.last().copied().unwrap_or(f64::NAN),
         "main_ms_median": percentile(&main_ms, 0.5),
@@ -135,6 +143,9 @@ pub fn run(seconds: f64, fps: f64) {
         "collider_main_ms_max": collider_main_ms.iter().copied().fold(f64::NAN, f64::max),
         "frame_ms_median": percentile(&frame_ms, 0.5),
         "frame_ms_max": frame_ms.last().copied().unwrap_or(f64::NAN),
+        "idle_wake_late_ms_p99": percentile(&late, 0.99),
+        "idle_wake_late_ms_max": late.last().copied().unwrap_or(f64::NAN),
+        "idle_wakes_late_over_1ms": late.iter().filter(|l| **l > 1.0).count(),
     }));
     println!("{}", serde_json::Value::Object(report));
 }
@@ -143,4 +154,21 @@ fn rebuilds(app: &App, plank: Entity) -> u64 {
     app.world()
         .get::<DeformColliderStatus>(plank)
         .map_or(0, |s| s.rebuilds)
+}
+
+/// The machine's own scheduling noise, measured after the run for as long with nothing else
+/// of the app left: how late (ms, sorted) a thread that only sleeps 1 ms at a time wakes. A
+/// core held by the kernel's own threads for a few ms delays any thread woken on it, the
+/// frame's systems included: `main_ms_max` cannot be reliably below this.
+fn idle_wake_lateness(seconds: f64) -> Vec<f64> {
+    let nap = Duration::from_millis(1);
+    let start = Instant::now();
+    let mut late = Vec::new();
+    while start.elapsed().as_secs_f64() < seconds {
+        let t = Instant::now();
+        std::thread::sleep(nap);
+        late.push((t.elapsed().saturating_sub(nap)).as_secs_f64() * 1e3);
+    }
+    late.sort_by(f64::total_cmp);
+    late
 }

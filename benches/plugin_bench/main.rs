@@ -32,7 +32,9 @@
 //! `--collider` (feature `avian`): a ~10k-triangle plank whose Avian collider is rebuilt after
 //! each settled bend; `triangles`, `rebuilds`, `collider_frames_median` / `_max` (frames from
 //! a settled solve to its collider swapped in), `main_ms_median` / `_max` (the deform and
-//! collider systems), `frame_ms_median` / `_max` (the whole frame, Avian's step included).
+//! collider systems), `frame_ms_median` / `_max` (the whole frame, Avian's step included),
+//! and the machine's own noise measured after the run for as long: `idle_wake_late_ms_p99` /
+//! `_max` and `idle_wakes_late_over_1ms` (how late a thread that only sleeps 1 ms wakes).
 
 use std::time::{Duration, Instant};
 
