@@ -104,11 +104,7 @@ impl Floor {
             return (Floor::Under(Vec::new()), stats);
         };
         let down = grid.down;
-        let cast = |from: DVec3, max: f64| {
-            ground
-                .cast_down(from, down, max)
-                .and_then(|hit| GroundPlane::new(hit.point, hit.normal))
-        };
+        let cast = |from: DVec3, max: f64| plane_below(ground, from, down, max);
         // The coarse planes, from the top of the band above the lowest vertex.
         let top = grid.lowest + sampling.band;
         let nodes: Vec<Option<GroundPlane>> = (0..grid.nodes())
@@ -198,13 +194,13 @@ impl Floor {
         sampling: &FloorSampling,
         depth: f64,
     ) -> bool {
+        if positions.is_empty() {
+            return false;
+        }
         let Some(down) = sampling.down.try_normalize() else {
             return true;
         };
         let (lo, hi) = bounding_box(positions);
-        if positions.is_empty() {
-            return false;
-        }
         // A square about the box's centre as wide as the box's diagonal holds its footprint.
         let Some(top) = ground.highest_within((lo + hi) * 0.5, 0.5 * (hi - lo).length(), down)
         else {
@@ -214,17 +210,13 @@ impl Floor {
         positions
             .iter()
             .filter(|p| p.is_finite())
-            .filter(|p| -p.dot(down) + depth < top)
-            .any(|p| {
-                let elevation = -p.dot(down);
-                match ground.highest_within(*p, 0.0, down) {
-                    Some(over) if over <= elevation + depth => false,
-                    None => true,
-                    Some(_) => ground
-                        .cast_down(*p - down * band, down, 2.0 * band)
-                        .and_then(|hit| GroundPlane::new(hit.point, hit.normal))
-                        .is_some_and(|plane| plane.height(*p) < -depth),
-                }
+            .map(|p| (*p, -p.dot(down)))
+            .filter(|(_, elevation)| elevation + depth < top)
+            .any(|(p, elevation)| match ground.highest_within(p, 0.0, down) {
+                Some(over) if over <= elevation + depth => false,
+                None => true,
+                Some(_) => plane_below(ground, p - down * band, down, 2.0 * band)
+                    .is_some_and(|plane| plane.height(p) < -depth),
             })
     }
 
@@ -246,6 +238,14 @@ impl Floor {
             Floor::Under(under) => Box::new(under.iter_mut().map(|(_, g)| g)),
         }
     }
+}
+
+/// The ground's plane first below `from` along `down` within `max`, if it is usable (a
+/// non-finite or degenerate hit is a miss).
+fn plane_below(ground: &dyn Ground, from: DVec3, down: DVec3, max: f64) -> Option<GroundPlane> {
+    ground
+        .cast_down(from, down, max)
+        .and_then(|hit| GroundPlane::new(hit.point, hit.normal))
 }
 
 /// The grid of coarse casts over the footprint of a set of points, across gravity.
@@ -352,10 +352,11 @@ impl CoarseGrid {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::pose::ground::mesh::TriangleGround;
 
-    #[test]
-    fn each_vertex_near_the_ground_gets_the_level_under_it_and_far_ones_are_left_out() {
-        // y = 0 for x < 0, 0.3 beyond.
+    /// Two levels (y = 0 for x < 0, 0.3 beyond), a sampling for them, and a skin of two paws
+    /// just above each level and a vertex high above.
+    fn step_scene() -> (TriangleGround, FloorSampling, Vec<DVec3>) {
         let ground = crate::pose::ground::mesh::two_levels(0.0, 3.0);
         let sampling = FloorSampling {
             down: DVec3::NEG_Y,
@@ -363,13 +364,19 @@ mod tests {
             near: 0.1,
             spacing: 0.4,
         };
-        // Two paws just above each level, one vertex high above, one sunk into the upper level.
-        let positions = [
+        let skin = vec![
             DVec3::new(-0.5, 0.02, 0.0),
             DVec3::new(0.5, 0.32, 0.0),
             DVec3::new(0.0, 1.5, 0.0),
-            DVec3::new(1.0, 0.2, 0.5),
         ];
+        (ground, sampling, skin)
+    }
+
+    #[test]
+    fn each_vertex_near_the_ground_gets_the_level_under_it_and_far_ones_are_left_out() {
+        // The two paws and the high vertex, and one vertex sunk into the upper level.
+        let (ground, sampling, mut positions) = step_scene();
+        positions.push(DVec3::new(1.0, 0.2, 0.5));
         let (floor, stats) = Floor::cast(&positions, &ground, &sampling);
         let Floor::Under(under) = floor else {
             panic!("a cast floor is per vertex")
@@ -401,18 +408,7 @@ mod tests {
     /// the step's cell is under that cell's top.)
     #[test]
     fn skin_under_the_ground_is_found_without_casting_a_floor() {
-        let ground = crate::pose::ground::mesh::two_levels(0.0, 3.0);
-        let sampling = FloorSampling {
-            down: DVec3::NEG_Y,
-            band: 0.5,
-            near: 0.1,
-            spacing: 0.4,
-        };
-        let mut skin = vec![
-            DVec3::new(-0.5, 0.02, 0.0),
-            DVec3::new(0.5, 0.32, 0.0),
-            DVec3::new(0.0, 1.5, 0.0),
-        ];
+        let (ground, sampling, mut skin) = step_scene();
         assert_eq!(ground.highest_within(skin[0], 0.0, DVec3::NEG_Y), Some(0.3));
         assert!(!Floor::may_be_under(&skin, &ground, &sampling, 0.01));
         skin.push(DVec3::new(1.0, 0.29, 0.5));
