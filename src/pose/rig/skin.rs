@@ -92,6 +92,11 @@ fn vertex_sums(b: DVec3, influences: &VertexInfluences) -> VertexSums {
 pub(crate) struct VertexSkin {
     pub(crate) sums: VertexSums,
     pub(crate) reach: [f64; 4],
+    /// The joint with the largest share of it (the skeleton's joint count for a vertex with
+    /// none): the floor groups its vertices by it (`solver/terms/floor_groups.rs`).
+    pub(crate) carrier: usize,
+    /// The sum of its absolute skin weights (1 for a normalised skin).
+    pub(crate) weight_sum: f64,
 }
 
 impl VertexSkin {
@@ -116,7 +121,18 @@ pub(crate) fn vertex_skins(
             for (r, &(j, _)) in reach.iter_mut().zip(sums.iter()) {
                 *r = bind_origins.get(j).map_or(0.0, |o| b.distance(*o));
             }
-            VertexSkin { sums, reach }
+            let joints = bind_origins.len();
+            let carrier = sums
+                .iter()
+                .max_by(|a, b| a.1.w.abs().total_cmp(&b.1.w.abs()))
+                .map_or(joints, |s| s.0.min(joints));
+            let weight_sum = sums.iter().map(|s| s.1.w.abs()).sum();
+            VertexSkin {
+                sums,
+                reach,
+                carrier,
+                weight_sum,
+            }
         })
         .collect()
 }

@@ -220,6 +220,8 @@ pub struct PoseSolver {
     /// The centre of mass of the skin at its area masses as per-joint sums, once balance is
     /// asked for (the same every solve: a model's thousands of vertices summed once).
     area_mass_sums: std::sync::OnceLock<Vec<(usize, DVec4)>>,
+    /// The `Q` blocks with the last planted patches' holds (`energy/holds.rs`).
+    held_blocks: crate::pose::solver::energy::holds::HeldBlocks,
     handle_sums: Vec<SetSums>,
     fixed_b: Vec<f64>,
     fixed_c: f64,
@@ -301,6 +303,7 @@ impl PoseSolver {
             joint_movers,
             bind_origins,
             area_mass_sums: std::sync::OnceLock::new(),
+            held_blocks: Default::default(),
             model,
             constraints: constraints.clone(),
             q_blocks,

@@ -17,6 +17,7 @@
 //! extra iterations), its soles turned by the fight.
 
 use std::borrow::Cow;
+use std::sync::Mutex;
 
 use glam::{DAffine3, DMat4, DVec3};
 
@@ -28,6 +29,52 @@ use crate::pose::solver::terms::{contact_hold_weight, contact_skin};
 /// The 4 × 4 blocks `(k, l, Q_kl)` of a solve's `Q`.
 pub(crate) type QBlocks = [(usize, usize, DMat4)];
 
+/// The `Q` blocks of the last planted patches a solver held (`blocks_with_holds`), kept for
+/// its next solves: a planted foot's patch stays the same from frame to frame while only
+/// where it is held moves, and summing its vertices' outer products was a sixth of a
+/// grounded solve's setup. A clone of the solver starts without them.
+#[derive(Default)]
+pub(crate) struct HeldBlocks(Mutex<Option<KeptBlocks>>);
+
+/// The patches last held (their vertices) and the `Q` blocks with their holds.
+type KeptBlocks = (Vec<Vec<u32>>, Vec<(usize, usize, DMat4)>);
+
+impl HeldBlocks {
+    /// The blocks for `patches` (called again for each comparison): the kept ones when they
+    /// are of the same patches, else `make`'s, kept. (A solver used from two threads at once
+    /// makes them for one of them without keeping them.)
+    fn get<'p, I: Iterator<Item = &'p [u32]>>(
+        &self,
+        patches: impl Fn() -> I,
+        make: impl FnOnce() -> Vec<(usize, usize, DMat4)>,
+    ) -> Vec<(usize, usize, DMat4)> {
+        let Ok(mut kept) = self.0.try_lock() else {
+            return make();
+        };
+        if let Some((held, blocks)) = kept.as_ref()
+            && held.len() == patches().count()
+            && held.iter().zip(patches()).all(|(a, b)| a[..] == *b)
+        {
+            return blocks.clone();
+        }
+        let blocks = make();
+        *kept = Some((patches().map(<[u32]>::to_vec).collect(), blocks.clone()));
+        blocks
+    }
+}
+
+impl Clone for HeldBlocks {
+    fn clone(&self) -> Self {
+        Self::default()
+    }
+}
+
+impl std::fmt::Debug for HeldBlocks {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("HeldBlocks")
+    }
+}
+
 impl PoseSolver {
     /// This solve's `Q` blocks: the solver's with the holds of every planted contact added,
     /// whose linear and constant parts go to `b` (4J × 3) and `constant`. Borrowed when
@@ -38,45 +85,57 @@ impl PoseSolver {
         b: &mut [f64],
         constant: &mut f64,
     ) -> Cow<'a, QBlocks> {
-        let planted = self.held_points(contacts);
+        let planted: Vec<_> = self.held_points(contacts).collect();
+        if planted.is_empty() {
+            return Cow::Borrowed(&self.q_blocks);
+        }
         let weight = contact_hold_weight(self.joint_weight);
-        let joints = self.model.skeleton().len();
-        // The solver's blocks, copied at the first planted contact, and where each (k, l)
-        // block is in them.
-        let mut list: Vec<(usize, usize, DMat4)> = Vec::new();
-        let mut index: Vec<Option<usize>> = Vec::new();
-        for (patch, at, lift) in planted {
-            if index.is_empty() {
-                index = vec![None; joints * joints];
-                for (i, &(k, l, _)) in self.q_blocks.iter().enumerate() {
-                    index[k * joints + l] = Some(i);
-                }
-                list = self.q_blocks.clone();
-            }
+        for &(patch, at, lift) in &planted {
             for (&v, &touched) in patch.iter().zip(at) {
                 let target = touched + lift;
                 for (j, mj) in self.model.row(v as usize) {
                     add_outer4x3(b, j, mj * weight, target);
-                    for (k, mk) in self.model.row(v as usize) {
-                        let slot = *index[j * joints + k].get_or_insert_with(|| {
-                            list.push((j, k, DMat4::ZERO));
-                            list.len() - 1
-                        });
-                        let q = &mut list[slot].2;
-                        // Q_jk[r][c] += w m_j[r] m_k[c]: column c gains m_j · w m_k[c].
-                        for c in 0..4 {
-                            *q.col_mut(c) += mj * (weight * mk[c]);
-                        }
-                    }
                 }
                 *constant += weight * target.length_squared();
             }
         }
-        if index.is_empty() {
-            Cow::Borrowed(&self.q_blocks)
-        } else {
-            Cow::Owned(list)
+        let patches = || planted.iter().map(|(patch, _, _)| *patch);
+        Cow::Owned(
+            self.held_blocks
+                .get(patches, || self.blocks_with_holds(patches(), weight)),
+        )
+    }
+
+    /// The solver's `Q` blocks with `w m_j m_kᵀ` added for every vertex of `patches` (their
+    /// holds' quadratic part: the same while the same patches are planted).
+    fn blocks_with_holds<'p>(
+        &self,
+        patches: impl Iterator<Item = &'p [u32]>,
+        weight: f64,
+    ) -> Vec<(usize, usize, DMat4)> {
+        let joints = self.model.skeleton().len();
+        // Where each (k, l) block is in the list.
+        let mut index: Vec<Option<usize>> = vec![None; joints * joints];
+        for (i, &(k, l, _)) in self.q_blocks.iter().enumerate() {
+            index[k * joints + l] = Some(i);
         }
+        let mut list = self.q_blocks.clone();
+        for &v in patches.flatten() {
+            for (j, mj) in self.model.row(v as usize) {
+                for (k, mk) in self.model.row(v as usize) {
+                    let slot = *index[j * joints + k].get_or_insert_with(|| {
+                        list.push((j, k, DMat4::ZERO));
+                        list.len() - 1
+                    });
+                    let q = &mut list[slot].2;
+                    // Q_jk[r][c] += w m_j[r] m_k[c]: column c gains m_j · w m_k[c].
+                    for c in 0..4 {
+                        *q.col_mut(c) += mj * (weight * mk[c]);
+                    }
+                }
+            }
+        }
+        list
     }
 
     /// How far the planted patch vertex farthest from its held point is from it, with the
@@ -118,33 +177,19 @@ mod tests {
     use crate::pose::solver::energy::arap::q_times_into;
     use crate::pose::solver::{PoseSolver, PoseSolverSettings};
 
-    /// The holds folded into `Q`, `B` and the constant weigh, at any pose, exactly what the
-    /// per-vertex terms `w ‖skinned vertex − held point‖²` weigh (a hold on the wrong
-    /// block, side or weight changes the sum).
-    #[test]
-    fn folded_holds_weigh_what_each_held_vertex_does() {
-        let rig = mannequin_rig(12);
-        let model = Arc::new(rig.model().unwrap());
-        let solver = PoseSolver::new(
-            model.clone(),
-            &PoseConstraints::default(),
-            &rig.rest,
-            PoseSolverSettings::default(),
-        )
-        .unwrap();
-        let ground = GroundPlane::new(DVec3::ZERO, DVec3::Y).unwrap();
-        // Two patches, one planted, held at points away from where any pose puts them.
-        let patch: Vec<u32> = (0..40).step_by(3).collect();
-        let held: Vec<DVec3> = (0..patch.len())
-            .map(|i| DVec3::new(0.1 * i as f64, -0.05, 0.3 - 0.02 * i as f64))
-            .collect();
-        let mut planted = Contact::new(1, patch.clone(), ground);
-        planted.planted = Some(held.clone());
-        let free = Contact::new(2, (50..60).collect(), ground);
+    /// What the holds of `contacts` folded into `Q`, `B` and the constant weigh at a pose
+    /// away from the rest, and what the per-vertex terms `w ‖skinned vertex − held point‖²`
+    /// of the planted ones weigh there.
+    fn folded_and_direct(
+        solver: &PoseSolver,
+        rest: &crate::pose::rig::skeleton::SkeletonPose,
+        contacts: &[Contact],
+    ) -> (f64, f64) {
+        let model = &solver.model;
         let dim = model.skeleton().len() * 12;
         let (mut b, mut constant) = (vec![0.0; dim], 0.0);
-        let blocks = solver.with_holds(&[planted, free], &mut b, &mut constant);
-        let mut pose = rig.rest.clone();
+        let blocks = solver.with_holds(contacts, &mut b, &mut constant);
+        let mut pose = rest.clone();
         for (j, t) in pose.local.iter_mut().enumerate() {
             t.rotation = DQuat::from_euler(glam::EulerRot::XYZ, 0.1 * j as f64, -0.2, 0.05);
             t.translation += DVec3::splat(0.01 * j as f64);
@@ -168,15 +213,53 @@ mod tests {
         let weight = crate::pose::solver::terms::contact_hold_weight(solver.joint_weight);
         // Each hold is lifted off the touching point by the contact skin, along the normal.
         let lift = DVec3::Y * crate::pose::solver::terms::contact_skin(solver.length_scale);
-        let direct: f64 = patch
+        let direct: f64 = contacts
             .iter()
-            .zip(&held)
+            .filter_map(|c| c.planted.as_ref().map(|held| (&c.patch, held)))
+            .flat_map(|(patch, held)| patch.iter().zip(held))
             .map(|(&v, t)| weight * (skinned[v as usize] - (*t + lift)).length_squared())
             .sum();
-        assert!(direct > 0.0);
-        assert!(
-            (folded - direct).abs() < 1e-9 * direct,
-            "folded {folded} vs per vertex {direct}"
-        );
+        (folded, direct)
+    }
+
+    /// The holds folded into `Q`, `B` and the constant weigh, at any pose, exactly what the
+    /// per-vertex terms `w ‖skinned vertex − held point‖²` weigh (a hold on the wrong
+    /// block, side or weight changes the sum) — also in the next solves of the same solver,
+    /// which keeps the blocks of the patches it held last: with another patch planted, and
+    /// with the same patch held elsewhere. (Fails with the kept blocks reused for another
+    /// patch.)
+    #[test]
+    fn folded_holds_weigh_what_each_held_vertex_does() {
+        let rig = mannequin_rig(12);
+        let model = Arc::new(rig.model().unwrap());
+        let solver = PoseSolver::new(
+            model.clone(),
+            &PoseConstraints::default(),
+            &rig.rest,
+            PoseSolverSettings::default(),
+        )
+        .unwrap();
+        let ground = GroundPlane::new(DVec3::ZERO, DVec3::Y).unwrap();
+        // Patches held at points away from where any pose puts them, one planted at a time.
+        let planted = |patch: Vec<u32>, shift: f64| {
+            let held: Vec<DVec3> = (0..patch.len())
+                .map(|i| DVec3::new(0.1 * i as f64 + shift, -0.05, 0.3 - 0.02 * i as f64))
+                .collect();
+            let mut contact = Contact::new(1, patch, ground);
+            contact.planted = Some(held);
+            contact
+        };
+        let free = Contact::new(2, (50..60).collect(), ground);
+        let first = [planted((0..40).step_by(3).collect(), 0.0), free.clone()];
+        let other = [planted((100..160).step_by(2).collect(), 0.0), free.clone()];
+        let moved = [planted((100..160).step_by(2).collect(), 0.2), free];
+        for contacts in [&first, &other, &moved, &first] {
+            let (folded, direct) = folded_and_direct(&solver, &rig.rest, contacts);
+            assert!(direct > 0.0);
+            assert!(
+                (folded - direct).abs() < 1e-9 * direct,
+                "folded {folded} vs per vertex {direct}"
+            );
+        }
     }
 }

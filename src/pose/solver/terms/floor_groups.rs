@@ -10,20 +10,22 @@
 //! `min h₀ − W max_j (‖ΔA_j‖ R_j + |Δo_j|)`, `R_j` the farthest vertex of the group from
 //! joint `j`'s bind position, `W` the group's largest sum of skin weights (1 for normalised
 //! skins). It is below each vertex's own bound, so a group that passes holds only vertices
-//! that would each have passed; the terms keep their order.
+//! that would each have passed. The floor's terms are made group by group, side by side, so
+//! a group that passes is skipped in one step (made in the floor's order, the groups of the
+//! several joints a floor passes through interleaved, and every term was visited to find
+//! its group's answer: 7 % of the mannequin's grounded solve). Which joint carries a vertex
+//! most is the model's to say once ([`VertexSkin::carrier`]).
 
 use std::ops::Range;
 
-use crate::pose::solver::terms::Term;
+use crate::pose::ground::GroundPlane;
+use crate::pose::rig::skin::VertexSkin;
 
 /// How many vertices a group holds at most: few enough that its lowest vertex stays near the
 /// others, enough that the test is rare.
 const GROUP: usize = 16;
 
-/// A floor term in no group (not a vertex kept above the ground: none is made).
-const NO_GROUP: u32 = u32::MAX;
-
-/// The floor's terms in groups ([`group_floor`]).
+/// The floor's terms in groups ([`plan_groups`]), each group's terms side by side.
 pub(super) struct FloorGroups {
     /// Where the floor's terms are among the solve's.
     terms: Range<usize>,
@@ -34,6 +36,10 @@ pub(super) struct FloorGroups {
 
 /// One group's bound.
 struct FloorGroup {
+    /// Where its terms start, counted from the floor's first.
+    start: u32,
+    /// How many terms it holds.
+    len: u32,
     /// The lowest start height of its vertices.
     min_start_gap: f64,
     /// The largest sum of absolute skin weights of a vertex of it.
@@ -69,7 +75,7 @@ impl FloorGroups {
             .collect()
     }
 
-    /// Term `i`'s start height is now `start_gap` (its plane was raised,
+    /// Term `i`'s start height is now `start_gap` (it was made, or its plane was raised,
     /// `raised_floor.rs`): its group's bound is lowered to it if it is below.
     pub(super) fn lower_bound(&mut self, i: usize, start_gap: f64) {
         if let Some(g) = self.group_of(i) {
@@ -81,68 +87,84 @@ impl FloorGroups {
     /// The group of term `i` (`None` outside the floor's groups).
     pub(super) fn group_of(&self, i: usize) -> Option<usize> {
         let k = i.checked_sub(self.terms.start)?;
-        self.group_of
-            .get(k)
-            .filter(|&&g| g != NO_GROUP)
-            .map(|&g| g as usize)
+        self.group_of.get(k).map(|&g| g as usize)
+    }
+
+    /// The group whose first term is term `i`, with how many terms it holds (`None` for a
+    /// term that does not start one): a group that passes is skipped whole.
+    pub(super) fn starting_at(&self, i: usize) -> Option<(usize, usize)> {
+        let g = self.group_of(i)?;
+        let group = &self.groups[g];
+        (group.start as usize + self.terms.start == i).then_some((g, group.len as usize))
     }
 }
 
-/// Groups the floor's terms (`terms[floor]`, all `Term::Above`): by the joint carrying each
-/// most, [`GROUP`] at a time in the floor's order.
-pub(super) fn group_floor(terms: &[Term], floor: Range<usize>, joints: usize) -> FloorGroups {
-    let mut out = FloorGroups {
-        terms: floor.clone(),
-        group_of: Vec::with_capacity(floor.len()),
-        groups: Vec::new(),
-    };
-    // Per joint, its open group and how many it holds.
-    let mut open: Vec<Option<(u32, usize)>> = vec![None; joints + 1];
-    for term in &terms[floor] {
-        let Term::Above {
-            sums,
-            start_gap,
-            reach,
-            ..
-        } = term
-        else {
-            out.group_of.push(NO_GROUP);
-            continue;
-        };
-        let top = sums
-            .iter()
-            .max_by(|a, b| a.1.w.abs().total_cmp(&b.1.w.abs()))
-            .map_or(joints, |s| s.0.min(joints));
-        let index = match open[top] {
-            Some((g, n)) if n < GROUP => {
-                open[top] = Some((g, n + 1));
-                g
-            }
+/// Groups the floor's vertices (`floor`, each with its plane; `skins`: every vertex's) by
+/// the joint carrying each most, [`GROUP`] at a time in the floor's order, for terms made
+/// from `first_term` on. Returns the order to make them in (indices into `floor`: each
+/// group's side by side) and the groups, whose bounds start at infinity: each term made
+/// lowers its group's ([`FloorGroups::lower_bound`]).
+pub(super) fn plan_groups(
+    floor: &[(u32, GroundPlane)],
+    skins: &[VertexSkin],
+    joints: usize,
+    first_term: usize,
+) -> (Vec<u32>, FloorGroups) {
+    let mut groups: Vec<FloorGroup> = Vec::new();
+    // Each floor vertex's group, in the floor's order.
+    let mut assigned = Vec::with_capacity(floor.len());
+    // Per joint, its open group.
+    let mut open: Vec<Option<u32>> = vec![None; joints + 1];
+    for &(v, _) in floor {
+        let skin = &skins[v as usize];
+        let carrier = skin.carrier.min(joints);
+        let index = match open[carrier] {
+            Some(g) if (groups[g as usize].len as usize) < GROUP => g,
             _ => {
-                let g = out.groups.len() as u32;
-                out.groups.push(FloorGroup {
+                let g = groups.len() as u32;
+                groups.push(FloorGroup {
+                    start: 0,
+                    len: 0,
                     min_start_gap: f64::INFINITY,
                     weight_sum: 0.0,
                     reach: Vec::new(),
                 });
-                open[top] = Some((g, 1));
+                open[carrier] = Some(g);
                 g
             }
         };
-        out.group_of.push(index);
-        let group = &mut out.groups[index as usize];
-        group.min_start_gap = group.min_start_gap.min(*start_gap);
-        group.weight_sum = group
-            .weight_sum
-            .max(sums.iter().map(|s| s.1.w.abs()).sum::<f64>());
-        for (&(j, _), &r) in sums.iter().zip(reach.iter()) {
+        assigned.push(index);
+        let group = &mut groups[index as usize];
+        group.len += 1;
+        group.weight_sum = group.weight_sum.max(skin.weight_sum);
+        for (&(j, _), &r) in skin.sums.iter().zip(skin.reach.iter()) {
             match group.reach.iter_mut().find(|(k, _)| *k == j) {
                 Some((_, far)) => *far = far.max(r),
                 None => group.reach.push((j, r)),
             }
         }
     }
-    out
+    // Each group's terms side by side, the groups in the order they were opened.
+    let mut next = 0;
+    for group in &mut groups {
+        group.start = next;
+        next += group.len;
+    }
+    let mut filled = vec![0u32; groups.len()];
+    let mut order = vec![0u32; floor.len()];
+    let mut group_of = vec![0u32; floor.len()];
+    for (k, &g) in assigned.iter().enumerate() {
+        let at = (groups[g as usize].start + filled[g as usize]) as usize;
+        filled[g as usize] += 1;
+        order[at] = k as u32;
+        group_of[at] = g;
+    }
+    let out = FloorGroups {
+        terms: first_term..first_term + floor.len(),
+        group_of,
+        groups,
+    };
+    (order, out)
 }
 
 #[cfg(test)]
@@ -242,12 +264,44 @@ mod tests {
                     );
                 }
             }
+            // The energy's heights: one per vertex in term order, a group that passes read
+            // whole at its bound, every one at or below the vertex's height.
+            let mut gaps = Vec::new();
+            terms.energy(&skinning, &skinning, &mut gaps);
+            let exact: Vec<f64> = terms
+                .terms
+                .iter()
+                .filter_map(|t| match t {
+                    Term::Above { sums, plane, .. } => {
+                        Some(terms.gap_above(sums, plane, &skinning))
+                    }
+                    _ => None,
+                })
+                .collect();
+            assert_eq!(gaps.len(), exact.len());
+            for (k, (gap, exact)) in gaps.iter().zip(&exact).enumerate() {
+                assert!(*gap <= exact + 1e-12, "vertex {k}: {gap} over {exact}");
+            }
             let near = 0.05;
             let groups = terms.floor_groups.passing(&drift, near);
             passed += groups.iter().filter(|g| g.is_some()).count();
             failed += groups.iter().filter(|g| g.is_none()).count();
         }
         assert!(passed > 0 && failed > 0, "passed {passed}, failed {failed}");
+        // Each group's terms are side by side, so one that passes is skipped whole.
+        let mut seen = vec![false; terms.floor_groups.groups.len()];
+        let mut last = None;
+        for i in 0..terms.terms.len() {
+            let g = terms.floor_groups.group_of(i).unwrap();
+            if last != Some(g) {
+                assert!(!seen[g], "group {g} is split");
+                seen[g] = true;
+                assert_eq!(terms.floor_groups.starting_at(i).map(|s| s.0), Some(g));
+            } else {
+                assert_eq!(terms.floor_groups.starting_at(i), None);
+            }
+            last = Some(g);
+        }
         // A joint whose motion is not a number passes none of the groups it carries.
         let drift = vec![(0.0, 0.0), (f64::NAN, 0.0), (0.0, 0.0)];
         let nan = terms.floor_groups.passing(&drift, f64::NEG_INFINITY);

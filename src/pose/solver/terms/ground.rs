@@ -12,6 +12,7 @@ use crate::pose::ground::balance::SupportPolygon;
 use crate::pose::ground::floor::Floor;
 use crate::pose::rig::skin::{JointSums, VertexSkin, VertexSums, centroid_of};
 use crate::pose::solver::CONTACT_SKIN;
+use crate::pose::solver::terms::floor_groups::{FloorGroups, plan_groups};
 use crate::pose::solver::terms::{EFFECTOR_STRENGTH, ExtraInputs, ExtraTerms, Term, strength};
 
 /// Balance at weight 1 against a position effector at weight 1: the body leans out only where
@@ -100,20 +101,20 @@ pub(crate) fn contact_hold_weight(joint_weight: f64) -> f64 {
 }
 
 /// Appends the contacts', the floor's and balance's terms of `input` (`lw`: a position
-/// effector's weight at weight 1); returns where the floor's are. (`vertex_skins`: each
-/// vertex's, which its terms point at.)
+/// effector's weight at weight 1; `joints`: the skeleton's joint count); returns the floor's
+/// groups. (`vertex_skins`: each vertex's, which its terms point at.)
 pub(super) fn push_terms<'a>(
     terms: &mut Vec<Term<'a>>,
     vertex_skins: &'a [VertexSkin],
     input: &ExtraInputs<'_>,
-    lw: f64,
-) -> std::ops::Range<usize> {
+    (lw, joints): (f64, usize),
+) -> FloorGroups {
     // Contacts: every patch vertex above its ground; a planted one held where it touched,
     // its joint's up turned to the ground's normal.
     let above = ABOVE_OVER_HOLD * CONTACT_STRENGTH * lw;
     let contact_skin = CONTACT_SKIN * input.length_scale;
     let above_term = |v: u32, plane: GroundPlane| {
-        let VertexSkin { sums, reach } = &vertex_skins[v as usize];
+        let VertexSkin { sums, reach, .. } = &vertex_skins[v as usize];
         Term::Above {
             start_gap: plane.height(centroid_of(sums, input.start_skinning)) - contact_skin,
             reach,
@@ -140,11 +141,16 @@ pub(super) fn push_terms<'a>(
             });
         }
     }
-    let floor_start = terms.len();
-    for &(v, plane) in input.floor {
-        terms.push(above_term(v, plane));
+    // The floor's vertices, each group's side by side (`floor_groups.rs`).
+    let (order, mut groups) = plan_groups(input.floor, vertex_skins, joints, terms.len());
+    for &k in &order {
+        let (v, plane) = input.floor[k as usize];
+        let term = above_term(v, plane);
+        if let Term::Above { start_gap, .. } = term {
+            groups.lower_bound(terms.len(), start_gap);
+        }
+        terms.push(term);
     }
-    let floor = floor_start..terms.len();
     if let Some((b, sums)) = input.balance
         && !sums.is_empty()
     {
@@ -156,7 +162,7 @@ pub(super) fn push_terms<'a>(
             weight: BALANCE_STRENGTH * lw * strength(b.weight),
         });
     }
-    floor
+    groups
 }
 
 impl ExtraTerms<'_> {

@@ -285,10 +285,12 @@ impl<'a> ExtraTerms<'a> {
                 weight: lw * strength(c.weight),
             });
         }
-        let floor =
-            crate::pose::solver::terms::ground::push_terms(&mut terms, vertex_skins, input, lw);
-        let floor_groups =
-            crate::pose::solver::terms::floor_groups::group_floor(&terms, floor, skeleton.len());
+        let floor_groups = crate::pose::solver::terms::ground::push_terms(
+            &mut terms,
+            vertex_skins,
+            input,
+            (lw, skeleton.len()),
+        );
         if let Some(s) = input.stiffness {
             let scale = |j: usize| match s.weighting {
                 StiffnessWeighting::Uniform => 1.0,
@@ -362,15 +364,16 @@ impl<'a> ExtraTerms<'a> {
     /// Calls `each` with every term's weight and residual (stacked 3-vectors, at most four)
     /// at `globals` / `skinning`, in term order, and for a vertex kept above the ground its
     /// height above the ground's skin (`None` for other terms) — but `certain` with a lower
-    /// bound of that height for a floor vertex whose group is certainly well above its ground
-    /// (`floor_groups.rs`: its residual is zero); no allocation but the rotation cache and
-    /// the groups' bounds.
+    /// bound of that height and how many terms it holds for a floor group certainly well
+    /// above its ground (`floor_groups.rs`: their residuals are zero; the group's terms are
+    /// side by side and skipped whole); no allocation but the rotation cache and the groups'
+    /// bounds.
     fn for_each_residual(
         &self,
         globals: &[DAffine3],
         skinning: &[DAffine3],
         mut each: impl FnMut(&Term, f64, &Rows<DVec3>, Option<f64>),
-        mut certain: impl FnMut(f64),
+        mut certain: impl FnMut(f64, usize),
     ) {
         let l = self.length_scale;
         // Each joint's world rotation once (a stiffness term reads its joint's and its
@@ -384,11 +387,16 @@ impl<'a> ExtraTerms<'a> {
         let passing = self
             .floor_groups
             .passing(&drift, crate::pose::solver::terms::ground::NEAR_CONTACT * l);
-        for (i, term) in self.terms.iter().enumerate() {
-            if let Some(bound) = self.floor_groups.group_of(i).and_then(|g| passing[g]) {
-                certain(bound);
+        let mut i = 0;
+        while let Some(term) = self.terms.get(i) {
+            if let Some((g, len)) = self.floor_groups.starting_at(i)
+                && let Some(bound) = passing[g]
+            {
+                certain(bound, len);
+                i += len;
                 continue;
             }
+            i += 1;
             let mut gap = None;
             let (weight, rows) = match term {
                 Term::Position {
@@ -485,7 +493,7 @@ impl<'a> ExtraTerms<'a> {
                 sum += w * r.iter().map(|v| v.length_squared()).sum::<f64>();
                 gaps.borrow_mut().extend(gap);
             },
-            |bound| gaps.borrow_mut().push(bound),
+            |bound, count| gaps.borrow_mut().extend(std::iter::repeat_n(bound, count)),
         );
         sum
     }

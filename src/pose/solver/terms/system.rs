@@ -90,7 +90,7 @@ impl ExtraTerms<'_> {
             system.add_blocks(&blocks, 2.0 * w, r);
         };
         // (A group of vertices certainly above their ground adds nothing.)
-        self.for_each_residual(globals, skinning, each, |_| {});
+        self.for_each_residual(globals, skinning, each, |_, _| {});
         rank_one.finish(self, &mut system, (params, globals));
     }
 
