@@ -99,23 +99,27 @@ impl FloorGroups {
     }
 }
 
-/// Groups the floor's vertices (`floor`, each with its plane; `skins`: every vertex's) by
-/// the joint carrying each most, [`GROUP`] at a time in the floor's order, for terms made
-/// from `first_term` on. Returns the order to make them in (indices into `floor`: each
+/// Groups the floor's vertices (`floor`, each with its plane; `skins`: every vertex's; but
+/// not those `left_out`) by the joint carrying each most, [`GROUP`] at a time in the floor's
+/// order, for terms made from `first_term` on (`joints`: the skeleton's count). Returns the order to make them in (indices into `floor`: each
 /// group's side by side) and the groups, whose bounds start at infinity: each term made
 /// lowers its group's ([`FloorGroups::lower_bound`]).
 pub(super) fn plan_groups(
     floor: &[(u32, GroundPlane)],
     skins: &[VertexSkin],
-    joints: usize,
-    first_term: usize,
+    (joints, first_term): (usize, usize),
+    left_out: impl Fn(usize) -> bool,
 ) -> (Vec<u32>, FloorGroups) {
     let mut groups: Vec<FloorGroup> = Vec::new();
     // Each floor vertex's group, in the floor's order.
     let mut assigned = Vec::with_capacity(floor.len());
     // Per joint, its open group.
     let mut open: Vec<Option<u32>> = vec![None; joints + 1];
-    for &(v, _) in floor {
+    for (k, &(v, _)) in floor.iter().enumerate() {
+        if left_out(k) {
+            assigned.push(u32::MAX);
+            continue;
+        }
         let skin = &skins[v as usize];
         let carrier = skin.carrier.min(joints);
         let index = match open[carrier] {
@@ -151,16 +155,16 @@ pub(super) fn plan_groups(
         next += group.len;
     }
     let mut filled = vec![0u32; groups.len()];
-    let mut order = vec![0u32; floor.len()];
-    let mut group_of = vec![0u32; floor.len()];
-    for (k, &g) in assigned.iter().enumerate() {
+    let mut order = vec![0u32; next as usize];
+    let mut group_of = vec![0u32; next as usize];
+    for (k, &g) in assigned.iter().enumerate().filter(|(_, g)| **g != u32::MAX) {
         let at = (groups[g as usize].start + filled[g as usize]) as usize;
         filled[g as usize] += 1;
         order[at] = k as u32;
         group_of[at] = g;
     }
     let out = FloorGroups {
-        terms: first_term..first_term + floor.len(),
+        terms: first_term..first_term + next as usize,
         group_of,
         groups,
     };

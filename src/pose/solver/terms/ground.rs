@@ -34,6 +34,56 @@ pub(super) const NEAR_CONTACT: f64 = 5e-3;
 /// a position effector's worth (a thousandth of the ground's push).
 const NEAR_CURVATURE: f64 = 1e-3;
 
+/// Two planes closer than this share of the model's size (normals and offsets) are the same
+/// plane: a floor vertex a contact keeps above one is kept by that one term at the two
+/// terms' weight — the same energy, gradient and curvature, summed once.
+const SAME_PLANE: f64 = 1e-12;
+
+/// Whether `a` and `b` are the same plane: unit normals within [`SAME_PLANE`] of each other
+/// and `b`'s point within `tolerance` (world units) of `a`.
+fn same_plane(a: &GroundPlane, b: &GroundPlane, tolerance: f64) -> bool {
+    (a.normal - b.normal).abs().max_element() <= SAME_PLANE
+        && a.normal.dot(b.point - a.point).abs() <= tolerance
+}
+
+/// For each floor vertex (`floor`), the contact's term that keeps it above the same plane
+/// ([`same_plane`], to within `tolerance`), if any (`patch_terms`: each contact patch
+/// vertex's term, `terms` the solve's so far; `vertex_count`: the model's). Empty when no
+/// contact has a patch.
+fn kept_by_a_contact(
+    floor: &[(u32, GroundPlane)],
+    mut patch_terms: Vec<(u32, usize)>,
+    terms: &[Term],
+    (tolerance, vertex_count): (f64, usize),
+) -> Vec<Option<usize>> {
+    if patch_terms.is_empty() {
+        return Vec::new();
+    }
+    patch_terms.sort_unstable();
+    // One bit a vertex: most floor vertices are in no patch and need no search.
+    let mut in_a_patch = vec![0u64; vertex_count.div_ceil(64)];
+    for &(v, _) in &patch_terms {
+        in_a_patch[v as usize / 64] |= 1 << (v % 64);
+    }
+    floor
+        .iter()
+        .map(|&(v, plane)| {
+            if in_a_patch[v as usize / 64] & (1 << (v % 64)) == 0 {
+                return None;
+            }
+            let first = patch_terms.partition_point(|&(u, _)| u < v);
+            patch_terms[first..]
+                .iter()
+                .take_while(|&&(u, _)| u == v)
+                .map(|&(_, i)| i)
+                .find(|&i| match &terms[i] {
+                    Term::Above { plane: held, .. } => same_plane(held, &plane, tolerance),
+                    _ => false,
+                })
+        })
+        .collect()
+}
+
 /// Checks the balance, contacts and floor of `constraints` against a model of `joint_count`
 /// joints and `vertex_count` welded vertices.
 pub(crate) fn validate_ground(
@@ -123,10 +173,14 @@ pub(super) fn push_terms<'a>(
             weight: above,
         }
     };
+    // Each patch vertex's term, by vertex: a floor vertex a contact already keeps above the
+    // same plane is not given a second term (see `same_plane`).
+    let mut patch_terms: Vec<(u32, usize)> = Vec::new();
     // (The holds themselves are quadratic in the skinning matrices: `holds.rs` adds them to
     // the solve's `Q`.)
     for c in input.contacts {
         for &v in &c.patch {
+            patch_terms.push((v, terms.len()));
             terms.push(above_term(v, c.ground));
         }
         // (A patch still rolling onto the ground turns with its holds.)
@@ -141,8 +195,24 @@ pub(super) fn push_terms<'a>(
             });
         }
     }
-    // The floor's vertices, each group's side by side (`floor_groups.rs`).
-    let (order, mut groups) = plan_groups(input.floor, vertex_skins, joints, terms.len());
+    // A floor vertex kept above the same plane by a contact's term: its weight is added to
+    // that term instead.
+    let tolerance = SAME_PLANE * input.length_scale;
+    let merged = kept_by_a_contact(
+        input.floor,
+        patch_terms,
+        terms,
+        (tolerance, vertex_skins.len()),
+    );
+    for i in merged.iter().flatten() {
+        if let Term::Above { weight, .. } = &mut terms[*i] {
+            *weight += above;
+        }
+    }
+    let is_merged = |k: usize| merged.get(k).is_some_and(Option::is_some);
+    // The floor's other vertices, each group's side by side (`floor_groups.rs`).
+    let (order, mut groups) =
+        plan_groups(input.floor, vertex_skins, (joints, terms.len()), is_merged);
     for &k in &order {
         let (v, plane) = input.floor[k as usize];
         let term = above_term(v, plane);
@@ -452,6 +522,69 @@ mod tests {
         assert!(g.iter().all(|v| *v == 0.0), "{g:?}");
         let (h, g) = system(2.0);
         assert!(h.iter().chain(&g).all(|v| *v == 0.0), "{h:?} {g:?}");
+    }
+
+    /// A floor vertex a contact keeps above the same plane is one term at both terms'
+    /// weight: the energy and the Gauss–Newton system are the two terms' (against the same
+    /// floor a billionth of the size lower, where each vertex keeps two terms), under
+    /// motions that take vertices under, near and far above the ground. (Fails with the
+    /// floor's weight not added to the contact's term.)
+    #[test]
+    fn a_floor_vertex_kept_by_a_contact_on_the_same_plane_is_summed_once() {
+        let skeleton = bar();
+        let movers = [vec![0, 1]];
+        let params = [Param::Rotation(0), Param::Translation(0)];
+        let ground =
+            GroundPlane::new(DVec3::new(0.1, -0.2, 0.3), DVec3::new(0.2, 1.0, -0.1)).unwrap();
+        let bind: Vec<DVec3> = (0..8)
+            .map(|k| DVec3::new(0.2 * (k % 3) as f64 - 0.2, -0.21 + 0.004 * k as f64, 0.1))
+            .collect();
+        let skins = bar_skins(&bind);
+        let contact = crate::pose::ground::contact::Contact::new(0, (0..5).collect(), ground);
+        let lower = GroundPlane::new(ground.point - ground.normal * 1e-9, ground.normal).unwrap();
+        let with_floor = |floor: GroundPlane| {
+            let under: Vec<(u32, GroundPlane)> = (0..8).map(|v| (v, floor)).collect();
+            crate::pose::solver::terms::floor_and_contacts(
+                (&skeleton, &movers, &[DVec3::ZERO]),
+                &skins,
+                &under,
+                std::slice::from_ref(&contact),
+            )
+        };
+        let (merged, apart) = (with_floor(ground), with_floor(lower));
+        assert_eq!(merged.terms.len() + 5, apart.terms.len());
+        let close = |a: f64, b: f64, scale: f64| (a - b).abs() <= 1e-6 * scale;
+        for k in 0..6 {
+            let t = k as f64 * 0.4;
+            let motion = [DAffine3::from_rotation_translation(
+                glam::DQuat::from_euler(glam::EulerRot::XYZ, 0.05 * t.sin(), 0.1 * t, -0.03 * t),
+                DVec3::new(0.01 * t.cos(), 0.004 - 0.003 * t, 0.0),
+            )];
+            let (e1, e2) = (
+                merged.energy(&motion, &motion, &mut Vec::new()),
+                apart.energy(&motion, &motion, &mut Vec::new()),
+            );
+            assert!(
+                close(e1, e2, e2.abs().max(1e-300)),
+                "motion {k}: {e1} vs {e2}"
+            );
+            let system = |terms: &ExtraTerms| {
+                let (mut h, mut g) = (vec![0.0; 36], vec![0.0; 6]);
+                terms.add_system(
+                    (&motion, &motion),
+                    &params,
+                    (&mut h, &mut Vec::new()),
+                    &mut g,
+                );
+                (h, g)
+            };
+            let ((h1, g1), (h2, g2)) = (system(&merged), system(&apart));
+            let scale = h2.iter().chain(&g2).fold(0.0f64, |m, v| m.max(v.abs()));
+            assert!(scale > 0.0, "motion {k}: no system");
+            for (a, b) in h1.iter().chain(&g1).zip(h2.iter().chain(&g2)) {
+                assert!(close(*a, *b, scale), "motion {k}: {a} vs {b}");
+            }
+        }
     }
 
     /// The lower bound that spares skinning a vertex far above its ground is one: under any

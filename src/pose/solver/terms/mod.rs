@@ -622,9 +622,20 @@ fn carried_change((moved, mass): (DVec3, f64), rotation: bool, origin: DVec3) ->
 /// (`skins`: the vertices' [`vertex_skins`].)
 #[cfg(test)]
 fn floor_only<'a>(
+    rig: (&'a Skeleton, &'a [Vec<u32>], &'a [DVec3]),
+    skins: &'a [VertexSkin],
+    under: &[(u32, GroundPlane)],
+) -> ExtraTerms<'a> {
+    floor_and_contacts(rig, skins, under, &[])
+}
+
+/// Test terms: a floor as [`floor_only`] and `contacts`.
+#[cfg(test)]
+fn floor_and_contacts<'a>(
     (skeleton, movers, bind_origins): (&'a Skeleton, &'a [Vec<u32>], &'a [DVec3]),
     skins: &'a [VertexSkin],
     under: &[(u32, GroundPlane)],
+    contacts: &[Contact],
 ) -> ExtraTerms<'a> {
     let rest = vec![DAffine3::IDENTITY; skeleton.len()];
     ExtraTerms::new(
@@ -633,7 +644,7 @@ fn floor_only<'a>(
         &ExtraInputs {
             balance: None,
             balance_boost: 0.0,
-            contacts: &[],
+            contacts,
             floor: under,
             effectors: &[],
             centroids: &[],
