@@ -65,8 +65,6 @@ fn deepest(gaps: &[f64], raised: &[f64]) -> f64 {
         .fold(f64::INFINITY, f64::min)
 }
 
-static EDBG: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-static SDBG: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 impl PoseSolver {
     /// Solves for the pose from `start`. `cancel` is polled between iterations.
     pub fn solve(
@@ -88,9 +86,7 @@ impl PoseSolver {
         let boost = warm
             .filter(|w| w.balance_support == support)
             .map_or(0.0, |w| w.balance_boost);
-        let tdbg = Instant::now();
         let mut extras = self.extra_terms(constraints, start, boost);
-        let t_extra = tdbg.elapsed().as_secs_f64() * 1e3;
         let limits = constraints.limits.as_deref();
         // A warm start keeps the cluster rotations but not the damping the last solve ended
         // with: raised by that solve's landscape (a foot planting, the floor), carried over it
@@ -123,14 +119,7 @@ impl PoseSolver {
         if let Some(limits) = limits {
             limits.project(&mut pose);
         }
-        let t_holds = tdbg.elapsed().as_secs_f64() * 1e3;
         let mut current = self.posed(pose, &q_blocks);
-        if std::env::var("SETUP_DEBUG").is_ok() {
-            eprintln!(
-                "setup extra {t_extra:.3} holds {t_holds:.3} posed {:.3}",
-                tdbg.elapsed().as_secs_f64() * 1e3
-            );
-        }
         // The buffers of the last replaced or rejected trial pose, for the next trial.
         let mut spare: Option<Posed> = None;
         let mut stats = PoseSolveStats::default();
@@ -194,7 +183,6 @@ impl PoseSolver {
             let before = diagonal_of(&h, n);
             // Balance's Jacobian reads every joint: kept apart as rank-one parts (`low_rank.rs`).
             let mut low_rank = Vec::new();
-            let tt = Instant::now();
             if !extras.is_empty() {
                 extras.add_system(
                     (&current.globals, &current.skin),
@@ -203,10 +191,6 @@ impl PoseSolver {
                     &mut g,
                 );
             }
-            SDBG.fetch_add(
-                tt.elapsed().as_nanos() as u64,
-                std::sync::atomic::Ordering::Relaxed,
-            );
             let mut diagonal = diagonal_of(&h, n);
             low_rank::add_diagonal(&low_rank, &mut diagonal);
             let acted_on: Vec<bool> = (0..n)
@@ -267,13 +251,6 @@ impl PoseSolver {
             return Err(PoseError::NonFiniteResult);
         }
         stats.total_s = started.elapsed().as_secs_f64();
-        if std::env::var("SETUP_DEBUG").is_ok() {
-            eprintln!(
-                "energy {:.3} addsys {:.3}",
-                EDBG.swap(0, std::sync::atomic::Ordering::Relaxed) as f64 * 1e-6,
-                SDBG.swap(0, std::sync::atomic::Ordering::Relaxed) as f64 * 1e-6
-            );
-        }
         Ok(PoseSolution {
             pose,
             cluster_rotations: rotations,
@@ -388,14 +365,9 @@ impl PoseSolver {
         let extras = match posed.extras_energy {
             Some(e) => e,
             None => {
-                let tt = Instant::now();
                 let e = objective
                     .extras
                     .energy(&posed.globals, &posed.skin, &mut posed.gaps);
-                EDBG.fetch_add(
-                    tt.elapsed().as_nanos() as u64,
-                    std::sync::atomic::Ordering::Relaxed,
-                );
                 posed.extras_energy = Some(e);
                 e
             }
