@@ -11,7 +11,7 @@
 //! | `damped_step.rs` | one damped solve with the factor, low-rank parts and hinges |
 //! | `hinges.rs` | joint limits inside the step (hinges restrict it; cones and twist are projected in `step.rs`) |
 //! | `energy/` | the shape energy and the quadratic penalties: `arap.rs`, `penalties.rs`, `holds.rs`, `shape_rest.rs` |
-//! | `terms/` | the extra (non-quadratic) terms: effectors, stiffness and balance in `mod.rs`; the ground's contact and floor terms in `ground.rs`, summed in groups (`floor_groups.rs`) and by moments (`moments.rs`), the raised floor (`raised_floor.rs`); their Gauss–Newton system (`system.rs`) |
+//! | `terms/` | the extra (non-quadratic) terms: effectors, stiffness and balance in `mod.rs`, their residuals and energy in `residuals.rs`, their Jacobians in `jacobians.rs`; the ground's contact and floor terms in `ground.rs`, summed in groups (`floor_groups.rs`) and by moments (`moments.rs`), the raised floor (`raised_floor.rs`); their Gauss–Newton system (`system.rs`) |
 //! | `linalg/` | the block-sparse Cholesky factor and the low-rank (Woodbury) parts |
 
 use std::sync::Arc;

@@ -9,8 +9,10 @@
 //! | `mod.rs` | the types and docs of this folder (above) |
 //! | `floor_groups.rs` | The floor's vertices in groups that share one bound on how far their joints moved them: a group certainly well above its ground passes its vertices in one test. |
 //! | `ground.rs` | The ground's terms of a pose solve: contacts (patch vertices kept above their ground, a planted contact's joint's up turned to the ground's normal; the weight of its holds, which `holds.rs` folds into the solve's `Q`), the floor, and balance — built from [`PoseConstraints`], one-sided where they are inequalities. |
+//! | `jacobians.rs` | The Jacobians of the two-sided terms (effectors, centroids, stiffness) in the bone parameters, for the parameters that move each term. |
 //! | `moments.rs` | The one-number terms (a vertex under or near its ground, along the ground's normal `n`) summed by their moments instead of pair by pair of parameters. |
 //! | `raised_floor.rs` | Non-penetration as an augmented Lagrangian: a vertex the ground's penalty cannot get out of the ground is kept above a plane raised by its depth. |
+//! | `residuals.rs` | Each term's residual at a pose and their weighted sum, the energy (floor groups certainly above their ground passed whole). |
 //! | `system.rs` | The Gauss–Newton system of the extra terms: each active term's Jacobian blocks (for the parameters that move it only), summed as `2 w JᵀJ` and `2 w Jᵀr` into the solver's system. |
 
 use glam::{DAffine3, DMat3, DVec3, DVec4};
@@ -18,12 +20,13 @@ use glam::{DAffine3, DMat3, DVec3, DVec4};
 use crate::pose::ground::GroundPlane;
 use crate::pose::ground::balance::{AllowedRegion, Balance, SupportPolygon};
 use crate::pose::ground::contact::Contact;
-use crate::pose::solver::params::Param;
 
 mod floor_groups;
 mod ground;
+mod jacobians;
 mod moments;
 mod raised_floor;
+mod residuals;
 mod system;
 use crate::pose::constraints::effectors::{
     CentroidEffector, Effector, EffectorGoal, ReferenceStiffness, StiffnessWeighting,
@@ -32,10 +35,11 @@ use crate::pose::error::PoseError;
 use crate::pose::rig::skeleton::rotation_of;
 use crate::pose::rig::skeleton::{Skeleton, VertexInfluences};
 pub(crate) use crate::pose::rig::skin::VertexSkin;
-use crate::pose::rig::skin::{VertexSums, apply, centroid_of, joint_sums};
+use crate::pose::rig::skin::{VertexSums, centroid_of, joint_sums};
 pub(crate) use crate::pose::solver::terms::ground::{
     contact_hold_weight, contact_skin, validate_ground,
 };
+use crate::pose::solver::terms::jacobians::carried_change;
 
 /// An effector of weight 1 weighs this many joint pins.
 const EFFECTOR_STRENGTH: f64 = 100.0;
@@ -360,261 +364,6 @@ impl<'a> ExtraTerms<'a> {
         }
         Some(carrier)
     }
-
-    /// Calls `each` with every term's weight and residual (stacked 3-vectors, at most four)
-    /// at `globals` / `skinning`, in term order, and for a vertex kept above the ground its
-    /// height above the ground's skin (`None` for other terms) — but `certain` with a lower
-    /// bound of that height and how many terms it holds for a floor group certainly well
-    /// above its ground (`floor_groups.rs`: their residuals are zero; the group's terms are
-    /// side by side and skipped whole); no allocation but the rotation cache and the groups'
-    /// bounds.
-    fn for_each_residual(
-        &self,
-        globals: &[DAffine3],
-        skinning: &[DAffine3],
-        mut each: impl FnMut(&Term, f64, &Rows<DVec3>, Option<f64>),
-        mut certain: impl FnMut(f64, usize),
-    ) {
-        let l = self.length_scale;
-        // Each joint's world rotation once (a stiffness term reads its joint's and its
-        // parent's, which is the next term's joint).
-        let mut cache: Vec<Option<DMat3>> = vec![None; globals.len()];
-        let mut rotation = |j: usize| *cache[j].get_or_insert_with(|| Self::rotation(globals, j));
-        // How far each skinning matrix moved since the start: a vertex certainly well above
-        // its ground is not skinned.
-        let drift = self.drift(skinning);
-        // Floor groups certainly well above their ground: their vertices are not skinned.
-        let passing = self
-            .floor_groups
-            .passing(&drift, crate::pose::solver::terms::ground::NEAR_CONTACT * l);
-        let mut i = 0;
-        while let Some(term) = self.terms.get(i) {
-            if let Some((g, len)) = self.floor_groups.starting_at(i)
-                && let Some(bound) = passing[g]
-            {
-                certain(bound, len);
-                i += len;
-                continue;
-            }
-            i += 1;
-            let mut gap = None;
-            let (weight, rows) = match term {
-                Term::Position {
-                    joint,
-                    target,
-                    weight,
-                } => (*weight, Rows::of(&[globals[*joint].translation - *target])),
-                Term::Orientation {
-                    joint,
-                    target,
-                    weight,
-                } => {
-                    let r = rotation(*joint);
-                    (*weight, columns(&((r - *target) * l)))
-                }
-                Term::Aim {
-                    joint,
-                    axis,
-                    target,
-                    up,
-                    weight,
-                } => {
-                    let r = rotation(*joint);
-                    let d = r * *axis;
-                    let u = (*target - globals[*joint].translation).normalize_or(d);
-                    let mut out = Rows::of(&[(d - u) * l]);
-                    if let Some((local_up, world_up)) = up {
-                        let e = r * *local_up;
-                        let f = (*world_up - u * world_up.dot(u)).normalize_or(e);
-                        out.push((e - f) * l);
-                    }
-                    (*weight, out)
-                }
-                Term::Centroid {
-                    sums,
-                    target,
-                    weight,
-                } => (*weight, Rows::of(&[centroid_of(sums, skinning) - *target])),
-                Term::Above {
-                    sums,
-                    plane,
-                    weight,
-                    start_gap,
-                    reach,
-                } => {
-                    let height = self
-                        .certainly_above(sums, (*start_gap, reach), &drift)
-                        .unwrap_or_else(|| self.gap_above(sums, plane, skinning));
-                    gap = Some(height);
-                    (*weight, Rows::of(&[plane.normal * height.min(0.0)]))
-                }
-                Term::Balance { weight, .. } => {
-                    (*weight, Rows::of(&[self.balance_residual(term, skinning)]))
-                }
-                Term::Stiffness {
-                    joint,
-                    reference,
-                    root_translation,
-                    weight,
-                } => {
-                    let r = rotation(*joint);
-                    let parent = match self.skeleton.joints()[*joint].parent {
-                        Some(p) => rotation(p),
-                        None => self.parent_rotation(globals, *joint),
-                    };
-                    let goal = parent * *reference;
-                    let mut out = columns(&((r - goal) * l));
-                    if let Some(t) = root_translation {
-                        out.push(globals[*joint].translation - *t);
-                    }
-                    (*weight, out)
-                }
-            };
-            each(term, weight, &rows, gap);
-        }
-    }
-
-    /// `Σ w ‖r‖²`; `gaps` gets each vertex's height above its ground's skin, in term order
-    /// (what [`ExtraTerms::first_contact`] compares between two poses) — for a vertex
-    /// certainly well above it, a lower bound ([`ExtraTerms::certainly_above`]).
-    pub(crate) fn energy(
-        &self,
-        globals: &[DAffine3],
-        skinning: &[DAffine3],
-        gaps: &mut Vec<f64>,
-    ) -> f64 {
-        gaps.clear();
-        let mut sum = 0.0;
-        let gaps = std::cell::RefCell::new(gaps);
-        self.for_each_residual(
-            globals,
-            skinning,
-            |_, w, r, gap| {
-                sum += w * r.iter().map(|v| v.length_squared()).sum::<f64>();
-                gaps.borrow_mut().extend(gap);
-            },
-            |bound, count| gaps.borrow_mut().extend(std::iter::repeat_n(bound, count)),
-        );
-        sum
-    }
-
-    /// The Jacobian blocks (one 3 × 3 per residual 3-vector) of a two-sided term for one
-    /// parameter.
-    fn jacobian(
-        &self,
-        term: &Term,
-        param: Param,
-        globals: &[DAffine3],
-        skinning: &[DAffine3],
-    ) -> Option<Rows<DMat3>> {
-        let l = self.length_scale;
-        let (a, rotation) = match param {
-            Param::Rotation(a) => (a, true),
-            Param::Translation(a) => (a, false),
-        };
-        let origin = globals[a].translation;
-        // d(point) for a point moved rigidly with joint `a`'s subtree.
-        let point = |p: DVec3| {
-            if rotation {
-                -skew(p - origin)
-            } else {
-                DMat3::IDENTITY
-            }
-        };
-        // d(direction) for a direction turned with the subtree.
-        let direction = |d: DVec3| if rotation { -skew(d) } else { DMat3::ZERO };
-        match term {
-            Term::Position { joint, .. } => self
-                .moves(a, *joint)
-                .then(|| Rows::of(&[point(globals[*joint].translation)])),
-            Term::Orientation { joint, .. } => self.moves(a, *joint).then(|| {
-                let r = Self::rotation(globals, *joint);
-                Rows::of(&[r.x_axis, r.y_axis, r.z_axis].map(|c| direction(c) * l))
-            }),
-            Term::Aim {
-                joint,
-                axis,
-                target,
-                up,
-                ..
-            } => self.moves(a, *joint).then(|| {
-                let r = Self::rotation(globals, *joint);
-                let d = r * *axis;
-                let to = *target - globals[*joint].translation;
-                let dist = to.length().max(1e-9);
-                let u = to / dist;
-                let project = DMat3::IDENTITY - outer(u, u);
-                // r = d − u; du = −P dp / dist.
-                let change =
-                    (direction(d) + project * point(globals[*joint].translation) / dist) * l;
-                let mut out = Rows::of(&[change]);
-                if up.is_some() {
-                    let e = r * up.map_or(DVec3::Y, |u| u.0);
-                    out.push(direction(e) * l);
-                }
-                out
-            }),
-            Term::Centroid { sums, .. } => self
-                .centroid_jacobian(sums, a, rotation, origin, skinning)
-                .map(|b| Rows::of(&[b])),
-            // Summed elsewhere: a vertex along its ground's normal (`moments.rs`), balance as
-            // rank-one parts (`system.rs`).
-            Term::Above { .. } | Term::Balance { .. } => None,
-            Term::Stiffness {
-                joint,
-                root_translation,
-                ..
-            } => {
-                // Only the joint's own parameters: an ancestor turns the joint and its goal
-                // together, so the residual turns rigidly and its length does not change — no
-                // gradient and no curvature (the Gauss–Newton blocks `JᵀJ` it would add are
-                // spurious stiffness on the ancestors). A translation is a root's own, and
-                // counts only where the term holds the root's position.
-                if a != *joint || (!rotation && root_translation.is_none()) {
-                    return None;
-                }
-                let mut out = if rotation {
-                    let r = Self::rotation(globals, *joint);
-                    Rows::of(&[r.x_axis, r.y_axis, r.z_axis].map(|c| direction(c) * l))
-                } else {
-                    Rows::of(&[DMat3::ZERO; 3])
-                };
-                if root_translation.is_some() {
-                    out.push(point(globals[*joint].translation));
-                }
-                Some(out)
-            }
-        }
-    }
-
-    /// The change of the weighted centroid `Σ_j S_j m_j` under parameter `a` (a rotation about
-    /// `origin`, or a root's translation); `None` when no joint it moves has a share.
-    fn centroid_jacobian(
-        &self,
-        sums: &[(usize, DVec4)],
-        a: usize,
-        rotation: bool,
-        origin: DVec3,
-        skinning: &[DAffine3],
-    ) -> Option<DMat3> {
-        let mut moved = DVec3::ZERO;
-        let mut mass = 0.0;
-        for &(j, m) in sums.iter().filter(|(j, _)| self.moves(a, *j)) {
-            moved += apply(&skinning[j], m);
-            mass += m.w;
-        }
-        carried_change((moved, mass), rotation, origin)
-    }
-}
-
-/// The change of the part of a weighted centroid a parameter carries — its skinned sum
-/// `moved` and its weight `mass` — under the parameter: a turn about `origin`, or a root's
-/// translation; `None` when it carries none of it.
-fn carried_change((moved, mass): (DVec3, f64), rotation: bool, origin: DVec3) -> Option<DMat3> {
-    (mass != 0.0).then(|| match rotation {
-        true => -skew(moved - origin * mass),
-        false => DMat3::IDENTITY * mass,
-    })
 }
 
 /// Test terms: only a floor — every vertex of `skins` kept above its plane in `under`, the

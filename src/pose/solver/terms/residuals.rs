@@ -1,0 +1,147 @@
+//! Each extra term's residual at a pose and their weighted sum, the energy: a floor group
+//! certainly above its ground is passed whole, a vertex certainly above it is bounded
+//! instead of skinned.
+
+use glam::{DAffine3, DMat3, DVec3};
+
+use crate::pose::rig::skin::centroid_of;
+use crate::pose::solver::terms::{ExtraTerms, Rows, Term, columns};
+
+impl ExtraTerms<'_> {
+    /// Calls `each` with every term's weight and residual (stacked 3-vectors, at most four)
+    /// at `globals` / `skinning`, in term order, and for a vertex kept above the ground its
+    /// height above the ground's skin (`None` for other terms) — but `certain` with a lower
+    /// bound of that height and how many terms it holds for a floor group certainly well
+    /// above its ground (`floor_groups.rs`: their residuals are zero; the group's terms are
+    /// side by side and skipped whole); no allocation but the rotation cache and the groups'
+    /// bounds.
+    pub(super) fn for_each_residual(
+        &self,
+        globals: &[DAffine3],
+        skinning: &[DAffine3],
+        mut each: impl FnMut(&Term, f64, &Rows<DVec3>, Option<f64>),
+        mut certain: impl FnMut(f64, usize),
+    ) {
+        let l = self.length_scale;
+        // Each joint's world rotation once (a stiffness term reads its joint's and its
+        // parent's, which is the next term's joint).
+        let mut cache: Vec<Option<DMat3>> = vec![None; globals.len()];
+        let mut rotation = |j: usize| *cache[j].get_or_insert_with(|| Self::rotation(globals, j));
+        // How far each skinning matrix moved since the start: a vertex certainly well above
+        // its ground is not skinned.
+        let drift = self.drift(skinning);
+        // Floor groups certainly well above their ground: their vertices are not skinned.
+        let passing = self
+            .floor_groups
+            .passing(&drift, crate::pose::solver::terms::ground::NEAR_CONTACT * l);
+        let mut i = 0;
+        while let Some(term) = self.terms.get(i) {
+            if let Some((g, len)) = self.floor_groups.starting_at(i)
+                && let Some(bound) = passing[g]
+            {
+                certain(bound, len);
+                i += len;
+                continue;
+            }
+            i += 1;
+            let mut gap = None;
+            let (weight, rows) = match term {
+                Term::Position {
+                    joint,
+                    target,
+                    weight,
+                } => (*weight, Rows::of(&[globals[*joint].translation - *target])),
+                Term::Orientation {
+                    joint,
+                    target,
+                    weight,
+                } => {
+                    let r = rotation(*joint);
+                    (*weight, columns(&((r - *target) * l)))
+                }
+                Term::Aim {
+                    joint,
+                    axis,
+                    target,
+                    up,
+                    weight,
+                } => {
+                    let r = rotation(*joint);
+                    let d = r * *axis;
+                    let u = (*target - globals[*joint].translation).normalize_or(d);
+                    let mut out = Rows::of(&[(d - u) * l]);
+                    if let Some((local_up, world_up)) = up {
+                        let e = r * *local_up;
+                        let f = (*world_up - u * world_up.dot(u)).normalize_or(e);
+                        out.push((e - f) * l);
+                    }
+                    (*weight, out)
+                }
+                Term::Centroid {
+                    sums,
+                    target,
+                    weight,
+                } => (*weight, Rows::of(&[centroid_of(sums, skinning) - *target])),
+                Term::Above {
+                    sums,
+                    plane,
+                    weight,
+                    start_gap,
+                    reach,
+                } => {
+                    let height = self
+                        .certainly_above(sums, (*start_gap, reach), &drift)
+                        .unwrap_or_else(|| self.gap_above(sums, plane, skinning));
+                    gap = Some(height);
+                    (*weight, Rows::of(&[plane.normal * height.min(0.0)]))
+                }
+                Term::Balance { weight, .. } => {
+                    (*weight, Rows::of(&[self.balance_residual(term, skinning)]))
+                }
+                Term::Stiffness {
+                    joint,
+                    reference,
+                    root_translation,
+                    weight,
+                } => {
+                    let r = rotation(*joint);
+                    let parent = match self.skeleton.joints()[*joint].parent {
+                        Some(p) => rotation(p),
+                        None => self.parent_rotation(globals, *joint),
+                    };
+                    let goal = parent * *reference;
+                    let mut out = columns(&((r - goal) * l));
+                    if let Some(t) = root_translation {
+                        out.push(globals[*joint].translation - *t);
+                    }
+                    (*weight, out)
+                }
+            };
+            each(term, weight, &rows, gap);
+        }
+    }
+
+    /// `Σ w ‖r‖²`; `gaps` gets each vertex's height above its ground's skin, in term order
+    /// (what [`ExtraTerms::first_contact`] compares between two poses) — for a vertex
+    /// certainly well above it, a lower bound ([`ExtraTerms::certainly_above`]).
+    pub(crate) fn energy(
+        &self,
+        globals: &[DAffine3],
+        skinning: &[DAffine3],
+        gaps: &mut Vec<f64>,
+    ) -> f64 {
+        gaps.clear();
+        let mut sum = 0.0;
+        let gaps = std::cell::RefCell::new(gaps);
+        self.for_each_residual(
+            globals,
+            skinning,
+            |_, w, r, gap| {
+                sum += w * r.iter().map(|v| v.length_squared()).sum::<f64>();
+                gaps.borrow_mut().extend(gap);
+            },
+            |bound, count| gaps.borrow_mut().extend(std::iter::repeat_n(bound, count)),
+        );
+        sum
+    }
+}
