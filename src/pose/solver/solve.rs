@@ -185,7 +185,7 @@ impl PoseSolver {
             let mut low_rank = Vec::new();
             if !extras.is_empty() {
                 extras.add_system(
-                    (&current.globals, &current.skin),
+                    (&current.globals, &current.skin, &current.gaps),
                     &self.params,
                     (&mut h, &mut low_rank),
                     &mut g,

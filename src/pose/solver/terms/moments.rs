@@ -10,7 +10,9 @@
 //! `α_a α_b C_cc + α_a C_cm B_bᵀ + α_b B_a C_cmᵀ + B_a C_mm B_bᵀ` (a turn: `α = 1`,
 //! `B = −[o]×`; a translation: `α = 0`, `B = I`) in the moments `C_cc = Σ s c cᵀ`,
 //! `C_cm = Σ s c mᵀ`, `C_mm = Σ s m mᵀ` — summed once per vertex, expanded once per pair of
-//! parameters per `L` (a foot's), not once per pair per vertex.
+//! parameters per `L` (a foot's), not once per pair per vertex. The expansion is `G_a M G_bᵀ`
+//! with `G = [α I, B]` and `M` the moments: `G_a M` is made once per parameter, which leaves
+//! one 3 × 3 product a pair instead of four (the Fox's grounded drag 6 % faster).
 //!
 //! A parameter below `L` moves part of a vertex (a toe's share of a vertex the foot and the
 //! toe carry; with weights on both legs, every joint of a leg): its row is `α c_K + B m_K`
@@ -119,24 +121,42 @@ struct PartialGroup {
     gradient: Vec<f64>,
 }
 
-/// `Σ s u_a u_bᵀ` for rows `u = α c + B m` (see the module docs) from the moments
-/// `cc = Σ s c_a c_bᵀ`, `cm = Σ s c_a m_bᵀ`, `mc = Σ s m_a c_bᵀ`, `mm = Σ s m_a m_bᵀ`.
-fn pair_block(
-    [cc, cm, mc, mm]: [DMat3; 4],
-    (alpha_a, b_a): (f64, DMat3),
-    (alpha_b, b_b): (f64, DMat3),
-) -> DMat3 {
-    cc * (alpha_a * alpha_b)
-        + cm * b_b.transpose() * alpha_a
-        + b_a * mc * alpha_b
-        + b_a * mm * b_b.transpose()
+/// A parameter's row coefficients: `u = α c + B m` (see the module docs), with `Bᵀ`.
+#[derive(Debug, Clone, Copy)]
+struct RowCoefficients {
+    alpha: f64,
+    b: DMat3,
+    b_transposed: DMat3,
 }
 
-/// A parameter's row coefficients: `u = α c + B m` (see the module docs).
-fn coefficients(param: Param, globals: &[DAffine3]) -> (f64, DMat3) {
-    match param {
-        Param::Rotation(a) => (1.0, -skew(globals[a].translation)),
-        Param::Translation(_) => (0.0, DMat3::IDENTITY),
+impl RowCoefficients {
+    /// The coefficients of `param`'s row at `globals`: a turn `(1, −[o]×)` about its joint's
+    /// origin `o`, a root's translation `(0, I)`.
+    fn of(param: Param, globals: &[DAffine3]) -> Self {
+        let (alpha, b) = match param {
+            Param::Rotation(a) => (1.0, -skew(globals[a].translation)),
+            Param::Translation(_) => (0.0, DMat3::IDENTITY),
+        };
+        Self {
+            alpha,
+            b,
+            b_transposed: b.transpose(),
+        }
+    }
+
+    /// The first half of every block `Σ s u_a u_bᵀ = G_a M G_bᵀ` of this parameter's row
+    /// (`G = [α I, B]`) against the moments `M = [cc, cm; mc, mm]` (`cc = Σ s c_a c_bᵀ`,
+    /// `cm = Σ s c_a m_bᵀ`, `mc = Σ s m_a c_bᵀ`, `mm = Σ s m_a m_bᵀ`): `G_a M`, as its two
+    /// 3 × 3 halves. Made once per parameter, it leaves one product per pair
+    /// ([`RowCoefficients::pair_block`]) instead of four.
+    fn times_moments(&self, [cc, cm, mc, mm]: [DMat3; 4]) -> [DMat3; 2] {
+        [cc * self.alpha + self.b * mc, cm * self.alpha + self.b * mm]
+    }
+
+    /// `Σ s u_a u_bᵀ` from parameter `a`'s half ([`RowCoefficients::times_moments`]) and
+    /// this parameter's row (`b`): `α_b L + R B_bᵀ`.
+    fn pair_block(&self, [left, right]: [DMat3; 2]) -> DMat3 {
+        left * self.alpha + right * self.b_transposed
     }
 }
 
@@ -260,22 +280,19 @@ impl RankOneSums {
             if !moments.used {
                 continue;
             }
-            let whole: Vec<(usize, f64, DMat3)> = terms.joint_movers[l]
+            let whole: Vec<(usize, RowCoefficients)> = terms.joint_movers[l]
                 .iter()
-                .map(|&p| {
-                    let (alpha, b) = coefficients(params[p as usize], globals);
-                    (p as usize, alpha, b)
-                })
+                .map(|&p| (p as usize, RowCoefficients::of(params[p as usize], globals)))
                 .collect();
-            for (i, &(pa, alpha_a, b_a)) in whole.iter().enumerate() {
-                let g = moments.gc * alpha_a + b_a * moments.gm;
+            let blocks = [moments.cc, moments.cm, moments.cm.transpose(), moments.mm];
+            for (i, &(pa, a)) in whole.iter().enumerate() {
+                let g = moments.gc * a.alpha + a.b * moments.gm;
                 for k in 0..3 {
                     system.g[pa * 3 + k] += g[k];
                 }
-                let blocks = [moments.cc, moments.cm, moments.cm.transpose(), moments.mm];
-                for &(pb, alpha_b, b_b) in &whole[i..] {
-                    let block = pair_block(blocks, (alpha_a, b_a), (alpha_b, b_b));
-                    system.add_pair((pa, pb), block, 1.0);
+                let half = a.times_moments(blocks);
+                for &(pb, b) in &whole[i..] {
+                    system.add_pair((pa, pb), b.pair_block(half), 1.0);
                 }
             }
         }
@@ -381,19 +398,27 @@ impl PartialGroup {
                 [at(r, c + 2), at(r + 1, c + 2), at(r + 2, c + 2)],
             ])
         };
-        // `Σ s u_a u_bᵀ` for rows `u = α c_K + B m_K` of parts `ka`, `kb`.
-        let pair = |(ka, a): (usize, (f64, DMat3)), (kb, b): (usize, (f64, DMat3))| {
-            let (ra, rb) = (6 * ka, 6 * kb);
-            let parts = [
-                block(ra, rb),
-                block(ra, rb + 3),
-                block(ra + 3, rb),
-                block(ra + 3, rb + 3),
-            ];
-            pair_block(parts, a, b)
-        };
+        // Per pair of parts `(ka, kb)`, the moments of rows `u = α c_K + B m_K`.
+        let parts = k / 6;
+        let pair_moments: Vec<[DMat3; 4]> = (0..parts * parts)
+            .map(|ab| {
+                let (ra, rb) = (6 * (ab / parts), 6 * (ab % parts));
+                [
+                    block(ra, rb),
+                    block(ra, rb + 3),
+                    block(ra + 3, rb),
+                    block(ra + 3, rb + 3),
+                ]
+            })
+            .collect();
         // Each parameter with its part and row coefficients, once.
-        let with = |p: u32, k: usize| (p as usize, (k, coefficients(params[p as usize], globals)));
+        let with = |p: u32, k: usize| {
+            (
+                p as usize,
+                k,
+                RowCoefficients::of(params[p as usize], globals),
+            )
+        };
         let in_part: Vec<_> = self.params.iter().map(|&(p, k)| with(p, k)).collect();
         let whole: Vec<_> = self
             .carrier
@@ -401,16 +426,21 @@ impl PartialGroup {
             .iter()
             .map(|&p| with(p, 0))
             .collect();
-        for (i, &(pa, a)) in in_part.iter().enumerate() {
-            let (r, (alpha, b)) = (6 * a.0, a.1);
+        let mut halves = vec![[DMat3::ZERO; 2]; parts];
+        for (i, &(pa, ka, a)) in in_part.iter().enumerate() {
+            let r = 6 * ka;
             let gc = DVec3::from_slice(&gradient[r..r + 3]);
             let gm = DVec3::from_slice(&gradient[r + 3..r + 6]);
-            let g = gc * alpha + b * gm;
+            let g = gc * a.alpha + a.b * gm;
             for k in 0..3 {
                 system.g[pa * 3 + k] += g[k];
             }
-            for &(pb, b) in in_part[i..].iter().chain(&whole) {
-                system.add_pair((pa, pb), pair(a, b), 1.0);
+            // `G_a M` against each part, once for every parameter paired with this one.
+            for (kb, half) in halves.iter_mut().enumerate() {
+                *half = a.times_moments(pair_moments[ka * parts + kb]);
+            }
+            for &(pb, kb, b) in in_part[i..].iter().chain(&whole) {
+                system.add_pair((pa, pb), b.pair_block(halves[kb]), 1.0);
             }
         }
     }
@@ -570,8 +600,10 @@ mod tests {
             .collect();
         let n = 3 * params.len();
         let (mut h, mut g) = (vec![0.0; n * n], vec![0.0; n]);
+        let mut gaps = Vec::new();
+        terms.energy(&globals, &skinning, &mut gaps);
         terms.add_system(
-            (&globals, &skinning),
+            (&globals, &skinning, &gaps),
             &params,
             (&mut h, &mut Vec::new()),
             &mut g,

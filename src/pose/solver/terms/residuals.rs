@@ -1,10 +1,12 @@
 //! Each extra term's residual at a pose and their weighted sum, the energy: a floor group
 //! certainly above its ground is passed whole, a vertex certainly above it is bounded
-//! instead of skinned.
+//! instead of skinned; where the heights are already known (an iteration's system), a
+//! vertex well above its ground is passed.
 
 use glam::{DAffine3, DMat3, DVec3};
 
 use crate::pose::rig::skin::centroid_of;
+use crate::pose::solver::terms::ground::NEAR_CONTACT;
 use crate::pose::solver::terms::{ExtraTerms, Rows, Term, columns};
 
 impl ExtraTerms<'_> {
@@ -19,28 +21,62 @@ impl ExtraTerms<'_> {
         &self,
         globals: &[DAffine3],
         skinning: &[DAffine3],
+        each: impl FnMut(&Term, f64, &Rows<DVec3>, Option<f64>),
+        certain: impl FnMut(f64, usize),
+    ) {
+        self.residuals_with((globals, skinning, None), each, certain);
+    }
+
+    /// Calls `each` as [`ExtraTerms::for_each_residual`] does, but for a pose whose vertices'
+    /// heights above their ground's skin are known (`gaps`, as [`ExtraTerms::energy`] gave
+    /// them at this pose: exact below [`NEAR_CONTACT`], a lower bound above it), and not for
+    /// a vertex at least that far above its ground, which adds nothing to a Gauss–Newton
+    /// system (no residual, no near-contact curvature). The heights are read, not skinned
+    /// or bounded again: an iteration's system is built at the pose whose energy was just
+    /// taken.
+    pub(super) fn for_each_acting(
+        &self,
+        (globals, skinning, gaps): (&[DAffine3], &[DAffine3], &[f64]),
+        each: impl FnMut(&Term, f64, &Rows<DVec3>, Option<f64>),
+    ) {
+        self.residuals_with((globals, skinning, Some(gaps)), each, |_, _| {});
+    }
+
+    /// [`ExtraTerms::for_each_residual`], or with `known` heights
+    /// [`ExtraTerms::for_each_acting`].
+    fn residuals_with(
+        &self,
+        (globals, skinning, known): (&[DAffine3], &[DAffine3], Option<&[f64]>),
         mut each: impl FnMut(&Term, f64, &Rows<DVec3>, Option<f64>),
         mut certain: impl FnMut(f64, usize),
     ) {
         let l = self.length_scale;
+        let near = NEAR_CONTACT * l;
         // Each joint's world rotation once (a stiffness term reads its joint's and its
         // parent's, which is the next term's joint).
         let mut cache: Vec<Option<DMat3>> = vec![None; globals.len()];
         let mut rotation = |j: usize| *cache[j].get_or_insert_with(|| Self::rotation(globals, j));
         // How far each skinning matrix moved since the start: a vertex certainly well above
-        // its ground is not skinned.
-        let drift = self.drift(skinning);
-        // Floor groups certainly well above their ground: their vertices are not skinned.
-        let passing = self
-            .floor_groups
-            .passing(&drift, crate::pose::solver::terms::ground::NEAR_CONTACT * l);
+        // its ground is not skinned. Floor groups certainly well above their ground: their
+        // vertices are not skinned. (Neither is needed where the heights are known.)
+        let (drift, passing) = match known {
+            None => {
+                let drift = self.drift(skinning);
+                let passing = self.floor_groups.passing(&drift, near);
+                (drift, passing)
+            }
+            Some(_) => (Vec::new(), Vec::new()),
+        };
+        // How many vertices kept above the ground came before (the index into `known`).
+        let mut above = 0;
         let mut i = 0;
         while let Some(term) = self.terms.get(i) {
             if let Some((g, len)) = self.floor_groups.starting_at(i)
-                && let Some(bound) = passing[g]
+                && let Some(&Some(bound)) = passing.get(g)
             {
                 certain(bound, len);
                 i += len;
+                above += len;
                 continue;
             }
             i += 1;
@@ -89,9 +125,16 @@ impl ExtraTerms<'_> {
                     start_gap,
                     reach,
                 } => {
-                    let height = self
-                        .certainly_above(sums, (*start_gap, reach), &drift)
-                        .unwrap_or_else(|| self.gap_above(sums, plane, skinning));
+                    let known = known.and_then(|k| k.get(above).copied());
+                    above += 1;
+                    let height = match known {
+                        // Nothing to add to a system.
+                        Some(h) if h >= near => continue,
+                        Some(h) => h,
+                        None => self
+                            .certainly_above(sums, (*start_gap, reach), &drift)
+                            .unwrap_or_else(|| self.gap_above(sums, plane, skinning)),
+                    };
                     gap = Some(height);
                     (*weight, Rows::of(&[plane.normal * height.min(0.0)]))
                 }

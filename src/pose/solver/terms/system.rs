@@ -26,7 +26,8 @@ impl ExtraTerms<'_> {
     }
 
     /// Adds the Gauss–Newton terms `2 w JᵀJ` and `2 w Jᵀr` to the solver's system (`h` is
-    /// `3P × 3P` row-major, `g` `3P`). A term has Jacobian blocks only for the parameters
+    /// `3P × 3P` row-major, `g` `3P`) at the pose of `globals` / `skinning`, whose vertices'
+    /// heights above their ground are `gaps` ([`ExtraTerms::energy`] at that pose). A term has Jacobian blocks only for the parameters
     /// that move it; a vertex under its ground is a single number along the ground's normal,
     /// whose `JᵀJ` is an outer product of 3-vectors.
     ///
@@ -35,7 +36,7 @@ impl ExtraTerms<'_> {
     /// the skeleton.
     pub(crate) fn add_system(
         &self,
-        (globals, skinning): (&[DAffine3], &[DAffine3]),
+        (globals, skinning, gaps): (&[DAffine3], &[DAffine3], &[f64]),
         params: &[Param],
         (h, low_rank): (&mut [f64], &mut Vec<RankOne>),
         g: &mut [f64],
@@ -89,8 +90,8 @@ impl ExtraTerms<'_> {
             }));
             system.add_blocks(&blocks, 2.0 * w, r);
         };
-        // (A group of vertices certainly above their ground adds nothing.)
-        self.for_each_residual(globals, skinning, each, |_, _| {});
+        // (A vertex well above its ground adds nothing.)
+        self.for_each_acting((globals, skinning, gaps), each);
         rank_one.finish(self, &mut system, (params, globals));
     }
 
@@ -326,7 +327,14 @@ mod tests {
         );
         let n = 3 * params.len();
         let (mut h, mut g, mut parts) = (vec![0.0; n * n], vec![0.0; n], Vec::new());
-        terms.add_system((&globals, &skinning), &params, (&mut h, &mut parts), &mut g);
+        let mut gaps = Vec::new();
+        terms.energy(&globals, &skinning, &mut gaps);
+        terms.add_system(
+            (&globals, &skinning, &gaps),
+            &params,
+            (&mut h, &mut parts),
+            &mut g,
+        );
         let term = terms
             .terms
             .iter()
