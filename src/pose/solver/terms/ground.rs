@@ -508,14 +508,7 @@ mod tests {
             let terms = floor_terms(&skeleton, &movers, &skins, floor);
             let (mut h, mut g) = (vec![0.0; 9], vec![0.0; 3]);
             let at = [DAffine3::IDENTITY];
-            let mut gaps = Vec::new();
-            terms.energy(&at, &at, &mut gaps);
-            terms.add_system(
-                (&at, &at, &gaps),
-                &params,
-                (&mut h, &mut Vec::new()),
-                &mut g,
-            );
+            terms.add_system_at((&at, &at), &params, (&mut h, &mut Vec::new()), &mut g);
             (h, g)
         };
         let above = super::ABOVE_OVER_HOLD * super::CONTACT_STRENGTH * EFFECTOR_STRENGTH;
@@ -577,10 +570,8 @@ mod tests {
             );
             let system = |terms: &ExtraTerms| {
                 let (mut h, mut g) = (vec![0.0; 36], vec![0.0; 6]);
-                let mut gaps = Vec::new();
-                terms.energy(&motion, &motion, &mut gaps);
-                terms.add_system(
-                    (&motion, &motion, &gaps),
+                terms.add_system_at(
+                    (&motion, &motion),
                     &params,
                     (&mut h, &mut Vec::new()),
                     &mut g,

@@ -600,10 +600,8 @@ mod tests {
             .collect();
         let n = 3 * params.len();
         let (mut h, mut g) = (vec![0.0; n * n], vec![0.0; n]);
-        let mut gaps = Vec::new();
-        terms.energy(&globals, &skinning, &mut gaps);
-        terms.add_system(
-            (&globals, &skinning, &gaps),
+        terms.add_system_at(
+            (&globals, &skinning),
             &params,
             (&mut h, &mut Vec::new()),
             &mut g,

@@ -27,9 +27,10 @@ impl ExtraTerms<'_> {
 
     /// Adds the Gauss–Newton terms `2 w JᵀJ` and `2 w Jᵀr` to the solver's system (`h` is
     /// `3P × 3P` row-major, `g` `3P`) at the pose of `globals` / `skinning`, whose vertices'
-    /// heights above their ground are `gaps` ([`ExtraTerms::energy`] at that pose). A term has Jacobian blocks only for the parameters
-    /// that move it; a vertex under its ground is a single number along the ground's normal,
-    /// whose `JᵀJ` is an outer product of 3-vectors.
+    /// heights above their ground are `gaps` ([`ExtraTerms::energy`] at that pose). A term
+    /// has Jacobian blocks only for the parameters that move it; a vertex under its ground is
+    /// a single number along the ground's normal, whose `JᵀJ` is an outer product of
+    /// 3-vectors.
     ///
     /// Balance reads every joint (the centre of mass): its `JᵀJ` goes to `low_rank` as
     /// rank-one parts ([`ExtraTerms::balance_parts`]), not into `h`, which stays as sparse as
@@ -161,6 +162,23 @@ impl ExtraTerms<'_> {
             }
             low_rank.push(RankOne { scale: s, u, bound });
         }
+    }
+}
+
+#[cfg(test)]
+impl ExtraTerms<'_> {
+    /// [`ExtraTerms::add_system`] at a pose whose heights are taken here first, as a solve's
+    /// energy takes them before its system (tests).
+    pub(super) fn add_system_at(
+        &self,
+        (globals, skinning): (&[DAffine3], &[DAffine3]),
+        params: &[Param],
+        (h, low_rank): (&mut [f64], &mut Vec<RankOne>),
+        g: &mut [f64],
+    ) {
+        let mut gaps = Vec::new();
+        self.energy(globals, skinning, &mut gaps);
+        self.add_system((globals, skinning, &gaps), params, (h, low_rank), g);
     }
 }
 
@@ -327,14 +345,7 @@ mod tests {
         );
         let n = 3 * params.len();
         let (mut h, mut g, mut parts) = (vec![0.0; n * n], vec![0.0; n], Vec::new());
-        let mut gaps = Vec::new();
-        terms.energy(&globals, &skinning, &mut gaps);
-        terms.add_system(
-            (&globals, &skinning, &gaps),
-            &params,
-            (&mut h, &mut parts),
-            &mut g,
-        );
+        terms.add_system_at((&globals, &skinning), &params, (&mut h, &mut parts), &mut g);
         let term = terms
             .terms
             .iter()
