@@ -236,7 +236,12 @@ impl<'a> ExtraTerms<'a> {
         vertex_skins: &'a [VertexSkin],
         input: &ExtraInputs<'_>,
     ) -> Self {
-        let mut terms = Vec::new();
+        // Room for every term at once: a grounded solve makes thousands.
+        let patches: usize = input.contacts.iter().map(|c| c.patch.len() + 1).sum();
+        let stiff = input.stiffness.map_or(0, |s| s.per_joint.len());
+        let mut terms = Vec::with_capacity(
+            input.effectors.len() + input.centroids.len() + patches + input.floor.len() + stiff + 1,
+        );
         // A hundred pinned joints' worth: a reachable goal is met to well under 1e-3 of the
         // model's size against the shape energy of the bends it takes.
         let lw = EFFECTOR_STRENGTH * input.joint_weight;

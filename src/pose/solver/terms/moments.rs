@@ -355,24 +355,33 @@ impl PartialGroup {
     }
 
     /// The parts' moments `Σ s v vᵀ` (full, row-major, `6 × parts` square) and `Σ s d v`,
-    /// summed from the joints' (see [`PartialGroup`]).
+    /// summed from the joints' (see [`PartialGroup`]): each part's rows first (`6 × parts`
+    /// by `6 × joints`), then their columns, so a pair of parts costs the joints of one, not
+    /// the product of both's.
     fn parts(&self) -> (Vec<f64>, Vec<f64>) {
         let (n, k) = (self.gradient.len(), 6 * self.masks.len());
         let at = |i: usize, j: usize| self.moments[i.min(j) * n + i.max(j)];
         let joints_of = |mask: u8| (0..n / 6).filter(move |i| mask & (1 << i) != 0);
-        let (mut moments, mut gradient) = (vec![0.0; k * k], vec![0.0; k]);
-        for (a, &mask_a) in self.masks.iter().enumerate() {
-            for i in joints_of(mask_a) {
+        let mut gradient = vec![0.0; k];
+        // Per part's row, the sum of its joints' rows of the moments.
+        let mut rows = vec![0.0; k * n];
+        for (a, &mask) in self.masks.iter().enumerate() {
+            for i in joints_of(mask) {
                 for r in 0..6 {
                     gradient[6 * a + r] += self.gradient[6 * i + r];
+                    let row = &mut rows[(6 * a + r) * n..(6 * a + r + 1) * n];
+                    for (c, v) in row.iter_mut().enumerate() {
+                        *v += at(6 * i + r, c);
+                    }
                 }
-                for (b, &mask_b) in self.masks.iter().enumerate() {
-                    for j in joints_of(mask_b) {
-                        for r in 0..6 {
-                            for c in 0..6 {
-                                moments[(6 * a + r) * k + 6 * b + c] += at(6 * i + r, 6 * j + c);
-                            }
-                        }
+            }
+        }
+        let mut moments = vec![0.0; k * k];
+        for (row, out) in rows.chunks_exact(n).zip(moments.chunks_exact_mut(k)) {
+            for (b, &mask) in self.masks.iter().enumerate() {
+                for j in joints_of(mask) {
+                    for c in 0..6 {
+                        out[6 * b + c] += row[6 * j + c];
                     }
                 }
             }

@@ -71,13 +71,22 @@ impl ExtraTerms<'_> {
         let mut above = 0;
         let mut i = 0;
         while let Some(term) = self.terms.get(i) {
-            if let Some((g, len)) = self.floor_groups.starting_at(i)
-                && let Some(&Some(bound)) = passing.get(g)
-            {
-                certain(bound, len);
-                i += len;
-                above += len;
-                continue;
+            if let Some((g, len)) = self.floor_groups.starting_at(i) {
+                if let Some(&Some(bound)) = passing.get(g) {
+                    certain(bound, len);
+                    i += len;
+                    above += len;
+                    continue;
+                }
+                // Known heights: a group whose every vertex is well above its ground adds
+                // nothing to a system, and its terms are not read.
+                if let Some(heights) = known.and_then(|k| k.get(above..above + len))
+                    && heights.iter().all(|h| *h >= near)
+                {
+                    i += len;
+                    above += len;
+                    continue;
+                }
             }
             i += 1;
             let mut gap = None;
