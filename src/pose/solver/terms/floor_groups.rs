@@ -131,7 +131,8 @@ pub(super) fn plan_groups(
                     len: 0,
                     min_start_gap: f64::INFINITY,
                     weight_sum: 0.0,
-                    reach: Vec::new(),
+                    // (A group's vertices share their carrier: a few joints.)
+                    reach: Vec::with_capacity(4),
                 });
                 open[carrier] = Some(g);
                 g

@@ -373,6 +373,12 @@ impl ExtraTerms<'_> {
         (start_gap, reach): (f64, &[f64; 4]),
         drift: &[(f64, f64)],
     ) -> Option<f64> {
+        let near = NEAR_CONTACT * self.length_scale;
+        // (A vertex that started near its ground, a planted sole's, cannot be bounded above
+        // it: no need to add up its joints' motion.)
+        if !(start_gap > near) {
+            return None;
+        }
         let moved: f64 = sums
             .iter()
             .zip(reach)
@@ -382,7 +388,7 @@ impl ExtraTerms<'_> {
             })
             .sum();
         let lower = start_gap - moved;
-        (lower > NEAR_CONTACT * self.length_scale).then_some(lower)
+        (lower > near).then_some(lower)
     }
 
     /// A vertex's height above its ground's skin (negative: in it).
