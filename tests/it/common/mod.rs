@@ -404,15 +404,32 @@ pub fn model_of(rig: &SyntheticRig) -> std::sync::Arc<bevy_wii_deform::pose::Ski
 
 /// Updates until the character has had no solve running and none landed for 10 frames (a
 /// generous wall-clock deadline guards against a hang), then once more so `PostUpdate` writes
-/// the pose to the joints.
+/// the pose to the joints. A pose that never settles fails with what the character was doing:
+/// how many updates and solves it took, the last solve's iterations and energy, and its
+/// phase and error.
 pub fn settle_pose(app: &mut App, character: Entity) {
     use bevy_wii_deform::prelude::DeformPhase;
     let deadline = Instant::now() + Duration::from_secs(60);
+    let first = solves(app, character);
     let mut idle = 0;
+    let mut updates = 0u64;
     while idle < 10 {
-        assert!(Instant::now() < deadline, "the pose never settled");
+        if Instant::now() >= deadline {
+            let status = app.world().get::<PoseStatus>(character).unwrap();
+            panic!(
+                "the pose never settled: {updates} updates, {} solves landed, the last of {} \
+                 iterations at energy {:e} ({} ms), phase {:?}, error {:?}",
+                status.solves - first,
+                status.iterations,
+                status.energy,
+                status.solve_ms,
+                status.phase,
+                status.error
+            );
+        }
         let before = solves(app, character);
         app.update();
+        updates += 1;
         std::thread::yield_now();
         let status = app.world().get::<PoseStatus>(character).unwrap();
         idle = if status.phase == DeformPhase::Idle && status.solves == before {
