@@ -376,7 +376,7 @@ impl ExtraTerms<'_> {
         let near = NEAR_CONTACT * self.length_scale;
         // (A vertex that started near its ground, a planted sole's, cannot be bounded above
         // it: no need to add up its joints' motion.)
-        if !(start_gap > near) {
+        if start_gap.is_nan() || start_gap <= near {
             return None;
         }
         let moved: f64 = sums
