@@ -9,7 +9,7 @@ use rayon::prelude::*;
 use crate::deform::{Topology, WeightMode, WeldPolicy};
 use crate::pose::error::PoseError;
 use crate::pose::rig::skeleton::{Skeleton, SkeletonPose, VertexInfluences, skin_positions};
-use crate::pose::rig::skin::{VertexSkin, vertex_skins};
+use crate::pose::rig::skin::{VertexSkins, vertex_skins};
 
 /// A skinned triangle mesh as a glTF primitive (or a Bevy `Mesh`) stores it, in render order.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -125,7 +125,7 @@ pub struct SkinnedModel {
     area_masses: std::sync::OnceLock<Vec<f64>>,
     /// What the solver's ground terms read of each welded vertex's skin, made by the first
     /// solve with contacts or a floor and shared by every solver of the model (a crowd's).
-    vertex_skins: std::sync::OnceLock<Vec<VertexSkin>>,
+    vertex_skins: std::sync::OnceLock<VertexSkins>,
     pub(crate) q: Vec<f64>,
     pub(crate) k: Vec<f64>,
     pub(crate) c0: f64,
@@ -272,8 +272,8 @@ impl SkinnedModel {
     }
 
     /// Each welded vertex's skin as the solver's ground terms read it (see
-    /// [`VertexSkin`]); made once.
-    pub(crate) fn vertex_skins(&self) -> &[VertexSkin] {
+    /// [`VertexSkins`]); made once.
+    pub(crate) fn vertex_skins(&self) -> &VertexSkins {
         self.vertex_skins.get_or_init(|| {
             vertex_skins(&self.bind, &self.influences, &self.skeleton.bind_origins())
         })

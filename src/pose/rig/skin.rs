@@ -97,6 +97,54 @@ pub(crate) struct VertexSkin {
     pub(crate) carrier: usize,
     /// The sum of its absolute skin weights (1 for a normalised skin).
     pub(crate) weight_sum: f64,
+    /// Its [`SkinGroup`] among the model's ([`VertexSkins::groups`]).
+    pub(crate) group: u32,
+}
+
+/// How many vertices a [`SkinGroup`] holds at most: few enough that its vertices stay near
+/// each other, enough that a test of the whole group is rare.
+pub(crate) const SKIN_GROUP: usize = 16;
+
+/// Vertices carried most by the same joint, [`SKIN_GROUP`] at a time in the model's vertex
+/// order, with what bounds how far any of them moves when their joints move: the floor's
+/// terms are grouped by them (`solver/terms/floor_groups.rs`), so a group far above its
+/// ground passes in one test.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct SkinGroup {
+    /// Every joint carrying a vertex of it, with the farthest such vertex's distance from
+    /// the joint's bind position.
+    pub(crate) reach: Vec<(usize, f64)>,
+    /// The largest sum of absolute skin weights of a vertex of it.
+    pub(crate) weight_sum: f64,
+}
+
+/// Every welded vertex's [`VertexSkin`], with the vertices in [`SkinGroup`]s: made once per
+/// model ([`vertex_skins`]); derefs to the vertices' skins.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct VertexSkins {
+    skins: Vec<VertexSkin>,
+    groups: Vec<SkinGroup>,
+}
+
+impl VertexSkins {
+    /// No vertices (a solve that keeps none above a ground).
+    pub(crate) const NONE: &'static VertexSkins = &VertexSkins {
+        skins: Vec::new(),
+        groups: Vec::new(),
+    };
+
+    /// The model's groups of vertices (each vertex's is [`VertexSkin::group`]).
+    pub(crate) fn groups(&self) -> &[SkinGroup] {
+        &self.groups
+    }
+}
+
+impl std::ops::Deref for VertexSkins {
+    type Target = [VertexSkin];
+
+    fn deref(&self) -> &[VertexSkin] {
+        &self.skins
+    }
 }
 
 impl VertexSkin {
@@ -106,14 +154,15 @@ impl VertexSkin {
     }
 }
 
-/// Each vertex's [`VertexSkin`]: bind positions `bind` with their `influences`, the joints'
-/// bind positions `bind_origins`.
+/// Each vertex's [`VertexSkin`], in their [`SkinGroup`]s: bind positions `bind` with their
+/// `influences`, the joints' bind positions `bind_origins`.
 pub(crate) fn vertex_skins(
     bind: &[DVec3],
     influences: &[VertexInfluences],
     bind_origins: &[DVec3],
-) -> Vec<VertexSkin> {
-    bind.iter()
+) -> VertexSkins {
+    let mut skins: Vec<VertexSkin> = bind
+        .iter()
         .zip(influences)
         .map(|(&b, influences)| {
             let sums = vertex_sums(b, influences);
@@ -132,9 +181,45 @@ pub(crate) fn vertex_skins(
                 reach,
                 carrier,
                 weight_sum,
+                group: 0,
             }
         })
-        .collect()
+        .collect();
+    let groups = group_skins(&mut skins, bind_origins.len());
+    VertexSkins { skins, groups }
+}
+
+/// Puts each vertex of `skins` in a [`SkinGroup`] of vertices with its carrier, [`SKIN_GROUP`]
+/// at a time in vertex order (`joints`: the skeleton's count), and returns the groups.
+fn group_skins(skins: &mut [VertexSkin], joints: usize) -> Vec<SkinGroup> {
+    let mut groups: Vec<SkinGroup> = Vec::new();
+    // Per carrier, its open group with how many vertices it holds.
+    let mut open: Vec<Option<(u32, usize)>> = vec![None; joints + 1];
+    for skin in skins.iter_mut() {
+        let slot = &mut open[skin.carrier.min(joints)];
+        let index = match slot {
+            Some((g, len)) if *len < SKIN_GROUP => {
+                *len += 1;
+                *g
+            }
+            _ => {
+                let g = groups.len() as u32;
+                groups.push(SkinGroup::default());
+                *slot = Some((g, 1));
+                g
+            }
+        };
+        skin.group = index;
+        let group = &mut groups[index as usize];
+        group.weight_sum = group.weight_sum.max(skin.weight_sum);
+        for (&(j, _), &r) in skin.sums.iter().zip(skin.reach.iter()) {
+            match group.reach.iter_mut().find(|(k, _)| *k == j) {
+                Some((_, far)) => *far = far.max(r),
+                None => group.reach.push((j, r)),
+            }
+        }
+    }
+    groups
 }
 
 /// One vertex's [`JointSums`] (at most four joints), kept in its term.
@@ -165,3 +250,46 @@ pub(crate) fn apply(a: &DAffine3, m: DVec4) -> DVec3 {
 /// A weighted sum of skinned points as per-joint sums `(joint, Σ m w (b, 1))`
 /// ([`centroid_of`]).
 pub(crate) type JointSums = [(usize, DVec4)];
+
+#[cfg(test)]
+mod tests {
+    use glam::DVec3;
+
+    use super::{SKIN_GROUP, vertex_skins};
+
+    /// Each group holds at most [`SKIN_GROUP`] vertices, all with one carrier, and bounds
+    /// every vertex of it: each of the vertex's joints is in the group's reach at least as
+    /// far, its weight sum at most the group's. Vertices alternate between two carriers, so
+    /// a group opened per carrier is what keeps them apart. (Fails when a vertex joins the
+    /// last group opened whatever its carrier.)
+    #[test]
+    fn a_skin_group_bounds_each_of_its_vertices() {
+        let origins = [DVec3::ZERO, DVec3::Y, DVec3::Y * 2.0];
+        let bind: Vec<DVec3> = (0..70)
+            .map(|i| DVec3::new(0.1 * (i % 5) as f64, 0.03 * i as f64, 0.0))
+            .collect();
+        let influences: Vec<_> = (0..bind.len() as u32)
+            .map(|i| {
+                let (most, other) = if i % 2 == 0 { (0, 1) } else { (2, 1) };
+                [(most, 0.7), (other, 0.3), (0, 0.0), (0, 0.0)]
+            })
+            .collect();
+        let skins = vertex_skins(&bind, &influences, &origins);
+        let groups = skins.groups();
+        assert_eq!(groups.len(), 2 * 35usize.div_ceil(SKIN_GROUP));
+        let mut count = vec![0; groups.len()];
+        let mut carrier = vec![None; groups.len()];
+        for skin in skins.iter() {
+            let g = skin.group as usize;
+            count[g] += 1;
+            assert_eq!(*carrier[g].get_or_insert(skin.carrier), skin.carrier);
+            let group = &groups[g];
+            assert!(skin.weight_sum <= group.weight_sum);
+            for (&(j, _), &r) in skin.sums.iter().zip(skin.reach.iter()) {
+                let far = group.reach.iter().find(|(k, _)| *k == j).map(|(_, r)| *r);
+                assert!(far.is_some_and(|far| far >= r), "joint {j}: {far:?} < {r}");
+            }
+        }
+        assert!(count.iter().all(|&c| (1..=SKIN_GROUP).contains(&c)));
+    }
+}

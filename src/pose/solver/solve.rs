@@ -15,7 +15,7 @@ use crate::pose::error::PoseError;
 use crate::pose::ground::GroundPlane;
 use crate::pose::ground::floor::Floor;
 use crate::pose::rig::skeleton::{Skeleton, SkeletonPose};
-use crate::pose::rig::skin::mass_sums;
+use crate::pose::rig::skin::{VertexSkins, mass_sums};
 use crate::pose::solver::damped_step::{damping_weights, diagonal_of};
 use crate::pose::solver::energy::arap::{ClusterFit, q_times_into};
 use crate::pose::solver::energy::holds::QBlocks;
@@ -416,7 +416,7 @@ impl PoseSolver {
         let grounded = !constraints.contacts.is_empty() || !floor.is_empty();
         let vertex_skins = match grounded {
             true => self.model.vertex_skins(),
-            false => &[],
+            false => VertexSkins::NONE,
         };
         ExtraTerms::new(
             (skeleton, &self.joint_movers, &self.bind_origins),

@@ -4,52 +4,47 @@
 //! A rig's floor keeps thousands of vertices above the ground (every vertex within 30 % of
 //! the size of it: a mannequin's legs to the knees), and nine in ten of them are certainly
 //! well above it in every trial pose of a solve — their height at the start less how far
-//! their joints moved ([`ExtraTerms::certainly_above`](crate::pose::solver::terms::ExtraTerms)). Grouped by the
-//! joint that carries them most (in the floor's order, [`GROUP`] at a time), a group's bound
-//! is its lowest start height less the most any of its joints moved a vertex of it:
-//! `min h₀ − W max_j (‖ΔA_j‖ R_j + |Δo_j|)`, `R_j` the farthest vertex of the group from
-//! joint `j`'s bind position, `W` the group's largest sum of skin weights (1 for normalised
-//! skins). It is below each vertex's own bound, so a group that passes holds only vertices
-//! that would each have passed. The floor's terms are made group by group, side by side, so
-//! a group that passes is skipped in one step (made in the floor's order, the groups of the
-//! several joints a floor passes through interleaved, and every term was visited to find
-//! its group's answer: 7 % of the mannequin's grounded solve). Which joint carries a vertex
-//! most is the model's to say once ([`VertexSkin::carrier`]).
+//! their joints moved ([`ExtraTerms::certainly_above`](crate::pose::solver::terms::ExtraTerms)).
+//! Grouped as the model groups its vertices (by the joint that carries them most,
+//! [`SKIN_GROUP`](crate::pose::rig::skin::SKIN_GROUP) at a time in vertex order:
+//! [`SkinGroup`]), a group's bound is its lowest start height less the most any of its
+//! joints moved a vertex of the model's group: `min h₀ − W max_j (‖ΔA_j‖ R_j + |Δo_j|)`,
+//! `R_j` the farthest vertex of the model's group from joint `j`'s bind position, `W` its
+//! largest sum of skin weights (1 for normalised skins). It is below each vertex's own
+//! bound, so a group that passes holds only vertices that would each have passed. The
+//! floor's terms are made group by group, side by side, so a group that passes is skipped
+//! in one step (made in the floor's order, the groups of the several joints a floor passes
+//! through interleaved, and every term was visited to find its group's answer: 7 % of the
+//! mannequin's grounded solve).
 
 use std::ops::Range;
 
 use crate::pose::ground::GroundPlane;
-use crate::pose::rig::skin::VertexSkin;
-
-/// How many vertices a group holds at most: few enough that its lowest vertex stays near the
-/// others, enough that the test is rare.
-const GROUP: usize = 16;
+use crate::pose::rig::skin::{SkinGroup, VertexSkins};
 
 /// The floor's terms in groups ([`plan_groups`]), each group's terms side by side.
-pub(super) struct FloorGroups {
+pub(super) struct FloorGroups<'a> {
     /// Where the floor's terms are among the solve's.
     terms: Range<usize>,
     /// Each floor term's group.
     group_of: Vec<u32>,
-    groups: Vec<FloorGroup>,
+    groups: Vec<FloorGroup<'a>>,
 }
 
-/// One group's bound.
-struct FloorGroup {
+/// One group's bound: the floor's vertices of one of the model's [`SkinGroup`]s.
+struct FloorGroup<'a> {
     /// Where its terms start, counted from the floor's first.
     start: u32,
     /// How many terms it holds.
     len: u32,
     /// The lowest start height of its vertices.
     min_start_gap: f64,
-    /// The largest sum of absolute skin weights of a vertex of it.
-    weight_sum: f64,
-    /// Every joint carrying a vertex of it, with the farthest such vertex's distance from the
-    /// joint's bind position.
-    reach: Vec<(usize, f64)>,
+    /// The model's group its vertices are of: every joint carrying one of them with its
+    /// reach, the largest sum of skin weights (over the model's group, so over these).
+    skin: &'a SkinGroup,
 }
 
-impl FloorGroups {
+impl FloorGroups<'_> {
     /// Each group's lower bound of its vertices' heights above their ground's skin when it
     /// is above `near` (else `None`), from how far each joint's skinning matrix `drift`ed
     /// since the start ([`crate::pose::solver::terms::ExtraTerms::drift`]).
@@ -58,6 +53,7 @@ impl FloorGroups {
             .iter()
             .map(|g| {
                 let moved = g
+                    .skin
                     .reach
                     .iter()
                     .map(|&(j, r)| {
@@ -69,7 +65,7 @@ impl FloorGroups {
                         0.0f64,
                         |most, m| if m > most || m.is_nan() { m } else { most },
                     );
-                let bound = g.min_start_gap - g.weight_sum * moved;
+                let bound = g.min_start_gap - g.skin.weight_sum * moved;
                 (bound > near).then_some(bound)
             })
             .collect()
@@ -99,70 +95,63 @@ impl FloorGroups {
     }
 }
 
-/// Groups the floor's vertices (`floor`, each with its plane; `skins`: every vertex's; but
-/// not those `left_out`) by the joint carrying each most, [`GROUP`] at a time in the floor's
-/// order, for terms made from `first_term` on (`joints`: the skeleton's count). Returns the order to make them in (indices into `floor`: each
-/// group's side by side) and the groups, whose bounds start at infinity: each term made
-/// lowers its group's ([`FloorGroups::lower_bound`]).
-pub(super) fn plan_groups(
+/// Groups the floor's vertices (`floor`, each with its plane; but not those `left_out`) by
+/// the model's [`SkinGroup`] each is in (`skins`: every vertex's, with the groups), for
+/// terms made from `first_term` on. Returns the order to make them in (indices into
+/// `floor`: each group's side by side, the groups in the model's order) and the groups,
+/// whose bounds start at infinity: each term made lowers its group's
+/// ([`FloorGroups::lower_bound`]).
+///
+/// (The model's groups are made once: grouping the floor anew in every solve, each vertex's
+/// joints merged into its group's, was 5–7 % of a grounded solve.)
+pub(super) fn plan_groups<'a>(
     floor: &[(u32, GroundPlane)],
-    skins: &[VertexSkin],
-    (joints, first_term): (usize, usize),
+    skins: &'a VertexSkins,
+    first_term: usize,
     left_out: impl Fn(usize) -> bool,
-) -> (Vec<u32>, FloorGroups) {
-    let mut groups: Vec<FloorGroup> = Vec::new();
-    // Each floor vertex's group, in the floor's order.
-    let mut assigned = Vec::with_capacity(floor.len());
-    // Per joint, its open group.
-    let mut open: Vec<Option<u32>> = vec![None; joints + 1];
-    for (k, &(v, _)) in floor.iter().enumerate() {
-        if left_out(k) {
-            assigned.push(u32::MAX);
-            continue;
-        }
-        let skin = &skins[v as usize];
-        let carrier = skin.carrier.min(joints);
-        let index = match open[carrier] {
-            Some(g) if (groups[g as usize].len as usize) < GROUP => g,
-            _ => {
-                let g = groups.len() as u32;
-                groups.push(FloorGroup {
-                    start: 0,
-                    len: 0,
-                    min_start_gap: f64::INFINITY,
-                    weight_sum: 0.0,
-                    // (A group's vertices share their carrier: a few joints.)
-                    reach: Vec::with_capacity(4),
-                });
-                open[carrier] = Some(g);
-                g
-            }
-        };
-        assigned.push(index);
-        let group = &mut groups[index as usize];
-        group.len += 1;
-        group.weight_sum = group.weight_sum.max(skin.weight_sum);
-        for (&(j, _), &r) in skin.sums.iter().zip(skin.reach.iter()) {
-            match group.reach.iter_mut().find(|(k, _)| *k == j) {
-                Some((_, far)) => *far = far.max(r),
-                None => group.reach.push((j, r)),
-            }
+) -> (Vec<u32>, FloorGroups<'a>) {
+    let skin_groups = skins.groups();
+    // Per model group, how many floor vertices it holds, then where its terms start.
+    let mut at: Vec<u32> = vec![0; skin_groups.len()];
+    let group_of_vertex = |k: usize| {
+        let v = floor[k].0 as usize;
+        (!left_out(k))
+            .then(|| skins.get(v).map(|s| s.group as usize))
+            .flatten()
+    };
+    for k in 0..floor.len() {
+        if let Some(g) = group_of_vertex(k) {
+            at[g] += 1;
         }
     }
-    // Each group's terms side by side, the groups in the order they were opened.
+    // The groups that hold any, in the model's order; `at` becomes each one's index.
+    let mut groups: Vec<FloorGroup> = Vec::new();
     let mut next = 0;
-    for group in &mut groups {
-        group.start = next;
-        next += group.len;
+    for (g, count) in at.iter_mut().enumerate() {
+        if *count == 0 {
+            continue;
+        }
+        groups.push(FloorGroup {
+            start: next,
+            len: *count,
+            min_start_gap: f64::INFINITY,
+            skin: &skin_groups[g],
+        });
+        next += *count;
+        *count = groups.len() as u32 - 1;
     }
     let mut filled = vec![0u32; groups.len()];
     let mut order = vec![0u32; next as usize];
     let mut group_of = vec![0u32; next as usize];
-    for (k, &g) in assigned.iter().enumerate().filter(|(_, g)| **g != u32::MAX) {
-        let at = (groups[g as usize].start + filled[g as usize]) as usize;
-        filled[g as usize] += 1;
-        order[at] = k as u32;
-        group_of[at] = g;
+    for k in 0..floor.len() {
+        let Some(g) = group_of_vertex(k) else {
+            continue;
+        };
+        let index = at[g] as usize;
+        let slot = (groups[index].start + filled[index]) as usize;
+        filled[index] += 1;
+        order[slot] = k as u32;
+        group_of[slot] = index as u32;
     }
     let out = FloorGroups {
         terms: first_term..first_term + next as usize,
@@ -311,7 +300,7 @@ mod tests {
         let drift = vec![(0.0, 0.0), (f64::NAN, 0.0), (0.0, 0.0)];
         let nan = terms.floor_groups.passing(&drift, f64::NEG_INFINITY);
         for (g, group) in terms.floor_groups.groups.iter().enumerate() {
-            let carried = group.reach.iter().any(|(j, _)| *j == 1);
+            let carried = group.skin.reach.iter().any(|(j, _)| *j == 1);
             assert_eq!(nan[g].is_none(), carried, "group {g}");
         }
     }

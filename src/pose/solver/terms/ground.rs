@@ -10,7 +10,7 @@ use crate::pose::error::PoseError;
 use crate::pose::ground::GroundPlane;
 use crate::pose::ground::balance::SupportPolygon;
 use crate::pose::ground::floor::Floor;
-use crate::pose::rig::skin::{JointSums, VertexSkin, VertexSums, centroid_of};
+use crate::pose::rig::skin::{JointSums, VertexSkin, VertexSkins, VertexSums, centroid_of};
 use crate::pose::solver::CONTACT_SKIN;
 use crate::pose::solver::terms::floor_groups::{FloorGroups, plan_groups};
 use crate::pose::solver::terms::{EFFECTOR_STRENGTH, ExtraInputs, ExtraTerms, Term, strength};
@@ -151,14 +151,13 @@ pub(crate) fn contact_hold_weight(joint_weight: f64) -> f64 {
 }
 
 /// Appends the contacts', the floor's and balance's terms of `input` (`lw`: a position
-/// effector's weight at weight 1; `joints`: the skeleton's joint count); returns the floor's
-/// groups. (`vertex_skins`: each vertex's, which its terms point at.)
+/// effector's weight at weight 1); returns the floor's groups. (`vertex_skins`: each vertex's, which its terms point at.)
 pub(super) fn push_terms<'a>(
     terms: &mut Vec<Term<'a>>,
-    vertex_skins: &'a [VertexSkin],
+    vertex_skins: &'a VertexSkins,
     input: &ExtraInputs<'_>,
-    (lw, joints): (f64, usize),
-) -> FloorGroups {
+    lw: f64,
+) -> FloorGroups<'a> {
     // Contacts: every patch vertex above its ground; a planted one held where it touched,
     // its joint's up turned to the ground's normal.
     let above = ABOVE_OVER_HOLD * CONTACT_STRENGTH * lw;
@@ -211,8 +210,7 @@ pub(super) fn push_terms<'a>(
     }
     let is_merged = |k: usize| merged.get(k).is_some_and(Option::is_some);
     // The floor's other vertices, each group's side by side (`floor_groups.rs`).
-    let (order, mut groups) =
-        plan_groups(input.floor, vertex_skins, (joints, terms.len()), is_merged);
+    let (order, mut groups) = plan_groups(input.floor, vertex_skins, terms.len(), is_merged);
     for &k in &order {
         let (v, plane) = input.floor[k as usize];
         let term = above_term(v, plane);
@@ -438,7 +436,7 @@ mod tests {
 
     use crate::pose::ground::GroundPlane;
     use crate::pose::rig::skeleton::{Joint, Skeleton};
-    use crate::pose::rig::skin::{VertexSkin, vertex_skins};
+    use crate::pose::rig::skin::{VertexSkins, vertex_skins};
     use crate::pose::solver::params::Param;
     use crate::pose::solver::terms::{EFFECTOR_STRENGTH, ExtraTerms};
 
@@ -454,7 +452,7 @@ mod tests {
     }
 
     /// The skins of vertices at bind positions `bind`, all on the bar's joint.
-    fn bar_skins(bind: &[DVec3]) -> Vec<VertexSkin> {
+    fn bar_skins(bind: &[DVec3]) -> VertexSkins {
         let one = [(0u32, 1.0), (0, 0.0), (0, 0.0), (0, 0.0)];
         vertex_skins(bind, &vec![one; bind.len()], &[DVec3::ZERO])
     }
@@ -464,7 +462,7 @@ mod tests {
     fn floor_terms<'a>(
         skeleton: &'a Skeleton,
         movers: &'a [Vec<u32>],
-        skins: &'a [VertexSkin],
+        skins: &'a VertexSkins,
         floor: GroundPlane,
     ) -> ExtraTerms<'a> {
         let under: Vec<(u32, GroundPlane)> = (0..skins.len() as u32).map(|v| (v, floor)).collect();

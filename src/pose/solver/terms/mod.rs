@@ -34,7 +34,7 @@ use crate::pose::constraints::effectors::{
 use crate::pose::error::PoseError;
 use crate::pose::rig::skeleton::rotation_of;
 use crate::pose::rig::skeleton::{Skeleton, VertexInfluences};
-pub(crate) use crate::pose::rig::skin::VertexSkin;
+pub(crate) use crate::pose::rig::skin::VertexSkins;
 use crate::pose::rig::skin::{VertexSums, centroid_of, joint_sums};
 pub(crate) use crate::pose::solver::terms::ground::{
     contact_hold_weight, contact_skin, validate_ground,
@@ -82,7 +82,7 @@ enum Term<'a> {
     /// A skinned vertex (`sums`) not below `plane`; one-sided. `start_gap`: its height above
     /// the ground's skin in the pose the solve starts from; `reach`: per joint of `sums`, its
     /// bind position's distance from the joint's (how far the joint's turn can move it, per
-    /// unit of turn). Both read from the model's [`VertexSkin`]s.
+    /// unit of turn). Both read from the model's [`VertexSkin`](crate::pose::rig::skin::VertexSkin)s.
     Above {
         sums: &'a VertexSums,
         plane: GroundPlane,
@@ -134,7 +134,7 @@ pub(crate) struct ExtraTerms<'a> {
     joint_movers: &'a [Vec<u32>],
     length_scale: f64,
     /// The floor's terms in groups with one bound each (`floor_groups.rs`).
-    floor_groups: crate::pose::solver::terms::floor_groups::FloorGroups,
+    floor_groups: crate::pose::solver::terms::floor_groups::FloorGroups<'a>,
 }
 
 /// The inputs a solve needs to build its extra terms.
@@ -233,7 +233,7 @@ impl<'a> ExtraTerms<'a> {
     /// terms, [`vertex_skins`], may be empty without contacts and floor.)
     pub(crate) fn new(
         (skeleton, joint_movers, bind_origins): (&'a Skeleton, &'a [Vec<u32>], &'a [DVec3]),
-        vertex_skins: &'a [VertexSkin],
+        vertex_skins: &'a VertexSkins,
         input: &ExtraInputs<'_>,
     ) -> Self {
         // Room for every term at once: a grounded solve makes thousands.
@@ -294,12 +294,8 @@ impl<'a> ExtraTerms<'a> {
                 weight: lw * strength(c.weight),
             });
         }
-        let floor_groups = crate::pose::solver::terms::ground::push_terms(
-            &mut terms,
-            vertex_skins,
-            input,
-            (lw, skeleton.len()),
-        );
+        let floor_groups =
+            crate::pose::solver::terms::ground::push_terms(&mut terms, vertex_skins, input, lw);
         if let Some(s) = input.stiffness {
             let scale = |j: usize| match s.weighting {
                 StiffnessWeighting::Uniform => 1.0,
@@ -377,7 +373,7 @@ impl<'a> ExtraTerms<'a> {
 #[cfg(test)]
 fn floor_only<'a>(
     rig: (&'a Skeleton, &'a [Vec<u32>], &'a [DVec3]),
-    skins: &'a [VertexSkin],
+    skins: &'a VertexSkins,
     under: &[(u32, GroundPlane)],
 ) -> ExtraTerms<'a> {
     floor_and_contacts(rig, skins, under, &[])
@@ -387,7 +383,7 @@ fn floor_only<'a>(
 #[cfg(test)]
 fn floor_and_contacts<'a>(
     (skeleton, movers, bind_origins): (&'a Skeleton, &'a [Vec<u32>], &'a [DVec3]),
-    skins: &'a [VertexSkin],
+    skins: &'a VertexSkins,
     under: &[(u32, GroundPlane)],
     contacts: &[Contact],
 ) -> ExtraTerms<'a> {

@@ -323,7 +323,7 @@ mod tests {
         let (globals, skinning) = leaning(&skeleton, lean);
         let terms = ExtraTerms::new(
             (&skeleton, &movers, &origins),
-            &[],
+            crate::pose::rig::skin::VertexSkins::NONE,
             &ExtraInputs {
                 balance: Some((&balance, &sums)),
                 balance_boost: 0.0,
