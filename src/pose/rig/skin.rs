@@ -97,8 +97,6 @@ pub(crate) struct VertexSkin {
     pub(crate) carrier: usize,
     /// The sum of its absolute skin weights (1 for a normalised skin).
     pub(crate) weight_sum: f64,
-    /// Its [`SkinGroup`] among the model's ([`VertexSkins::groups`]).
-    pub(crate) group: u32,
 }
 
 /// How many vertices a [`SkinGroup`] holds at most: few enough that its vertices stay near
@@ -124,6 +122,9 @@ pub(crate) struct SkinGroup {
 pub(crate) struct VertexSkins {
     skins: Vec<VertexSkin>,
     groups: Vec<SkinGroup>,
+    /// Each vertex's group (apart from its skin: a solve's floor reads only this of most
+    /// of its vertices while grouping them).
+    group_of: Vec<u32>,
 }
 
 impl VertexSkins {
@@ -131,11 +132,17 @@ impl VertexSkins {
     pub(crate) const NONE: &'static VertexSkins = &VertexSkins {
         skins: Vec::new(),
         groups: Vec::new(),
+        group_of: Vec::new(),
     };
 
-    /// The model's groups of vertices (each vertex's is [`VertexSkin::group`]).
+    /// The model's groups of vertices.
     pub(crate) fn groups(&self) -> &[SkinGroup] {
         &self.groups
+    }
+
+    /// Vertex `v`'s group among [`VertexSkins::groups`] (`None` past the last vertex).
+    pub(crate) fn group_of(&self, v: usize) -> Option<usize> {
+        self.group_of.get(v).map(|&g| g as usize)
     }
 }
 
@@ -161,7 +168,7 @@ pub(crate) fn vertex_skins(
     influences: &[VertexInfluences],
     bind_origins: &[DVec3],
 ) -> VertexSkins {
-    let mut skins: Vec<VertexSkin> = bind
+    let skins: Vec<VertexSkin> = bind
         .iter()
         .zip(influences)
         .map(|(&b, influences)| {
@@ -181,21 +188,25 @@ pub(crate) fn vertex_skins(
                 reach,
                 carrier,
                 weight_sum,
-                group: 0,
             }
         })
         .collect();
-    let groups = group_skins(&mut skins, bind_origins.len());
-    VertexSkins { skins, groups }
+    let (groups, group_of) = group_skins(&skins, bind_origins.len());
+    VertexSkins {
+        skins,
+        groups,
+        group_of,
+    }
 }
 
 /// Puts each vertex of `skins` in a [`SkinGroup`] of vertices with its carrier, [`SKIN_GROUP`]
-/// at a time in vertex order (`joints`: the skeleton's count), and returns the groups.
-fn group_skins(skins: &mut [VertexSkin], joints: usize) -> Vec<SkinGroup> {
+/// at a time in vertex order (`joints`: the skeleton's count): the groups, and each vertex's.
+fn group_skins(skins: &[VertexSkin], joints: usize) -> (Vec<SkinGroup>, Vec<u32>) {
     let mut groups: Vec<SkinGroup> = Vec::new();
     // Per carrier, its open group with how many vertices it holds.
     let mut open: Vec<Option<(u32, usize)>> = vec![None; joints + 1];
-    for skin in skins.iter_mut() {
+    let mut group_of = Vec::with_capacity(skins.len());
+    for skin in skins {
         let slot = &mut open[skin.carrier.min(joints)];
         let index = match slot {
             Some((g, len)) if *len < SKIN_GROUP => {
@@ -209,7 +220,7 @@ fn group_skins(skins: &mut [VertexSkin], joints: usize) -> Vec<SkinGroup> {
                 g
             }
         };
-        skin.group = index;
+        group_of.push(index);
         let group = &mut groups[index as usize];
         group.weight_sum = group.weight_sum.max(skin.weight_sum);
         for (&(j, _), &r) in skin.sums.iter().zip(skin.reach.iter()) {
@@ -219,7 +230,7 @@ fn group_skins(skins: &mut [VertexSkin], joints: usize) -> Vec<SkinGroup> {
             }
         }
     }
-    groups
+    (groups, group_of)
 }
 
 /// One vertex's [`JointSums`] (at most four joints), kept in its term.
@@ -279,8 +290,8 @@ mod tests {
         assert_eq!(groups.len(), 2 * 35usize.div_ceil(SKIN_GROUP));
         let mut count = vec![0; groups.len()];
         let mut carrier = vec![None; groups.len()];
-        for skin in skins.iter() {
-            let g = skin.group as usize;
+        for (v, skin) in skins.iter().enumerate() {
+            let g = skins.group_of(v).unwrap();
             count[g] += 1;
             assert_eq!(*carrier[g].get_or_insert(skin.carrier), skin.carrier);
             let group = &groups[g];

@@ -115,9 +115,7 @@ pub(super) fn plan_groups<'a>(
     let mut at: Vec<u32> = vec![0; skin_groups.len()];
     let group_of_vertex = |k: usize| {
         let v = floor[k].0 as usize;
-        (!left_out(k))
-            .then(|| skins.get(v).map(|s| s.group as usize))
-            .flatten()
+        (!left_out(k)).then(|| skins.group_of(v)).flatten()
     };
     for k in 0..floor.len() {
         if let Some(g) = group_of_vertex(k) {
