@@ -93,7 +93,7 @@ pub(crate) struct VertexSkin {
     pub(crate) sums: VertexSums,
     pub(crate) reach: [f64; 4],
     /// The joint with the largest share of it (the skeleton's joint count for a vertex with
-    /// none): the floor groups its vertices by it (`solver/terms/floor_groups.rs`).
+    /// none): the model groups its vertices by it ([`SkinGroup`]).
     pub(crate) carrier: usize,
     /// The sum of its absolute skin weights (1 for a normalised skin).
     pub(crate) weight_sum: f64,

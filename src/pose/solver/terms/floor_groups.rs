@@ -111,7 +111,8 @@ pub(super) fn plan_groups<'a>(
     left_out: impl Fn(usize) -> bool,
 ) -> (Vec<u32>, FloorGroups<'a>) {
     let skin_groups = skins.groups();
-    // Per model group, how many floor vertices it holds, then where its terms start.
+    // Per model group, how many floor vertices it holds; then, for those holding any, its
+    // index among the solve's groups.
     let mut at: Vec<u32> = vec![0; skin_groups.len()];
     let group_of_vertex = |k: usize| {
         let v = floor[k].0 as usize;
