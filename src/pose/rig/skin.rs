@@ -92,11 +92,6 @@ fn vertex_sums(b: DVec3, influences: &VertexInfluences) -> VertexSums {
 pub(crate) struct VertexSkin {
     pub(crate) sums: VertexSums,
     pub(crate) reach: [f64; 4],
-    /// The joint with the largest share of it (the skeleton's joint count for a vertex with
-    /// none): the model groups its vertices by it ([`SkinGroup`]).
-    pub(crate) carrier: usize,
-    /// The sum of its absolute skin weights (1 for a normalised skin).
-    pub(crate) weight_sum: f64,
 }
 
 /// How many vertices a [`SkinGroup`] holds at most: few enough that its vertices stay near
@@ -177,18 +172,7 @@ pub(crate) fn vertex_skins(
             for (r, &(j, _)) in reach.iter_mut().zip(sums.iter()) {
                 *r = bind_origins.get(j).map_or(0.0, |o| b.distance(*o));
             }
-            let joints = bind_origins.len();
-            let carrier = sums
-                .iter()
-                .max_by(|a, b| a.1.w.abs().total_cmp(&b.1.w.abs()))
-                .map_or(joints, |s| s.0.min(joints));
-            let weight_sum = sums.iter().map(|s| s.1.w.abs()).sum();
-            VertexSkin {
-                sums,
-                reach,
-                carrier,
-                weight_sum,
-            }
+            VertexSkin { sums, reach }
         })
         .collect();
     let (groups, group_of) = group_skins(&skins, bind_origins.len());
@@ -207,7 +191,7 @@ fn group_skins(skins: &[VertexSkin], joints: usize) -> (Vec<SkinGroup>, Vec<u32>
     let mut open: Vec<Option<(u32, usize)>> = vec![None; joints + 1];
     let mut group_of = Vec::with_capacity(skins.len());
     for skin in skins {
-        let slot = &mut open[skin.carrier.min(joints)];
+        let slot = &mut open[carrier_of(&skin.sums, joints)];
         let index = match slot {
             Some((g, len)) if *len < SKIN_GROUP => {
                 *len += 1;
@@ -222,7 +206,7 @@ fn group_skins(skins: &[VertexSkin], joints: usize) -> (Vec<SkinGroup>, Vec<u32>
         };
         group_of.push(index);
         let group = &mut groups[index as usize];
-        group.weight_sum = group.weight_sum.max(skin.weight_sum);
+        group.weight_sum = group.weight_sum.max(weight_sum_of(&skin.sums));
         for (&(j, _), &r) in skin.sums.iter().zip(skin.reach.iter()) {
             match group.reach.iter_mut().find(|(k, _)| *k == j) {
                 Some((_, far)) => *far = far.max(r),
@@ -231,6 +215,19 @@ fn group_skins(skins: &[VertexSkin], joints: usize) -> (Vec<SkinGroup>, Vec<u32>
         }
     }
     (groups, group_of)
+}
+
+/// The joint with the largest share of a vertex skinned by `sums` (`joints`, the skeleton's
+/// count, for a vertex with none): the model groups its vertices by it ([`SkinGroup`]).
+fn carrier_of(sums: &JointSums, joints: usize) -> usize {
+    sums.iter()
+        .max_by(|a, b| a.1.w.abs().total_cmp(&b.1.w.abs()))
+        .map_or(joints, |s| s.0.min(joints))
+}
+
+/// The sum of a vertex's absolute skin weights (1 for a normalised skin).
+fn weight_sum_of(sums: &JointSums) -> f64 {
+    sums.iter().map(|s| s.1.w.abs()).sum()
 }
 
 /// One vertex's [`JointSums`] (at most four joints), kept in its term.
@@ -266,7 +263,7 @@ pub(crate) type JointSums = [(usize, DVec4)];
 mod tests {
     use glam::DVec3;
 
-    use super::{SKIN_GROUP, vertex_skins};
+    use super::{SKIN_GROUP, carrier_of, vertex_skins, weight_sum_of};
 
     /// Each group holds at most [`SKIN_GROUP`] vertices, all with one carrier, and bounds
     /// every vertex of it: each of the vertex's joints is in the group's reach at least as
@@ -293,9 +290,10 @@ mod tests {
         for (v, skin) in skins.iter().enumerate() {
             let g = skins.group_of(v).unwrap();
             count[g] += 1;
-            assert_eq!(*carrier[g].get_or_insert(skin.carrier), skin.carrier);
+            let own = carrier_of(&skin.sums, origins.len());
+            assert_eq!(*carrier[g].get_or_insert(own), own);
             let group = &groups[g];
-            assert!(skin.weight_sum <= group.weight_sum);
+            assert!(weight_sum_of(&skin.sums) <= group.weight_sum);
             for (&(j, _), &r) in skin.sums.iter().zip(skin.reach.iter()) {
                 let far = group.reach.iter().find(|(k, _)| *k == j).map(|(_, r)| *r);
                 assert!(far.is_some_and(|far| far >= r), "joint {j}: {far:?} < {r}");

@@ -151,7 +151,8 @@ pub(crate) fn contact_hold_weight(joint_weight: f64) -> f64 {
 }
 
 /// Appends the contacts', the floor's and balance's terms of `input` (`lw`: a position
-/// effector's weight at weight 1); returns the floor's groups. (`vertex_skins`: each vertex's, which its terms point at.)
+/// effector's weight at weight 1); returns the floor's groups. (`vertex_skins`: each
+/// vertex's, which its terms point at.)
 pub(super) fn push_terms<'a>(
     terms: &mut Vec<Term<'a>>,
     vertex_skins: &'a VertexSkins,

@@ -82,7 +82,8 @@ enum Term<'a> {
     /// A skinned vertex (`sums`) not below `plane`; one-sided. `start_gap`: its height above
     /// the ground's skin in the pose the solve starts from; `reach`: per joint of `sums`, its
     /// bind position's distance from the joint's (how far the joint's turn can move it, per
-    /// unit of turn). Both read from the model's [`VertexSkin`](crate::pose::rig::skin::VertexSkin)s.
+    /// unit of turn). Both read from the model's
+    /// [`VertexSkin`](crate::pose::rig::skin::VertexSkin)s.
     Above {
         sums: &'a VertexSums,
         plane: GroundPlane,
