@@ -31,7 +31,8 @@
 //! clip (its first clip without one) under an additive pose layer, face +X and walk along it
 //! (40 units/s, the root kept on the ground under it by a cast), so their paws plant, lift
 //! and plant again. Adds, measured on the pose on screen every frame: `penetration_max`
-//! (deepest skinned vertex below the terrain / size, every 5th frame), `penetration_p90` and
+//! (deepest skinned vertex below the terrain, along the normal of the face above it, / size,
+//! every 5th frame), `penetration_p90` and
 //! `penetration_p99` (of each sampled character and frame's deepest vertex),
 //! `sole_normal_error_deg_p95` (planted soles' bind-pose up, carried by the joint, against the
 //! ground's normal), `soles_at_limit_share` (planted soles more than 3° off),

@@ -103,12 +103,14 @@ impl Field {
             let scale = posed.placement.matrix3.x_axis.length();
             let size = posed.model.topology().bounding_diagonal() * scale;
             if skin {
-                // The deepest vertex of this character this frame.
+                // The deepest vertex of this character this frame: its distance under the
+                // face above it, along that face's normal (straight down, a vertex under a
+                // terrace's 53° riser reads 1 / cos 53° = 1.7 times as deep as it is).
                 let mut deepest = 0.0f64;
                 for p in posed.to_world(posed.model.skin_render(&pose)) {
                     if let Some(hit) = self.ground.cast_down(p + DVec3::Y * 1e3, DVec3::NEG_Y, 2e3)
                     {
-                        deepest = deepest.max((hit.point.y - p.y) / size);
+                        deepest = deepest.max(-hit.height(p) / size);
                     }
                 }
                 self.penetration_max = self.penetration_max.max(deepest);
