@@ -85,7 +85,7 @@ pub use ground::GroundPlane;
 pub use ground::balance::{AllowedRegion, Balance, SupportPolygon};
 pub use ground::contact::{Contact, Rolling};
 pub use ground::feet::{lowest_joints, sole_patch};
-pub use ground::floor::{Floor, FloorCastStats, FloorSampling};
+pub use ground::floor::{Floor, FloorCastStats, FloorMemory, FloorSampling};
 pub use ground::gait::GaitPhases;
 pub use ground::mesh::TriangleGround;
 pub use ground::tracker::{ContactEvent, ContactTracker};

@@ -76,6 +76,16 @@ impl SceneGround {
     }
 }
 
+impl Ground for SceneGround {
+    fn cast_down(&self, from: DVec3, down: DVec3, max: f64) -> Option<GroundPlane> {
+        self.source.cast_down(from, down, max)
+    }
+
+    fn highest_within(&self, centre: DVec3, radius: f64, down: DVec3) -> Option<f64> {
+        self.source.highest_within(centre, radius, down)
+    }
+}
+
 impl std::fmt::Debug for SceneGround {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("SceneGround")

@@ -10,7 +10,9 @@
 //! [`Floor::cast`] costs a coarse grid of casts over the body's footprint plus one cast per
 //! vertex that comes close to the ground:
 //! 1. the footprint (the skin across gravity) is covered by a grid of casts `spacing` apart,
-//!    each giving the ground's plane at a node;
+//!    each giving the ground's plane at a node (the nodes lie on a lattice fixed in the
+//!    ground's space, so [`Floor::cast_remembering`] answers the nodes a [`FloorMemory`]
+//!    already cast — a character standing or walking casts only the nodes new under it);
 //! 2. a vertex's coarse ground is the highest of the planes of the four nodes around it (at a
 //!    step's edge the upper level wins: the floor errs on the side of lifting);
 //! 3. a vertex within `band` of its coarse ground is in the floor; within `near` of it, the
@@ -35,6 +37,9 @@ use glam::DVec3;
 use crate::deform::bounding_box;
 use crate::pose::ground::Ground;
 use crate::pose::ground::GroundPlane;
+use crate::pose::ground::floor_grid::{CoarseGrid, plane_below};
+
+pub use crate::pose::ground::floor_grid::FloorMemory;
 
 /// Every skin vertex near the ground kept above it (see the module docs).
 #[derive(Debug, Clone, PartialEq)]
@@ -83,6 +88,8 @@ impl FloorSampling {
 pub struct FloorCastStats {
     /// Casts on the coarse grid.
     pub grid_casts: usize,
+    /// Nodes of the coarse grid answered from a [`FloorMemory`] without a cast.
+    pub grid_nodes_remembered: usize,
     /// Casts under single vertices.
     pub vertex_casts: usize,
     /// Vertices in the floor.
@@ -99,30 +106,47 @@ impl Floor {
         ground: &dyn Ground,
         sampling: &FloorSampling,
     ) -> (Self, FloorCastStats) {
+        Self::cast_remembering(positions, ground, sampling, &mut FloorMemory::default())
+    }
+
+    /// [`Floor::cast`], answering the grid's casts from `memory` where it can and keeping
+    /// the new ones in it (see [`FloorMemory`]): the same floor, cast for the nodes new under
+    /// the skin only. `memory` has to be of this `ground` ([`FloorMemory::forget`] it when
+    /// the ground changes).
+    pub fn cast_remembering(
+        positions: &[DVec3],
+        ground: &dyn Ground,
+        sampling: &FloorSampling,
+        memory: &mut FloorMemory,
+    ) -> (Self, FloorCastStats) {
         let mut stats = FloorCastStats::default();
         let Some(grid) = CoarseGrid::new(positions, sampling) else {
             return (Floor::Under(Vec::new()), stats);
         };
+        memory.fit(&grid);
         let down = grid.down;
         let cast = |from: DVec3, max: f64| plane_below(ground, from, down, max);
         // The coarse planes, from the top of the band above the lowest vertex.
         let top = grid.lowest + sampling.band;
+        let window = (top, top - 2.0 * sampling.band);
         let nodes: Vec<Option<GroundPlane>> = (0..grid.nodes())
-            .map(|k| cast(grid.node(k, top), 2.0 * sampling.band))
+            .map(|k| {
+                let (plane, cast) = memory.node_plane((&grid, k), window, ground);
+                stats.grid_casts += usize::from(cast);
+                stats.grid_nodes_remembered += usize::from(!cast);
+                plane
+            })
             .collect();
-        stats.grid_casts = nodes.len();
-        // Per grid cell, asked when a vertex over it first needs it: how high the ground rises
-        // over the cell (`None`: the ground cannot say).
-        let mut rises: Vec<Option<Option<f64>>> = vec![None; grid.nodes()];
-        let mut under = Vec::new();
+        let mut under = Vec::with_capacity(positions.len());
         for (v, p) in positions.iter().enumerate() {
             if !p.is_finite() {
                 continue;
             }
             // The highest of the surrounding nodes' planes at this vertex (the first of equals).
+            let cell = grid.cell_ij(*p);
             let mut coarse: Option<GroundPlane> = None;
             let mut height = f64::NEG_INFINITY;
-            for plane in grid.around(*p).filter_map(|k| nodes[k]) {
+            for plane in grid.around(cell).filter_map(|k| nodes[k]) {
                 let h = plane.height(*p);
                 if coarse.is_none() || h.total_cmp(&height).is_lt() {
                     (coarse, height) = (Some(plane), h);
@@ -133,11 +157,8 @@ impl Floor {
             // what `near` is for) and to within `near` of this vertex.
             let far = coarse.is_some() && height >= sampling.near;
             let rise_under = far && {
-                let (i, j) = grid.cell_ij(*p);
-                let k = j * grid.size.0 + i;
-                let rise = *rises[k].get_or_insert_with(|| {
-                    ground.highest_within(grid.cell_centre(k), grid.cell_radius(), down)
-                });
+                let (i, j) = cell;
+                let rise = memory.rise((&grid, j * grid.size.0 + i), ground);
                 let elevation = -p.dot(down);
                 rise.is_some_and(|top| {
                     top > elevation - height + sampling.near && elevation < top + sampling.near
@@ -237,115 +258,6 @@ impl Floor {
             Floor::Plane { plane, .. } => Box::new(std::iter::once(plane)),
             Floor::Under(under) => Box::new(under.iter_mut().map(|(_, g)| g)),
         }
-    }
-}
-
-/// The ground's plane first below `from` along `down` within `max`, if it is usable (a
-/// non-finite or degenerate hit is a miss).
-fn plane_below(ground: &dyn Ground, from: DVec3, down: DVec3, max: f64) -> Option<GroundPlane> {
-    ground
-        .cast_down(from, down, max)
-        .and_then(|hit| GroundPlane::new(hit.point, hit.normal))
-}
-
-/// The grid of coarse casts over the footprint of a set of points, across gravity.
-struct CoarseGrid {
-    down: DVec3,
-    axes: (DVec3, DVec3),
-    /// The grid's first node, across gravity.
-    origin: (f64, f64),
-    spacing: f64,
-    /// Nodes along each axis.
-    size: (usize, usize),
-    /// The lowest point's height against gravity.
-    lowest: f64,
-}
-
-impl CoarseGrid {
-    /// At most this many nodes along an axis (a sampling finer than the footprint allows is
-    /// coarsened).
-    const MAX_NODES: usize = 64;
-
-    fn new(positions: &[DVec3], sampling: &FloorSampling) -> Option<Self> {
-        let down = sampling.down.try_normalize()?;
-        let finite = sampling.band.is_finite() && sampling.near.is_finite();
-        if !(finite && sampling.band > 0.0 && sampling.spacing > 0.0) {
-            return None;
-        }
-        let x = down.any_orthonormal_vector();
-        let axes = (x, down.cross(x));
-        let (mut lo, mut hi) = (
-            (f64::INFINITY, f64::INFINITY),
-            (f64::NEG_INFINITY, f64::NEG_INFINITY),
-        );
-        let mut lowest = f64::INFINITY;
-        for p in positions.iter().filter(|p| p.is_finite()) {
-            let (a, b) = (p.dot(axes.0), p.dot(axes.1));
-            lo = (lo.0.min(a), lo.1.min(b));
-            hi = (hi.0.max(a), hi.1.max(b));
-            lowest = lowest.min(-p.dot(down));
-        }
-        if !lowest.is_finite() {
-            return None;
-        }
-        let extent = (hi.0 - lo.0).max(hi.1 - lo.1);
-        let spacing = sampling
-            .spacing
-            .max(extent / (Self::MAX_NODES - 1) as f64)
-            .max(1e-12);
-        let nodes = |span: f64| (span / spacing).ceil() as usize + 1;
-        Some(Self {
-            down,
-            axes,
-            origin: lo,
-            spacing,
-            size: (nodes(hi.0 - lo.0), nodes(hi.1 - lo.1)),
-            lowest,
-        })
-    }
-
-    fn nodes(&self) -> usize {
-        self.size.0 * self.size.1
-    }
-
-    /// Node `k` at height `height` against gravity.
-    fn node(&self, k: usize, height: f64) -> DVec3 {
-        let (i, j) = (k % self.size.0, k / self.size.0);
-        self.axes.0 * (self.origin.0 + i as f64 * self.spacing)
-            + self.axes.1 * (self.origin.1 + j as f64 * self.spacing)
-            - self.down * height
-    }
-
-    /// The cell `p` is over: its first node's `(i, j)`.
-    fn cell_ij(&self, p: DVec3) -> (usize, usize) {
-        let cell = |along: f64, origin: f64, n: usize| {
-            (((along - origin) / self.spacing).floor().max(0.0) as usize).min(n.saturating_sub(2))
-        };
-        (
-            cell(p.dot(self.axes.0), self.origin.0, self.size.0),
-            cell(p.dot(self.axes.1), self.origin.1, self.size.1),
-        )
-    }
-
-    /// The centre of the cell whose first node is node `k` (at height 0).
-    fn cell_centre(&self, k: usize) -> DVec3 {
-        self.node(k, 0.0) + (self.axes.0 + self.axes.1) * (0.5 * self.spacing)
-    }
-
-    /// Half the side of a square about a cell's centre that holds the cell (and the
-    /// footprint's edge beyond it, where a vertex on the edge is counted to the last cell).
-    fn cell_radius(&self) -> f64 {
-        self.spacing
-    }
-
-    /// The (up to four) nodes around `p`.
-    fn around(&self, p: DVec3) -> impl Iterator<Item = usize> + '_ {
-        let (i, j) = self.cell_ij(p);
-        [(0, 0), (1, 0), (0, 1), (1, 1)]
-            .into_iter()
-            .map(move |(di, dj)| (i + di, j + dj))
-            .filter(|&(i, j)| i < self.size.0 && j < self.size.1)
-            .map(|(i, j)| j * self.size.0 + i)
     }
 }
 

@@ -205,10 +205,18 @@ impl TriangleGround {
 
     /// The grid cell over `f` (across gravity), if it is over the ground's extent.
     fn cell_of(&self, f: DVec2) -> Option<usize> {
-        let c = ((f - self.origin) / self.cell).floor();
-        let (i, j) = (c.x, c.y);
-        (i >= 0.0 && j >= 0.0 && (i as usize) < self.size.0 && (j as usize) < self.size.1)
+        let (i, j) = self.cell_ij(f);
+        (i >= 0 && j >= 0 && (i as usize) < self.size.0 && (j as usize) < self.size.1)
             .then(|| j as usize * self.size.0 + i as usize)
+    }
+
+    /// The grid column and row over `f` (across gravity), negative before the grid's first.
+    /// (Truncation, not `floor`: without SSE4.1 `floor` is a call, and this is asked once a
+    /// cast and once a vertex.)
+    fn cell_ij(&self, f: DVec2) -> (i64, i64) {
+        let index = |x: f64| if x < 0.0 { -1 } else { x as i64 };
+        let c = (f - self.origin) / self.cell;
+        (index(c.x), index(c.y))
     }
 
     /// A cast along this ground's gravity: the shadows of the triangles in the cell under
@@ -278,20 +286,23 @@ impl Ground for TriangleGround {
             return None;
         }
         let f = self.flat(centre);
-        let cell = |g: DVec2| ((g - self.origin) / self.cell).floor();
+        if radius == 0.0 {
+            // One cell (a vertex's column).
+            return Some(self.cell_of(f).map_or(f64::NEG_INFINITY, |c| self.tops[c]));
+        }
         let (lo, hi) = (
-            cell(f - DVec2::splat(radius)),
-            cell(f + DVec2::splat(radius)),
+            self.cell_ij(f - DVec2::splat(radius)),
+            self.cell_ij(f + DVec2::splat(radius)),
         );
-        let last = (self.size.0 as f64 - 1.0, self.size.1 as f64 - 1.0);
-        if hi.x < 0.0 || hi.y < 0.0 || lo.x > last.0 || lo.y > last.1 {
+        let last = (self.size.0 as i64 - 1, self.size.1 as i64 - 1);
+        if hi.0 < 0 || hi.1 < 0 || lo.0 > last.0 || lo.1 > last.1 {
             return Some(f64::NEG_INFINITY);
         }
-        let range = |a: f64, b: f64, last: f64| (a.max(0.0) as usize)..=(b.min(last) as usize);
+        let range = |a: i64, b: i64, last: i64| (a.max(0) as usize)..=(b.min(last) as usize);
         let mut highest = f64::NEG_INFINITY;
-        for j in range(lo.y, hi.y, last.1) {
+        for j in range(lo.1, hi.1, last.1) {
             let row = &self.tops[j * self.size.0..(j + 1) * self.size.0];
-            for i in range(lo.x, hi.x, last.0) {
+            for i in range(lo.0, hi.0, last.0) {
                 highest = highest.max(row[i]);
             }
         }

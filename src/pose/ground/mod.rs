@@ -9,6 +9,7 @@
 //! | which joints a character stands on, and the skin patch (sole) under each | `feet.rs` ([`lowest_joints`], [`sole_patch`]) |
 //! | one contact: a skin patch free above the ground or planted on it, raised, rolled flat | `contact.rs` ([`Contact`]) |
 //! | every skin vertex near the ground kept above it (a plane per vertex, cast) | `floor.rs` ([`Floor`]) |
+//! | the floor's coarse grid of casts on a lattice fixed to the ground, remembered frame to frame | `floor_grid.rs` ([`FloorMemory`]) |
 //! | the centre of mass over the support polygon; the allowed region; leaning as a clip does | `balance.rs` ([`Balance`]) |
 //! | contacts planted and released frame after frame; where a planted limb starts its solve | `tracker.rs` ([`ContactTracker`]) |
 //! | when a walking clip has a foot down or up | `gait.rs` ([`GaitPhases`]) |
@@ -21,6 +22,7 @@
 //! [`sole_patch`]: feet::sole_patch
 //! [`Contact`]: contact::Contact
 //! [`Floor`]: floor::Floor
+//! [`FloorMemory`]: floor::FloorMemory
 //! [`Balance`]: balance::Balance
 //! [`ContactTracker`]: tracker::ContactTracker
 //! [`GaitPhases`]: gait::GaitPhases
@@ -31,6 +33,7 @@ pub mod balance;
 pub mod contact;
 pub mod feet;
 pub mod floor;
+mod floor_grid;
 pub mod gait;
 pub mod mesh;
 pub mod tracker;

@@ -4,10 +4,12 @@
 use glam::{DAffine3, DVec3};
 
 use super::super::{GroundContactState, PoseBalance, PoseGround, PoseStatus, PosedSkeleton};
+use super::state::GroundContacts;
 use crate::ecs::SceneGround;
 use crate::pose::{
-    Balance, ContactTracker, Floor, FloorSampling, Ground, GroundPlane, PoseConstraints,
-    SkeletonPose, SkinnedModel, SupportPolygon, THROUGH_THE_GROUND, centre_of_mass, lowest_joints,
+    Balance, ContactTracker, Floor, FloorMemory, FloorSampling, Ground, GroundPlane,
+    PoseConstraints, SkeletonPose, SkinnedModel, SupportPolygon, THROUGH_THE_GROUND,
+    centre_of_mass, lowest_joints,
 };
 
 /// Adds to `constraints` (character space) the character's ground contacts — found on the
@@ -17,10 +19,11 @@ use crate::pose::{
 /// planted patches.
 pub(super) fn stand_on(
     constraints: &mut PoseConstraints,
-    (tracker, posed, pose): Standee<'_>,
+    (contacts, posed, pose): Standee<'_>,
     (settings, balance): (&PoseGround, Option<&PoseBalance>),
     ground: &SceneGround,
 ) -> Standing {
+    let GroundContacts { tracker, floor } = contacts;
     let at = CharacterGround::new(ground, posed.placement);
     let (to_world, to_character, down) = (at.to_world, at.to_character, at.down);
     let cast = |from: DVec3, along: DVec3, max: f64| at.cast(from, along, max);
@@ -59,7 +62,8 @@ pub(super) fn stand_on(
         .count() as u32;
     constraints.contacts = tracker.active();
     // Every skin vertex near the ground under it kept above it (a plane per vertex: terrain).
-    constraints.floor = Some(at.floor_under(&skinned, settings, size));
+    let memory = remembered_on(floor, ground);
+    constraints.floor = Some(at.floor_under(&skinned, settings, size, memory));
     let support = tracker.support();
     let corners = support
         .iter()
@@ -151,22 +155,25 @@ impl FloorRecast {
         let size = model.topology().bounding_diagonal();
         let skinned = model.skin_welded(solved);
         let through = THROUGH_THE_GROUND * size;
-        // Most solves end with all their skin above the ground: seen without casting a floor.
-        if !Floor::may_be_under(&skinned, &at, &at.sampling(&self.settings, size), through) {
+        // Most solves end with all their skin above the ground: seen without casting a floor
+        // (in the world, where the ground is).
+        let in_world: Vec<DVec3> = skinned
+            .iter()
+            .map(|p| at.to_world.transform_point3(*p))
+            .collect();
+        let sampling = at.world_sampling(&self.settings, size);
+        if !Floor::may_be_under(&in_world, &self.ground, &sampling, through * at.scale) {
             return None;
         }
-        let floor = at.floor_under(&skinned, &self.settings, size);
+        let floor = at.floor_under(&skinned, &self.settings, size, &mut FloorMemory::default());
         (floor.deepest(&skinned) < -through).then_some(floor)
     }
 }
 
-/// A character to stand: its tracker (made on the first call, with the placement it was
-/// updated for), its skeleton, and the pose a solve starts from.
-pub(super) type Standee<'a> = (
-    &'a mut Option<(ContactTracker, DAffine3)>,
-    &'a PosedSkeleton,
-    StartPose<'a>,
-);
+/// A character to stand: its contacts (the tracker made on the first call, with the placement
+/// it was updated for, and its floor's memory), its skeleton, and the pose a solve starts
+/// from.
+pub(super) type Standee<'a> = (&'a mut GroundContacts, &'a PosedSkeleton, StartPose<'a>);
 
 /// The pose a character is stood on the ground in: the one its solve starts from.
 pub(super) enum StartPose<'a> {
@@ -278,17 +285,62 @@ impl<'a> CharacterGround<'a> {
         )
     }
 
-    /// The floor under the welded skin `skinned` of a model of `size` (its bounding
-    /// diagonal): every vertex within `settings`' band of the ground under it
-    /// ([`Floor::cast`]).
-    fn floor_under(&self, skinned: &[DVec3], settings: &PoseGround, size: f64) -> Floor {
-        Floor::cast(skinned, self, &self.sampling(settings, size)).0
+    /// The floor under the welded skin `skinned` (character space) of a model of `size` (its
+    /// bounding diagonal): every vertex within `settings`' band of the ground under it. Cast
+    /// in the world, where the ground's lattice is (the casts `memory` holds are answered from
+    /// it, [`Floor::cast_remembering`]), and brought back to character space.
+    fn floor_under(
+        &self,
+        skinned: &[DVec3],
+        settings: &PoseGround,
+        size: f64,
+        memory: &mut FloorMemory,
+    ) -> Floor {
+        let in_world: Vec<DVec3> = skinned
+            .iter()
+            .map(|p| self.to_world.transform_point3(*p))
+            .collect();
+        let sampling = self.world_sampling(settings, size);
+        let (floor, _) = Floor::cast_remembering(&in_world, self.ground, &sampling, memory);
+        let to_character = &self.to_character;
+        match floor {
+            Floor::Under(under) => Floor::Under(
+                under
+                    .into_iter()
+                    .filter_map(|(v, plane)| {
+                        let point = to_character.transform_point3(plane.point);
+                        GroundPlane::new(point, to_character.matrix3 * plane.normal)
+                            .map(|plane| (v, plane))
+                    })
+                    .collect(),
+            ),
+            plane => plane,
+        }
     }
 
-    /// How the floor under a character of `size` is sampled on this ground.
-    fn sampling(&self, settings: &PoseGround, size: f64) -> FloorSampling {
-        FloorSampling::for_size(size, f64::from(settings.floor_band), self.down)
+    /// How the floor under a character of `size` (character space) is sampled on the ground
+    /// in the world.
+    fn world_sampling(&self, settings: &PoseGround, size: f64) -> FloorSampling {
+        let band = f64::from(settings.floor_band);
+        FloorSampling::for_size(size * self.scale, band, DVec3::NEG_Y)
     }
+}
+
+/// The floor memory of a character on `ground`: forgotten when the scene's ground is another
+/// than the one it was cast on.
+fn remembered_on<'m>(
+    remembered: &'m mut Option<(SceneGround, FloorMemory)>,
+    ground: &SceneGround,
+) -> &'m mut FloorMemory {
+    if !remembered
+        .as_ref()
+        .is_some_and(|(on, _)| on.same_source(ground))
+    {
+        *remembered = None;
+    }
+    &mut remembered
+        .get_or_insert_with(|| (ground.clone(), FloorMemory::default()))
+        .1
 }
 
 impl Ground for CharacterGround<'_> {

@@ -176,7 +176,7 @@ fn stand_here(
         },
         None => StartPose::Held(&posed.pose),
     };
-    let standee = (&mut contacts.0, posed, pose);
+    let standee = (&mut *contacts, posed, pose);
     Some(stand_on(pending, standee, settings, ground))
 }
 

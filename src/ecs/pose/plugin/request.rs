@@ -354,7 +354,7 @@ fn constraints_of(
             None => StartPose::Held(&posed.pose),
         };
         let balance = extras.balance.filter(|b| b.enabled);
-        let standee = (&mut contacts.0, posed, pose);
+        let standee = (&mut *contacts, posed, pose);
         let standing = super::ground_contacts::stand_on(
             &mut constraints,
             standee,
@@ -437,8 +437,8 @@ pub(super) fn request_pose_solves(
         }
         let settings_changed = extras.limits.as_ref().is_some_and(|l| l.is_changed())
             || extras.stiffness.as_ref().is_some_and(|s| s.is_changed());
-        let stance =
-            grounded && (contacts.0.is_none() || ground.as_ref().is_some_and(|g| g.is_changed()));
+        let stance = grounded
+            && (contacts.tracker.is_none() || ground.as_ref().is_some_and(|g| g.is_changed()));
         let changed = drivers.moved()
             || placed
             || stance

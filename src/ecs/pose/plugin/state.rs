@@ -71,10 +71,17 @@ pub(super) struct PoseDrivers {
 }
 
 /// The character's automatic ground contacts ([`PoseGround`](super::super::PoseGround)), kept
-/// from solve to solve (planted or not), and the placement they are in character space of
-/// (`None` until it first stands).
+/// from solve to solve (planted or not), and what its floor's casts found on the ground.
 #[derive(Component, Default)]
-pub(super) struct GroundContacts(pub(super) Option<(crate::pose::ContactTracker, glam::DAffine3)>);
+pub(super) struct GroundContacts {
+    /// The contacts, and the placement they are in character space of (`None` until it
+    /// first stands).
+    pub(super) tracker: Option<(crate::pose::ContactTracker, glam::DAffine3)>,
+    /// The floor's grid of casts remembered from the last frames, and the ground they were
+    /// cast on (world space: a character walking over the same ground casts only the nodes
+    /// new under it).
+    pub(super) floor: Option<(crate::ecs::SceneGround, crate::pose::FloorMemory)>,
+}
 
 /// The solves of a character: what waits, what runs, where the next one starts.
 #[derive(Component, Default)]
