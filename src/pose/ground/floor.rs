@@ -241,6 +241,41 @@ impl Floor {
             })
     }
 
+    /// This floor with the planes of `earlier` (a floor cast for the same skin before it
+    /// moved) that meet a plane of this one in a valley: a vertex the ground under it has
+    /// changed for keeps its earlier plane too where the two planes are each on or above the
+    /// other at its surface point (a riser's foot, a terrace's inner corner — the ground
+    /// there is the higher of the two, and the skin has to be above both), not where they
+    /// meet in a ridge (a step's edge, where the ground is the lower of the two). A vertex
+    /// pushed out of one face of a valley is then not pushed into the other, pass after
+    /// pass. Only per-vertex floors merge; anything else is returned as it is.
+    pub fn with_valleys_of(self, earlier: &Floor) -> Floor {
+        let (mut under, before) = match (self, earlier) {
+            (Floor::Under(under), Floor::Under(before)) => (under, before),
+            (floor, _) => return floor,
+        };
+        let mut by_vertex: Vec<(u32, usize)> = before
+            .iter()
+            .enumerate()
+            .map(|(k, (v, _))| (*v, k))
+            .collect();
+        by_vertex.sort_unstable();
+        let valley = |a: &GroundPlane, b: &GroundPlane| {
+            a.normal != b.normal && a.height(b.point) >= 0.0 && b.height(a.point) >= 0.0
+        };
+        for n in 0..under.len() {
+            let (v, plane) = under[n];
+            let first = by_vertex.partition_point(|&(u, _)| u < v);
+            for &(_, k) in by_vertex[first..].iter().take_while(|&&(u, _)| u == v) {
+                let old = before[k].1;
+                if valley(&plane, &old) {
+                    under.push((v, old));
+                }
+            }
+        }
+        Floor::Under(under)
+    }
+
     /// Whether the numbers can be used (vertex indices are checked by the solver).
     pub(crate) fn is_valid(&self) -> bool {
         let usable = |g: &GroundPlane| {
@@ -331,6 +366,40 @@ mod tests {
         let plane = GroundPlane::new(DVec3::ZERO, DVec3::Y).unwrap();
         assert!(Floor::may_be_under(&skin[..3], &plane, &sampling, 0.01));
         assert!(!Floor::may_be_under(&[], &ground, &sampling, 0.01));
+    }
+
+    /// `with_valleys_of`: a vertex whose ground changed from a riser's foot to the riser
+    /// keeps the level too (a valley: each plane above the other at its point); one whose
+    /// ground changed across a step's edge does not (a ridge); an unchanged plane is not
+    /// doubled, and a vertex the new floor does not list gets nothing.
+    #[test]
+    fn planes_meeting_in_a_valley_are_kept_and_ridges_are_not() {
+        let plane = |p: DVec3, n: DVec3| GroundPlane::new(p, n).unwrap();
+        let level = plane(DVec3::ZERO, DVec3::Y);
+        // A riser rising from x = 1 towards +x, its foot on the level.
+        let riser = plane(DVec3::new(1.5, 0.5, 0.0), DVec3::new(-1.0, 1.0, 0.0));
+        // A step's top at y = 1 from x = 2 on: its edge meets the riser in a ridge.
+        let top = plane(DVec3::new(2.5, 1.0, 0.0), DVec3::Y);
+        // A slope far up: above the level, but the level's point is under it.
+        let far_up = plane(DVec3::new(10.0, 2.0, 0.0), DVec3::new(0.1, 1.0, 0.0));
+        let earlier = Floor::Under(vec![
+            (0, level),
+            (1, riser),
+            (2, level),
+            (3, level),
+            (4, far_up),
+        ]);
+        let now = Floor::Under(vec![(0, riser), (1, top), (2, level), (4, level)]);
+        let Floor::Under(merged) = now.with_valleys_of(&earlier) else {
+            panic!("a per-vertex floor stays one")
+        };
+        assert_eq!(merged.len(), 5, "{merged:?}");
+        assert_eq!(merged[4], (0, level), "the riser's foot keeps the level");
+        let flat = Floor::Plane {
+            plane: level,
+            band: 1.0,
+        };
+        assert_eq!(flat.clone().with_valleys_of(&earlier), flat);
     }
 
     /// `deepest`: the vertex deepest under its own plane (a listed vertex the positions lack

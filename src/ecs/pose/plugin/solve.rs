@@ -116,6 +116,12 @@ impl SolveJob {
                     break;
                 };
                 let constraints = constraints.get_or_insert_with(|| self.constraints.clone());
+                // The planes of the last pass's floor it meets in a valley stay: a vertex
+                // pushed out of one face of a riser's foot is not pushed into the other.
+                let floor = match constraints.floor.take() {
+                    Some(earlier) => floor.with_valleys_of(&earlier),
+                    None => floor,
+                };
                 constraints.floor = Some(floor);
                 let options = PoseSolveOptions {
                     max_iterations: 1,
