@@ -137,6 +137,16 @@ impl Floor {
                 plane
             })
             .collect();
+        // Each node's plane as its normal and offset (a height `n·p - offset`); a node over
+        // no ground is infinitely far below every vertex.
+        let offsets: Vec<(DVec3, f64)> = nodes
+            .iter()
+            .map(|n| {
+                n.map_or((DVec3::ZERO, f64::NEG_INFINITY), |g| {
+                    (g.normal, g.normal.dot(g.point))
+                })
+            })
+            .collect();
         let mut under = Vec::with_capacity(positions.len());
         for (v, p) in positions.iter().enumerate() {
             if !p.is_finite() {
@@ -144,14 +154,15 @@ impl Floor {
             }
             // The highest of the surrounding nodes' planes at this vertex (the first of equals).
             let cell = grid.cell_ij(*p);
-            let mut coarse: Option<GroundPlane> = None;
-            let mut height = f64::NEG_INFINITY;
-            for plane in grid.around(cell).filter_map(|k| nodes[k]) {
-                let h = plane.height(*p);
-                if coarse.is_none() || h.total_cmp(&height).is_lt() {
-                    (coarse, height) = (Some(plane), h);
+            let (mut nearest, mut height) = (None, f64::INFINITY);
+            for k in grid.around(cell) {
+                let (normal, offset) = offsets[k];
+                let h = normal.dot(*p) - offset;
+                if h < height {
+                    (nearest, height) = (Some(k), h);
                 }
             }
+            let coarse = nearest.and_then(|k| nodes[k]);
             // Well above the coarse ground: unless the ground rises between the nodes more
             // than `near` over the coarse ground (a ridge, a step's edge; lower rises are
             // what `near` is for) and to within `near` of this vertex.

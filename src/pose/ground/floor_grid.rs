@@ -81,7 +81,7 @@ impl CoarseGrid {
             axes,
             first: (f0 as i64, f1 as i64),
             spacing,
-            size: (nodes(f0, hi.0), nodes(f1, hi.1)),
+            size: (nodes(f0, hi.0).max(2), nodes(f1, hi.1).max(2)),
             lowest,
         })
     }
@@ -122,13 +122,11 @@ impl CoarseGrid {
         self.spacing
     }
 
-    /// The (up to four) nodes around the cell whose first node is `(i, j)`.
-    pub(super) fn around(&self, (i, j): (usize, usize)) -> impl Iterator<Item = usize> + '_ {
-        [(0, 0), (1, 0), (0, 1), (1, 1)]
-            .into_iter()
-            .map(move |(di, dj)| (i + di, j + dj))
-            .filter(|&(i, j)| i < self.size.0 && j < self.size.1)
-            .map(|(i, j)| j * self.size.0 + i)
+    /// The four nodes around the cell whose first node is `(i, j)` (a grid has at least two
+    /// nodes along each axis).
+    pub(super) fn around(&self, (i, j): (usize, usize)) -> [usize; 4] {
+        let k = j * self.size.0 + i;
+        [k, k + 1, k + self.size.0, k + self.size.0 + 1]
     }
 }
 
