@@ -363,3 +363,33 @@ impl Ground for CharacterGround<'_> {
         Some(-self.to_character.transform_point3(over).dot(down))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A character's floor memory answers the grid's nodes again on the same scene ground,
+    /// and is forgotten when the scene's ground is another (a rebuilt or replaced ground:
+    /// nothing it cast before answers). (Fails if the memory outlives its ground.)
+    #[test]
+    fn the_floor_memory_is_kept_on_its_ground_and_forgotten_on_another() {
+        let flat = || SceneGround::custom(GroundPlane::new(DVec3::ZERO, DVec3::Y).unwrap());
+        let (first, second) = (flat(), flat());
+        let skin = [DVec3::new(0.0, 0.02, 0.0), DVec3::new(1.0, 0.3, 0.5)];
+        let sampling = FloorSampling::for_size(2.0, 0.3, DVec3::NEG_Y);
+        let mut remembered = None;
+        let mut cast_on = |ground: &SceneGround| {
+            let memory = remembered_on(&mut remembered, ground);
+            Floor::cast_remembering(&skin, ground, &sampling, memory).1
+        };
+        assert_eq!(cast_on(&first).grid_nodes_remembered, 0);
+        let again = cast_on(&first);
+        assert!(
+            again.grid_nodes_remembered > 0 && again.grid_casts == 0,
+            "{again:?}"
+        );
+        let other = cast_on(&second);
+        assert_eq!(other.grid_nodes_remembered, 0, "{other:?}");
+        assert!(other.grid_casts > 0);
+    }
+}
