@@ -259,7 +259,7 @@ pub(super) fn plane_below(
 mod tests {
     use super::*;
     use crate::pose::ground::floor::{Floor, FloorCastStats};
-    use crate::pose::ground::mesh::TriangleGround;
+    use crate::pose::ground::mesh::{TriangleGround, grid_triangles};
 
     /// A terrain of `n × n` unit squares: rolling hills with terraces (walls 0.45 high every
     /// 4 units along x) under a gravity tilted off -y.
@@ -273,15 +273,7 @@ mod tests {
                 positions.push(DVec3::new(x, height(x, z), z));
             }
         }
-        let at = |i: usize, j: usize| (i * (n + 1) + j) as u32;
-        let mut triangles = Vec::new();
-        for i in 0..n {
-            for j in 0..n {
-                triangles.push([at(i, j), at(i, j + 1), at(i + 1, j)]);
-                triangles.push([at(i + 1, j), at(i, j + 1), at(i + 1, j + 1)]);
-            }
-        }
-        TriangleGround::new(positions, triangles, gravity)
+        TriangleGround::new(positions, grid_triangles(n), gravity)
     }
 
     /// Two floors agree: the same vertices, each with planes that agree at it to 1e-9.

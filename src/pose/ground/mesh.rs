@@ -286,10 +286,6 @@ impl Ground for TriangleGround {
             return None;
         }
         let f = self.flat(centre);
-        if radius == 0.0 {
-            // One cell (a vertex's column).
-            return Some(self.cell_of(f).map_or(f64::NEG_INFINITY, |c| self.tops[c]));
-        }
         let (lo, hi) = (
             self.cell_ij(f - DVec2::splat(radius)),
             self.cell_ij(f + DVec2::splat(radius)),
@@ -360,6 +356,21 @@ pub(crate) fn two_levels(edge: f64, half: f64) -> TriangleGround {
     TriangleGround::new(positions, triangles, DVec3::NEG_Y)
 }
 
+/// The triangles of an `(n + 1) × (n + 1)` grid of points laid out row after row (point
+/// `(i, j)` at `i (n + 1) + j`), two per square, for tests.
+#[cfg(test)]
+pub(crate) fn grid_triangles(n: usize) -> Vec<[u32; 3]> {
+    let at = |i: usize, j: usize| (i * (n + 1) + j) as u32;
+    let mut triangles = Vec::with_capacity(2 * n * n);
+    for i in 0..n {
+        for j in 0..n {
+            triangles.push([at(i, j), at(i, j + 1), at(i + 1, j)]);
+            triangles.push([at(i + 1, j), at(i, j + 1), at(i + 1, j + 1)]);
+        }
+    }
+    triangles
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -412,14 +423,7 @@ mod tests {
                 ));
             }
         }
-        let at = |i: usize, j: usize| (i * (n + 1) + j) as u32;
-        let mut triangles = Vec::new();
-        for i in 0..n {
-            for j in 0..n {
-                triangles.push([at(i, j), at(i, j + 1), at(i + 1, j)]);
-                triangles.push([at(i + 1, j), at(i, j + 1), at(i + 1, j + 1)]);
-            }
-        }
+        let mut triangles = grid_triangles(n);
         // Overhangs: small triangles floating above the terrain.
         for _ in 0..20 {
             let base = positions.len() as u32;

@@ -63,7 +63,7 @@ pub(super) fn stand_on(
     constraints.contacts = tracker.active();
     // Every skin vertex near the ground under it kept above it (a plane per vertex: terrain).
     let memory = remembered_on(floor, ground);
-    constraints.floor = Some(at.floor_under(&skinned, settings, size, memory));
+    constraints.floor = Some(at.floor_under(&at.in_world(&skinned), settings, size, memory));
     let support = tracker.support();
     let corners = support
         .iter()
@@ -157,15 +157,12 @@ impl FloorRecast {
         let through = THROUGH_THE_GROUND * size;
         // Most solves end with all their skin above the ground: seen without casting a floor
         // (in the world, where the ground is).
-        let in_world: Vec<DVec3> = skinned
-            .iter()
-            .map(|p| at.to_world.transform_point3(*p))
-            .collect();
+        let in_world = at.in_world(&skinned);
         let sampling = at.world_sampling(&self.settings, size);
         if !Floor::may_be_under(&in_world, &self.ground, &sampling, through * at.scale) {
             return None;
         }
-        let floor = at.floor_under(&skinned, &self.settings, size, &mut FloorMemory::default());
+        let floor = at.floor_under(&in_world, &self.settings, size, &mut FloorMemory::default());
         (floor.deepest(&skinned) < -through).then_some(floor)
     }
 }
@@ -285,23 +282,28 @@ impl<'a> CharacterGround<'a> {
         )
     }
 
-    /// The floor under the welded skin `skinned` (character space) of a model of `size` (its
-    /// bounding diagonal): every vertex within `settings`' band of the ground under it. Cast
-    /// in the world, where the ground's lattice is (the casts `memory` holds are answered from
-    /// it, [`Floor::cast_remembering`]), and brought back to character space.
+    /// Points of character space in the world.
+    fn in_world(&self, points: &[DVec3]) -> Vec<DVec3> {
+        points
+            .iter()
+            .map(|p| self.to_world.transform_point3(*p))
+            .collect()
+    }
+
+    /// The floor under the welded skin `in_world` (placed in the world, [`Self::in_world`])
+    /// of a model of `size` (its bounding diagonal, character space): every vertex within
+    /// `settings`' band of the ground under it. Cast in the world, where the ground's lattice
+    /// is (the casts `memory` holds are answered from it, [`Floor::cast_remembering`]), and
+    /// brought back to character space.
     fn floor_under(
         &self,
-        skinned: &[DVec3],
+        in_world: &[DVec3],
         settings: &PoseGround,
         size: f64,
         memory: &mut FloorMemory,
     ) -> Floor {
-        let in_world: Vec<DVec3> = skinned
-            .iter()
-            .map(|p| self.to_world.transform_point3(*p))
-            .collect();
         let sampling = self.world_sampling(settings, size);
-        let (floor, _) = Floor::cast_remembering(&in_world, self.ground, &sampling, memory);
+        let (floor, _) = Floor::cast_remembering(in_world, self.ground, &sampling, memory);
         let to_character = &self.to_character;
         match floor {
             Floor::Under(under) => Floor::Under(
