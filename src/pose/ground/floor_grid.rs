@@ -31,7 +31,7 @@ pub(super) struct CoarseGrid {
     /// The lattice index of the grid's first node along each axis.
     first: (i64, i64),
     spacing: f64,
-    /// Nodes along each axis.
+    /// Nodes along each axis: at least two, so every cell has its four nodes ([`Self::around`]).
     pub(super) size: (usize, usize),
     /// The lowest point's height against gravity.
     pub(super) lowest: f64,
