@@ -16,10 +16,14 @@ use bevy_wii_deform::ecs::physics::{
 };
 use bevy_wii_deform::prelude::*;
 
-use crate::{Timing, object, pace, percentile, start_timer, stop_timer};
+use crate::{
+    Timing, object, pace, percentile, single_threaded_update, start_timer, stop_timer,
+    update_executor,
+};
 
-/// Runs the collider benchmark for `seconds` at `fps`; prints its JSON line.
-pub fn run(seconds: f64, fps: f64) {
+/// Runs the collider benchmark for `seconds` at `fps` (with `Update` on the single-threaded
+/// executor when asked); prints its JSON line.
+pub fn run(seconds: f64, fps: f64, single_threaded: bool) {
     let mut app = App::new();
     app.add_plugins((
         MinimalPlugins,
@@ -33,6 +37,10 @@ pub fn run(seconds: f64, fps: f64) {
     .init_resource::<Timing>()
     .add_systems(Update, start_timer.before(DeformSystems::Prepare))
     .add_systems(Update, stop_timer.after(DeformPhysicsSystems::Rebuild));
+    if single_threaded {
+        single_threaded_update(&mut app);
+    }
+    let executor = update_executor(&app);
     app.finish();
     app.cleanup();
     // ~10k triangles: a bar of ~5k vertices.
@@ -134,6 +142,7 @@ pub fn run(seconds: f64, fps: f64) {
     let report = object(serde_json::json!({
         "triangles": tri.triangles.len(),
         "frames": n,
+        "update_executor": executor,
         "rebuilds": rebuilt,
         "collider_frames_median": percentile(&to_collider, 0.5),
         "collider_frames_max": to_collider.last().copied().unwrap_or(f64::NAN),

@@ -113,6 +113,7 @@ fn main_thread_report(app: &App, e: Entity) -> serde_json::Map<String, serde_jso
     object(serde_json::json!({
         "vertices": app.world().get::<DeformStatus>(e).unwrap().vertices,
         "frames": ms.len(),
+        "update_executor": update_executor(app),
         "main_ms_median": percentile(&ms, 0.5),
         "main_ms_p99": percentile(&ms, 0.99),
     }))
@@ -144,7 +145,8 @@ fn drag(time: Res<Time>, timing: Res<Timing>, mut q: Query<&mut Transform, With<
 const USAGE: &str = "\
 usage: plugin_bench [--mesh PATH | --bar VERTICES] [--seconds S] [--iterations N] [--fps F]
                     [--grab | --set-changes [--no-preview] | --many N] [--plain]
-                    [--async-threads N] [--collider | --dynamics] [--json]
+                    [--async-threads N] [--single-threaded-update]
+                    [--collider | --dynamics] [--json]
 
   --mesh PATH     an OBJ/OFF mesh (default ../shared/meshes/armadillo.off, else a 26k bar)
   --bar VERTICES  a generated bar of about that many vertices
@@ -156,6 +158,8 @@ usage: plugin_bench [--mesh PATH | --bar VERTICES] [--seconds S] [--iterations N
   --no-preview    no preview pose for a new constraint set
   --many N        N meshes dragged at once (~2k-vertex bars unless --mesh or --bar)
   --async-threads N  threads of Bevy's async compute pool (default: Bevy's, 1 on 2 cores)
+  --single-threaded-update  run `Update` on Bevy's single-threaded executor (the main thread
+                  alone) instead of the multi-threaded one
   --plain         plain local/global iterations, no settling
   --collider      (feature avian) a plank's collider rebuilt after each settled bend
   --dynamics      the mesh stepped in time (DeformDynamics, --iterations per step)
@@ -178,6 +182,8 @@ struct Args {
     many: usize,
     /// `--async-threads N`: threads of Bevy's async compute pool (the solves').
     async_threads: Option<usize>,
+    /// `--single-threaded-update`: `Update` on the single-threaded executor.
+    single_threaded_update: bool,
     /// `--collider`: the Avian collider rebuild benchmark.
     collider: bool,
     /// `--dynamics`: the dragged mesh stepped in time.
@@ -198,6 +204,7 @@ impl Args {
             plain: false,
             many: 1,
             async_threads: None,
+            single_threaded_update: false,
             collider: false,
             dynamics: false,
         };
@@ -217,6 +224,7 @@ impl Args {
                 cli::Arg::Long("async-threads") => {
                     args.async_threads = Some(cli::value(&mut parser, USAGE))
                 }
+                cli::Arg::Long("single-threaded-update") => args.single_threaded_update = true,
                 cli::Arg::Long("collider") => args.collider = true,
                 cli::Arg::Long("dynamics") => args.dynamics = true,
                 cli::Arg::Long("json") => {}
@@ -232,7 +240,7 @@ fn main() {
     let (seconds, iterations, fps) = (args.seconds, args.iterations, args.fps);
     if args.collider {
         #[cfg(feature = "avian")]
-        return collider_rebuild::run(seconds, fps);
+        return collider_rebuild::run(seconds, fps, args.single_threaded_update);
         #[cfg(not(feature = "avian"))]
         cli::fail(
             "--collider needs the avian feature: cargo run --release --features avian --example plugin_bench -- --collider",
@@ -260,6 +268,9 @@ fn main() {
     )
     .add_systems(Update, start_timer.before(DeformSystems::Prepare))
     .add_systems(Update, stop_timer.after(DeformSystems::Writeback));
+    if args.single_threaded_update {
+        single_threaded_update(&mut app);
+    }
     let grab = args.grab;
     if grab {
         app.add_plugins(GrabPlugin);
@@ -306,6 +317,28 @@ fn main() {
         return run_many(&mut app, &meshes, seconds, fps);
     }
     run_drag(&mut app, e, seconds, fps);
+}
+
+/// Marks an app whose `Update` runs on the single-threaded executor (`--single-threaded-update`).
+#[derive(Resource)]
+struct SingleThreadedUpdate;
+
+/// Runs `Update` on Bevy's single-threaded executor: every system on the main thread, in
+/// order, with no hand-off to the compute pool's threads between them.
+fn single_threaded_update(app: &mut App) {
+    app.insert_resource(SingleThreadedUpdate)
+        .edit_schedule(Update, |schedule| {
+            schedule.set_executor(bevy::ecs::schedule::SingleThreadedExecutor::new());
+        });
+}
+
+/// Which executor ran `Update` (the JSON's `"update_executor"`).
+fn update_executor(app: &App) -> &'static str {
+    if app.world().contains_resource::<SingleThreadedUpdate>() {
+        "single-threaded"
+    } else {
+        "multi-threaded"
+    }
 }
 
 /// Bevy's task pools, with `async_threads` threads for the background solves when given (Bevy's
@@ -370,6 +403,7 @@ fn run_many(app: &mut App, meshes: &[Entity], seconds: f64, fps: f64) {
         "meshes": meshes.len(),
         "vertices": app.world().get::<DeformStatus>(meshes[0]).unwrap().vertices,
         "frames": ms.len(),
+        "update_executor": update_executor(app),
         "main_ms_median": percentile(&ms, 0.5),
         "main_ms_p99": percentile(&ms, 0.99),
         "solves_per_s": total,

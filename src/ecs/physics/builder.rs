@@ -23,6 +23,7 @@
 
 use avian3d::parry::shape::SharedShape;
 use avian3d::prelude::*;
+use bevy::mesh::Indices;
 use bevy::prelude::*;
 use crossbeam_channel::{Receiver, Sender};
 
@@ -37,7 +38,8 @@ enum Job {
     Build {
         shape: ColliderShape,
         positions: Vec<Vec3>,
-        triangles: Vec<[u32; 3]>,
+        /// The mesh's index buffer as it is (the triangles are made on the builder thread).
+        indices: Option<Indices>,
         /// The collider this one will replace: a triangle mesh of the same triangles is
         /// refitted instead of built.
         previous: Option<Collider>,
@@ -55,21 +57,21 @@ pub(crate) struct ColliderBuilder {
 }
 
 impl ColliderBuilder {
-    /// Builds a `shape` collider over the mesh in the background (refitting `previous`, the
-    /// collider it will replace, when that is a triangle mesh of the same triangles); its
-    /// result arrives on the returned channel.
+    /// Builds a `shape` collider over the mesh (its positions and index buffer) in the
+    /// background, refitting `previous`, the collider it will replace, when that is a triangle
+    /// mesh of the same triangles; its result arrives on the returned channel.
     pub(crate) fn build(
         &mut self,
         shape: ColliderShape,
         positions: Vec<Vec3>,
-        triangles: Vec<[u32; 3]>,
+        indices: Option<Indices>,
         previous: Option<Collider>,
     ) -> Receiver<BuildResult> {
         let (reply, result) = crossbeam_channel::bounded(1);
         self.send(Job::Build {
             shape,
             positions,
-            triangles,
+            indices,
             previous,
             reply,
         });
@@ -142,13 +144,25 @@ fn run(job: Job) {
         Job::Build {
             shape,
             positions,
-            triangles,
+            indices,
             previous,
             reply,
         } => {
+            let triangles = indices.as_ref().map(triangles_of).unwrap_or_default();
             let _ = reply.send(build(shape, positions, triangles, previous));
         }
         Job::Free(collider) => drop(collider),
+    }
+}
+
+/// The triangles of a triangle-list index buffer (a trailing partial triangle is dropped).
+fn triangles_of(indices: &Indices) -> Vec<[u32; 3]> {
+    match indices {
+        Indices::U16(i) => i
+            .chunks_exact(3)
+            .map(|t| [t[0], t[1], t[2]].map(u32::from))
+            .collect(),
+        Indices::U32(i) => i.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
     }
 }
 
@@ -199,7 +213,9 @@ mod tests {
 
     /// The builder thread answers each build on its own channel, keeps answering after
     /// freeing a collider, and a bent mesh with a non-finite position is a readable error,
-    /// not a collider. (Fails with a build whose reply is never sent: the wait times out.)
+    /// not a collider. The mesh's index buffer is made into its triangles on the thread,
+    /// 16-bit or 32-bit alike. (Fails with a build whose reply is never sent: the wait times
+    /// out.)
     #[test]
     fn builds_arrive_on_their_channels_and_bad_meshes_are_errors() {
         let mut builder = ColliderBuilder::default();
@@ -208,23 +224,40 @@ mod tests {
                 .expect("a reply")
         };
         let square = vec![Vec3::ZERO, Vec3::X, Vec3::Z, Vec3::X + Vec3::Z];
-        let triangles = vec![[0, 1, 2], [1, 3, 2]];
-        let first = builder.build(
-            ColliderShape::Trimesh,
-            square.clone(),
-            triangles.clone(),
-            None,
-        );
+        let short = Indices::U16(vec![0, 1, 2, 1, 3, 2]);
+        let first = builder.build(ColliderShape::Trimesh, square.clone(), Some(short), None);
         let collider = wait(first).expect("a collider of two triangles");
+        let mesh = collider.shape().as_trimesh().expect("a triangle mesh");
+        assert_eq!(mesh.indices(), &[[0, 1, 2], [1, 3, 2]]);
         builder.free(collider);
+        let long = Indices::U32(vec![0, 1, 2, 1, 3, 2]);
+        let again = wait(builder.build(ColliderShape::Trimesh, square.clone(), Some(long), None))
+            .expect("the same square from 32-bit indices");
+        assert_eq!(again.shape().as_trimesh().unwrap().num_triangles(), 2);
         let mut bent = square;
         bent[3].y = f32::NAN;
+        let triangles = Some(Indices::U32(vec![0, 1, 2, 1, 3, 2]));
         let error = wait(builder.build(ColliderShape::Trimesh, bent, triangles, None))
             .expect_err("a non-finite position");
         assert!(error.contains("non-finite"), "{error}");
-        let empty = wait(builder.build(ColliderShape::Trimesh, vec![Vec3::ZERO], Vec::new(), None));
+        let empty = wait(builder.build(ColliderShape::Trimesh, vec![Vec3::ZERO], None, None));
         assert!(empty.is_err());
         assert!(builder.jobs.is_some(), "the thread serves every job");
+    }
+
+    /// A triangle list's buffer is its triangles in order; a trailing partial triangle (a
+    /// malformed buffer) is dropped, not read past.
+    #[test]
+    fn index_buffers_are_read_as_whole_triangles() {
+        assert_eq!(
+            triangles_of(&Indices::U16(vec![4, 5, 6, 7, 8])),
+            vec![[4, 5, 6]]
+        );
+        assert_eq!(
+            triangles_of(&Indices::U32(vec![70_000, 1, 2, 3, 4, 5])),
+            vec![[70_000, 1, 2], [3, 4, 5]]
+        );
+        assert!(triangles_of(&Indices::U32(vec![1, 2])).is_empty());
     }
 
     /// A bent triangle mesh with the same triangles as the collider it replaces is that

@@ -90,14 +90,9 @@ fn start_collider_builds(
         let Some(positions) = mesh_positions(mesh) else {
             continue;
         };
-        let triangles: Vec<[u32; 3]> = mesh
-            .indices()
-            .map(|i| {
-                let i: Vec<u32> = i.iter().map(|v| v as u32).collect();
-                i.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect()
-            })
-            .unwrap_or_default();
-        let result = builder.build(wanted.shape, positions, triangles, previous.cloned());
+        // The index buffer goes as it is (one copy); the builder thread makes the triangles.
+        let indices = mesh.indices().cloned();
+        let result = builder.build(wanted.shape, positions, indices, previous.cloned());
         commands.entity(entity).try_insert(ColliderBuild {
             result,
             solve: status.solves,
