@@ -9,10 +9,11 @@
 //! - [`DeformCollider`] on a [`Deformable`](crate::ecs::Deformable) rebuilds its Avian
 //!   [`Collider`] from the bent mesh after each settled solve: the shape is built on a
 //!   background thread of its own and swapped in when ready, so the main thread only copies
-//!   the mesh's positions and index buffer (the thread makes the triangles). Avian's triangle meshes are shared and read-only, so a bend gets a
-//!   new collider: a copy of the old triangle mesh with the bent positions and its tree refitted
-//!   when the triangles are the same (most bends), else one built anew. It replaces the old
-//!   one in place, and Avian picks up the changed collider in its next step.
+//!   the mesh's positions and index buffer (the thread makes the triangles). Avian's triangle
+//!   meshes are shared and read-only, so a bend gets a new collider: a copy of the old
+//!   triangle mesh with the bent positions and its tree refitted when the triangles are the
+//!   same (most bends), else one built anew. It replaces the old one in place, and Avian
+//!   picks up the changed collider in its next step.
 //! - [`GroundMesh`](crate::ecs::GroundMesh) entities with a [`Collider`] become the scene's ground
 //!   ([`SceneGround`](crate::ecs::SceneGround)) through Avian's ray casts against those
 //!   colliders, for characters with [`PoseGround`](crate::ecs::PoseGround) and meshes with
