@@ -40,8 +40,9 @@ enum Standing {
     /// Nothing: the handle's drag alone (no ground, contacts, floor or balance), the price
     /// the grounded drag is compared with.
     Bare,
-    /// The ground by contacts and the floor, with or without balance.
-    Ground { balance: bool },
+    /// The ground by contacts, with or without the floor (every skin vertex near the ground
+    /// kept above it) and balance: without the floor, the price of the rest on its own.
+    Ground { balance: bool, floor: bool },
 }
 
 /// What one drag measured.
@@ -129,10 +130,10 @@ fn across_the_feet(feet: &[DVec3]) -> DVec3 {
     }
 }
 
-/// The drag, with or without balance; `handle` dragged `reach` `along` a direction and a
-/// little down over 30 frames of 3 warm iterations, contacts tracked every frame, after a
-/// frame that stands the character on the ground; every skin vertex near the ground kept
-/// above it.
+/// The drag as `standing` says; `handle` dragged `reach` `along` a direction and a little
+/// down over 30 frames of 3 warm iterations, contacts tracked every frame, after a frame
+/// that stands the character on the ground; with the floor, every skin vertex near the
+/// ground kept above it.
 fn drag(
     model: &Arc<SkinnedModel>,
     pose: &SkeletonPose,
@@ -140,8 +141,10 @@ fn drag(
     ground: &dyn Ground,
     (along, reach, standing): (DVec3, f64, Standing),
 ) -> Run {
-    let grounded = standing != Standing::Bare;
-    let balance = standing == Standing::Ground { balance: true };
+    let (grounded, balance, floor) = match standing {
+        Standing::Bare => (false, false, false),
+        Standing::Ground { balance, floor } => (true, balance, floor),
+    };
     let size = model.topology().bounding_diagonal();
     let down = DVec3::NEG_Y;
     let feet = lowest_joints(model, pose, down, 0.04 * size);
@@ -197,7 +200,7 @@ fn drag(
             PoseConstraints {
                 handles: vec![drag_to(reached)],
                 contacts: tracker.active(),
-                floor: Some(Floor::cast(&model.skin_welded(now), ground, &sampling).0),
+                floor: floor.then(|| Floor::cast(&model.skin_welded(now), ground, &sampling).0),
                 balance: (balance && !support.is_empty()).then(|| Balance {
                     margin: 0.01 * size,
                     ..Balance::over(support.clone())
@@ -355,7 +358,14 @@ pub fn run(
             pose,
             handle,
             ground.as_ref(),
-            (along, reach, Standing::Ground { balance: false }),
+            (
+                along,
+                reach,
+                Standing::Ground {
+                    balance: false,
+                    floor: true,
+                },
+            ),
         );
         let topples = without.supported < without.with_support;
         tried = Some((along, reach, without));
@@ -369,20 +379,43 @@ pub fn run(
         pose,
         handle,
         ground.as_ref(),
-        (along, reach, Standing::Ground { balance }),
+        (
+            along,
+            reach,
+            Standing::Ground {
+                balance,
+                floor: true,
+            },
+        ),
     );
-    // The same drag with nothing under it, side by side in this process.
-    let bare = drag(
-        model,
-        pose,
-        handle,
-        ground.as_ref(),
-        (along, reach, Standing::Bare),
-    );
+    // The same drag with nothing under it, side by side in this process, and with the
+    // contacts alone and (with balance) the contacts and balance: the price of all but the
+    // floor, which a floor of any cost cannot go under.
+    let standing_ms = |standing: Standing| {
+        let mut ms = drag(
+            model,
+            pose,
+            handle,
+            ground.as_ref(),
+            (along, reach, standing),
+        )
+        .ms;
+        ms.sort_by(f64::total_cmp);
+        ms
+    };
+    let bare_ms = standing_ms(Standing::Bare);
+    let contacts_ms = standing_ms(Standing::Ground {
+        balance: false,
+        floor: false,
+    });
+    let without_floor_ms = balance.then(|| {
+        standing_ms(Standing::Ground {
+            balance: true,
+            floor: false,
+        })
+    });
     let mut ms = with.ms.clone();
     ms.sort_by(f64::total_cmp);
-    let mut bare_ms = bare.ms;
-    bare_ms.sort_by(f64::total_cmp);
     let mut errors = with.sole_errors_deg.clone();
     errors.sort_by(f64::total_cmp);
     let pick = |v: &[f64], p: f64| {
@@ -400,6 +433,12 @@ pub fn run(
         "constrained_ms_per_solve": pick(&ms, 0.5),
         "bare_ms_per_solve": pick(&bare_ms, 0.5),
         "ground_cost_ratio": pick(&ms, 0.5) / pick(&bare_ms, 0.5),
+        "contacts_ms_per_solve": pick(&contacts_ms, 0.5),
+        "contacts_cost_ratio": pick(&contacts_ms, 0.5) / pick(&bare_ms, 0.5),
+        "without_floor_ms_per_solve": without_floor_ms.as_deref().map(|ms| pick(ms, 0.5)),
+        "without_floor_cost_ratio": without_floor_ms
+            .as_deref()
+            .map(|ms| pick(ms, 0.5) / pick(&bare_ms, 0.5)),
         "penetration_max": with.penetration_max,
         "sole_normal_error_deg_p95": pick(&errors, 0.95),
         "soles_at_limit_share": errors.iter().filter(|e| **e > 3.0).count() as f64

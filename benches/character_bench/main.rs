@@ -45,7 +45,10 @@
 //!   (/ size per frame), `com_supported_share`, `com_margin_min` (/ size), the same share
 //!   without balance, `replants`; `bare_ms_per_solve` (the same drag with no ground,
 //!   contacts, floor or balance, in the same process) and `ground_cost_ratio` (the first
-//!   over it).
+//!   over it); the price without the floor, the part no floor can take off: the same drag
+//!   with the contacts alone (`contacts_ms_per_solve`, `contacts_cost_ratio` over the bare)
+//!   and, with `--balance`, with the contacts and balance (`without_floor_ms_per_solve`,
+//!   `without_floor_cost_ratio`; `null` without it).
 //!
 //! The last stdout line is the JSON object.
 
